@@ -1,0 +1,65 @@
+"""Shared pytest setup for painterly's contract tests.
+
+The painterly schema plugin is registered *before* the first `from pxr import Usd`
+(usd-core ignores PXR_PLUGINPATH_NAME set later), so every test validates
+against the codeless schema in `schemas/painterly/`.
+"""
+
+import os
+import pathlib
+import subprocess
+
+REPO = pathlib.Path(__file__).resolve().parent.parent
+SCHEMA_DIR = REPO / "schemas" / "painterly"
+SHARED = REPO.parent / "shared"
+REAL_ASSETS = SHARED / "real_assets"
+
+os.environ["PXR_PLUGINPATH_NAME"] = str(SCHEMA_DIR)
+
+import pytest  # noqa: E402
+
+
+def painterly_binary() -> pathlib.Path:
+    """The CLI under test: $PAINTERLY_BIN, else the release build."""
+    env = os.environ.get("PAINTERLY_BIN")
+    if env:
+        return pathlib.Path(env)
+    return REPO / "target" / "release" / "painterly"
+
+
+def run_painterly(*args, check=True, cwd=None, env=None):
+    """Run the painterly CLI; returns CompletedProcess with text stdout/stderr."""
+    exe = painterly_binary()
+    if not exe.exists():
+        pytest.fail(f"painterly binary not built: {exe} (run `cargo build --release --ignore-rust-version`)")
+    proc = subprocess.run(
+        [str(exe), *[str(a) for a in args]],
+        capture_output=True,
+        text=True,
+        cwd=cwd,
+        env=env,
+        timeout=600,
+    )
+    if check and proc.returncode != 0:
+        raise AssertionError(
+            f"painterly {' '.join(map(str, args))} exited {proc.returncode}\n"
+            f"stdout:\n{proc.stdout}\nstderr:\n{proc.stderr}"
+        )
+    return proc
+
+
+@pytest.fixture
+def painterly():
+    return run_painterly
+
+
+@pytest.fixture
+def repo_root():
+    return REPO
+
+
+@pytest.fixture
+def real_assets():
+    if not REAL_ASSETS.exists():
+        pytest.skip(f"real assets not found at {REAL_ASSETS}")
+    return REAL_ASSETS

@@ -1,0 +1,244 @@
+//! `painterly bake`: read stage → evaluate every frame → write an override layer.
+//!
+//! Rest data is computed once per rig and layer (one-rings, rest centroids,
+//! bindings: the stencil tables); each frame then costs one Procrustes per
+//! proxy vertex and one 3×4 blend per stroke point. Stage reads are serial
+//! (the stage is single-threaded), compute is parallel, the write is one
+//! serial pass at the end.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use glam::{Affine3A, DMat4, Vec3};
+use openusd::gf;
+use openusd::sdf::Value;
+
+use crate::bind::{Binding, ClosestPoint};
+use crate::error::{Error, Result};
+use crate::frames::FrameRange;
+use crate::mesh::{bounds, fan_triangulate, OneRings};
+use crate::skinning::{skin_points, to_f32, SkinningRest};
+use crate::usd_io::layer::{Format, OverLayer};
+use crate::usd_io::scene::{Rig, Scene};
+use crate::usd_io::stage::StageReader;
+
+/// What to bake.
+#[derive(Debug, Clone, Default)]
+pub struct BakeOptions {
+    /// Frames to bake; default: the stage's startTimeCode..endTimeCode.
+    pub frames: Option<FrameRange>,
+    /// Also write every rig proxy's evaluated points (and block its skeleton).
+    pub bake_proxy: bool,
+}
+
+/// What a bake did, for the summary line and `--json`.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct BakeSummary {
+    pub input: PathBuf,
+    pub output: PathBuf,
+    pub frames: usize,
+    pub rigs: usize,
+    pub layers: usize,
+    pub strokes: usize,
+    pub points: usize,
+    pub seconds: f64,
+}
+
+/// Reports progress: (frames done, total frames).
+pub type Progress<'a> = &'a mut dyn FnMut(usize, usize);
+
+/// Checks an output path before any work: format, directory, not the input.
+pub fn check_output(input: &Path, output: &Path) -> Result<Format> {
+    let format = Format::from_path(output)?;
+    let dir = match output.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    if !dir.is_dir() {
+        return Err(Error::msg(format!("output directory {} does not exist", dir.display())).in_file(output));
+    }
+    if let (Ok(a), Ok(b)) = (input.canonicalize(), output.canonicalize()) {
+        if a == b {
+            return Err(Error::msg("output would overwrite the input; inputs are never modified").in_file(output));
+        }
+    }
+    Ok(format)
+}
+
+/// The frames to bake: the option, checked against the stage's range, or
+/// the stage's whole range.
+pub fn resolve_frames(r: &StageReader, frames: Option<FrameRange>) -> Result<Vec<f64>> {
+    let meta = r.metadata();
+    let range = match (meta.start_time_code, meta.end_time_code) {
+        (Some(s), Some(e)) => Some((s, e)),
+        _ => None,
+    };
+    match (frames, range) {
+        (Some(f), Some((s, e))) => {
+            f.check_within(s, e)?;
+            Ok(f.times())
+        }
+        (Some(f), None) => Ok(f.times()),
+        (None, Some((s, e))) if e >= s => Ok(FrameRange {
+            start: s,
+            end: e,
+            step: 1.0,
+        }
+        .times()),
+        _ => Err(Error::msg(
+            "the stage has no startTimeCode/endTimeCode: pass --frames A:B",
+        )),
+    }
+}
+
+/// Per-rig data computed once.
+struct RigBake<'a> {
+    rig: &'a Rig,
+    skin: SkinningRest,
+    bindings: Vec<Binding>,
+}
+
+fn prepare(rig: &Rig) -> RigBake<'_> {
+    let proxy = &rig.proxy;
+    let rings = OneRings::new(proxy.rest.len(), &proxy.face_counts, &proxy.face_indices);
+    let skin = SkinningRest::new(rings, &proxy.rest);
+    let tris = fan_triangulate(&proxy.face_counts, &proxy.face_indices);
+    let needs_bvh = rig.layers.iter().any(|l| l.cached_binding.is_none());
+    let bvh = needs_bvh.then(|| ClosestPoint::new(&proxy.rest, &tris));
+    let bindings = rig
+        .layers
+        .iter()
+        .map(|l| match (&l.cached_binding, &bvh) {
+            (Some(b), _) => b.clone(),
+            (None, Some(bvh)) => bvh.bind(&l.rest_points),
+            (None, None) => unreachable!("a BVH is built when a layer has no cached binding"),
+        })
+        .collect();
+    RigBake { rig, skin, bindings }
+}
+
+fn affine_f32(m: DMat4) -> Affine3A {
+    Affine3A::from_mat4(m.as_mat4())
+}
+
+fn extent_value(points: &[Vec3]) -> Value {
+    let [lo, hi] = bounds(points).unwrap_or([Vec3::ZERO, Vec3::ZERO]);
+    Value::Vec3fVec(vec![gf::vec3f(lo.x, lo.y, lo.z), gf::vec3f(hi.x, hi.y, hi.z)])
+}
+
+fn points_value(points: Vec<Vec3>) -> Value {
+    Value::Vec3fVec(bytemuck::allocation::cast_vec(points))
+}
+
+/// Bakes `input` into `output`.
+pub fn bake(input: &Path, output: &Path, opts: &BakeOptions, progress: Progress) -> Result<BakeSummary> {
+    let started = Instant::now();
+    check_output(input, output)?;
+    let r = StageReader::open(input)?;
+    let result = bake_stage(&r, output, opts, progress, started);
+    result.map_err(|e| e.in_file(input))
+}
+
+fn bake_stage(
+    r: &StageReader,
+    output: &Path,
+    opts: &BakeOptions,
+    progress: Progress,
+    started: Instant,
+) -> Result<BakeSummary> {
+    let scene = Scene::read(r)?;
+    let times = resolve_frames(r, opts.frames)?;
+    let rigs: Vec<RigBake> = scene.rigs.iter().map(prepare).collect();
+
+    // Per layer: samples of points, extent, opacity.
+    let nlayers: usize = rigs.iter().map(|rb| rb.rig.layers.len()).sum();
+    let mut pts_samples: Vec<Vec<(f64, Value)>> = vec![Vec::with_capacity(times.len()); nlayers];
+    let mut ext_samples: Vec<Vec<(f64, Value)>> = vec![Vec::with_capacity(times.len()); nlayers];
+    let mut opa_samples: Vec<Vec<(f64, Value)>> = vec![Vec::with_capacity(times.len()); nlayers];
+    let mut proxy_pts: Vec<Vec<(f64, Value)>> = vec![Vec::new(); rigs.len()];
+    let mut proxy_ext: Vec<Vec<(f64, Value)>> = vec![Vec::new(); rigs.len()];
+
+    for (fi, &t) in times.iter().enumerate() {
+        let mut li = 0;
+        for (ri, rb) in rigs.iter().enumerate() {
+            let proxy = &rb.rig.proxy;
+            let posed = proxy.posed_points(r, t)?;
+            let proxy_l2w = proxy.local_to_world(r, t)?;
+            let motions = to_f32(&rb.skin.vertex_motions(&posed));
+            for (layer, binding) in rb.rig.layers.iter().zip(&rb.bindings) {
+                let frame = affine_f32(layer.local_to_world(r, t)?.inverse() * proxy_l2w);
+                let mut out = vec![Vec3::ZERO; layer.num_points()];
+                skin_points(binding, &motions, &frame, &layer.rest_points, &mut out);
+                if let Some(i) = out.iter().position(|p| !p.is_finite()) {
+                    return Err(Error::prim(
+                        &layer.path,
+                        format!("baked point {i} is not finite at time {t}"),
+                    ));
+                }
+                let opacity = layer.opacity_at(r, t)?;
+                let opa: Vec<f32> = layer.display_opacity.iter().map(|o| o * opacity).collect();
+                ext_samples[li].push((t, extent_value(&out)));
+                pts_samples[li].push((t, points_value(out)));
+                opa_samples[li].push((t, Value::FloatVec(opa)));
+                li += 1;
+            }
+            if opts.bake_proxy {
+                let pts: Vec<Vec3> = posed.iter().map(|p| p.as_vec3()).collect();
+                proxy_ext[ri].push((t, extent_value(&pts)));
+                proxy_pts[ri].push((t, points_value(pts)));
+            }
+        }
+        progress(fi + 1, times.len());
+    }
+
+    let mut layer_out = OverLayer::new(r.metadata());
+    let mut li = 0;
+    let (mut strokes, mut points) = (0, 0);
+    for (ri, rb) in rigs.iter().enumerate() {
+        for layer in &rb.rig.layers {
+            layer_out.set_samples(
+                &layer.path,
+                "points",
+                "point3f[]",
+                std::mem::take(&mut pts_samples[li]),
+                vec![],
+            );
+            layer_out.set_samples(
+                &layer.path,
+                "extent",
+                "float3[]",
+                std::mem::take(&mut ext_samples[li]),
+                vec![],
+            );
+            layer_out.set_samples(
+                &layer.path,
+                "primvars:displayOpacity",
+                "float[]",
+                std::mem::take(&mut opa_samples[li]),
+                vec![("interpolation", Value::Token("uniform".into()))],
+            );
+            strokes += layer.curve_counts.len();
+            points += layer.num_points();
+            li += 1;
+        }
+        if opts.bake_proxy {
+            let path = &rb.rig.proxy.path;
+            layer_out.set_samples(path, "points", "point3f[]", std::mem::take(&mut proxy_pts[ri]), vec![]);
+            layer_out.set_samples(path, "extent", "float3[]", std::mem::take(&mut proxy_ext[ri]), vec![]);
+            if rb.rig.proxy.is_skinned() {
+                layer_out.block_relationship(path, "skel:skeleton");
+            }
+        }
+    }
+    layer_out.write(output)?;
+    Ok(BakeSummary {
+        input: r.file.clone(),
+        output: output.to_path_buf(),
+        frames: times.len(),
+        rigs: rigs.len(),
+        layers: nlayers,
+        strokes,
+        points,
+        seconds: started.elapsed().as_secs_f64(),
+    })
+}

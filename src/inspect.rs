@@ -1,0 +1,294 @@
+//! `painterly inspect`: what a painted character contains, and what is wrong
+//! with it.
+//!
+//! Lists rigs, proxies and how they are animated, axes, stroke layers with
+//! the columns of Bassett's Table I (strokes, points, pose position keys, pose
+//! opacity keys, time keys), view-dependent meshes, and every problem found,
+//! each with its prim path.
+
+use std::path::{Path, PathBuf};
+
+use serde::Serialize;
+
+use crate::error::{Error, Result};
+use crate::usd_io::scene::{ProxyMotion, Scene, VIEW_DEPENDENT_API};
+use crate::usd_io::stage::StageReader;
+
+#[derive(Debug, Serialize)]
+pub struct Report {
+    pub file: PathBuf,
+    pub start_time_code: Option<f64>,
+    pub end_time_code: Option<f64>,
+    pub time_codes_per_second: Option<f64>,
+    pub up_axis: Option<String>,
+    pub rigs: Vec<RigReport>,
+    pub axes: Vec<AxisReport>,
+    pub view_dependent_meshes: Vec<ViewMeshReport>,
+    pub problems: Vec<Problem>,
+}
+
+#[derive(Debug, Serialize)]
+pub struct RigReport {
+    pub path: String,
+    pub proxy: String,
+    pub proxy_points: usize,
+    pub proxy_faces: usize,
+    pub animation: String,
+    pub skeleton: Option<String>,
+    pub animation_source: Option<String>,
+    pub layers: Vec<LayerReport>,
+}
+
+/// One row of Bassett's Table I.
+#[derive(Debug, Serialize)]
+pub struct LayerReport {
+    pub path: String,
+    pub strokes: usize,
+    pub points: usize,
+    pub pose_position_keys: usize,
+    pub pose_opacity_keys: usize,
+    pub time_keys: usize,
+    pub sentinels: usize,
+    pub binding: &'static str,
+    pub opacity: f32,
+}
+
+#[derive(Debug, Serialize)]
+pub struct AxisReport {
+    pub path: String,
+    pub kind: String,
+    pub source: Option<String>,
+}
+
+#[derive(Debug, Serialize)]
+pub struct ViewMeshReport {
+    pub path: String,
+    pub key_viewpoints: Vec<String>,
+}
+
+#[derive(Debug, Serialize)]
+pub struct Problem {
+    pub prim: Option<String>,
+    pub attribute: Option<String>,
+    pub message: String,
+}
+
+impl From<Error> for Problem {
+    fn from(e: Error) -> Self {
+        Problem {
+            prim: e.prim,
+            attribute: e.attribute,
+            message: e.message,
+        }
+    }
+}
+
+/// Counts the key prims under a layer: (position keys, opacity keys, time keys, sentinels).
+fn count_keys(r: &StageReader, layer: &str) -> Result<(usize, usize, usize, usize)> {
+    let prim = r.require_prim(layer)?;
+    let (mut pos, mut opa, mut time, mut sent) = (0, 0, 0, 0);
+    let children = prim
+        .children()
+        .map_err(|e| Error::prim(layer, format!("cannot list children: {e}")))?;
+    for c in children {
+        match r.type_name(&c)?.as_str() {
+            "PainterlyPoseKey" => {
+                pos += r.has_authored(&c, "points")? as usize;
+                opa += r.has_authored(&c, "opacity")? as usize;
+            }
+            "PainterlyTimeKey" => {
+                let s = r
+                    .typed(&c, "sentinel", None, "bool", crate::usd_io::values::scalar)?
+                    .unwrap_or(0.0)
+                    != 0.0;
+                if s {
+                    sent += 1;
+                } else {
+                    time += 1;
+                }
+            }
+            _ => {}
+        }
+    }
+    Ok((pos, opa, time, sent))
+}
+
+/// Builds the report. Fails only when the file cannot be opened at all.
+pub fn inspect(path: &Path) -> Result<Report> {
+    let r = StageReader::open(path)?;
+    let (scene, problems) = Scene::read_lenient(&r).map_err(|e| e.in_file(path))?;
+    let mut problems: Vec<Problem> = problems.into_iter().map(Problem::from).collect();
+    let meta = r.metadata();
+    let mut rigs = Vec::new();
+    for rig in &scene.rigs {
+        let (skeleton, animation_source) = match &rig.proxy.motion {
+            ProxyMotion::Skel(s) => (Some(s.skeleton.clone()), s.animation.clone()),
+            _ => (None, None),
+        };
+        let mut layers = Vec::new();
+        for l in &rig.layers {
+            let (pos, opa, time, sent) = match count_keys(&r, &l.path) {
+                Ok(c) => c,
+                Err(e) => {
+                    problems.push(e.into());
+                    (0, 0, 0, 0)
+                }
+            };
+            layers.push(LayerReport {
+                path: l.path.clone(),
+                strokes: l.curve_counts.len(),
+                points: l.num_points(),
+                pose_position_keys: pos,
+                pose_opacity_keys: opa,
+                time_keys: time,
+                sentinels: sent,
+                binding: if l.cached_binding.is_some() {
+                    "cached"
+                } else {
+                    "computed"
+                },
+                opacity: l.opacity,
+            });
+        }
+        rigs.push(RigReport {
+            path: rig.path.clone(),
+            proxy: rig.proxy.path.clone(),
+            proxy_points: rig.proxy.rest.len(),
+            proxy_faces: rig.proxy.face_counts.len(),
+            animation: rig.proxy.motion.describe().to_string(),
+            skeleton,
+            animation_source,
+            layers,
+        });
+    }
+    let mut axes = Vec::new();
+    let mut view_meshes = Vec::new();
+    for p in r.prim_paths()? {
+        let prim = r.require_prim(&p)?;
+        if r.type_name(&prim)? == "PainterlyAxis" {
+            let kind = r
+                .typed(&prim, "kind", None, "token", crate::usd_io::values::token)?
+                .unwrap_or_else(|| "attribute".into());
+            let source = r.targets(&prim, "source")?.into_iter().next();
+            axes.push(AxisReport {
+                path: p.clone(),
+                kind,
+                source,
+            });
+        }
+        if r.api_schemas(&prim)?.iter().any(|a| a == VIEW_DEPENDENT_API) {
+            let mut keys = Vec::new();
+            for c in prim
+                .children()
+                .map_err(|e| Error::prim(&p, format!("cannot list children: {e}")))?
+            {
+                if r.type_name(&c)? == "PainterlyViewKey" {
+                    keys.push(c.path().as_str().to_string());
+                }
+            }
+            view_meshes.push(ViewMeshReport {
+                path: p.clone(),
+                key_viewpoints: keys,
+            });
+        }
+    }
+    Ok(Report {
+        file: path.to_path_buf(),
+        start_time_code: meta.start_time_code,
+        end_time_code: meta.end_time_code,
+        time_codes_per_second: meta.time_codes_per_second,
+        up_axis: meta.up_axis,
+        rigs,
+        axes,
+        view_dependent_meshes: view_meshes,
+        problems,
+    })
+}
+
+impl Report {
+    /// The human-readable form.
+    pub fn to_text(&self) -> String {
+        use std::fmt::Write;
+        let mut s = String::new();
+        let opt = |v: Option<f64>| v.map_or("-".to_string(), |v| v.to_string());
+        let _ = writeln!(s, "{}", self.file.display());
+        let _ = writeln!(
+            s,
+            "  time codes {}..{} at {} per second, up axis {}",
+            opt(self.start_time_code),
+            opt(self.end_time_code),
+            opt(self.time_codes_per_second),
+            self.up_axis.as_deref().unwrap_or("-")
+        );
+        for rig in &self.rigs {
+            let _ = writeln!(s, "rig {}", rig.path);
+            let _ = writeln!(
+                s,
+                "  proxy {} ({} points, {} faces), animated by {}",
+                rig.proxy, rig.proxy_points, rig.proxy_faces, rig.animation
+            );
+            if let Some(sk) = &rig.skeleton {
+                let _ = writeln!(
+                    s,
+                    "  skeleton {}, animation {}",
+                    sk,
+                    rig.animation_source.as_deref().unwrap_or("(none: rest pose)")
+                );
+            }
+            let _ = writeln!(
+                s,
+                "  {:<40} {:>8} {:>8} {:>6} {:>6} {:>6} {:>8}",
+                "layer", "strokes", "points", "pos", "opac", "time", "binding"
+            );
+            for l in &rig.layers {
+                let _ = writeln!(
+                    s,
+                    "  {:<40} {:>8} {:>8} {:>6} {:>6} {:>6} {:>8}",
+                    l.path, l.strokes, l.points, l.pose_position_keys, l.pose_opacity_keys, l.time_keys, l.binding
+                );
+            }
+            let strokes: usize = rig.layers.iter().map(|l| l.strokes).sum();
+            let points: usize = rig.layers.iter().map(|l| l.points).sum();
+            let _ = writeln!(
+                s,
+                "  total: {} layers, {strokes} strokes, {points} points",
+                rig.layers.len()
+            );
+        }
+        for a in &self.axes {
+            let _ = writeln!(
+                s,
+                "axis {} ({}) <- {}",
+                a.path,
+                a.kind,
+                a.source.as_deref().unwrap_or("-")
+            );
+        }
+        for v in &self.view_dependent_meshes {
+            let _ = writeln!(
+                s,
+                "view-dependent mesh {} ({} key viewpoints)",
+                v.path,
+                v.key_viewpoints.len()
+            );
+            for k in &v.key_viewpoints {
+                let _ = writeln!(s, "  {k}");
+            }
+        }
+        if self.problems.is_empty() {
+            let _ = writeln!(s, "no problems found");
+        } else {
+            let _ = writeln!(s, "{} problem(s):", self.problems.len());
+            for p in &self.problems {
+                let e = Error {
+                    file: None,
+                    prim: p.prim.clone(),
+                    attribute: p.attribute.clone(),
+                    message: p.message.clone(),
+                };
+                let _ = writeln!(s, "  {e}");
+            }
+        }
+        s
+    }
+}

@@ -1,0 +1,31 @@
+//! painterly: painted strokes that follow rigged proxy meshes, in USD.
+//!
+//! Implements Bassett et al. 2013 (stroke skinning, configuration-space and
+//! temporal keyframes) and Rademacher 1999 (view-dependent geometry) over
+//! USD files. Data flows one way: [`usd_io`] reads a composed stage into plain
+//! arrays, the math modules evaluate, and [`usd_io::layer`] writes an override
+//! layer.
+//!
+//! | module | concept |
+//! |---|---|
+//! | [`mesh`] | proxy topology: fan triangulation, one-rings |
+//! | [`bind`] | closest-point binding of stroke points (BVH) |
+//! | [`skinning`] | per-vertex Procrustes motions and their blend (Bassett eq. 1) |
+//! | [`skel_deform`] | UsdSkel blend shapes, LBS and DQS |
+//! | [`frames`] | frame ranges |
+//! | [`usd_io`] | reading stages, writing layers |
+//! | [`bake`] | the `bake` command |
+//! | [`inspect`] | the `inspect` command |
+
+pub mod bake;
+pub mod bind;
+pub mod cli;
+pub mod error;
+pub mod frames;
+pub mod inspect;
+pub mod mesh;
+pub mod skel_deform;
+pub mod skinning;
+pub mod usd_io;
+
+pub use error::{Error, Result};

@@ -1,0 +1,26 @@
+//! The `painterly` binary: parses arguments, runs, maps failures to exit codes.
+
+use clap::Parser;
+
+fn main() {
+    // A bug must still end in a clear message and a non-zero exit, not a
+    // Rust backtrace in a farm log.
+    std::panic::set_hook(Box::new(|info| {
+        let msg = info
+            .payload()
+            .downcast_ref::<&str>()
+            .map(|s| s.to_string())
+            .or_else(|| info.payload().downcast_ref::<String>().cloned())
+            .unwrap_or_else(|| "unknown".into());
+        let at = info
+            .location()
+            .map(|l| format!(" at {}:{}", l.file(), l.line()))
+            .unwrap_or_default();
+        eprintln!(
+            "error: internal error{at}: {msg} (this is a bug in painterly; please report it with the input file)"
+        );
+    }));
+    let cli = painterly::cli::Cli::parse();
+    let code = std::panic::catch_unwind(|| painterly::cli::run(cli)).unwrap_or(3);
+    std::process::exit(code);
+}

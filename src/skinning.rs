@@ -1,0 +1,263 @@
+//! Stroke skinning (Bassett §3.2, SPEC §3).
+//!
+//! For every proxy vertex, the least-squares rigid motion (Procrustes) taking
+//! its one-ring from the rest pose to the current pose serves as a "bone"; a
+//! stroke point moves by the barycentric blend of the 3×4 motions of its bound
+//! triangle's vertices (eq. 1). Rest data (one-rings, centroids, centred rest
+//! positions) is cached once; per frame only the motions are recomputed.
+
+use glam::{Affine3A, DAffine3, DMat3, DVec3, Mat3A, Vec3, Vec3A};
+use nalgebra::Matrix3;
+use rayon::prelude::*;
+
+use crate::bind::Binding;
+use crate::mesh::OneRings;
+
+/// Relative threshold below which a one-ring is degenerate (SPEC §3): the
+/// second singular value of its covariance < 1e-9 × the first.
+pub const DEGENERATE_RATIO: f64 = 1e-9;
+
+/// Everything about the rest pose that skinning needs, computed once.
+#[derive(Debug, Clone)]
+pub struct SkinningRest {
+    rings: OneRings,
+    /// Rest positions of the ring members, minus the ring centroid, in ring order.
+    centred: Vec<DVec3>,
+    offsets: Vec<usize>,
+    centroids: Vec<DVec3>,
+}
+
+impl SkinningRest {
+    /// Caches one-ring centroids and centred rest positions.
+    pub fn new(rings: OneRings, rest: &[DVec3]) -> Self {
+        let mut centred = Vec::new();
+        let mut offsets = Vec::with_capacity(rings.len() + 1);
+        let mut centroids = Vec::with_capacity(rings.len());
+        offsets.push(0);
+        for v in 0..rings.len() {
+            let ring = rings.ring(v);
+            let c = centroid(ring.iter().map(|&i| rest[i as usize]), ring.len());
+            centroids.push(c);
+            centred.extend(ring.iter().map(|&i| rest[i as usize] - c));
+            offsets.push(centred.len());
+        }
+        SkinningRest {
+            rings,
+            centred,
+            offsets,
+            centroids,
+        }
+    }
+
+    /// Number of proxy vertices.
+    pub fn len(&self) -> usize {
+        self.centroids.len()
+    }
+
+    /// True for an empty proxy.
+    pub fn is_empty(&self) -> bool {
+        self.centroids.is_empty()
+    }
+
+    /// The rigid motion M_v(x) = R (x − c) + c' of every vertex for a pose.
+    pub fn vertex_motions(&self, posed: &[DVec3]) -> Vec<DAffine3> {
+        (0..self.len())
+            .into_par_iter()
+            .map(|v| self.vertex_motion(v, posed))
+            .collect()
+    }
+
+    /// The rigid motion of one vertex's one-ring.
+    pub fn vertex_motion(&self, v: usize, posed: &[DVec3]) -> DAffine3 {
+        let ring = self.rings.ring(v);
+        let rest_centred = &self.centred[self.offsets[v]..self.offsets[v + 1]];
+        let c_posed = centroid(ring.iter().map(|&i| posed[i as usize]), ring.len());
+        let r = procrustes_rotation(
+            rest_centred
+                .iter()
+                .zip(ring)
+                .map(|(&p, &i)| (p, posed[i as usize] - c_posed)),
+        );
+        // x ↦ R (x − c) + c'
+        DAffine3::from_mat3_translation(r, c_posed - r * self.centroids[v])
+    }
+}
+
+fn centroid(points: impl Iterator<Item = DVec3>, n: usize) -> DVec3 {
+    points.fold(DVec3::ZERO, |a, p| a + p) / n.max(1) as f64
+}
+
+/// The rotation R (det +1) minimising Σ |R p − q|² over centred pairs (p, q).
+///
+/// Kabsch: with H = Σ p qᵀ = U Σ Vᵀ, R = V diag(1, 1, sign det(V Uᵀ)) Uᵀ; the
+/// sign term excludes reflections. Returns I when the rest set is degenerate
+/// (second singular value < 1e-9 × the first), where the rotation is not
+/// determined.
+pub fn procrustes_rotation(pairs: impl Iterator<Item = (DVec3, DVec3)>) -> DMat3 {
+    let mut h = Matrix3::<f64>::zeros();
+    for (p, q) in pairs {
+        h += nalgebra::Vector3::new(p.x, p.y, p.z) * nalgebra::RowVector3::new(q.x, q.y, q.z);
+    }
+    let svd = h.svd(true, true);
+    let mut s = [svd.singular_values[0], svd.singular_values[1], svd.singular_values[2]];
+    s.sort_by(|a, b| b.total_cmp(a));
+    if s[0].is_nan() || s[0] <= 0.0 || s[1] < DEGENERATE_RATIO * s[0] {
+        return DMat3::IDENTITY;
+    }
+    let (Some(u), Some(v_t)) = (svd.u, svd.v_t) else {
+        return DMat3::IDENTITY;
+    };
+    let v = v_t.transpose();
+    let d = (v * u.transpose()).determinant().signum();
+    let r = v * Matrix3::from_diagonal(&nalgebra::Vector3::new(1.0, 1.0, d)) * u.transpose();
+    // nalgebra is column-major like glam.
+    DMat3::from_cols_slice(r.as_slice())
+}
+
+/// Per-vertex motions in f32 for the hot loop.
+pub fn to_f32(motions: &[DAffine3]) -> Vec<Affine3A> {
+    motions
+        .iter()
+        .map(|m| Affine3A {
+            matrix3: Mat3A::from_cols(
+                m.matrix3.x_axis.as_vec3().into(),
+                m.matrix3.y_axis.as_vec3().into(),
+                m.matrix3.z_axis.as_vec3().into(),
+            ),
+            translation: m.translation.as_vec3().into(),
+        })
+        .collect()
+}
+
+/// The blended motion M = Σ w_i M_i of one bound point (eq. 1).
+#[inline]
+pub fn blended_motion(motions: &[Affine3A], vertices: [u32; 3], weights: [f32; 3]) -> Affine3A {
+    let [a, b, c] = vertices.map(|i| &motions[i as usize]);
+    let [wa, wb, wc] = weights;
+    Affine3A {
+        matrix3: a.matrix3 * wa + b.matrix3 * wb + c.matrix3 * wc,
+        translation: a.translation * wa + b.translation * wb + c.translation * wc,
+    }
+}
+
+/// Skins rest points: out[k] = frame · (Σ w M_v) · rest[k].
+///
+/// `frame` maps skinned proxy-local positions into the output space (proxy
+/// local-to-world, then the stroke prim's world-to-local).
+pub fn skin_points(binding: &Binding, motions: &[Affine3A], frame: &Affine3A, rest: &[Vec3], out: &mut [Vec3]) {
+    out.par_chunks_mut(4096)
+        .zip(rest.par_chunks(4096))
+        .enumerate()
+        .for_each(|(chunk, (out, rest))| {
+            let base = chunk * 4096;
+            for (k, (o, &p)) in out.iter_mut().zip(rest).enumerate() {
+                let i = base + k;
+                let m = blended_motion(motions, binding.vertices[i], binding.weights[i]);
+                *o = frame.transform_point3a(m.transform_point3a(Vec3A::from(p))).into();
+            }
+        });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::DQuat;
+
+    fn square_rings() -> (OneRings, Vec<DVec3>) {
+        // A small non-planar patch: a pyramid of 5 vertices, 4 triangles.
+        let pts = vec![
+            DVec3::new(0.0, 0.0, 1.0),
+            DVec3::new(1.0, 0.0, 0.0),
+            DVec3::new(0.0, 1.0, 0.0),
+            DVec3::new(-1.0, 0.0, 0.0),
+            DVec3::new(0.0, -1.0, 0.0),
+        ];
+        let idx = [0, 1, 2, 0, 2, 3, 0, 3, 4, 0, 4, 1];
+        (OneRings::new(5, &[3, 3, 3, 3], &idx), pts)
+    }
+
+    #[test]
+    fn rigid_pose_is_recovered_exactly() {
+        let (rings, rest) = square_rings();
+        let q = DQuat::from_axis_angle(DVec3::new(1.0, 2.0, 0.5).normalize(), 0.9);
+        let t = DVec3::new(3.0, -1.0, 2.0);
+        let posed: Vec<_> = rest.iter().map(|&p| q * p + t).collect();
+        let sk = SkinningRest::new(rings, &rest);
+        for (v, m) in sk.vertex_motions(&posed).iter().enumerate() {
+            assert!((m.transform_point3(rest[v]) - posed[v]).length() < 1e-12);
+            assert!((m.matrix3.determinant() - 1.0).abs() < 1e-12);
+            // Any point of space moves rigidly with the patch.
+            let x = DVec3::new(0.3, 0.7, 2.0);
+            assert!((m.transform_point3(x) - (q * x + t)).length() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn reflection_is_excluded() {
+        // A mirrored pose: the best proper rotation is not the mirror.
+        let rest = [DVec3::X, DVec3::Y, DVec3::Z, DVec3::ZERO];
+        let c = rest.iter().sum::<DVec3>() / 4.0;
+        let pairs = rest
+            .iter()
+            .map(|&p| (p - c, DVec3::new(-(p - c).x, (p - c).y, (p - c).z)));
+        let r = procrustes_rotation(pairs);
+        assert!((r.determinant() - 1.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn degenerate_ring_gives_identity_rotation() {
+        // Collinear ring: the second singular value is zero.
+        let pairs = [DVec3::X, -DVec3::X].map(|p| (p, DVec3::Y * p.x));
+        assert_eq!(procrustes_rotation(pairs.into_iter()), DMat3::IDENTITY);
+        // A single point: nothing to fit.
+        assert_eq!(
+            procrustes_rotation([(DVec3::ZERO, DVec3::ZERO)].into_iter()),
+            DMat3::IDENTITY
+        );
+    }
+
+    #[test]
+    fn least_squares_rotation_matches_closed_form_in_2d() {
+        // Planar pairs rotated by θ with noise symmetric about the fit: the
+        // optimum of Σ|R p − q|² for rotations about z is atan2(Σ p×q, Σ p·q).
+        let p = [
+            DVec3::new(1.0, 0.0, 0.0),
+            DVec3::new(0.0, 2.0, 0.0),
+            DVec3::new(-1.0, -1.0, 0.0),
+        ];
+        let q = [
+            DVec3::new(0.8, 0.7, 0.0),
+            DVec3::new(-1.5, 1.2, 0.0),
+            DVec3::new(0.3, -1.4, 0.0),
+        ];
+        let pc = p.iter().sum::<DVec3>() / 3.0;
+        let qc = q.iter().sum::<DVec3>() / 3.0;
+        let pairs: Vec<_> = p.iter().zip(&q).map(|(&a, &b)| (a - pc, b - qc)).collect();
+        let (mut s, mut c) = (0.0, 0.0);
+        for (a, b) in &pairs {
+            s += a.x * b.y - a.y * b.x;
+            c += a.x * b.x + a.y * b.y;
+        }
+        let theta = s.atan2(c);
+        let r = procrustes_rotation(pairs.into_iter());
+        let expected = DMat3::from_rotation_z(theta);
+        assert!((r - expected).to_cols_array().iter().all(|x| x.abs() < 1e-10));
+    }
+
+    #[test]
+    fn blend_and_frame_apply_in_order() {
+        let motions = vec![
+            Affine3A::from_translation(Vec3::X),
+            Affine3A::from_translation(Vec3::Y),
+            Affine3A::from_translation(Vec3::Z),
+        ];
+        let binding = Binding {
+            vertices: vec![[0, 1, 2]],
+            weights: vec![[0.5, 0.25, 0.25]],
+        };
+        let frame = Affine3A::from_scale(Vec3::splat(2.0));
+        let mut out = vec![Vec3::ZERO];
+        skin_points(&binding, &motions, &frame, &[Vec3::ONE], &mut out);
+        assert!((out[0] - Vec3::new(3.0, 2.5, 2.5)).length() < 1e-6);
+    }
+}

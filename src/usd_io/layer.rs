@@ -1,0 +1,255 @@
+//! Writes a bake: a layer of `over` specs with time samples (SPEC §7).
+//!
+//! Specs are collected in memory, serialised into a buffer, written to a
+//! temporary file beside the target and renamed, so a failed bake never leaves
+//! a partial file (and `.usdc` writes are not slowed by unbuffered I/O; see
+//! `../shared/notes/openusd.md`).
+
+use std::collections::BTreeMap;
+use std::io::{Cursor, Write};
+use std::path::Path;
+
+use openusd::sdf::{self, ChildrenKey, FieldKey, SpecType, Specifier, Value, Variability};
+
+use super::stage::StageMetadata;
+use crate::error::{Error, Result};
+
+/// One attribute to author.
+struct AttrOut {
+    type_name: &'static str,
+    samples: Vec<(f64, Value)>,
+    metadata: Vec<(&'static str, Value)>,
+}
+
+#[derive(Default)]
+struct PrimOut {
+    attrs: BTreeMap<String, AttrOut>,
+    blocked_rels: Vec<String>,
+}
+
+/// An override layer under construction.
+pub struct OverLayer {
+    meta: StageMetadata,
+    prims: BTreeMap<String, PrimOut>,
+}
+
+/// Output formats, chosen by the file extension.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Format {
+    Usda,
+    Usdc,
+}
+
+impl Format {
+    /// `.usda` or `.usdc` (`.usd` is written as crate).
+    pub fn from_path(path: &Path) -> Result<Format> {
+        match path.extension().and_then(|e| e.to_str()) {
+            Some("usda") => Ok(Format::Usda),
+            Some("usdc") | Some("usd") => Ok(Format::Usdc),
+            _ => Err(Error::msg("output must end in .usdc, .usd or .usda").in_file(path)),
+        }
+    }
+}
+
+impl OverLayer {
+    /// An empty layer carrying the input's stage metadata.
+    pub fn new(meta: StageMetadata) -> Self {
+        OverLayer {
+            meta,
+            prims: BTreeMap::new(),
+        }
+    }
+
+    /// Authors time samples of an attribute (replacing earlier ones).
+    pub fn set_samples(
+        &mut self,
+        prim: &str,
+        attr: &str,
+        type_name: &'static str,
+        samples: Vec<(f64, Value)>,
+        metadata: Vec<(&'static str, Value)>,
+    ) {
+        self.prims.entry(prim.to_string()).or_default().attrs.insert(
+            attr.to_string(),
+            AttrOut {
+                type_name,
+                samples,
+                metadata,
+            },
+        );
+    }
+
+    /// Blocks a relationship (explicitly empty targets), e.g. `skel:skeleton`
+    /// on a baked skinned mesh so viewers do not deform it twice.
+    pub fn block_relationship(&mut self, prim: &str, rel: &str) {
+        let p = self.prims.entry(prim.to_string()).or_default();
+        if !p.blocked_rels.iter().any(|r| r == rel) {
+            p.blocked_rels.push(rel.to_string());
+        }
+    }
+
+    /// Builds the Sdf data: over specs for every authored prim and its ancestors.
+    fn to_data(&self) -> Result<sdf::Data> {
+        let mut data = sdf::Data::new();
+        // Every prim path that needs a spec, with its children names in order.
+        let mut children: BTreeMap<String, Vec<String>> = BTreeMap::new();
+        children.insert("/".to_string(), Vec::new());
+        for path in self.prims.keys() {
+            let mut cur = path.as_str();
+            loop {
+                let (parent, name) = match cur.rsplit_once('/') {
+                    Some(("", name)) => ("/", name),
+                    Some((parent, name)) => (parent, name),
+                    None => break,
+                };
+                let kids = children.entry(parent.to_string()).or_default();
+                let first = !kids.iter().any(|k| k == name);
+                if first {
+                    kids.push(name.to_string());
+                }
+                children.entry(cur.to_string()).or_default();
+                if parent == "/" || !first {
+                    break;
+                }
+                cur = parent;
+            }
+        }
+        let path = |p: &str| sdf::Path::new(p).map_err(|e| Error::prim(p, format!("invalid path: {e}")));
+
+        let root = data.create_spec(sdf::Path::abs_root(), SpecType::PseudoRoot);
+        let m = &self.meta;
+        if let Some(v) = m.start_time_code {
+            root.add(FieldKey::StartTimeCode, Value::Double(v));
+        }
+        if let Some(v) = m.end_time_code {
+            root.add(FieldKey::EndTimeCode, Value::Double(v));
+        }
+        if let Some(v) = m.time_codes_per_second {
+            root.add(FieldKey::TimeCodesPerSecond, Value::Double(v));
+        }
+        if let Some(v) = m.frames_per_second {
+            root.add("framesPerSecond", Value::Double(v));
+        }
+        if let Some(v) = &m.up_axis {
+            root.add("upAxis", Value::Token(v.as_str().into()));
+        }
+        if let Some(v) = m.meters_per_unit {
+            root.add("metersPerUnit", Value::Double(v));
+        }
+        root.add(
+            "documentation",
+            Value::String("Baked by painterly: over specs only; sublayer above the input.".into()),
+        );
+        if let Some(kids) = children.get("/") {
+            if !kids.is_empty() {
+                root.add(
+                    ChildrenKey::PrimChildren,
+                    Value::TokenVec(kids.iter().map(|k| k.as_str().into()).collect()),
+                );
+            }
+        }
+
+        for (prim_path, kids) in &children {
+            if prim_path == "/" {
+                continue;
+            }
+            let p = path(prim_path)?;
+            let out = self.prims.get(prim_path);
+            let mut props: Vec<String> = Vec::new();
+            if let Some(o) = out {
+                props.extend(o.attrs.keys().cloned());
+                props.extend(o.blocked_rels.iter().cloned());
+            }
+            {
+                let spec = data.create_spec(p, SpecType::Prim);
+                spec.add(FieldKey::Specifier, Value::Specifier(Specifier::Over));
+                if !kids.is_empty() {
+                    spec.add(
+                        ChildrenKey::PrimChildren,
+                        Value::TokenVec(kids.iter().map(|k| k.as_str().into()).collect()),
+                    );
+                }
+                if !props.is_empty() {
+                    spec.add(
+                        ChildrenKey::PropertyChildren,
+                        Value::TokenVec(props.iter().map(|k| k.as_str().into()).collect()),
+                    );
+                }
+            }
+            let Some(o) = out else { continue };
+            for (name, a) in &o.attrs {
+                let ap = path(&format!("{prim_path}.{name}"))?;
+                let spec = data.create_spec(ap, SpecType::Attribute);
+                spec.add(FieldKey::TypeName, Value::Token(a.type_name.into()));
+                spec.add(FieldKey::Custom, Value::Bool(false));
+                spec.add(FieldKey::Variability, Value::Variability(Variability::Varying));
+                for (k, v) in &a.metadata {
+                    spec.add(*k, v.clone());
+                }
+                spec.add(FieldKey::TimeSamples, Value::TimeSamples(a.samples.clone()));
+            }
+            for rel in &o.blocked_rels {
+                let rp = path(&format!("{prim_path}.{rel}"))?;
+                let spec = data.create_spec(rp, SpecType::Relationship);
+                spec.add(FieldKey::Custom, Value::Bool(false));
+                spec.add(FieldKey::Variability, Value::Variability(Variability::Uniform));
+                spec.add(
+                    FieldKey::TargetPaths,
+                    Value::PathListOp(sdf::PathListOp::explicit(Vec::<sdf::Path>::new())),
+                );
+            }
+        }
+        Ok(data)
+    }
+
+    /// Serialises to bytes in `format`.
+    pub fn to_bytes(&self, format: Format) -> Result<Vec<u8>> {
+        let data = self.to_data()?;
+        match format {
+            Format::Usdc => {
+                let mut buf = Cursor::new(Vec::new());
+                openusd::usdc::CrateWriter::write(&data, &mut buf)
+                    .map_err(|e| Error::msg(format!("cannot serialise layer: {e}")))?;
+                Ok(buf.into_inner())
+            }
+            Format::Usda => {
+                let s = openusd::usda::TextWriter::write_to_string(&data)
+                    .map_err(|e| Error::msg(format!("cannot serialise layer: {e}")))?;
+                Ok(s.into_bytes())
+            }
+        }
+    }
+
+    /// Writes atomically: a temporary file beside `path`, then a rename.
+    pub fn write(&self, path: &Path) -> Result<()> {
+        let bytes = self.to_bytes(Format::from_path(path)?)?;
+        write_atomic(path, &bytes)
+    }
+}
+
+/// Writes `bytes` to a temporary sibling of `path` and renames it into place.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    let name = path
+        .file_name()
+        .ok_or_else(|| Error::msg("output path has no file name").in_file(path))?;
+    let tmp = dir.join(format!(
+        ".{}.painterly-{}.tmp",
+        name.to_string_lossy(),
+        std::process::id()
+    ));
+    let result = (|| -> std::io::Result<()> {
+        let mut f = std::fs::File::create(&tmp)?;
+        f.write_all(bytes)?;
+        f.sync_all()?;
+        std::fs::rename(&tmp, path)
+    })();
+    if let Err(e) = result {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(Error::msg(format!("cannot write output: {e}")).in_file(path));
+    }
+    Ok(())
+}

@@ -1,0 +1,10 @@
+//! USD input and output: the only modules that touch `openusd`.
+//!
+//! Data flows one way: [`stage`] and [`scene`] read a composed stage into plain
+//! arrays, the math modules evaluate, and [`layer`] writes an override layer.
+
+pub mod layer;
+pub mod scene;
+pub mod skel;
+pub mod stage;
+pub mod values;

@@ -1,0 +1,148 @@
+//! Conversions from composed USD values to plain arrays.
+//!
+//! USD lets a file store `point3f[]` as float, double or half; painterly's math
+//! wants one representation, so readers accept every precision and convert.
+
+use glam::{DMat4, Vec3};
+use openusd::sdf::Value;
+
+/// `point3f[]`, `float3[]`, `vector3f[]`, ... in any precision, as f32 vectors.
+pub fn vec3_array(v: &Value) -> Option<Vec<Vec3>> {
+    Some(match v {
+        Value::Vec3fVec(a) => a.iter().map(|p| Vec3::new(p.x, p.y, p.z)).collect(),
+        Value::Vec3dVec(a) => a
+            .iter()
+            .map(|p| Vec3::new(p.x as f32, p.y as f32, p.z as f32))
+            .collect(),
+        Value::Vec3hVec(a) => a
+            .iter()
+            .map(|p| Vec3::new(p.x.to_f32(), p.y.to_f32(), p.z.to_f32()))
+            .collect(),
+        _ => return None,
+    })
+}
+
+/// A single 3-vector in any precision.
+pub fn vec3(v: &Value) -> Option<[f64; 3]> {
+    Some(match v {
+        Value::Vec3f(p) => [p.x as f64, p.y as f64, p.z as f64],
+        Value::Vec3d(p) => [p.x, p.y, p.z],
+        Value::Vec3h(p) => [p.x.to_f64(), p.y.to_f64(), p.z.to_f64()],
+        _ => return None,
+    })
+}
+
+/// `float[]`, `double[]`, `half[]` as f32.
+pub fn f32_array(v: &Value) -> Option<Vec<f32>> {
+    Some(match v {
+        Value::FloatVec(a) => a.clone(),
+        Value::DoubleVec(a) => a.iter().map(|&x| x as f32).collect(),
+        Value::HalfVec(a) => a.iter().map(|x| x.to_f32()).collect(),
+        _ => return None,
+    })
+}
+
+/// `int[]` (and other integer arrays) as i64.
+pub fn int_array(v: &Value) -> Option<Vec<i64>> {
+    Some(match v {
+        Value::IntVec(a) => a.iter().map(|&x| x as i64).collect(),
+        Value::UintVec(a) => a.iter().map(|&x| x as i64).collect(),
+        Value::Int64Vec(a) => a.clone(),
+        Value::UcharVec(a) => a.iter().map(|&x| x as i64).collect(),
+        _ => return None,
+    })
+}
+
+/// `int3[]` as i64 triples.
+pub fn int3_array(v: &Value) -> Option<Vec<[i64; 3]>> {
+    match v {
+        Value::Vec3iVec(a) => Some(a.iter().map(|p| [p.x as i64, p.y as i64, p.z as i64]).collect()),
+        _ => None,
+    }
+}
+
+/// Any numeric scalar (bool, int, float, double, half) as f64.
+pub fn scalar(v: &Value) -> Option<f64> {
+    Some(match v {
+        Value::Bool(b) => *b as i32 as f64,
+        Value::Int(x) => *x as f64,
+        Value::Uint(x) => *x as f64,
+        Value::Int64(x) => *x as f64,
+        Value::Uint64(x) => *x as f64,
+        Value::Uchar(x) => *x as f64,
+        Value::Float(x) => *x as f64,
+        Value::Double(x) => *x,
+        Value::Half(x) => x.to_f64(),
+        _ => return None,
+    })
+}
+
+/// A token or string value.
+pub fn token(v: &Value) -> Option<String> {
+    match v {
+        Value::Token(t) => Some(t.as_str().to_string()),
+        Value::String(s) => Some(s.clone()),
+        _ => None,
+    }
+}
+
+/// A `token[]` or `string[]` value.
+pub fn token_array(v: &Value) -> Option<Vec<String>> {
+    match v {
+        Value::TokenVec(a) => Some(a.iter().map(|t| t.as_str().to_string()).collect()),
+        Value::StringVec(a) => Some(a.clone()),
+        _ => None,
+    }
+}
+
+/// USD's row-major, row-vector `matrix4d` as a glam column-vector matrix.
+///
+/// USD transforms points as `p * M`; glam as `M * p`. The row-major array of
+/// `M` read as columns is exactly `Mᵀ`, the column-vector form.
+pub fn usd_matrix(m: &openusd::gf::Matrix4d) -> DMat4 {
+    DMat4::from_cols_array(&m.0)
+}
+
+/// `matrix4d` value as a glam matrix.
+pub fn matrix4(v: &Value) -> Option<DMat4> {
+    match v {
+        Value::Matrix4d(m) => Some(usd_matrix(m)),
+        _ => None,
+    }
+}
+
+/// A short name for a value's kind, for error messages ("expected point3f[], found int[]").
+pub fn kind_name(v: &Value) -> String {
+    let dbg = format!("{v:?}");
+    dbg.split(['(', ' ', '{']).next().unwrap_or("value").to_string()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use openusd::gf;
+
+    #[test]
+    fn usd_row_vector_matrix_becomes_glam_column_matrix() {
+        // USD translate (1,2,3): translation lives in the last row.
+        let mut m = [0.0; 16];
+        m[0] = 1.0;
+        m[5] = 1.0;
+        m[10] = 1.0;
+        m[15] = 1.0;
+        m[12] = 1.0;
+        m[13] = 2.0;
+        m[14] = 3.0;
+        let g = usd_matrix(&gf::Matrix4d(m));
+        let p = g.transform_point3(glam::DVec3::ZERO);
+        assert_eq!(p, glam::DVec3::new(1.0, 2.0, 3.0));
+    }
+
+    #[test]
+    fn arrays_convert_from_every_precision() {
+        let v = Value::Vec3dVec(vec![gf::Vec3d { x: 1.0, y: 2.0, z: 3.0 }]);
+        assert_eq!(vec3_array(&v).unwrap(), vec![Vec3::new(1.0, 2.0, 3.0)]);
+        assert_eq!(f32_array(&Value::DoubleVec(vec![0.5])).unwrap(), vec![0.5]);
+        assert!(vec3_array(&Value::IntVec(vec![1])).is_none());
+    }
+}
