@@ -27,7 +27,7 @@ def painterly_binary() -> pathlib.Path:
     return REPO / "target" / "release" / "painterly"
 
 
-def run_painterly(*args, check=True, cwd=None, env=None):
+def run_painterly(*args, check=True, cwd=None, env=None, input=None):
     """Run the painterly CLI; returns CompletedProcess with text stdout/stderr."""
     exe = painterly_binary()
     if not exe.exists():
@@ -35,6 +35,7 @@ def run_painterly(*args, check=True, cwd=None, env=None):
     proc = subprocess.run(
         [str(exe), *[str(a) for a in args]],
         capture_output=True,
+        input=input,
         text=True,
         cwd=cwd,
         env=env,

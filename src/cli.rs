@@ -72,6 +72,13 @@ pub enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Interpolation weights for keys and query points, JSON on stdin.
+    ///
+    /// Input: {"method": "smoothVoronoi"|"rbf"|"shepard", "radius": 1.0,
+    /// "keys": [[...], ...], "points": [[...], ...]}. Output:
+    /// {"weights": [[w_0, ..., w_n-1] per point]}. For tests and plots.
+    #[command(hide = true)]
+    Interpolate,
 }
 
 /// Runs a parsed command; returns the process exit code.
@@ -138,6 +145,19 @@ pub fn run(cli: Cli) -> i32 {
             }
             Err(e) => report(&e),
         },
+        Command::Interpolate => {
+            let mut input = String::new();
+            if let Err(e) = std::io::Read::read_to_string(&mut std::io::stdin(), &mut input) {
+                return report(&Error::msg(format!("cannot read stdin: {e}")));
+            }
+            match crate::interp::json::run_json(&input) {
+                Ok(out) => {
+                    println!("{out}");
+                    0
+                }
+                Err(e) => report(&Error::msg(e)),
+            }
+        }
     }
 }
 

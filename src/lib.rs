@@ -16,6 +16,7 @@
 //! | [`usd_io`] | reading stages, writing layers |
 //! | [`bake`] | the `bake` command |
 //! | [`inspect`] | the `inspect` command |
+//! | [`interp`] | configuration-space interpolation (smooth Voronoi, RBF, Shepard) |
 
 pub mod bake;
 pub mod bind;
@@ -23,6 +24,7 @@ pub mod cli;
 pub mod error;
 pub mod frames;
 pub mod inspect;
+pub mod interp;
 pub mod mesh;
 pub mod skel_deform;
 pub mod skinning;

@@ -100,26 +100,29 @@ fn read_primvar(r: &StageReader, prim: &usd::Prim, name: &str) -> Result<Option<
     }
     let indices_name = format!("{name}:indices");
     let indices = r.typed(prim, &indices_name, None, "int[]", values::int_array)?;
+    // Each index picks a whole tuple of elementSize values.
     let v = match indices {
         None => v,
-        Some(idx) => {
-            expand_indexed(&v, &idx).ok_or_else(|| Error::attr(prim.path(), &indices_name, "index out of range"))?
-        }
+        Some(idx) => expand_indexed(&v, &idx, element_size as usize)
+            .ok_or_else(|| Error::attr(prim.path(), &indices_name, "index out of range"))?,
     };
     Ok(Some((v, interp, element_size as usize)))
 }
 
-fn expand_indexed(v: &Value, idx: &[i64]) -> Option<Value> {
-    fn pick<T: Clone>(a: &[T], idx: &[i64]) -> Option<Vec<T>> {
-        idx.iter()
-            .map(|&i| usize::try_from(i).ok().and_then(|i| a.get(i).cloned()))
-            .collect()
+fn expand_indexed(v: &Value, idx: &[i64], n: usize) -> Option<Value> {
+    fn pick<T: Copy>(a: &[T], idx: &[i64], n: usize) -> Option<Vec<T>> {
+        let mut out = Vec::with_capacity(idx.len() * n);
+        for &i in idx {
+            let i = usize::try_from(i).ok()?;
+            out.extend_from_slice(a.get(i * n..(i + 1) * n)?);
+        }
+        Some(out)
     }
     Some(match v {
-        Value::IntVec(a) => Value::IntVec(pick(a, idx)?),
-        Value::FloatVec(a) => Value::FloatVec(pick(a, idx)?),
-        Value::DoubleVec(a) => Value::DoubleVec(pick(a, idx)?),
-        Value::HalfVec(a) => Value::HalfVec(pick(a, idx)?),
+        Value::IntVec(a) => Value::IntVec(pick(a, idx, n)?),
+        Value::FloatVec(a) => Value::FloatVec(pick(a, idx, n)?),
+        Value::DoubleVec(a) => Value::DoubleVec(pick(a, idx, n)?),
+        Value::HalfVec(a) => Value::HalfVec(pick(a, idx, n)?),
         _ => return None,
     })
 }
@@ -309,24 +312,25 @@ impl SkelProxy {
                 .unwrap_or(DMat4::IDENTITY),
             None => DMat4::IDENTITY,
         };
-        let method = match inherited_attr(r, mesh, "skel:skinningMethod")? {
-            None => SkinningMethod::ClassicLinear,
-            Some(p) => match r
-                .typed(&p, "skel:skinningMethod", None, "token", values::token)?
-                .as_deref()
-            {
-                None | Some("classicLinear") => SkinningMethod::ClassicLinear,
-                Some("dualQuaternion") => SkinningMethod::DualQuaternion,
-                Some(other) => {
-                    return Err(Error::attr(
-                        p.path(),
-                        "skel:skinningMethod",
-                        format!("unknown skinning method {other:?} (expected classicLinear or dualQuaternion)"),
-                    ))
-                }
-            },
-        };
-
+        // UsdSkel names it primvars:skel:skinningMethod; accept the bare
+        // skel:skinningMethod some exporters write too.
+        let mut method = SkinningMethod::ClassicLinear;
+        for name in ["primvars:skel:skinningMethod", "skel:skinningMethod"] {
+            if let Some(p) = inherited_attr(r, mesh, name)? {
+                method = match r.typed(&p, name, None, "token", values::token)?.as_deref() {
+                    None | Some("classicLinear") => SkinningMethod::ClassicLinear,
+                    Some("dualQuaternion") => SkinningMethod::DualQuaternion,
+                    Some(other) => {
+                        return Err(Error::attr(
+                            p.path(),
+                            name,
+                            format!("unknown skinning method {other:?} (expected classicLinear or dualQuaternion)"),
+                        ))
+                    }
+                };
+                break;
+            }
+        }
         // Blend shapes, in the mesh's skel:blendShapes order.
         let shape_names = r
             .typed(mesh, "skel:blendShapes", None, "token[]", values::token_array)?

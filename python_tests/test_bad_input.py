@@ -1,0 +1,374 @@
+"""Bad input: every case exits 1 (2 allowed for malformed --frames), prints a
+message on stderr starting with `error:` that names the file, the prim path
+and the attribute involved, leaves no output file (nor temporary files)
+behind, never panics, and never modifies the input."""
+
+import math
+import os
+import re
+
+import numpy as np
+import pytest
+from pxr import Gf, Sdf, Usd, UsdGeom, Vt
+
+import authoring as Au
+
+
+# ---------------------------------------------------------------------------
+# helpers
+
+
+def good_static(tmp_path, name="rig.usda", **kw):
+    return Au.build_points_rig(tmp_path / name, mode="static", **kw)
+
+
+def good_skel(tmp_path, name="rig.usda", **kw):
+    return Au.build_skel_rig(tmp_path / name, **kw)
+
+
+def edit(path, fn):
+    stage = Usd.Stage.Open(str(path))
+    fn(stage)
+    stage.GetRootLayer().Save()
+
+
+def expect_failure(painterly, tmp_path, input_path, *, names=(), extra=(), codes=(1,),
+                   name_file=True, out=None):
+    """Run a bake expected to fail and check the contract. `names`: strings
+    that must appear in stderr (prim paths, attribute names)."""
+    out_dir = tmp_path / "out"
+    out_dir.mkdir(exist_ok=True)
+    out = out if out is not None else out_dir / "bake.usdc"
+    before = Au.file_hash(input_path) if os.path.isfile(input_path) else None
+    listing = sorted(os.listdir(tmp_path))
+    out_listing = sorted(os.listdir(out_dir))
+    proc = painterly("bake", input_path, "-o", out, *extra, check=False)
+    err = proc.stderr
+    assert proc.returncode in codes, f"exit {proc.returncode}, expected {codes}\nstderr:\n{err}\nstdout:\n{proc.stdout}"
+    assert "panicked" not in err and "RUST_BACKTRACE" not in err, f"panic:\n{err}"
+    assert "Traceback" not in err
+    assert re.search(r"^error:", err, re.M), f"no line starting with 'error:' on stderr:\n{err}"
+    if name_file:
+        base = os.path.basename(str(input_path).rstrip("/"))
+        assert base in err, f"error does not name the file {base}:\n{err}"
+    for s in names:
+        assert s in err, f"error does not mention {s!r}:\n{err}"
+    assert not os.path.exists(out), "failed bake left an output file"
+    assert sorted(os.listdir(out_dir)) == out_listing, f"failed bake left files: {os.listdir(out_dir)}"
+    assert sorted(os.listdir(tmp_path)) == listing, f"failed bake left files: {os.listdir(tmp_path)}"
+    if before is not None:
+        assert Au.file_hash(input_path) == before, "input modified"
+    return err
+
+
+# ---------------------------------------------------------------------------
+# the rig and its proxy
+
+
+def test_missing_proxy_relationship(painterly, tmp_path):
+    rig = good_static(tmp_path)
+    edit(rig.path, lambda st: st.GetPrimAtPath(rig.rig).RemoveProperty("painterly:proxy"))
+    expect_failure(painterly, tmp_path, rig.path, names=[rig.rig, "painterly:proxy"])
+
+
+def test_proxy_targets_non_mesh(painterly, tmp_path):
+    rig = good_static(tmp_path)
+    edit(rig.path, lambda st: st.GetPrimAtPath(rig.rig).GetRelationship("painterly:proxy")
+         .SetTargets([Sdf.Path("/World/ProxyXf")]))
+    expect_failure(painterly, tmp_path, rig.path, names=["/World/ProxyXf", "painterly:proxy"])
+
+
+def test_proxy_targets_missing_prim(painterly, tmp_path):
+    rig = good_static(tmp_path)
+    edit(rig.path, lambda st: st.GetPrimAtPath(rig.rig).GetRelationship("painterly:proxy")
+         .SetTargets([Sdf.Path("/World/NoSuchMesh")]))
+    expect_failure(painterly, tmp_path, rig.path, names=["/World/NoSuchMesh", "painterly:proxy"])
+
+
+def test_proxy_without_points(painterly, tmp_path):
+    rig = good_static(tmp_path)
+    edit(rig.path, lambda st: st.GetPrimAtPath(rig.mesh).RemoveProperty("points"))
+    expect_failure(painterly, tmp_path, rig.path, names=[rig.mesh, "points"])
+
+
+def test_proxy_with_empty_points(painterly, tmp_path):
+    rig = good_static(tmp_path)
+    edit(rig.path, lambda st: UsdGeom.Mesh(st.GetPrimAtPath(rig.mesh)).GetPointsAttr().Set(Vt.Vec3fArray()))
+    expect_failure(painterly, tmp_path, rig.path, names=[rig.mesh, "points"])
+
+
+def test_time_sampled_proxy_without_rest_pose(painterly, tmp_path):
+    """Only time samples, no default value and no painterly:restTime: no rest pose."""
+    rig = Au.build_points_rig(tmp_path / "rig.usda", mode="sampled", default_points=False, rest_time=None)
+    expect_failure(painterly, tmp_path, rig.path, names=[rig.mesh])
+
+
+@pytest.mark.parametrize("bad", [math.nan, math.inf, -math.inf])
+def test_non_finite_proxy_points(painterly, tmp_path, bad):
+    rig = good_static(tmp_path)
+
+    def f(st):
+        a = UsdGeom.Mesh(st.GetPrimAtPath(rig.mesh)).GetPointsAttr()
+        pts = list(a.Get())
+        pts[5] = Gf.Vec3f(0.0, bad, 0.0)
+        a.Set(Vt.Vec3fArray(pts))
+    edit(rig.path, f)
+    expect_failure(painterly, tmp_path, rig.path, names=[rig.mesh, "points"])
+
+
+def test_non_finite_proxy_time_sample(painterly, tmp_path):
+    rig = Au.build_points_rig(tmp_path / "rig.usda", mode="sampled")
+
+    def f(st):
+        a = UsdGeom.Mesh(st.GetPrimAtPath(rig.mesh)).GetPointsAttr()
+        t = a.GetTimeSamples()[-1]
+        pts = list(a.Get(t))
+        pts[3] = Gf.Vec3f(math.nan, 0.0, 0.0)
+        a.Set(Vt.Vec3fArray(pts), t)
+    edit(rig.path, f)
+    expect_failure(painterly, tmp_path, rig.path, names=[rig.mesh, "points"])
+
+
+def test_non_finite_skinned_proxy_points(painterly, tmp_path):
+    rig = good_skel(tmp_path)
+
+    def f(st):
+        a = UsdGeom.Mesh(st.GetPrimAtPath(rig.mesh)).GetPointsAttr()
+        pts = list(a.Get())
+        pts[0] = Gf.Vec3f(math.inf, 0.0, 0.0)
+        a.Set(Vt.Vec3fArray(pts))
+    edit(rig.path, f)
+    expect_failure(painterly, tmp_path, rig.path, names=[rig.mesh, "points"])
+
+
+# ---------------------------------------------------------------------------
+# stroke layers
+
+
+def test_curve_vertex_counts_do_not_sum_to_points(painterly, tmp_path):
+    rig = good_static(tmp_path)
+
+    def f(st):
+        a = UsdGeom.BasisCurves(st.GetPrimAtPath(rig.layers[0])).GetCurveVertexCountsAttr()
+        c = list(a.Get())
+        c[0] += 1
+        a.Set(Vt.IntArray(c))
+    edit(rig.path, f)
+    expect_failure(painterly, tmp_path, rig.path, names=[rig.layers[0], "curveVertexCounts"])
+
+
+def test_rest_points_count_differs_from_points(painterly, tmp_path):
+    rig = good_static(tmp_path)
+
+    def f(st):
+        a = st.GetPrimAtPath(rig.layers[0]).GetAttribute("painterly:restPoints")
+        a.Set(Vt.Vec3fArray(list(a.Get())[:-2]))
+    edit(rig.path, f)
+    expect_failure(painterly, tmp_path, rig.path, names=[rig.layers[0], "painterly:restPoints"])
+
+
+def test_cached_binding_out_of_range(painterly, tmp_path):
+    rig = good_static(tmp_path)
+
+    def f(st):
+        prim = st.GetPrimAtPath(rig.layers[0])
+        n = len(prim.GetAttribute("painterly:restPoints").Get())
+        nv = len(UsdGeom.Mesh(st.GetPrimAtPath(rig.mesh)).GetPointsAttr().Get())
+        verts = [Gf.Vec3i(0, 1, 2)] * n
+        verts[1] = Gf.Vec3i(0, nv + 10, 2)
+        prim.CreateAttribute("painterly:bindVertices", Sdf.ValueTypeNames.Int3Array, custom=False).Set(
+            Vt.Vec3iArray(verts))
+        prim.CreateAttribute("painterly:bindWeights", Sdf.ValueTypeNames.Float3Array, custom=False).Set(
+            Vt.Vec3fArray([Gf.Vec3f(0.2, 0.3, 0.5)] * n))
+    edit(rig.path, f)
+    expect_failure(painterly, tmp_path, rig.path, names=[rig.layers[0], "painterly:bindVertices"])
+
+
+def test_cached_binding_negative_index(painterly, tmp_path):
+    rig = good_static(tmp_path)
+
+    def f(st):
+        prim = st.GetPrimAtPath(rig.layers[0])
+        n = len(prim.GetAttribute("painterly:restPoints").Get())
+        verts = [Gf.Vec3i(0, 1, 2)] * n
+        verts[0] = Gf.Vec3i(-1, 1, 2)
+        prim.CreateAttribute("painterly:bindVertices", Sdf.ValueTypeNames.Int3Array, custom=False).Set(
+            Vt.Vec3iArray(verts))
+        prim.CreateAttribute("painterly:bindWeights", Sdf.ValueTypeNames.Float3Array, custom=False).Set(
+            Vt.Vec3fArray([Gf.Vec3f(0.2, 0.3, 0.5)] * n))
+    edit(rig.path, f)
+    expect_failure(painterly, tmp_path, rig.path, names=[rig.layers[0], "painterly:bindVertices"])
+
+
+def test_cached_binding_weights_count_mismatch(painterly, tmp_path):
+    rig = good_static(tmp_path)
+
+    def f(st):
+        prim = st.GetPrimAtPath(rig.layers[0])
+        n = len(prim.GetAttribute("painterly:restPoints").Get())
+        prim.CreateAttribute("painterly:bindVertices", Sdf.ValueTypeNames.Int3Array, custom=False).Set(
+            Vt.Vec3iArray([Gf.Vec3i(0, 1, 2)] * n))
+        prim.CreateAttribute("painterly:bindWeights", Sdf.ValueTypeNames.Float3Array, custom=False).Set(
+            Vt.Vec3fArray([Gf.Vec3f(0.2, 0.3, 0.5)] * (n - 1)))
+    edit(rig.path, f)
+    expect_failure(painterly, tmp_path, rig.path, names=[rig.layers[0], "painterly:bindWeights"])
+
+
+def test_proxy_face_index_out_of_range(painterly, tmp_path):
+    rig = good_static(tmp_path)
+
+    def f(st):
+        a = UsdGeom.Mesh(st.GetPrimAtPath(rig.mesh)).GetFaceVertexIndicesAttr()
+        idx = list(a.Get())
+        idx[7] = 10_000
+        a.Set(Vt.IntArray(idx))
+    edit(rig.path, f)
+    expect_failure(painterly, tmp_path, rig.path, names=[rig.mesh, "faceVertexIndices"])
+
+
+def test_proxy_face_counts_do_not_match_indices(painterly, tmp_path):
+    rig = good_static(tmp_path)
+
+    def f(st):
+        a = UsdGeom.Mesh(st.GetPrimAtPath(rig.mesh)).GetFaceVertexCountsAttr()
+        c = list(a.Get())
+        c[-1] += 3
+        a.Set(Vt.IntArray(c))
+    edit(rig.path, f)
+    expect_failure(painterly, tmp_path, rig.path, names=[rig.mesh, "faceVertexCounts"])
+
+
+@pytest.mark.parametrize("bad", [math.nan, math.inf])
+def test_non_finite_stroke_points(painterly, tmp_path, bad):
+    """No restPoints: `points` is the rest pose, and it holds a NaN / inf."""
+    rig = good_static(tmp_path, write_rest=False)
+
+    def f(st):
+        a = UsdGeom.BasisCurves(st.GetPrimAtPath(rig.layers[0])).GetPointsAttr()
+        pts = list(a.Get())
+        pts[2] = Gf.Vec3f(0.0, 0.0, bad)
+        a.Set(Vt.Vec3fArray(pts))
+    edit(rig.path, f)
+    expect_failure(painterly, tmp_path, rig.path, names=[rig.layers[0], "points"])
+
+
+@pytest.mark.parametrize("bad", [math.nan, -math.inf])
+def test_non_finite_rest_points(painterly, tmp_path, bad):
+    rig = good_static(tmp_path)
+
+    def f(st):
+        a = st.GetPrimAtPath(rig.layers[0]).GetAttribute("painterly:restPoints")
+        pts = list(a.Get())
+        pts[1] = Gf.Vec3f(bad, 0.0, 0.0)
+        a.Set(Vt.Vec3fArray(pts))
+    edit(rig.path, f)
+    expect_failure(painterly, tmp_path, rig.path, names=[rig.layers[0], "painterly:restPoints"])
+
+
+# ---------------------------------------------------------------------------
+# files
+
+
+def test_input_is_a_directory(painterly, tmp_path):
+    d = tmp_path / "looks_like.usda"
+    d.mkdir()
+    expect_failure(painterly, tmp_path, d)
+
+
+@pytest.mark.parametrize("ext", ["usda", "usdc", "usd"])
+def test_garbage_file(painterly, tmp_path, ext):
+    p = tmp_path / f"garbage.{ext}"
+    p.write_bytes(bytes(np.random.default_rng(0).integers(0, 256, 4096, dtype=np.uint8)))
+    expect_failure(painterly, tmp_path, p)
+
+
+def test_garbage_usda_text(painterly, tmp_path):
+    p = tmp_path / "broken.usda"
+    p.write_text('#usda 1.0\n\ndef Xform "World" {\n    double3 xformOp:translate = (1, 2\n')
+    expect_failure(painterly, tmp_path, p)
+
+
+@pytest.mark.parametrize("fraction", [0.5, 0.9, 0.02])
+def test_truncated_usdc(painterly, tmp_path, fraction):
+    rig = good_skel(tmp_path)
+    usdc = tmp_path / "rig_binary.usdc"
+    assert Sdf.Layer.FindOrOpen(str(rig.path)).Export(str(usdc))
+    data = usdc.read_bytes()
+    usdc.write_bytes(data[: max(16, int(len(data) * fraction))])
+    expect_failure(painterly, tmp_path, usdc)
+
+
+def test_nonexistent_input(painterly, tmp_path):
+    expect_failure(painterly, tmp_path, tmp_path / "does_not_exist.usda")
+
+
+def test_output_in_missing_directory(painterly, tmp_path):
+    rig = good_static(tmp_path)
+    out = tmp_path / "no_such_dir" / "bake.usdc"
+    err = expect_failure(painterly, tmp_path, rig.path, out=out, name_file=False)
+    assert "no_such_dir" in err, f"error does not name the output path:\n{err}"
+    assert not (tmp_path / "no_such_dir").exists()
+
+
+# ---------------------------------------------------------------------------
+# --frames
+
+
+@pytest.mark.parametrize("frames", ["0:5", "5:20", "-3:2", "13", "11:13"])
+def test_frames_outside_stage_range(painterly, tmp_path, frames):
+    rig = good_skel(tmp_path, frames=(1, 12))
+    # --frames=VALUE so that a leading '-' is not taken for an option
+    err = expect_failure(painterly, tmp_path, rig.path, extra=[f"--frames={frames}"])
+    assert "frame" in err.lower()
+
+
+@pytest.mark.parametrize("frames", ["1:", "a:b", "5:1", "1:10:0", "1:10:-1", ":5", "1:2:3:4", "nan:3", ""])
+def test_malformed_frames(painterly, tmp_path, frames):
+    rig = good_skel(tmp_path, frames=(1, 12))
+    err = expect_failure(painterly, tmp_path, rig.path, extra=["--frames", frames], codes=(1, 2),
+                         name_file=False)
+    assert "frames" in err.lower() or (frames and frames in err), err
+
+
+# ---------------------------------------------------------------------------
+# inspect
+
+
+def test_inspect_reports_problem_with_prim_path(painterly, tmp_path):
+    rig = good_static(tmp_path)
+    edit(rig.path, lambda st: st.GetPrimAtPath(rig.rig).GetRelationship("painterly:proxy")
+         .SetTargets([Sdf.Path("/World/NoSuchMesh")]))
+    before = Au.file_hash(rig.path)
+    proc = painterly("inspect", rig.path, check=False)
+    text = proc.stdout + proc.stderr
+    assert "panicked" not in text
+    assert "/World/NoSuchMesh" in text or rig.rig in text, text
+    assert Au.file_hash(rig.path) == before
+
+
+def test_inspect_nonexistent_file(painterly, tmp_path):
+    proc = painterly("inspect", tmp_path / "nope.usda", check=False)
+    assert proc.returncode != 0
+    assert "nope.usda" in proc.stderr and "panicked" not in proc.stderr
+
+
+# ---------------------------------------------------------------------------
+# command-line usage
+
+
+@pytest.mark.parametrize("args", [
+    ["bake"],                                   # no input, no -o
+    ["bake", "{input}"],                        # no -o
+    ["bake", "{input}", "-o", "{out}", "--no-such-flag"],
+    ["frobnicate", "{input}"],
+])
+def test_usage_errors_exit_2(painterly, tmp_path, args):
+    rig = good_static(tmp_path)
+    out = tmp_path / "usage_out.usdc"
+    before = Au.file_hash(rig.path)
+    argv = [a.format(input=rig.path, out=out) for a in args]
+    proc = painterly(*argv, check=False)
+    assert proc.returncode == 2, f"exit {proc.returncode}\n{proc.stderr}"
+    assert "error" in proc.stderr.lower() and "panicked" not in proc.stderr
+    assert not out.exists()
+    assert Au.file_hash(rig.path) == before

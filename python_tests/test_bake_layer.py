@@ -1,0 +1,271 @@
+"""SPEC section 7: the layer `painterly bake` writes.
+
+Only `over` specs plus copied layer metadata; samples exactly at the baked
+frames; extent = per-frame min/max of the points; displayOpacity = authored
+(1 when absent) x painterly:opacity per curve; input bytes unchanged; the
+composed stage validates cleanly with UsdValidation; CLI reporting (--json,
+--quiet); a bake of the committed fixture.
+"""
+
+import json
+import pathlib
+
+import numpy as np
+import pytest
+from pxr import Sdf, Usd, UsdGeom, UsdValidation
+
+import authoring as Au
+import reference_skinning as R
+
+ALLOWED_PROPERTIES = {"points", "extent", "primvars:displayOpacity", "skel:skeleton"}
+
+
+def bake(painterly, rig_path, out, *extra):
+    return painterly("bake", rig_path, "-o", out, *extra)
+
+
+def test_only_over_specs_and_allowed_properties(painterly, tmp_path):
+    rig = Au.build_skel_rig(tmp_path / "rig.usda", extra_layers=1, opacity=0.5)
+    out = tmp_path / "bake.usda"
+    bake(painterly, rig.path, out, "--quiet", "--bake-proxy")
+    layer = Sdf.Layer.FindOrOpen(str(out))
+    src = Usd.Stage.Open(str(rig.path))
+    specs = Au.layer_prim_specs(layer)
+    assert specs, "bake layer holds no prim specs"
+    for spec in specs:
+        assert spec.specifier == Sdf.SpecifierOver, f"{spec.path} is {spec.specifier}, not over"
+        assert src.GetPrimAtPath(spec.path).IsValid(), f"bake introduces a prim not in the input: {spec.path}"
+        for prop in spec.properties:
+            assert prop.name in ALLOWED_PROPERTIES, f"unexpected property in bake: {prop.path}"
+    # every stroke layer and the proxy are there
+    for lp in rig.layers + [rig.mesh]:
+        assert layer.GetPrimAtPath(lp), f"bake has no spec for {lp}"
+    assert not layer.subLayerPaths, "the bake layer must not sublayer the input itself"
+
+
+def test_metadata_copied(painterly, tmp_path):
+    rig = Au.build_skel_rig(tmp_path / "rig.usda", frames=(2, 9), tcps=30.0, up="Z", mpu=0.01)
+    out = tmp_path / "bake.usdc"
+    bake(painterly, rig.path, out, "--quiet")
+    layer = Sdf.Layer.FindOrOpen(str(out))
+    src = Sdf.Layer.FindOrOpen(str(rig.path))
+    assert layer.startTimeCode == 2 and layer.endTimeCode == 9
+    assert layer.timeCodesPerSecond == 30
+    stage = Usd.Stage.Open(layer)
+    assert UsdGeom.GetStageUpAxis(stage) == UsdGeom.Tokens.z
+    assert UsdGeom.GetStageMetersPerUnit(stage) == pytest.approx(0.01)
+    assert src.timeCodesPerSecond == layer.timeCodesPerSecond
+
+
+@pytest.mark.parametrize("frames_arg,frames", [(None, Au.frame_list(1, 12)), ("3:9:2", [3.0, 5.0, 7.0, 9.0])])
+def test_samples_exactly_at_baked_frames_and_extent(painterly, tmp_path, frames_arg, frames):
+    rig = Au.build_skel_rig(tmp_path / "rig.usda", frames=(1, 12))
+    out = tmp_path / "bake.usdc"
+    extra = ["--quiet"] + (["--frames", frames_arg] if frames_arg else [])
+    bake(painterly, rig.path, out, *extra)
+    layer = Sdf.Layer.FindOrOpen(str(out))
+    for lp in rig.layers:
+        pp = Sdf.Path(lp).AppendProperty("points")
+        ep = Sdf.Path(lp).AppendProperty("extent")
+        assert list(layer.ListTimeSamplesForPath(pp)) == pytest.approx(frames)
+        assert list(layer.ListTimeSamplesForPath(ep)) == pytest.approx(frames)
+        dp = Sdf.Path(lp).AppendProperty("primvars:displayOpacity")
+        if layer.GetAttributeAtPath(dp) and layer.GetNumTimeSamplesForPath(dp):
+            assert list(layer.ListTimeSamplesForPath(dp)) == pytest.approx(frames)
+        for t in frames:
+            pts = np.array(layer.QueryTimeSample(pp, t), dtype=np.float64)
+            ext = np.array(layer.QueryTimeSample(ep, t), dtype=np.float64)
+            assert ext.shape == (2, 3)
+            np.testing.assert_allclose(ext, [pts.min(0), pts.max(0)], atol=1e-6,
+                                       err_msg=f"{lp}.extent at t={t}")
+
+
+@pytest.mark.parametrize("frames_arg,frames", [(None, Au.frame_list(-4, 4)), ("--frames=-3:1:2", [-3.0, -1.0, 1.0])])
+def test_negative_time_codes(painterly, tmp_path, frames_arg, frames):
+    rig = Au.build_skel_rig(tmp_path / "rig.usda", frames=(-4, 4))
+    out = tmp_path / "bake.usdc"
+    bake(painterly, rig.path, out, "--quiet", *([frames_arg] if frames_arg else []))
+    layer = Sdf.Layer.FindOrOpen(str(out))
+    assert layer.startTimeCode == -4 and layer.endTimeCode == 4
+    for lp in rig.layers:
+        assert list(layer.ListTimeSamplesForPath(Sdf.Path(lp).AppendProperty("points"))) == pytest.approx(frames)
+
+
+@pytest.mark.parametrize("authored,interp,opacity", [
+    (None, None, None),            # 1 x 1
+    (None, None, 0.25),            # fallback 1 x layer opacity
+    ("uniform", "uniform", 0.5),   # per curve x layer opacity
+    ("uniform", "uniform", None),
+    ("constant", "constant", 0.4),
+])
+def test_display_opacity(painterly, tmp_path, authored, interp, opacity):
+    rig = Au.build_skel_rig(tmp_path / "rig.usda", opacity=opacity, n_strokes=5)
+    st = Usd.Stage.Open(str(rig.path))
+    prim = st.GetPrimAtPath(rig.layers[0])
+    n = len(UsdGeom.BasisCurves(prim).GetCurveVertexCountsAttr().Get())
+    if authored == "uniform":
+        UsdGeom.PrimvarsAPI(prim).CreatePrimvar("displayOpacity", Sdf.ValueTypeNames.FloatArray,
+                                                UsdGeom.Tokens.uniform).Set([0.1 + 0.2 * i for i in range(n)])
+    elif authored == "constant":
+        UsdGeom.PrimvarsAPI(prim).CreatePrimvar("displayOpacity", Sdf.ValueTypeNames.FloatArray,
+                                                UsdGeom.Tokens.constant).Set([0.7])
+    st.GetRootLayer().Save()
+    expected = R.expected_display_opacity(Usd.Stage.Open(str(rig.path)), rig.layers[0])
+    assert len(expected) == n
+    out = tmp_path / "bake.usdc"
+    bake(painterly, rig.path, out, "--quiet")
+    comp = Au.compose(rig.path, out)
+    pv = UsdGeom.PrimvarsAPI(comp.GetPrimAtPath(rig.layers[0])).GetPrimvar("displayOpacity")
+    assert pv and pv.HasAuthoredValue(), "no primvars:displayOpacity in the composed result"
+    for t in rig.frames:
+        vals = np.array(pv.ComputeFlattened(t), dtype=np.float64)
+        if pv.GetInterpolation() == UsdGeom.Tokens.constant:
+            assert len(vals) == 1, f"constant displayOpacity with {len(vals)} values"
+            vals = np.full(n, vals[0])
+        else:
+            assert pv.GetInterpolation() == UsdGeom.Tokens.uniform, pv.GetInterpolation()
+        assert len(vals) == n
+        np.testing.assert_allclose(vals, expected, atol=1e-6, err_msg=f"t={t}")
+
+
+def test_input_bytes_unchanged(painterly, tmp_path):
+    rig = Au.build_skel_rig(tmp_path / "rig.usda")
+    before = Au.file_hash(rig.path)
+    mtime = rig.path.stat().st_mtime_ns
+    bake(painterly, rig.path, tmp_path / "bake.usdc", "--quiet", "--bake-proxy")
+    bake(painterly, rig.path, tmp_path / "bake.usda", "--quiet")
+    assert Au.file_hash(rig.path) == before
+    assert rig.path.stat().st_mtime_ns == mtime
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bake.usda", "bake.usdc", "rig.usda"]
+
+
+def _validation_errors(stage):
+    ctx = UsdValidation.ValidationContext(UsdValidation.ValidationRegistry().GetOrLoadAllValidators())
+    errs = ctx.Validate(stage)
+    return [f"{e.GetName()}: {e.GetMessage()}" for e in errs
+            if e.GetType() == UsdValidation.ValidationErrorType.Error]
+
+
+@pytest.mark.parametrize("bake_proxy", [False, True])
+def test_validation_clean(painterly, tmp_path, bake_proxy):
+    rig = Au.build_skel_rig(tmp_path / "rig.usda", blend_shapes={"dense"}, opacity=0.5,
+                            display_opacity=lambda n: [0.5] * n)
+    src_errors = _validation_errors(Usd.Stage.Open(str(rig.path)))
+    assert src_errors == [], f"test input itself fails validation: {src_errors}"
+    out = tmp_path / "bake.usdc"
+    bake(painterly, rig.path, out, "--quiet", *(["--bake-proxy"] if bake_proxy else []))
+    errors = _validation_errors(Au.compose(rig.path, out))
+    assert errors == [], "\n".join(errors)
+    # and the bake layer alone opens as a stage (an override layer need not
+    # name a defaultPrim, so only opening is checked)
+    assert Usd.Stage.Open(str(out))
+
+
+def test_validation_real_asset_adds_no_errors(painterly, tmp_path, real_assets):
+    rig = Au.wrap_real_asset(real_assets, "CesiumMan", tmp_path)
+    before = _validation_errors(Usd.Stage.Open(str(rig.path)))
+    out = tmp_path / "bake.usdc"
+    bake(painterly, rig.path, out, "--quiet", "--bake-proxy")
+    after = _validation_errors(Au.compose(rig.path, out))
+    # compare by error name and message minus the (anonymous) root layer name
+    def key(e):
+        return e.split(" with root layer ")[0]
+    new = sorted(set(map(key, after)) - set(map(key, before)))
+    assert not new, f"new validation errors: {new}"
+
+
+def test_json_summary(painterly, tmp_path):
+    rig = Au.build_skel_rig(tmp_path / "rig.usda", extra_layers=1, n_strokes=5)
+    out = tmp_path / "bake.usdc"
+    proc = bake(painterly, rig.path, out, "--json", "--frames", "2:10:2")
+    lines = [l for l in proc.stdout.splitlines() if l.strip()]
+    assert len(lines) == 1, f"--json must print one JSON object on stdout, got:\n{proc.stdout}"
+    info = json.loads(lines[0])
+    for key in ("input", "output", "frames", "layers", "strokes", "points", "seconds"):
+        assert key in info, f"--json output lacks {key!r}: {info}"
+    assert pathlib.Path(info["input"]).resolve() == rig.path.resolve()
+    assert pathlib.Path(info["output"]).resolve() == out.resolve()
+    frames = [2.0, 4.0, 6.0, 8.0, 10.0]
+    if isinstance(info["frames"], list):
+        assert info["frames"] == pytest.approx(frames)
+    else:
+        assert info["frames"] == len(frames)
+    n_layers = len(rig.layers)
+    assert (info["layers"] if isinstance(info["layers"], int) else len(info["layers"])) == n_layers
+    st = Usd.Stage.Open(str(rig.path))
+    n_curves = sum(len(UsdGeom.BasisCurves(st.GetPrimAtPath(lp)).GetCurveVertexCountsAttr().Get())
+                   for lp in rig.layers)
+    n_points = sum(len(UsdGeom.BasisCurves(st.GetPrimAtPath(lp)).GetPointsAttr().Get()) for lp in rig.layers)
+    assert info["strokes"] == n_curves
+    assert info["points"] in (n_points, n_points * len(frames))
+    assert isinstance(info["seconds"], (int, float)) and info["seconds"] >= 0
+
+
+def test_quiet_prints_nothing(painterly, tmp_path):
+    rig = Au.build_skel_rig(tmp_path / "rig.usda")
+    proc = bake(painterly, rig.path, tmp_path / "bake.usdc", "--quiet")
+    assert proc.stdout == ""
+    assert "error" not in proc.stderr.lower()
+
+
+def test_default_output_reports_something(painterly, tmp_path):
+    rig = Au.build_skel_rig(tmp_path / "rig.usda")
+    proc = bake(painterly, rig.path, tmp_path / "bake.usdc")
+    assert proc.stdout.strip() or proc.stderr.strip(), "a normal bake should print a summary"
+
+
+def test_overwrites_existing_output(painterly, tmp_path):
+    rig = Au.build_skel_rig(tmp_path / "rig.usda")
+    out = tmp_path / "bake.usdc"
+    out.write_bytes(b"old contents")
+    bake(painterly, rig.path, out, "--quiet")
+    assert out.read_bytes().startswith(b"PXR-USDC")
+
+
+def test_inspect_good_file(painterly, tmp_path):
+    rig = Au.build_skel_rig(tmp_path / "rig.usda")
+    proc = painterly("inspect", rig.path)
+    assert proc.returncode == 0
+    assert rig.mesh in proc.stdout and rig.layers[0] in proc.stdout, proc.stdout
+    proc = painterly("inspect", rig.path, "--json")
+    json.loads(proc.stdout)
+
+
+def _fixture(repo_root, name):
+    p = pathlib.Path(repo_root) / "fixtures" / name
+    if not p.exists():
+        pytest.skip(f"fixture {p} not present")
+    return p
+
+
+def test_fixture_tube_bake(painterly, tmp_path, repo_root):
+    src = _fixture(repo_root, "tube.usda")
+    before = Au.file_hash(src)
+    out = tmp_path / "tube_bake.usdc"
+    painterly("bake", src, "-o", out, "--quiet")
+    assert Au.file_hash(src) == before
+    layer = Sdf.Layer.FindOrOpen(str(out))
+    for spec in Au.layer_prim_specs(layer):
+        assert spec.specifier == Sdf.SpecifierOver, spec.path
+    stage, rigs = R.describe(src)
+    frames = Au.frame_list(stage.GetStartTimeCode(), stage.GetEndTimeCode())
+    layers = [l["path"] for r in rigs for l in r["layers"]]
+    assert layers, "fixture has no stroke layers"
+    comp = Au.compose(src, out)
+    for lp in layers:
+        for t in frames:
+            pts = Au.local_points(comp, lp, t)
+            assert np.all(np.isfinite(pts))
+    # Without pose/time keys or axes the bake is pure skinning: compare with the reference.
+    keyed = any(p.GetTypeName() in ("PainterlyPoseKey", "PainterlyTimeKey", "PainterlyAxis")
+                for p in stage.Traverse())
+    if keyed:
+        return
+    posed = Au.usdcore_world_points(src, sorted({r["mesh"] for r in rigs}), frames)
+    exp = R.expected_strokes(src, frames, posed_world=posed)
+    for r in rigs:
+        for l in r["layers"]:
+            for t in frames:
+                diag = Au.bbox_diag(posed[r["mesh"]][t])
+                err = np.abs(Au.local_points(comp, l["path"], t) - exp[l["path"]][t]).max() / diag
+                assert err <= 1e-5, f"{l['path']} t={t}: {err:.3g} x diagonal"

@@ -1,0 +1,91 @@
+//! JSON front end of the interpolators: the body of `painterly interpolate`,
+//! which lets tests in other languages compare weights with a reference.
+//!
+//! Input (stdin of the subcommand):
+//! `{"method": "smoothVoronoi" | "rbf" | "shepard", "radius": 1.0,
+//!   "keys": [[x00, x01, ...], ...], "points": [[...], ...]}`;
+//! `radius` is optional (RBF only, default 1.0). Output:
+//! `{"weights": [[w_0, ..., w_{n-1}], ...]}`, one row per point, numbers
+//! printed with full round-trip precision.
+
+use super::{Interpolator, Method};
+use serde::{Deserialize, Serialize};
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Input {
+    method: String,
+    #[serde(default)]
+    radius: Option<f64>,
+    keys: Vec<Vec<f64>>,
+    points: Vec<Vec<f64>>,
+}
+
+#[derive(Serialize)]
+struct Output {
+    weights: Vec<Vec<f64>>,
+}
+
+/// Parses the request, interpolates every point and returns the response
+/// JSON; the error string names the problem (bad JSON, unknown method,
+/// inconsistent dimensions, invalid keys).
+pub fn run_json(input: &str) -> Result<String, String> {
+    let req: Input = serde_json::from_str(input).map_err(|e| format!("invalid input JSON: {e}"))?;
+    let radius = req.radius.unwrap_or(1.0);
+    let method = Method::from_token(&req.method, radius).ok_or_else(|| {
+        format!(
+            "unknown method {:?} (expected \"smoothVoronoi\", \"rbf\" or \"shepard\")",
+            req.method
+        )
+    })?;
+    let dim = req.keys.first().map_or(0, Vec::len);
+    if let Some((k, key)) = req.keys.iter().enumerate().find(|(_, k)| k.len() != dim) {
+        return Err(format!("key {k} has {} coordinates, key 0 has {dim}", key.len()));
+    }
+    let flat: Vec<f64> = req.keys.concat();
+    let interp = Interpolator::new(method, dim, &flat).map_err(|e| e.to_string())?;
+    let mut weights = Vec::with_capacity(req.points.len());
+    for (p, point) in req.points.iter().enumerate() {
+        if point.len() != dim {
+            return Err(format!(
+                "point {p} has {} coordinates, the keys have {dim}",
+                point.len()
+            ));
+        }
+        weights.push(interp.weights_vec(point));
+    }
+    serde_json::to_string(&Output { weights }).map_err(|e| format!("cannot write output: {e}"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn round_trip_and_errors() {
+        let out = run_json(
+            r#"{"method": "smoothVoronoi", "keys": [[0, 0], [1, 0], [0, 1]],
+                "points": [[0, 0], [0.25, 0.25]]}"#,
+        )
+        .unwrap();
+        let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+        let w = v["weights"].as_array().unwrap();
+        assert_eq!(w.len(), 2);
+        assert_eq!(w[0], serde_json::json!([1.0, 0.0, 0.0]));
+        let s: f64 = w[1].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).sum();
+        assert!((s - 1.0).abs() < 1e-12);
+
+        let out = run_json(r#"{"method": "rbf", "radius": 0.5, "keys": [[0], [1]], "points": [[0.5]]}"#).unwrap();
+        assert!(out.contains("0.5"), "{out}");
+
+        let err = |s: &str| run_json(s).unwrap_err();
+        assert!(err("not json").contains("invalid input JSON"));
+        assert!(err(r#"{"method": "linear", "keys": [[0]], "points": []}"#).contains("linear"));
+        assert!(err(r#"{"method": "shepard", "keys": [[0], [1, 2]], "points": []}"#).contains("key 1"));
+        assert!(err(r#"{"method": "shepard", "keys": [[0], [1]], "points": [[1, 2]]}"#).contains("point 0"));
+        assert!(err(r#"{"method": "shepard", "keys": [], "points": []}"#).contains("no keys"));
+        assert!(err(r#"{"method": "shepard", "keys": [[0], [0]], "points": []}"#).contains("keys 0 and 1"));
+        assert!(err(r#"{"method": "rbf", "radius": -1, "keys": [[0], [1]], "points": []}"#).contains("radius"));
+        assert!(err(r#"{"method": "rbf", "raduis": 1, "keys": [[0]], "points": []}"#).contains("raduis"));
+    }
+}
