@@ -16,10 +16,12 @@ use openusd::sdf::Value;
 use crate::bind::{Binding, ClosestPoint};
 use crate::error::{Error, Result};
 use crate::frames::FrameRange;
-use crate::mesh::{bounds, fan_triangulate, OneRings};
+use crate::keys::{blend_points, combine, Source};
+use crate::mesh::{bounds, bounds_f64, fan_triangulate, OneRings};
 use crate::skinning::{skin_points, to_f32, SkinningRest};
+use crate::usd_io::axes::AxisFrame;
 use crate::usd_io::layer::{Format, OverLayer};
-use crate::usd_io::scene::{Rig, Scene};
+use crate::usd_io::scene::{Rig, Scene, StrokeLayer};
 use crate::usd_io::stage::StageReader;
 
 /// What to bake.
@@ -29,6 +31,8 @@ pub struct BakeOptions {
     pub frames: Option<FrameRange>,
     /// Also write every rig proxy's evaluated points (and block its skeleton).
     pub bake_proxy: bool,
+    /// Camera prim for `viewDirection` axes without a source (and view-dependent meshes).
+    pub camera: Option<String>,
 }
 
 /// What a bake did, for the summary line and `--json`.
@@ -130,6 +134,81 @@ fn points_value(points: Vec<Vec3>) -> Value {
     Value::Vec3fVec(bytemuck::allocation::cast_vec(points))
 }
 
+/// Values of the rig's axes at `t` (None for axes no keyed layer uses).
+fn eval_axes(
+    r: &StageReader,
+    rig: &Rig,
+    t: f64,
+    proxy_to_world: DMat4,
+    posed: &[glam::DVec3],
+    camera: Option<&str>,
+) -> Result<Vec<f64>> {
+    let mut needed = vec![false; rig.axes.len()];
+    for l in rig.layers.iter().filter(|l| l.keys.uses_axes()) {
+        for &a in &l.keys.axes {
+            needed[a] = true;
+        }
+    }
+    if !needed.iter().any(|&n| n) {
+        return Ok(vec![0.0; rig.axes.len()]);
+    }
+    let [lo, hi] = bounds_f64(posed).unwrap_or([glam::DVec3::ZERO; 2]);
+    let frame = AxisFrame {
+        time: t,
+        proxy_to_world,
+        proxy_centre: (lo + hi) * 0.5,
+        camera,
+    };
+    rig.axes
+        .iter()
+        .zip(&needed)
+        .map(|(a, &n)| if n { a.value(r, &frame) } else { Ok(0.0) })
+        .collect()
+}
+
+/// A layer's keyed rest points (None: its own rest points) and keyed opacity at `t`.
+pub fn keyed_state(layer: &StrokeLayer, axis_values: &[f64], t: f64) -> (Option<Vec<Vec3>>, f32) {
+    let k = &layer.keys;
+    let x: Vec<f64> = k.axes.iter().map(|&a| axis_values[a]).collect();
+    let x = if x.is_empty() { vec![0.0] } else { x };
+
+    let pose_w = k.pose_points.as_ref().map(|c| c.interp.weights(&x));
+    let time_w = k.time_points.as_ref().map(|c| c.interp.weights(t));
+    let terms = combine(pose_w.as_ref(), time_w.as_ref());
+    let points = if terms == [(1.0, Source::Rest)] {
+        None
+    } else {
+        let arrays: Vec<(f64, &[Vec3])> = terms
+            .iter()
+            .map(|&(w, s)| {
+                let v: &[Vec3] = match s {
+                    Source::Rest => &layer.rest_points,
+                    Source::Pose(i) => &k.pose_points.as_ref().expect("pose weights come from pose keys").values[i],
+                    Source::Time(i) => &k.time_points.as_ref().expect("time weights come from time keys").values[i],
+                };
+                (w, v)
+            })
+            .collect();
+        let mut out = vec![Vec3::ZERO; layer.rest_points.len()];
+        blend_points(&mut out, &arrays);
+        Some(out)
+    };
+
+    let pose_w = k.pose_opacity.as_ref().map(|c| c.interp.weights(&x));
+    let time_w = k.time_opacity.as_ref().map(|c| c.interp.weights(t));
+    let opacity: f64 = combine(pose_w.as_ref(), time_w.as_ref())
+        .iter()
+        .map(|&(w, s)| {
+            w * match s {
+                Source::Rest => 1.0,
+                Source::Pose(i) => k.pose_opacity.as_ref().expect("pose opacity keys").values[i] as f64,
+                Source::Time(i) => k.time_opacity.as_ref().expect("time opacity keys").values[i] as f64,
+            }
+        })
+        .sum();
+    (points, opacity as f32)
+}
+
 /// Bakes `input` into `output`.
 pub fn bake(input: &Path, output: &Path, opts: &BakeOptions, progress: Progress) -> Result<BakeSummary> {
     let started = Instant::now();
@@ -165,17 +244,25 @@ fn bake_stage(
             let posed = proxy.posed_points(r, t)?;
             let proxy_l2w = proxy.local_to_world(r, t)?;
             let motions = to_f32(&rb.skin.vertex_motions(&posed));
+            let axis_values = eval_axes(r, rb.rig, t, proxy_l2w, &posed, opts.camera.as_deref())?;
             for (layer, binding) in rb.rig.layers.iter().zip(&rb.bindings) {
                 let frame = affine_f32(layer.local_to_world(r, t)?.inverse() * proxy_l2w);
+                let (rest, keyed_opacity) = keyed_state(layer, &axis_values, t);
                 let mut out = vec![Vec3::ZERO; layer.num_points()];
-                skin_points(binding, &motions, &frame, &layer.rest_points, &mut out);
+                skin_points(
+                    binding,
+                    &motions,
+                    &frame,
+                    rest.as_deref().unwrap_or(&layer.rest_points),
+                    &mut out,
+                );
                 if let Some(i) = out.iter().position(|p| !p.is_finite()) {
                     return Err(Error::prim(
                         &layer.path,
                         format!("baked point {i} is not finite at time {t}"),
                     ));
                 }
-                let opacity = layer.opacity_at(r, t)?;
+                let opacity = layer.opacity_at(r, t)? * keyed_opacity;
                 let opa: Vec<f32> = layer.display_opacity.iter().map(|o| o * opacity).collect();
                 ext_samples[li].push((t, extent_value(&out)));
                 pts_samples[li].push((t, points_value(out)));

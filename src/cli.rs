@@ -54,6 +54,10 @@ pub enum Command {
         /// proxies get skel:skeleton blocked so viewers do not deform them twice.
         #[arg(long)]
         bake_proxy: bool,
+        /// Camera prim for viewDirection axes without a source and for
+        /// view-dependent meshes without painterly:camera.
+        #[arg(long, value_name = "PRIM")]
+        camera: Option<String>,
         /// Print nothing on success.
         #[arg(short, long)]
         quiet: bool,
@@ -89,6 +93,7 @@ pub fn run(cli: Cli) -> i32 {
             output,
             frames,
             bake_proxy,
+            camera,
             quiet,
             json,
         } => {
@@ -107,7 +112,11 @@ pub fn run(cli: Cli) -> i32 {
                 bar.set_length(total as u64);
                 bar.set_position(done as u64);
             };
-            let opts = BakeOptions { frames, bake_proxy };
+            let opts = BakeOptions {
+                frames,
+                bake_proxy,
+                camera,
+            };
             let result = bake(&input, &output, &opts, &mut progress);
             bar.finish_and_clear();
             match result {

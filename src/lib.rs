@@ -13,6 +13,8 @@
 //! | [`skinning`] | per-vertex Procrustes motions and their blend (Bassett eq. 1) |
 //! | [`skel_deform`] | UsdSkel blend shapes, LBS and DQS |
 //! | [`frames`] | frame ranges |
+//! | [`keys`] | pose keys and temporal keys with sentinels |
+//! | [`view`] | view-dependent geometry (Rademacher 1999) |
 //! | [`usd_io`] | reading stages, writing layers |
 //! | [`bake`] | the `bake` command |
 //! | [`inspect`] | the `inspect` command |
@@ -25,9 +27,11 @@ pub mod error;
 pub mod frames;
 pub mod inspect;
 pub mod interp;
+pub mod keys;
 pub mod mesh;
 pub mod skel_deform;
 pub mod skinning;
 pub mod usd_io;
+pub mod view;
 
 pub use error::{Error, Result};

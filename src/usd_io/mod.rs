@@ -3,6 +3,7 @@
 //! Data flows one way: [`stage`] and [`scene`] read a composed stage into plain
 //! arrays, the math modules evaluate, and [`layer`] writes an override layer.
 
+pub mod axes;
 pub mod layer;
 pub mod scene;
 pub mod skel;

@@ -9,11 +9,14 @@
 use glam::{DMat4, DVec3, Vec3};
 use openusd::usd;
 
+use super::axes::Axis;
 use super::skel::{skeleton_binding, SkelProxy};
 use super::stage::StageReader;
 use super::values;
 use crate::bind::Binding;
 use crate::error::{Error, Result};
+use crate::interp::{InterpError, Method};
+use crate::keys::{PoseChannel, TimeChannel, TimeKeyError};
 
 pub const RIG_API: &str = "PainterlyRigAPI";
 pub const STROKE_LAYER_API: &str = "PainterlyStrokeLayerAPI";
@@ -64,7 +67,38 @@ pub struct StrokeLayer {
     pub opacity: f32,
     /// Authored `primvars:displayOpacity` per curve (1 when absent).
     pub display_opacity: Vec<f32>,
+    /// Pose and time keys (SPEC §4–5).
+    pub keys: LayerKeys,
     prim: usd::Prim,
+}
+
+/// A channel's keys: the precomputed interpolant, the key prims, their values.
+pub struct Channel<C, V> {
+    pub interp: C,
+    pub paths: Vec<String>,
+    pub values: Vec<V>,
+}
+
+/// A layer's keys.
+#[derive(Default)]
+pub struct LayerKeys {
+    /// The layer's axes, as indices into [`Rig::axes`], in coordinate order.
+    pub axes: Vec<usize>,
+    /// Interpolation method (`painterly:interpolation`).
+    pub method: Option<Method>,
+    pub pose_points: Option<Channel<PoseChannel, Vec<Vec3>>>,
+    pub pose_opacity: Option<Channel<PoseChannel, f32>>,
+    pub time_points: Option<Channel<TimeChannel, Vec<Vec3>>>,
+    pub time_opacity: Option<Channel<TimeChannel, f32>>,
+    /// Number of sentinels.
+    pub sentinels: usize,
+}
+
+impl LayerKeys {
+    /// Whether any pose key needs axis values.
+    pub fn uses_axes(&self) -> bool {
+        self.pose_points.is_some() || self.pose_opacity.is_some()
+    }
 }
 
 /// A rig: its proxy and stroke layers.
@@ -72,6 +106,9 @@ pub struct Rig {
     pub path: String,
     pub proxy: Proxy,
     pub layers: Vec<StrokeLayer>,
+    /// Axes used by the rig's layers (every PainterlyAxis under the rig,
+    /// plus any other a layer's `painterly:axes` targets).
+    pub axes: Vec<Axis>,
 }
 
 /// Everything painterly found in a stage.
@@ -116,6 +153,7 @@ impl Scene {
                     path: rp.clone(),
                     proxy,
                     layers: Vec::new(),
+                    axes: Vec::new(),
                 }),
                 Err(e) => problems.push(e),
             }
@@ -135,7 +173,11 @@ impl Scene {
                 }
                 continue;
             };
-            match read_layer(r, lp, owner.proxy.rest.len()) {
+            let layer = read_layer(r, lp, owner.proxy.rest.len()).and_then(|mut layer| {
+                layer.keys = read_keys(r, &paths, owner, &layer)?;
+                Ok(layer)
+            });
+            match layer {
                 Ok(layer) => owner.layers.push(layer),
                 Err(e) => problems.push(e),
             }
@@ -395,7 +437,239 @@ fn read_layer(r: &StageReader, path: &str, proxy_points: usize) -> Result<Stroke
         cached_binding,
         opacity,
         display_opacity,
+        keys: LayerKeys::default(),
         prim,
+    })
+}
+
+/// Index of the axis at `path` in the rig's table, reading it on first use.
+fn axis_index(r: &StageReader, rig: &mut Rig, path: &str) -> Result<usize> {
+    if let Some(i) = rig.axes.iter().position(|a| a.path == path) {
+        return Ok(i);
+    }
+    rig.axes.push(Axis::read(r, path)?);
+    Ok(rig.axes.len() - 1)
+}
+
+fn duplicate_error(paths: &[String], e: InterpError, channel: &str) -> Error {
+    match e {
+        InterpError::DuplicateKeys { first, second } => Error::attr(
+            &paths[first],
+            "coordinates",
+            format!(
+                "{} has the same coordinates: two {channel} keys at one configuration",
+                paths[second]
+            ),
+        ),
+        InterpError::NonFinite { key } => Error::attr(&paths[key], "coordinates", "coordinates are not finite"),
+        other => Error::prim(&paths[0], format!("cannot interpolate {channel} keys: {other}")),
+    }
+}
+
+fn pose_channel<V>(
+    method: Method,
+    dim: usize,
+    keys: Vec<(String, Vec<f64>, V)>,
+    channel: &str,
+) -> Result<Option<Channel<PoseChannel, V>>> {
+    if keys.is_empty() {
+        return Ok(None);
+    }
+    let paths: Vec<String> = keys.iter().map(|k| k.0.clone()).collect();
+    let coords: Vec<f64> = keys.iter().flat_map(|k| k.1.iter().copied()).collect();
+    let interp = if dim == 0 {
+        // No axes: one key is a constant; two would sit at the same point.
+        if keys.len() > 1 {
+            return Err(duplicate_error(
+                &paths,
+                InterpError::DuplicateKeys { first: 0, second: 1 },
+                channel,
+            ));
+        }
+        PoseChannel::new(method, 1, &[0.0]).map_err(|e| duplicate_error(&paths, e, channel))?
+    } else {
+        PoseChannel::new(method, dim, &coords).map_err(|e| duplicate_error(&paths, e, channel))?
+    };
+    Ok(Some(Channel {
+        interp,
+        paths,
+        values: keys.into_iter().map(|k| k.2).collect(),
+    }))
+}
+
+fn time_channel<V>(keys: Vec<(String, f64, V)>, sentinels: &[f64]) -> Result<Option<Channel<TimeChannel, V>>> {
+    if keys.is_empty() {
+        return Ok(None);
+    }
+    let paths: Vec<String> = keys.iter().map(|k| k.0.clone()).collect();
+    let times: Vec<f64> = keys.iter().map(|k| k.1).collect();
+    let interp = TimeChannel::new(&times, sentinels).map_err(|e| match e {
+        TimeKeyError::SameTime { first, second } => Error::attr(
+            &paths[first],
+            "time",
+            format!(
+                "{} has the same time: two time keys of one channel at one time",
+                paths[second]
+            ),
+        ),
+        TimeKeyError::NonFinite { key } => Error::attr(&paths[key], "time", "time is not finite"),
+    })?;
+    Ok(Some(Channel {
+        interp,
+        paths,
+        values: keys.into_iter().map(|k| k.2).collect(),
+    }))
+}
+
+/// Reads a layer's axes, pose keys and time keys.
+fn read_keys(r: &StageReader, all_paths: &[String], rig: &mut Rig, layer: &StrokeLayer) -> Result<LayerKeys> {
+    let path = layer.path.as_str();
+    let prim = &layer.prim;
+    let npoints = layer.rest_points.len();
+    let mut pose_pts = Vec::new();
+    let mut pose_opa = Vec::new();
+    let mut time_pts = Vec::new();
+    let mut time_opa = Vec::new();
+    let mut sentinels = Vec::new();
+    let children = prim
+        .children()
+        .map_err(|e| Error::prim(path, format!("cannot list children: {e}")))?;
+    let read_points = |c: &usd::Prim, cp: &str| -> Result<Option<Vec<Vec3>>> {
+        let Some(p) = r.typed(c, "points", None, "point3f[]", values::vec3_array)? else {
+            return Ok(None);
+        };
+        if p.len() != npoints {
+            return Err(Error::attr(
+                cp,
+                "points",
+                format!("{} points, but the layer {path} has {npoints}", p.len()),
+            ));
+        }
+        check_finite(&p, cp, "points")?;
+        Ok(Some(p))
+    };
+    let read_opacity = |c: &usd::Prim, cp: &str| -> Result<Option<f32>> {
+        let o = r.typed(c, "opacity", None, "float", values::scalar)?;
+        if let Some(o) = o {
+            if !o.is_finite() {
+                return Err(Error::attr(cp, "opacity", "opacity is not finite"));
+            }
+        }
+        Ok(o.map(|o| o as f32))
+    };
+    let mut has_pose_keys = false;
+    for c in &children {
+        let cp = c.path().as_str().to_string();
+        match r.type_name(c)?.as_str() {
+            "PainterlyPoseKey" => {
+                has_pose_keys = true;
+                let coords = r
+                    .typed(c, "coordinates", None, "float[]", values::f32_array)?
+                    .ok_or_else(|| Error::attr(&cp, "coordinates", "a pose key needs `float[] coordinates`"))?;
+                let coords: Vec<f64> = coords.iter().map(|&x| x as f64).collect();
+                if let Some(p) = read_points(c, &cp)? {
+                    pose_pts.push((cp.clone(), coords.clone(), p));
+                }
+                if let Some(o) = read_opacity(c, &cp)? {
+                    pose_opa.push((cp.clone(), coords, o));
+                }
+            }
+            "PainterlyTimeKey" => {
+                let time = r
+                    .typed(c, "time", None, "double", values::scalar)?
+                    .ok_or_else(|| Error::attr(&cp, "time", "a time key needs `double time`"))?;
+                if !time.is_finite() {
+                    return Err(Error::attr(&cp, "time", "time is not finite"));
+                }
+                let sentinel = r.typed(c, "sentinel", None, "bool", values::scalar)?.unwrap_or(0.0) != 0.0;
+                if sentinel {
+                    sentinels.push(time);
+                    continue;
+                }
+                if let Some(p) = read_points(c, &cp)? {
+                    time_pts.push((cp.clone(), time, p));
+                }
+                if let Some(o) = read_opacity(c, &cp)? {
+                    time_opa.push((cp.clone(), time, o));
+                }
+            }
+            _ => {}
+        }
+    }
+
+    // Axes: the layer's painterly:axes, else every axis under the rig.
+    let mut axes = Vec::new();
+    if has_pose_keys {
+        let authored = prim
+            .relationship("painterly:axes")
+            .has_authored_targets()
+            .map_err(|e| Error::attr(path, "painterly:axes", format!("cannot read: {e}")))?;
+        let axis_paths: Vec<String> = if authored {
+            r.targets(prim, "painterly:axes")?
+        } else {
+            let mut v = Vec::new();
+            for p in all_paths {
+                if is_descendant(p, &rig.path) && r.type_name(&r.require_prim(p)?)? == "PainterlyAxis" {
+                    v.push(p.clone());
+                }
+            }
+            v
+        };
+        for ap in &axis_paths {
+            if r.prim(ap)?.is_none() {
+                return Err(Error::attr(
+                    path,
+                    "painterly:axes",
+                    format!("targets {ap}, which does not exist"),
+                ));
+            }
+            axes.push(axis_index(r, rig, ap)?);
+        }
+    }
+    let dim = axes.len();
+    for (cp, coords, _) in pose_pts
+        .iter()
+        .map(|k| (&k.0, &k.1, ()))
+        .chain(pose_opa.iter().map(|k| (&k.0, &k.1, ())))
+    {
+        if coords.len() != dim {
+            return Err(Error::attr(
+                cp,
+                "coordinates",
+                format!("{} coordinates, but the layer {path} has {dim} axes", coords.len()),
+            ));
+        }
+    }
+    let token = r
+        .typed(prim, "painterly:interpolation", None, "token", values::token)?
+        .unwrap_or_else(|| "smoothVoronoi".into());
+    let radius = r
+        .typed(prim, "painterly:rbfRadius", None, "float", values::scalar)?
+        .unwrap_or(1.0);
+    let method = Method::from_token(&token, radius).ok_or_else(|| {
+        Error::attr(
+            path,
+            "painterly:interpolation",
+            format!("unknown interpolation {token:?} (expected smoothVoronoi, rbf or shepard)"),
+        )
+    })?;
+    if let Method::Rbf { radius } = method {
+        if !(radius.is_finite() && radius > 0.0) {
+            return Err(Error::attr(
+                path,
+                "painterly:rbfRadius",
+                format!("radius {radius} must be positive"),
+            ));
+        }
+    }
+    Ok(LayerKeys {
+        axes,
+        method: Some(method),
+        pose_points: pose_channel(method, dim, pose_pts, "position")?,
+        pose_opacity: pose_channel(method, dim, pose_opa, "opacity")?,
+        time_points: time_channel(time_pts, &sentinels)?,
+        time_opacity: time_channel(time_opa, &sentinels)?,
+        sentinels: sentinels.len(),
     })
 }
 

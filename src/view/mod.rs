@@ -20,6 +20,8 @@
 //! key shapes, and it is what lets the same weights drive an animated base
 //! (Rademacher §4.2 adds interpolated offsets to the moving base).
 
+#![warn(missing_docs)]
+
 mod blend;
 mod hull;
 mod spline;

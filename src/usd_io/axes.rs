@@ -1,0 +1,387 @@
+//! Configuration axes (SPEC §4): `PainterlyAxis` prims read from the stage and
+//! evaluated at each baked time.
+//!
+//! Each axis yields one scalar coordinate, multiplied by its `scale`
+//! (Bassett requirement 5: axes are scaled by their importance). Pose keys'
+//! `coordinates` live in that same scaled configuration space.
+
+use glam::{DMat4, DQuat, DVec3};
+use openusd::sdf::Value;
+use openusd::usd::TimeCode;
+use openusd_schemas::skel::{Animation, SkelAnimQuery};
+
+use super::stage::StageReader;
+use super::values;
+use crate::error::{Error, Result};
+
+/// What an axis measures.
+pub enum AxisSource {
+    /// An attribute's resolved value; `element` picks an array element,
+    /// `component` a vector/quaternion component.
+    Attribute { prim: String, attr: String },
+    /// The weight of blend shape `name` in a SkelAnimation.
+    BlendShape {
+        anim: Option<SkelAnimQuery>,
+        index: Option<usize>,
+    },
+    /// A component of a joint's rotation vector relative to its rest rotation.
+    JointRotation {
+        rest: DQuat,
+        anim: Option<SkelAnimQuery>,
+        index: Option<usize>,
+    },
+    /// A component of a prim's world-space origin, in the proxy's local space.
+    Position { prim: String },
+    /// A component of the unit vector from the posed proxy's bounding-box
+    /// centre to a camera, in the proxy's local space. `None`: the bake's
+    /// `--camera`.
+    ViewDirection { camera: Option<String> },
+}
+
+/// One `PainterlyAxis`.
+pub struct Axis {
+    pub path: String,
+    /// The `kind` token.
+    pub kind: String,
+    pub source: AxisSource,
+    pub element: i64,
+    pub component: i64,
+    pub scale: f64,
+}
+
+/// Per-frame data axes are measured against.
+pub struct AxisFrame<'a> {
+    pub time: f64,
+    /// Proxy local-to-world at `time`.
+    pub proxy_to_world: DMat4,
+    /// Centre of the posed proxy's bounding box, proxy-local.
+    pub proxy_centre: DVec3,
+    /// The bake's `--camera`, if any.
+    pub camera: Option<&'a str>,
+}
+
+const KINDS: &str = "attribute, blendShape, jointRotation, position or viewDirection";
+
+impl Axis {
+    /// Reads and validates an axis prim.
+    pub fn read(r: &StageReader, path: &str) -> Result<Axis> {
+        let prim = r.require_prim(path)?;
+        let ty = r.type_name(&prim)?;
+        if ty != "PainterlyAxis" {
+            return Err(Error::prim(path, format!("is a {ty:?} prim, expected a PainterlyAxis")));
+        }
+        let kind = r
+            .typed(&prim, "kind", None, "token", values::token)?
+            .unwrap_or_else(|| "attribute".into());
+        let int = |name: &str| -> Result<i64> {
+            Ok(r.typed(&prim, name, None, "int", values::scalar)?.unwrap_or(0.0) as i64)
+        };
+        let element = int("element")?;
+        let component = int("component")?;
+        let scale = r.typed(&prim, "scale", None, "float", values::scalar)?.unwrap_or(1.0);
+        if !scale.is_finite() {
+            return Err(Error::attr(path, "scale", "scale is not finite"));
+        }
+        let name = r.typed(&prim, "name", None, "token", values::token)?;
+        let targets = r.targets(&prim, "source")?;
+        let target = targets.first().cloned();
+        let need_target = |what: &str| -> Result<String> {
+            target
+                .clone()
+                .ok_or_else(|| Error::attr(path, "source", format!("a {kind} axis needs `rel source` to {what}")))
+        };
+        let need_name = |what: &str| -> Result<String> {
+            name.clone()
+                .ok_or_else(|| Error::attr(path, "name", format!("a {kind} axis needs `token name` ({what})")))
+        };
+        let require = |p: &str, what: &str| -> Result<openusd::usd::Prim> {
+            r.prim(p)?
+                .ok_or_else(|| Error::attr(path, "source", format!("targets {p}, which does not exist ({what})")))
+        };
+        let check_component = |max: i64| -> Result<()> {
+            if component < 0 || component > max {
+                return Err(Error::attr(
+                    path,
+                    "component",
+                    format!("component {component} is not in 0..={max}"),
+                ));
+            }
+            Ok(())
+        };
+        let source = match kind.as_str() {
+            "attribute" => {
+                let t = need_target("an attribute")?;
+                let (prim_path, attr) = t.split_once('.').ok_or_else(|| {
+                    Error::attr(
+                        path,
+                        "source",
+                        format!("targets {t}, which is a prim; expected an attribute path"),
+                    )
+                })?;
+                let p = require(prim_path, "attribute's prim")?;
+                if !r.has_authored(&p, attr)? && r.value(&p, attr, None)?.is_none() {
+                    return Err(Error::attr(path, "source", format!("targets {t}, which has no value")));
+                }
+                AxisSource::Attribute {
+                    prim: prim_path.to_string(),
+                    attr: attr.to_string(),
+                }
+            }
+            "blendShape" => {
+                let t = need_target("a SkelAnimation")?;
+                let shape = need_name("the blend shape's name")?;
+                require(&t, "SkelAnimation")?;
+                let anim = anim_query(r, path, &t)?;
+                let index = anim
+                    .as_ref()
+                    .and_then(|a| a.blend_shape_order().iter().position(|n| *n == shape));
+                AxisSource::BlendShape { anim, index }
+            }
+            "jointRotation" => {
+                check_component(2)?;
+                let t = need_target("a Skeleton")?;
+                let joint = need_name("the joint's path in the Skeleton's joints")?;
+                let skel = require(&t, "Skeleton")?;
+                if r.type_name(&skel)? != "Skeleton" {
+                    return Err(Error::attr(
+                        path,
+                        "source",
+                        format!("targets {t}, which is not a Skeleton"),
+                    ));
+                }
+                let joints = r
+                    .typed(&skel, "joints", None, "token[]", values::token_array)?
+                    .unwrap_or_default();
+                let j = joints
+                    .iter()
+                    .position(|n| *n == joint)
+                    .ok_or_else(|| Error::attr(path, "name", format!("joint {joint:?} is not in {t}.joints")))?;
+                let rest = match r.value(&skel, "restTransforms", None)? {
+                    Some(Value::Matrix4dVec(m)) if m.len() == joints.len() => rotation_of(&values::usd_matrix(&m[j])),
+                    _ => DQuat::IDENTITY,
+                };
+                let anim_path = r.targets(&skel, "skel:animationSource")?.into_iter().next();
+                let anim = match &anim_path {
+                    Some(a) => anim_query(r, path, a)?,
+                    None => None,
+                };
+                let index = anim
+                    .as_ref()
+                    .and_then(|a| a.joint_order().iter().position(|n| *n == joint));
+                AxisSource::JointRotation { rest, anim, index }
+            }
+            "position" => {
+                check_component(2)?;
+                let t = need_target("an Xformable prim")?;
+                require(&t, "Xformable")?;
+                AxisSource::Position { prim: t }
+            }
+            "viewDirection" => {
+                check_component(2)?;
+                if let Some(t) = &target {
+                    require(t, "camera")?;
+                }
+                AxisSource::ViewDirection { camera: target }
+            }
+            other => {
+                return Err(Error::attr(
+                    path,
+                    "kind",
+                    format!("unknown axis kind {other:?} (expected {KINDS})"),
+                ))
+            }
+        };
+        Ok(Axis {
+            path: path.to_string(),
+            kind,
+            source,
+            element,
+            component,
+            scale,
+        })
+    }
+
+    /// The scaled coordinate at a frame.
+    pub fn value(&self, r: &StageReader, f: &AxisFrame) -> Result<f64> {
+        let t = f.time;
+        let raw = match &self.source {
+            AxisSource::Attribute { prim, attr } => {
+                let p = r.require_prim(prim)?;
+                let v = r.value(&p, attr, Some(t))?.ok_or_else(|| {
+                    Error::attr(&self.path, "source", format!("{prim}.{attr} has no value at time {t}"))
+                })?;
+                pick(&v, self.element, self.component)
+                    .map_err(|m| Error::attr(&self.path, "source", format!("{prim}.{attr}: {m}")))?
+            }
+            AxisSource::BlendShape { anim, index } => match (anim, index) {
+                (Some(a), Some(i)) => a
+                    .compute_blend_shape_weights(TimeCode::new(t))
+                    .map_err(|e| Error::attr(&self.path, "source", format!("cannot read blend shape weights: {e}")))?
+                    .get(*i)
+                    .copied()
+                    .unwrap_or(0.0) as f64,
+                _ => 0.0,
+            },
+            AxisSource::JointRotation { rest, anim, index } => {
+                let q = match (anim, index) {
+                    (Some(a), Some(i)) => {
+                        let (_, rots, _) =
+                            a.compute_joint_local_transform_components(TimeCode::new(t))
+                                .map_err(|e| {
+                                    Error::attr(&self.path, "source", format!("cannot read joint rotations: {e}"))
+                                })?;
+                        let q = rots.get(*i).copied().unwrap_or(openusd::gf::Quatf::IDENTITY);
+                        DQuat::from_xyzw(q.x as f64, q.y as f64, q.z as f64, q.w as f64).normalize()
+                    }
+                    _ => *rest,
+                };
+                rotation_vector(rest.inverse() * q)[self.component as usize]
+            }
+            AxisSource::Position { prim } => {
+                let p = r.require_prim(prim)?;
+                let world = r.local_to_world(&p, t)?.transform_point3(DVec3::ZERO);
+                f.proxy_to_world.inverse().transform_point3(world)[self.component as usize]
+            }
+            AxisSource::ViewDirection { camera } => {
+                let cam = camera.as_deref().or(f.camera).ok_or_else(|| {
+                    Error::attr(
+                        &self.path,
+                        "source",
+                        "a viewDirection axis needs `rel source` or `painterly bake --camera`",
+                    )
+                })?;
+                let p = r
+                    .prim(cam)?
+                    .ok_or_else(|| Error::prim(cam, "camera prim does not exist"))?;
+                let world = r.local_to_world(&p, t)?.transform_point3(DVec3::ZERO);
+                let local = f.proxy_to_world.inverse().transform_point3(world);
+                let d = local - f.proxy_centre;
+                if d.length() <= f64::MIN_POSITIVE {
+                    return Err(Error::prim(cam, format!("camera is at the proxy's centre at time {t}")));
+                }
+                d.normalize()[self.component as usize]
+            }
+        };
+        if !raw.is_finite() {
+            return Err(Error::attr(
+                &self.path,
+                "source",
+                format!("value at time {t} is not finite"),
+            ));
+        }
+        Ok(raw * self.scale)
+    }
+}
+
+fn anim_query(r: &StageReader, axis: &str, path: &str) -> Result<Option<SkelAnimQuery>> {
+    let a = Animation::get(&r.stage, path)
+        .map_err(|e| Error::attr(axis, "source", format!("cannot read {path}: {e}")))?
+        .ok_or_else(|| Error::attr(axis, "source", format!("{path} is not a SkelAnimation")))?;
+    SkelAnimQuery::new(a).map_err(|e| Error::attr(axis, "source", format!("cannot read {path}: {e}")))
+}
+
+/// Rotation of a (possibly scaled) joint-local matrix.
+fn rotation_of(m: &DMat4) -> DQuat {
+    let (_, r, _) = m.to_scale_rotation_translation();
+    r.normalize()
+}
+
+/// Axis × angle (radians) of a rotation, taking the shorter way round.
+pub fn rotation_vector(q: DQuat) -> DVec3 {
+    let q = if q.w < 0.0 { -q } else { q };
+    let v = DVec3::new(q.x, q.y, q.z);
+    let s = v.length();
+    if s <= 1e-300 {
+        return DVec3::ZERO;
+    }
+    let angle = 2.0 * s.atan2(q.w);
+    v / s * angle
+}
+
+/// Picks a scalar out of a value: scalars as is, arrays by `element`,
+/// vectors and quaternions (x, y, z, w) by `component`.
+fn pick(v: &Value, element: i64, component: i64) -> std::result::Result<f64, String> {
+    if let Some(x) = values::scalar(v) {
+        return Ok(x);
+    }
+    let comp = |c: &[f64]| -> std::result::Result<f64, String> {
+        usize::try_from(component)
+            .ok()
+            .and_then(|i| c.get(i).copied())
+            .ok_or_else(|| format!("component {component} is out of range (0..{})", c.len()))
+    };
+    let elem = |n: usize| -> std::result::Result<usize, String> {
+        usize::try_from(element)
+            .ok()
+            .filter(|&e| e < n)
+            .ok_or_else(|| format!("element {element} is out of range ({n} elements)"))
+    };
+    macro_rules! vecs {
+        ($a:expr, $f:expr) => {{
+            let e = elem($a.len())?;
+            comp(&$f(&$a[e]))
+        }};
+    }
+    match v {
+        Value::Vec2f(p) => comp(&[p.x as f64, p.y as f64]),
+        Value::Vec2d(p) => comp(&[p.x, p.y]),
+        Value::Vec3f(p) => comp(&[p.x as f64, p.y as f64, p.z as f64]),
+        Value::Vec3d(p) => comp(&[p.x, p.y, p.z]),
+        Value::Vec3h(p) => comp(&[p.x.to_f64(), p.y.to_f64(), p.z.to_f64()]),
+        Value::Vec4f(p) => comp(&[p.x as f64, p.y as f64, p.z as f64, p.w as f64]),
+        Value::Vec4d(p) => comp(&[p.x, p.y, p.z, p.w]),
+        Value::Quatf(q) => comp(&[q.x as f64, q.y as f64, q.z as f64, q.w as f64]),
+        Value::Quatd(q) => comp(&[q.x, q.y, q.z, q.w]),
+        Value::Quath(q) => comp(&[q.x.to_f64(), q.y.to_f64(), q.z.to_f64(), q.w.to_f64()]),
+        Value::FloatVec(a) => Ok(a[elem(a.len())?] as f64),
+        Value::DoubleVec(a) => Ok(a[elem(a.len())?]),
+        Value::HalfVec(a) => Ok(a[elem(a.len())?].to_f64()),
+        Value::IntVec(a) => Ok(a[elem(a.len())?] as f64),
+        Value::Vec3fVec(a) => vecs!(a, |p: &openusd::gf::Vec3f| [p.x as f64, p.y as f64, p.z as f64]),
+        Value::Vec3dVec(a) => vecs!(a, |p: &openusd::gf::Vec3d| [p.x, p.y, p.z]),
+        Value::Vec2fVec(a) => vecs!(a, |p: &openusd::gf::Vec2f| [p.x as f64, p.y as f64]),
+        Value::QuatfVec(a) => vecs!(a, |q: &openusd::gf::Quatf| [
+            q.x as f64, q.y as f64, q.z as f64, q.w as f64
+        ]),
+        Value::QuatdVec(a) => vecs!(a, |q: &openusd::gf::Quatd| [q.x, q.y, q.z, q.w]),
+        other => Err(format!(
+            "cannot take a coordinate from a {} value",
+            values::kind_name(other)
+        )),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rotation_vector_is_axis_times_angle_the_short_way() {
+        let q = DQuat::from_axis_angle(DVec3::Z, 0.7);
+        assert!((rotation_vector(q) - DVec3::new(0.0, 0.0, 0.7)).length() < 1e-12);
+        // -q is the same rotation.
+        assert!((rotation_vector(-q) - DVec3::new(0.0, 0.0, 0.7)).length() < 1e-12);
+        let q = DQuat::from_axis_angle(DVec3::X, -2.5);
+        assert!((rotation_vector(q) - DVec3::new(-2.5, 0.0, 0.0)).length() < 1e-12);
+        assert_eq!(rotation_vector(DQuat::IDENTITY), DVec3::ZERO);
+    }
+
+    #[test]
+    fn pick_reads_scalars_elements_and_components() {
+        use openusd::gf;
+        assert_eq!(pick(&Value::Float(0.5), 3, 3).unwrap(), 0.5);
+        assert_eq!(pick(&Value::DoubleVec(vec![1.0, 2.0]), 1, 0).unwrap(), 2.0);
+        let q = Value::Quatf(gf::Quatf {
+            w: 0.1,
+            x: 0.2,
+            y: 0.3,
+            z: 0.4,
+        });
+        // Quaternions as x, y, z, w: imaginary then real.
+        assert!((pick(&q, 0, 3).unwrap() - 0.1).abs() < 1e-7);
+        assert!((pick(&q, 0, 0).unwrap() - 0.2).abs() < 1e-7);
+        assert!(pick(&Value::DoubleVec(vec![1.0]), 2, 0).is_err());
+        let v = Value::Vec3fVec(vec![gf::vec3f(1.0, 2.0, 3.0), gf::vec3f(4.0, 5.0, 6.0)]);
+        assert_eq!(pick(&v, 1, 2).unwrap(), 6.0);
+    }
+}
