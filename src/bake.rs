@@ -23,6 +23,7 @@ use crate::usd_io::axes::AxisFrame;
 use crate::usd_io::layer::{Format, OverLayer};
 use crate::usd_io::scene::{Rig, Scene, StrokeLayer};
 use crate::usd_io::stage::StageReader;
+use crate::usd_io::view_mesh::{check_camera, read_view_meshes};
 
 /// What to bake.
 #[derive(Debug, Clone, Default)]
@@ -42,6 +43,7 @@ pub struct BakeSummary {
     pub output: PathBuf,
     pub frames: usize,
     pub rigs: usize,
+    pub view_meshes: usize,
     pub layers: usize,
     pub strokes: usize,
     pub points: usize,
@@ -226,7 +228,19 @@ fn bake_stage(
     started: Instant,
 ) -> Result<BakeSummary> {
     let scene = Scene::read(r)?;
+    let view_meshes = read_view_meshes(r, &r.prim_paths()?)?;
     let times = resolve_frames(r, opts.frames)?;
+    if let Some(c) = &opts.camera {
+        check_camera(r, c, "--camera")?;
+    }
+    for vm in &view_meshes {
+        let cam = vm.camera_for(opts.camera.as_deref())?;
+        if opts.camera.is_none() {
+            check_camera(r, cam, &format!("{}.painterly:camera", vm.path))?;
+        }
+    }
+    let mut view_pts: Vec<Vec<(f64, Value)>> = vec![Vec::with_capacity(times.len()); view_meshes.len()];
+    let mut view_ext: Vec<Vec<(f64, Value)>> = vec![Vec::with_capacity(times.len()); view_meshes.len()];
     let rigs: Vec<RigBake> = scene.rigs.iter().map(prepare).collect();
 
     // Per layer: samples of points, extent, opacity.
@@ -275,6 +289,22 @@ fn bake_stage(
                 proxy_pts[ri].push((t, points_value(pts)));
             }
         }
+        for (vi, vm) in view_meshes.iter().enumerate() {
+            let base: Vec<Vec3> = vm.mesh.posed_points(r, t)?.iter().map(|p| p.as_vec3()).collect();
+            let cam_path = vm.camera_for(opts.camera.as_deref())?;
+            let cam = r.require_prim(cam_path)?;
+            let cam_world = r.local_to_world(&cam, t)?.transform_point3(glam::DVec3::ZERO);
+            let cam_local = vm.mesh.local_to_world(r, t)?.inverse().transform_point3(cam_world);
+            let out = vm.evaluate(t, &base, cam_local);
+            if let Some(i) = out.iter().position(|p| !p.is_finite()) {
+                return Err(Error::prim(
+                    &vm.path,
+                    format!("baked point {i} is not finite at time {t}"),
+                ));
+            }
+            view_ext[vi].push((t, extent_value(&out)));
+            view_pts[vi].push((t, points_value(out)));
+        }
         progress(fi + 1, times.len());
     }
 
@@ -317,12 +347,32 @@ fn bake_stage(
             }
         }
     }
+    for (vi, vm) in view_meshes.iter().enumerate() {
+        layer_out.set_samples(
+            &vm.path,
+            "points",
+            "point3f[]",
+            std::mem::take(&mut view_pts[vi]),
+            vec![],
+        );
+        layer_out.set_samples(
+            &vm.path,
+            "extent",
+            "float3[]",
+            std::mem::take(&mut view_ext[vi]),
+            vec![],
+        );
+        if vm.mesh.is_skinned() {
+            layer_out.block_relationship(&vm.path, "skel:skeleton");
+        }
+    }
     layer_out.write(output)?;
     Ok(BakeSummary {
         input: r.file.clone(),
         output: output.to_path_buf(),
         frames: times.len(),
         rigs: rigs.len(),
+        view_meshes: view_meshes.len(),
         layers: nlayers,
         strokes,
         points,

@@ -9,3 +9,4 @@ pub mod scene;
 pub mod skel;
 pub mod stage;
 pub mod values;
+pub mod view_mesh;

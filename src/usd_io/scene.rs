@@ -238,6 +238,16 @@ fn read_proxy(r: &StageReader, rig: &usd::Prim) -> Result<Proxy> {
             format!("targets {proxy_path}, a {:?} prim, expected a Mesh", ty),
         ));
     }
+    let rest_time = r.typed(rig, "painterly:restTime", None, "double", values::scalar)?;
+    read_mesh(r, prim, rest_time)
+}
+
+/// Reads a Mesh's topology, rest pose and motion kind (SPEC §2).
+///
+/// `rest_time`: where a non-skinned mesh's rest pose is read (`painterly:restTime`),
+/// else its default `points`.
+pub fn read_mesh(r: &StageReader, prim: usd::Prim, rest_time: Option<f64>) -> Result<Proxy> {
+    let proxy_path = prim.path().as_str().to_string();
     let counts = r
         .typed(&prim, "faceVertexCounts", None, "int[]", values::int_array)?
         .ok_or_else(|| Error::attr(&proxy_path, "faceVertexCounts", "proxy mesh has no faces"))?;
@@ -266,7 +276,6 @@ fn read_proxy(r: &StageReader, rig: &usd::Prim) -> Result<Proxy> {
     // Rest pose and motion kind (SPEC §2).
     let skeleton = skeleton_binding(r, &prim)?;
     let has_samples = !r.sample_times(&prim, "points")?.is_empty();
-    let rest_time = r.typed(rig, "painterly:restTime", None, "double", values::scalar)?;
     let rest_pts = if skeleton.is_some() {
         r.typed(&prim, "points", None, "point3f[]", values::vec3_array)?
     } else if let Some(t) = rest_time {

@@ -1,0 +1,355 @@
+//! View-dependent meshes (SPEC §6, Rademacher 1999): a Mesh with
+//! `PainterlyViewDependentAPI` and `PainterlyViewKey` children, read into
+//! plain data: the base model, key viewpoints with their offsets from the
+//! base, and the precomputed viewpoint hull.
+
+use glam::Vec3;
+use openusd::usd;
+
+use super::scene::{read_mesh, Proxy, VIEW_DEPENDENT_API};
+use super::stage::StageReader;
+use super::values;
+use crate::error::{Error, Result};
+use crate::view::{same_direction, NaturalCubicSpline, Uncovered, ViewBlender, ViewError};
+
+/// One key viewpoint: a direction and its deformation offsets from the base,
+/// either constant (keys without `time`) or at key times (animated base).
+pub struct Viewpoint {
+    /// Unit direction, mesh-local, from the base's bbox centre to the key camera.
+    pub direction: [f64; 3],
+    /// The key prims of this viewpoint, in time order.
+    pub paths: Vec<String>,
+    /// Offsets (key points − base) per key, in time order.
+    pub offsets: Vec<Vec<Vec3>>,
+    /// Spline over key times; None for a single untimed key.
+    pub spline: Option<NaturalCubicSpline>,
+}
+
+/// A view-dependent mesh ready to bake.
+pub struct ViewMesh {
+    pub path: String,
+    /// The base model (topology, rest pose, motion).
+    pub mesh: Proxy,
+    pub viewpoints: Vec<Viewpoint>,
+    pub blender: ViewBlender,
+    /// `painterly:camera`, if authored.
+    pub camera: Option<String>,
+    pub uncovered: Uncovered,
+    pub sharpness: f64,
+}
+
+/// Raw key as authored.
+struct KeyIn {
+    path: String,
+    points: Vec<Vec3>,
+    direction: [f64; 3],
+    time: Option<f64>,
+    viewpoint: Option<String>,
+}
+
+fn view_error(keys: &[KeyIn], vp_paths: &[Vec<String>], mesh: &str, e: ViewError) -> Error {
+    let first_of = |i: usize| {
+        vp_paths
+            .get(i)
+            .and_then(|p| p.first())
+            .cloned()
+            .unwrap_or_else(|| mesh.to_string())
+    };
+    match e {
+        ViewError::DuplicateDirection { first, second } => Error::attr(
+            first_of(first),
+            "direction",
+            format!(
+                "{} has the same direction: two key viewpoints cannot share a direction",
+                first_of(second)
+            ),
+        ),
+        ViewError::ZeroDirection { index } | ViewError::NonFiniteDirection { index } => Error::attr(
+            first_of(index),
+            "direction",
+            "direction must be a finite, non-zero vector",
+        ),
+        ViewError::InvalidSharpness(s) => {
+            Error::attr(mesh, "painterly:sharpness", format!("sharpness {s} must be positive"))
+        }
+        other => {
+            let _ = keys;
+            Error::prim(mesh, format!("cannot build the key viewpoint hull: {other}"))
+        }
+    }
+}
+
+/// Finds and reads every view-dependent mesh in the stage.
+pub fn read_view_meshes(r: &StageReader, paths: &[String]) -> Result<Vec<ViewMesh>> {
+    let mut out = Vec::new();
+    for p in paths {
+        let prim = r.require_prim(p)?;
+        if r.api_schemas(&prim)?.iter().any(|a| a == VIEW_DEPENDENT_API) {
+            out.push(read_view_mesh(r, prim)?);
+        }
+    }
+    Ok(out)
+}
+
+fn read_view_mesh(r: &StageReader, prim: usd::Prim) -> Result<ViewMesh> {
+    let path = prim.path().as_str().to_string();
+    let ty = r.type_name(&prim)?;
+    if ty != "Mesh" {
+        return Err(Error::prim(
+            &path,
+            format!("{VIEW_DEPENDENT_API} is applied to a {ty:?} prim, expected a Mesh"),
+        ));
+    }
+    let sharpness = r
+        .typed(&prim, "painterly:sharpness", None, "float", values::scalar)?
+        .unwrap_or(1.0);
+    if !(sharpness.is_finite() && sharpness > 0.0) {
+        return Err(Error::attr(
+            &path,
+            "painterly:sharpness",
+            format!("sharpness {sharpness} must be positive"),
+        ));
+    }
+    let token = r
+        .typed(&prim, "painterly:uncovered", None, "token", values::token)?
+        .unwrap_or_else(|| "cosine".into());
+    let uncovered = Uncovered::from_token(&token).ok_or_else(|| {
+        Error::attr(
+            &path,
+            "painterly:uncovered",
+            format!("unknown token {token:?} (expected cosine or base)"),
+        )
+    })?;
+    let camera = r.targets(&prim, "painterly:camera")?.into_iter().next();
+    let rest_time = r.typed(&prim, "painterly:restTime", None, "double", values::scalar)?;
+    let mesh = read_mesh(r, prim.clone(), rest_time)?;
+    let n = mesh.rest.len();
+
+    // Keys.
+    let mut keys = Vec::new();
+    for c in prim
+        .children()
+        .map_err(|e| Error::prim(&path, format!("cannot list children: {e}")))?
+    {
+        if r.type_name(&c)? != "PainterlyViewKey" {
+            continue;
+        }
+        let cp = c.path().as_str().to_string();
+        let points = r
+            .typed(&c, "points", None, "point3f[]", values::vec3_array)?
+            .ok_or_else(|| Error::attr(&cp, "points", "a view key needs `point3f[] points`"))?;
+        if points.len() != n {
+            return Err(Error::attr(
+                &cp,
+                "points",
+                format!("{} points, but the mesh {path} has {n}", points.len()),
+            ));
+        }
+        if let Some(i) = points.iter().position(|p| !p.is_finite()) {
+            return Err(Error::attr(&cp, "points", format!("point {i} is not finite")));
+        }
+        let d = r
+            .typed(&c, "direction", None, "float3", values::vec3)?
+            .ok_or_else(|| Error::attr(&cp, "direction", "a view key needs `float3 direction`"))?;
+        let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+        if !(len.is_finite() && len > 0.0) {
+            return Err(Error::attr(
+                &cp,
+                "direction",
+                "direction must be a finite, non-zero vector",
+            ));
+        }
+        let time = r.typed(&c, "time", None, "double", values::scalar)?;
+        if let Some(t) = time {
+            if !t.is_finite() {
+                return Err(Error::attr(&cp, "time", "time is not finite"));
+            }
+        }
+        let viewpoint = r.typed(&c, "viewpoint", None, "token", values::token)?;
+        keys.push(KeyIn {
+            path: cp,
+            points,
+            direction: [d[0] / len, d[1] / len, d[2] / len],
+            time,
+            viewpoint,
+        });
+    }
+
+    // Group keys into viewpoints: same `viewpoint` token, or same direction.
+    let mut groups: Vec<Vec<usize>> = Vec::new();
+    for (i, k) in keys.iter().enumerate() {
+        let found = groups.iter().position(|g| {
+            let f = &keys[g[0]];
+            match (&k.viewpoint, &f.viewpoint) {
+                (Some(a), Some(b)) => a == b,
+                _ => same_direction(k.direction, f.direction),
+            }
+        });
+        match found {
+            Some(g) => {
+                let f = &keys[groups[g][0]];
+                if !same_direction(k.direction, f.direction) {
+                    return Err(Error::attr(
+                        &k.path,
+                        "direction",
+                        format!(
+                            "shares viewpoint {:?} with {} but not its direction",
+                            k.viewpoint, f.path
+                        ),
+                    ));
+                }
+                groups[g].push(i);
+            }
+            None => groups.push(vec![i]),
+        }
+    }
+
+    let mut viewpoints = Vec::new();
+    for g in &groups {
+        let mut g = g.clone();
+        let timed = g.iter().filter(|&&i| keys[i].time.is_some()).count();
+        if timed != 0 && timed != g.len() {
+            let a = g.iter().find(|&&i| keys[i].time.is_some()).expect("a timed key");
+            let b = g.iter().find(|&&i| keys[i].time.is_none()).expect("an untimed key");
+            return Err(Error::attr(
+                &keys[*b].path,
+                "time",
+                format!(
+                    "is one key viewpoint with {}, which has a time: give every key of a viewpoint a time, or none",
+                    keys[*a].path
+                ),
+            ));
+        }
+        g.sort_by(|&a, &b| keys[a].time.unwrap_or(0.0).total_cmp(&keys[b].time.unwrap_or(0.0)));
+        for w in g.windows(2) {
+            if keys[w[0]].time == keys[w[1]].time {
+                return Err(Error::attr(
+                    &keys[w[0]].path,
+                    "time",
+                    format!("{} has the same direction and time", keys[w[1]].path),
+                ));
+            }
+        }
+        let mut offsets = Vec::with_capacity(g.len());
+        for &i in &g {
+            let base: Vec<Vec3> = match keys[i].time {
+                None => mesh.rest.iter().map(|p| p.as_vec3()).collect(),
+                Some(t) => mesh.posed_points(r, t)?.iter().map(|p| p.as_vec3()).collect(),
+            };
+            offsets.push(keys[i].points.iter().zip(&base).map(|(k, b)| *k - *b).collect());
+        }
+        let spline = if timed > 0 {
+            let times: Vec<f64> = g.iter().map(|&i| keys[i].time.expect("timed")).collect();
+            Some(NaturalCubicSpline::new(&times).map_err(|e| Error::prim(&keys[g[0]].path, format!("{e}")))?)
+        } else if g.len() > 1 {
+            return Err(Error::attr(
+                &keys[g[1]].path,
+                "direction",
+                format!("{} has the same direction and no time", keys[g[0]].path),
+            ));
+        } else {
+            None
+        };
+        viewpoints.push(Viewpoint {
+            direction: keys[g[0]].direction,
+            paths: g.iter().map(|&i| keys[i].path.clone()).collect(),
+            offsets,
+            spline,
+        });
+    }
+    let dirs: Vec<[f64; 3]> = viewpoints.iter().map(|v| v.direction).collect();
+    let vp_paths: Vec<Vec<String>> = viewpoints.iter().map(|v| v.paths.clone()).collect();
+    let blender = ViewBlender::new(&dirs, sharpness, uncovered).map_err(|e| view_error(&keys, &vp_paths, &path, e))?;
+    Ok(ViewMesh {
+        path,
+        mesh,
+        viewpoints,
+        blender,
+        camera,
+        uncovered,
+        sharpness,
+    })
+}
+
+/// Checks that `path` names an existing prim with a transform; `origin`
+/// says who named it ("--camera", or "/Mesh.painterly:camera").
+pub fn check_camera(r: &StageReader, path: &str, origin: &str) -> Result<()> {
+    let p = r
+        .prim(path)?
+        .ok_or_else(|| Error::prim(path, format!("camera named by {origin} does not exist")))?;
+    let ty = r.type_name(&p)?;
+    if NOT_XFORMABLE.contains(&ty.as_str()) {
+        let what = if ty.is_empty() {
+            "an untyped prim".to_string()
+        } else {
+            format!("a {ty} prim")
+        };
+        return Err(Error::prim(
+            path,
+            format!(
+                "camera named by {origin} is {what}, which has no transform (expected a Camera or another Xformable)"
+            ),
+        ));
+    }
+    Ok(())
+}
+
+impl ViewMesh {
+    /// The camera for this mesh: the bake's `--camera`, else `painterly:camera`.
+    pub fn camera_for<'a>(&'a self, bake_camera: Option<&'a str>) -> Result<&'a str> {
+        bake_camera.or(self.camera.as_deref()).ok_or_else(|| {
+            Error::attr(
+                &self.path,
+                "painterly:camera",
+                "no camera: pass `painterly bake --camera PRIM` or author `rel painterly:camera`",
+            )
+        })
+    }
+
+    /// The view-dependent points at `t` for a camera at `camera_local`
+    /// (mesh-local), given the base model's points at `t`.
+    pub fn evaluate(&self, t: f64, base: &[Vec3], camera_local: glam::DVec3) -> Vec<Vec3> {
+        let [lo, hi] = crate::mesh::bounds(base).unwrap_or([Vec3::ZERO; 2]);
+        let centre = ((lo + hi) * 0.5).as_dvec3();
+        let eye = camera_local - centre;
+        let weights = if eye.length() > 0.0 && eye.is_finite() {
+            self.blender.weights(eye.normalize().to_array())
+        } else {
+            crate::view::ViewWeights::base_only()
+        };
+        // Offsets at t of the viewpoints that carry weight.
+        let mut current: Vec<Vec<Vec3>> = vec![Vec::new(); self.viewpoints.len()];
+        for &(k, _) in weights.keys() {
+            let vp = &self.viewpoints[k];
+            current[k] = match &vp.spline {
+                None => vp.offsets[0].clone(),
+                Some(s) => {
+                    let mut out = vec![Vec3::ZERO; base.len()];
+                    let refs: Vec<&[Vec3]> = vp.offsets.iter().map(|o| o.as_slice()).collect();
+                    s.evaluate(t, &refs, &mut out);
+                    out
+                }
+            };
+        }
+        let refs: Vec<&[Vec3]> = current.iter().map(|o| o.as_slice()).collect();
+        let mut out = vec![Vec3::ZERO; base.len()];
+        crate::view::blend_offsets(base, &refs, &weights, &mut out);
+        out
+    }
+}
+
+/// Prim types that have no transform: a camera must not be one of these.
+const NOT_XFORMABLE: &[&str] = &[
+    "",
+    "Scope",
+    "Material",
+    "Shader",
+    "NodeGraph",
+    "GeomSubset",
+    "SkelAnimation",
+    "BlendShape",
+    "PainterlyAxis",
+    "PainterlyPoseKey",
+    "PainterlyTimeKey",
+    "PainterlyViewKey",
+];
