@@ -102,6 +102,7 @@ struct RigBake<'a> {
     rig: &'a Rig,
     skin: SkinningRest,
     bindings: Vec<Binding>,
+    needed_axes: Vec<usize>,
 }
 
 fn prepare(rig: &Rig) -> RigBake<'_> {
@@ -120,7 +121,12 @@ fn prepare(rig: &Rig) -> RigBake<'_> {
             (None, None) => unreachable!("a BVH is built when a layer has no cached binding"),
         })
         .collect();
-    RigBake { rig, skin, bindings }
+    RigBake {
+        rig,
+        skin,
+        bindings,
+        needed_axes: needed_axes(rig),
+    }
 }
 
 fn affine_f32(m: DMat4) -> Affine3A {
@@ -136,23 +142,32 @@ fn points_value(points: Vec<Vec3>) -> Value {
     Value::Vec3fVec(bytemuck::allocation::cast_vec(points))
 }
 
-/// Values of the rig's axes at `t` (None for axes no keyed layer uses).
-fn eval_axes(
+/// Axes of `rig` that some keyed layer needs.
+pub fn needed_axes(rig: &Rig) -> Vec<usize> {
+    let mut needed: Vec<usize> = rig
+        .layers
+        .iter()
+        .filter(|l| l.keys.uses_axes())
+        .flat_map(|l| l.keys.axes.iter().copied())
+        .collect();
+    needed.sort_unstable();
+    needed.dedup();
+    needed
+}
+
+/// Values at `t` of the rig's axes listed in `needed` (0 for the others).
+pub fn eval_axes(
     r: &StageReader,
     rig: &Rig,
+    needed: &[usize],
     t: f64,
     proxy_to_world: DMat4,
     posed: &[glam::DVec3],
     camera: Option<&str>,
 ) -> Result<Vec<f64>> {
-    let mut needed = vec![false; rig.axes.len()];
-    for l in rig.layers.iter().filter(|l| l.keys.uses_axes()) {
-        for &a in &l.keys.axes {
-            needed[a] = true;
-        }
-    }
-    if !needed.iter().any(|&n| n) {
-        return Ok(vec![0.0; rig.axes.len()]);
+    let mut values = vec![0.0; rig.axes.len()];
+    if needed.is_empty() {
+        return Ok(values);
     }
     let [lo, hi] = bounds_f64(posed).unwrap_or([glam::DVec3::ZERO; 2]);
     let frame = AxisFrame {
@@ -161,11 +176,10 @@ fn eval_axes(
         proxy_centre: (lo + hi) * 0.5,
         camera,
     };
-    rig.axes
-        .iter()
-        .zip(&needed)
-        .map(|(a, &n)| if n { a.value(r, &frame) } else { Ok(0.0) })
-        .collect()
+    for &a in needed {
+        values[a] = rig.axes[a].value(r, &frame)?;
+    }
+    Ok(values)
 }
 
 /// A layer's keyed rest points (None: its own rest points) and keyed opacity at `t`.
@@ -258,7 +272,7 @@ fn bake_stage(
             let posed = proxy.posed_points(r, t)?;
             let proxy_l2w = proxy.local_to_world(r, t)?;
             let motions = to_f32(&rb.skin.vertex_motions(&posed));
-            let axis_values = eval_axes(r, rb.rig, t, proxy_l2w, &posed, opts.camera.as_deref())?;
+            let axis_values = eval_axes(r, rb.rig, &rb.needed_axes, t, proxy_l2w, &posed, opts.camera.as_deref())?;
             for (layer, binding) in rb.rig.layers.iter().zip(&rb.bindings) {
                 let frame = affine_f32(layer.local_to_world(r, t)?.inverse() * proxy_l2w);
                 let (rest, keyed_opacity) = keyed_state(layer, &axis_values, t);

@@ -10,10 +10,13 @@ use std::path::PathBuf;
 use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 
+use crate::author::{self, BindOptions, Brush, BrushOptions, KeyKind, KeyOptions};
 use crate::bake::{bake, BakeOptions};
 use crate::error::Error;
 use crate::frames::FrameRange;
 use crate::inspect::inspect;
+use crate::tools::Falloff;
+use crate::usd_io::edit::{EditSession, EditTarget};
 
 /// Painted strokes that follow rigged characters, baked into USD layers.
 ///
@@ -76,6 +79,90 @@ pub enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Bind strokes painted in a pose: store their rest positions and binding.
+    ///
+    /// Each point of a layer's `points` (as painted, in the pose at --time)
+    /// is bound to the closest point of the posed proxy and taken back to the
+    /// rest pose by the inverse of its skinning blend. Writes
+    /// painterly:restPoints, painterly:bindVertices and painterly:bindWeights.
+    /// Baking at --time then gives back the painted positions.
+    ///
+    /// Example: painterly bind fish.usda --time 24 --edit-layer fish_edits.usda
+    Bind {
+        #[command(flatten)]
+        edit: EditArgs,
+        /// Stroke layer prim path (repeatable; default: every layer).
+        #[arg(long, value_name = "PRIM")]
+        layer: Vec<String>,
+        /// The pose the strokes were painted in (default: the rest pose).
+        #[arg(long, value_name = "T")]
+        time: Option<f64>,
+    },
+    /// Set a pose key (configuration at --time), a time key or a sentinel.
+    ///
+    /// A pose key captures every axis of the layer at --time as its
+    /// coordinates; --points captures the layer's current rest positions and
+    /// --opacity V keys an opacity. --time-key sets a PainterlyTimeKey at
+    /// --time instead; --sentinel a sentinel time key. A key at the same
+    /// coordinates (or time) as an existing key of the same channel, or with
+    /// an existing name, is refused unless --replace.
+    ///
+    /// Example: painterly key fish.usda --layer /Fish/Paint/Spikes --time 30 --points --edit-layer edits.usda
+    Key {
+        #[command(flatten)]
+        edit: EditArgs,
+        /// The stroke layer prim path.
+        #[arg(long, value_name = "PRIM")]
+        layer: String,
+        /// Time code whose configuration (or timeline position) is keyed.
+        #[arg(long, value_name = "T")]
+        time: f64,
+        /// Key prim name (default: key1, time1, sentinel1, ...).
+        #[arg(long)]
+        name: Option<String>,
+        /// Capture the layer's current rest positions.
+        #[arg(long)]
+        points: bool,
+        /// Key this opacity.
+        #[arg(long, value_name = "V")]
+        opacity: Option<f32>,
+        /// Set a time key instead of a pose key.
+        #[arg(long, conflicts_with = "sentinel")]
+        time_key: bool,
+        /// Set a sentinel time key (bounds a time-keyed region; no data).
+        #[arg(long)]
+        sentinel: bool,
+        /// Overwrite a key of the same name or at the same coordinates/time.
+        #[arg(long)]
+        replace: bool,
+        /// Camera for viewDirection axes without a source.
+        #[arg(long, value_name = "PRIM")]
+        camera: Option<String>,
+    },
+    /// Smudge strokes along a tool path (Bassett §3.3).
+    ///
+    /// Points within --radius of the path move along its unit tangent at
+    /// their closest path point by --strength × falloff(distance / radius).
+    ///
+    /// Example: painterly smudge fish.usda --layer /Fish/Paint/Hair --path "0,1,0 1,1.2,0" --radius 0.5 --strength 0.2 --edit-layer e.usda
+    Smudge {
+        #[command(flatten)]
+        edit: EditArgs,
+        #[command(flatten)]
+        brush: BrushArgs,
+    },
+    /// Expand strokes along the proxy surface normal (Bassett §3.3).
+    ///
+    /// Points within --radius of the path move along the proxy's normal at
+    /// their bound position by --strength × falloff(distance / radius).
+    ///
+    /// Example: painterly expand fish.usda --layer /Fish/Paint/Hair --path "0,1,0 1,1,0" --radius 1 --strength 0.1 --edit-layer e.usda
+    Expand {
+        #[command(flatten)]
+        edit: EditArgs,
+        #[command(flatten)]
+        brush: BrushArgs,
+    },
     /// Interpolation weights for keys and query points, JSON on stdin.
     ///
     /// Input: {"method": "smoothVoronoi"|"rbf"|"shepard", "radius": 1.0,
@@ -83,6 +170,145 @@ pub enum Command {
     /// {"weights": [[w_0, ..., w_n-1] per point]}. For tests and plots.
     #[command(hide = true)]
     Interpolate,
+}
+
+/// Where authoring commands write.
+#[derive(Debug, clap::Args)]
+pub struct EditArgs {
+    /// The painted character (.usda, .usdc; .usdz only with --edit-layer).
+    pub input: PathBuf,
+    /// Layer that receives the edits; it sublayers the input and is created
+    /// when missing. Open it to see the edited character.
+    #[arg(
+        long,
+        value_name = "FILE",
+        required_unless_present = "in_place",
+        conflicts_with = "in_place"
+    )]
+    pub edit_layer: Option<PathBuf>,
+    /// Edit the input file itself (atomically).
+    #[arg(long)]
+    pub in_place: bool,
+    /// Print nothing on success.
+    #[arg(short, long)]
+    pub quiet: bool,
+}
+
+/// Options shared by smudge and expand.
+#[derive(Debug, clap::Args)]
+pub struct BrushArgs {
+    /// The stroke layer prim path.
+    #[arg(long, value_name = "PRIM")]
+    pub layer: String,
+    /// Tool path in world space: "X,Y,Z X,Y,Z ..." (at least two points,
+    /// separated by spaces or semicolons).
+    #[arg(
+        long,
+        value_name = "\"X,Y,Z X,Y,Z ...\"",
+        required_unless_present = "path_prim",
+        conflicts_with = "path_prim",
+        allow_hyphen_values = true
+    )]
+    pub path: Option<String>,
+    /// A BasisCurves prim whose first curve is the tool path.
+    #[arg(long, value_name = "PRIM")]
+    pub path_prim: Option<String>,
+    /// Radius of influence around the path (world units, > 0).
+    #[arg(long)]
+    pub radius: f64,
+    /// Displacement at the path (world units).
+    #[arg(long)]
+    pub strength: f64,
+    /// Falloff of the distance normalised by the radius.
+    #[arg(long, value_enum, default_value = "cubic")]
+    pub falloff: FalloffArg,
+    /// Apply in the pose at this time (default: the rest pose).
+    #[arg(long, value_name = "T")]
+    pub time: Option<f64>,
+    /// Edit this key's points instead of the layer's rest points.
+    #[arg(long, value_name = "NAME")]
+    pub key: Option<String>,
+    /// Only these strokes (curve indices), e.g. 3,7-12.
+    #[arg(long, value_name = "LIST")]
+    pub strokes: Option<String>,
+}
+
+/// `--falloff` values.
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+pub enum FalloffArg {
+    /// 2r³ − 3r² + 1.
+    Cubic,
+    /// Constant within the radius.
+    None,
+}
+
+fn parse_point(s: &str) -> Result<glam::DVec3, Error> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|x| x.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| Error::msg(format!("--path point {s:?} is not X,Y,Z")))?;
+    match v.as_slice() {
+        [x, y, z] => Ok(glam::DVec3::new(*x, *y, *z)),
+        _ => Err(Error::msg(format!("--path point {s:?} is not X,Y,Z"))),
+    }
+}
+
+fn open_session(e: &EditArgs) -> Result<EditSession, Error> {
+    let target = match &e.edit_layer {
+        Some(p) => EditTarget::Layer(p.clone()),
+        None => EditTarget::InPlace,
+    };
+    EditSession::open(&e.input, &target)
+}
+
+fn run_brush(edit: &EditArgs, b: &BrushArgs, which: Brush) -> Result<String, Error> {
+    let session = open_session(edit)?;
+    let start = session.reader.metadata().start_time_code.unwrap_or(0.0);
+    let path = match &b.path_prim {
+        Some(p) => author::path_from_prim(&session.reader, p, b.time, start)?,
+        None => b
+            .path
+            .as_deref()
+            .unwrap_or("")
+            .split([' ', ';'])
+            .filter(|s| !s.trim().is_empty())
+            .map(parse_point)
+            .collect::<Result<_, _>>()?,
+    };
+    let strokes = match &b.strokes {
+        Some(s) => Some(crate::tools::parse_strokes(s).map_err(|m| Error::msg(format!("--strokes: {m}")))?),
+        None => None,
+    };
+    let opts = BrushOptions {
+        layer: b.layer.clone(),
+        path,
+        radius: b.radius,
+        strength: b.strength,
+        falloff: match b.falloff {
+            FalloffArg::Cubic => Falloff::Cubic,
+            FalloffArg::None => Falloff::None,
+        },
+        time: b.time,
+        key: b.key.clone(),
+        strokes,
+    };
+    let moved = author::brush(&session, which, &opts)?;
+    let target = session.target().to_path_buf();
+    session.save()?;
+    Ok(format!("moved {moved} points of {} -> {}", b.layer, target.display()))
+}
+
+fn finish(result: Result<String, Error>, quiet: bool, input: &std::path::Path) -> i32 {
+    match result {
+        Ok(msg) => {
+            if !quiet {
+                println!("{msg}");
+            }
+            0
+        }
+        Err(e) => report(&e.in_file(input)),
+    }
 }
 
 /// Runs a parsed command; returns the process exit code.
@@ -154,6 +380,63 @@ pub fn run(cli: Cli) -> i32 {
             }
             Err(e) => report(&e),
         },
+        Command::Bind { edit, layer, time } => {
+            let result = (|| {
+                let session = open_session(&edit)?;
+                let report = author::bind(&session, &BindOptions { layers: layer, time })?;
+                let target = session.target().to_path_buf();
+                session.save()?;
+                let n: usize = report.iter().map(|r| r.1).sum();
+                Ok(format!(
+                    "bound {n} points in {} layers -> {}",
+                    report.len(),
+                    target.display()
+                ))
+            })();
+            finish(result, edit.quiet, &edit.input)
+        }
+        Command::Key {
+            edit,
+            layer,
+            time,
+            name,
+            points,
+            opacity,
+            time_key,
+            sentinel,
+            replace,
+            camera,
+        } => {
+            let result = (|| {
+                let session = open_session(&edit)?;
+                let kind = if sentinel {
+                    KeyKind::Sentinel
+                } else if time_key {
+                    KeyKind::Time
+                } else {
+                    KeyKind::Pose
+                };
+                let path = author::key(
+                    &session,
+                    &KeyOptions {
+                        layer,
+                        time,
+                        kind,
+                        name,
+                        points: points || (opacity.is_none() && kind != KeyKind::Sentinel),
+                        opacity,
+                        replace,
+                        camera,
+                    },
+                )?;
+                let target = session.target().to_path_buf();
+                session.save()?;
+                Ok(format!("set {path} -> {}", target.display()))
+            })();
+            finish(result, edit.quiet, &edit.input)
+        }
+        Command::Smudge { edit, brush } => finish(run_brush(&edit, &brush, Brush::Smudge), edit.quiet, &edit.input),
+        Command::Expand { edit, brush } => finish(run_brush(&edit, &brush, Brush::Expand), edit.quiet, &edit.input),
         Command::Interpolate => {
             let mut input = String::new();
             if let Err(e) = std::io::Read::read_to_string(&mut std::io::stdin(), &mut input) {

@@ -20,6 +20,7 @@
 //! | [`inspect`] | the `inspect` command |
 //! | [`interp`] | configuration-space interpolation (smooth Voronoi, RBF, Shepard) |
 
+pub mod author;
 pub mod bake;
 pub mod bind;
 pub mod cli;
@@ -31,6 +32,7 @@ pub mod keys;
 pub mod mesh;
 pub mod skel_deform;
 pub mod skinning;
+pub mod tools;
 pub mod usd_io;
 pub mod view;
 

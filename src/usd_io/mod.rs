@@ -4,6 +4,7 @@
 //! arrays, the math modules evaluate, and [`layer`] writes an override layer.
 
 pub mod axes;
+pub mod edit;
 pub mod layer;
 pub mod scene;
 pub mod skel;

@@ -61,6 +61,8 @@ pub struct StrokeLayer {
     pub curve_counts: Vec<u32>,
     /// Rest positions, proxy-local.
     pub rest_points: Vec<Vec3>,
+    /// The default value of `points` (stroke-local, what viewers draw), if authored.
+    pub points: Option<Vec<Vec3>>,
     /// `painterly:bindVertices`/`bindWeights` when authored.
     pub cached_binding: Option<Binding>,
     /// `painterly:opacity` (fallback 1).
@@ -400,6 +402,7 @@ fn read_layer(r: &StageReader, path: &str, proxy_points: usize) -> Result<Stroke
             ));
         }
     }
+    let authored_points = points.clone();
     let rest_points = match (rest, points) {
         (Some(rest), points) => {
             check_finite(&rest, path, "painterly:restPoints")?;
@@ -443,6 +446,7 @@ fn read_layer(r: &StageReader, path: &str, proxy_points: usize) -> Result<Stroke
         path: path.to_string(),
         curve_counts: counts.iter().map(|&c| c as u32).collect(),
         rest_points,
+        points: authored_points,
         cached_binding,
         opacity,
         display_opacity,
@@ -530,6 +534,40 @@ fn time_channel<V>(keys: Vec<(String, f64, V)>, sentinels: &[f64]) -> Result<Opt
     }))
 }
 
+/// The layer's axes as indices into the rig's axis table: `painterly:axes`
+/// when authored, else every `PainterlyAxis` under the rig in namespace order.
+pub fn layer_axes(r: &StageReader, all_paths: &[String], rig: &mut Rig, layer: &StrokeLayer) -> Result<Vec<usize>> {
+    let path = layer.path.as_str();
+    let prim = &layer.prim;
+    let authored = prim
+        .relationship("painterly:axes")
+        .has_authored_targets()
+        .map_err(|e| Error::attr(path, "painterly:axes", format!("cannot read: {e}")))?;
+    let axis_paths: Vec<String> = if authored {
+        r.targets(prim, "painterly:axes")?
+    } else {
+        let mut v = Vec::new();
+        for p in all_paths {
+            if is_descendant(p, &rig.path) && r.type_name(&r.require_prim(p)?)? == "PainterlyAxis" {
+                v.push(p.clone());
+            }
+        }
+        v
+    };
+    let mut axes = Vec::new();
+    for ap in &axis_paths {
+        if r.prim(ap)?.is_none() {
+            return Err(Error::attr(
+                path,
+                "painterly:axes",
+                format!("targets {ap}, which does not exist"),
+            ));
+        }
+        axes.push(axis_index(r, rig, ap)?);
+    }
+    Ok(axes)
+}
+
 /// Reads a layer's axes, pose keys and time keys.
 fn read_keys(r: &StageReader, all_paths: &[String], rig: &mut Rig, layer: &StrokeLayer) -> Result<LayerKeys> {
     let path = layer.path.as_str();
@@ -607,34 +645,11 @@ fn read_keys(r: &StageReader, all_paths: &[String], rig: &mut Rig, layer: &Strok
     }
 
     // Axes: the layer's painterly:axes, else every axis under the rig.
-    let mut axes = Vec::new();
-    if has_pose_keys {
-        let authored = prim
-            .relationship("painterly:axes")
-            .has_authored_targets()
-            .map_err(|e| Error::attr(path, "painterly:axes", format!("cannot read: {e}")))?;
-        let axis_paths: Vec<String> = if authored {
-            r.targets(prim, "painterly:axes")?
-        } else {
-            let mut v = Vec::new();
-            for p in all_paths {
-                if is_descendant(p, &rig.path) && r.type_name(&r.require_prim(p)?)? == "PainterlyAxis" {
-                    v.push(p.clone());
-                }
-            }
-            v
-        };
-        for ap in &axis_paths {
-            if r.prim(ap)?.is_none() {
-                return Err(Error::attr(
-                    path,
-                    "painterly:axes",
-                    format!("targets {ap}, which does not exist"),
-                ));
-            }
-            axes.push(axis_index(r, rig, ap)?);
-        }
-    }
+    let axes = if has_pose_keys {
+        layer_axes(r, all_paths, rig, layer)?
+    } else {
+        Vec::new()
+    };
     let dim = axes.len();
     for (cp, coords, _) in pose_pts
         .iter()

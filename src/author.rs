@@ -1,0 +1,584 @@
+//! The artist's side (Bassett §3.1, §3.3): bind strokes painted in any pose,
+//! set keys, smudge and expand. The CLI's `bind`, `key`, `smudge` and
+//! `expand` commands are thin wrappers over these functions, so tools,
+//! scripts and a painting UI share one implementation.
+//!
+//! Every function edits through an [`EditSession`] (an edit layer over the
+//! input, or the input in place) and leaves saving to the caller:
+//!
+//! ```no_run
+//! use painterly::author::{bind, BindOptions};
+//! use painterly::usd_io::edit::{EditSession, EditTarget};
+//! # fn main() -> painterly::Result<()> {
+//! let session = EditSession::open("fish.usda".as_ref(), &EditTarget::Layer("fish_edits.usda".into()))?;
+//! bind(&session, &BindOptions { layers: vec![], time: Some(24.0) })?;
+//! session.save()?;
+//! # Ok(()) }
+//! ```
+
+use glam::{DAffine3, DMat3, DMat4, DVec3, Vec3};
+use openusd::gf;
+use openusd::sdf::Value;
+
+use crate::bake::eval_axes;
+use crate::bind::{Binding, ClosestPoint};
+use crate::error::{Error, Result};
+use crate::mesh::{fan_triangulate, OneRings};
+use crate::skinning::SkinningRest;
+use crate::tools::{self, Falloff};
+use crate::usd_io::edit::EditSession;
+use crate::usd_io::scene::{layer_axes, Rig, Scene, StrokeLayer};
+use crate::usd_io::stage::StageReader;
+use crate::usd_io::values;
+
+/// A rig posed at one time: proxy points, per-vertex motions, transform.
+pub struct PosedRig {
+    /// Proxy-local posed points.
+    pub posed: Vec<DVec3>,
+    /// Per-vertex rigid motions from the rest pose (identity at rest).
+    pub motions: Vec<DAffine3>,
+    /// Proxy local-to-world.
+    pub proxy_to_world: DMat4,
+    /// Fan triangles of the proxy.
+    pub triangles: Vec<[u32; 3]>,
+    /// The time the transforms were read at.
+    pub time: f64,
+}
+
+/// Poses `rig` at `time`, or in its rest pose when `time` is None (transforms
+/// are then read at `xform_time`).
+pub fn pose_rig(r: &StageReader, rig: &Rig, time: Option<f64>, xform_time: f64) -> Result<PosedRig> {
+    let p = &rig.proxy;
+    let triangles = fan_triangulate(&p.face_counts, &p.face_indices);
+    let (posed, motions) = match time {
+        None => (p.rest.clone(), vec![DAffine3::IDENTITY; p.rest.len()]),
+        Some(t) => {
+            let posed = p.posed_points(r, t)?;
+            let rings = OneRings::new(p.rest.len(), &p.face_counts, &p.face_indices);
+            let motions = SkinningRest::new(rings, &p.rest).vertex_motions(&posed);
+            (posed, motions)
+        }
+    };
+    let t = time.unwrap_or(xform_time);
+    Ok(PosedRig {
+        posed,
+        motions,
+        proxy_to_world: p.local_to_world(r, t)?,
+        triangles,
+        time: t,
+    })
+}
+
+/// The blended motion Σ w M_v of eq. 1, in f64.
+pub fn blended_motion(motions: &[DAffine3], vertices: [u32; 3], weights: [f32; 3]) -> DAffine3 {
+    let mut m3 = DMat3::ZERO;
+    let mut t = DVec3::ZERO;
+    for (v, w) in vertices.iter().zip(weights) {
+        let m = &motions[*v as usize];
+        m3 += m.matrix3 * w as f64;
+        t += m.translation * w as f64;
+    }
+    DAffine3::from_mat3_translation(m3, t)
+}
+
+fn invert(m: &DAffine3, layer: &str, i: usize) -> Result<DAffine3> {
+    let det = m.matrix3.determinant();
+    if !(det.is_finite() && det.abs() > 1e-12) {
+        return Err(Error::prim(
+            layer,
+            format!("point {i}: the skinning blend is singular here, so it cannot be taken back to rest space"),
+        ));
+    }
+    Ok(m.inverse())
+}
+
+fn vec3f_value(points: &[Vec3]) -> Value {
+    Value::Vec3fVec(points.iter().map(|p| gf::vec3f(p.x, p.y, p.z)).collect())
+}
+
+/// Reads the scene and the stage's time range; checks `time` lies inside it.
+fn scene_at(r: &StageReader, time: Option<f64>) -> Result<(Scene, f64)> {
+    let scene = Scene::read(r)?;
+    let meta = r.metadata();
+    let start = meta.start_time_code.unwrap_or(0.0);
+    if let Some(t) = time {
+        if !t.is_finite() {
+            return Err(Error::msg(format!("--time {t} is not a finite number")));
+        }
+        if let (Some(s), Some(e)) = (meta.start_time_code, meta.end_time_code) {
+            if t < s - 1e-9 || t > e + 1e-9 {
+                return Err(Error::msg(format!(
+                    "--time {t} is outside the stage's time range {s}:{e} (startTimeCode:endTimeCode)"
+                )));
+            }
+        }
+    }
+    Ok((scene, start))
+}
+
+/// Finds a stroke layer by prim path: (rig index, layer index).
+fn find_layer(scene: &Scene, path: &str) -> Result<(usize, usize)> {
+    for (ri, rig) in scene.rigs.iter().enumerate() {
+        if let Some(li) = rig.layers.iter().position(|l| l.path == path) {
+            return Ok((ri, li));
+        }
+    }
+    Err(Error::prim(
+        path,
+        "is not a stroke layer (a BasisCurves with PainterlyStrokeLayerAPI under a rig with PainterlyRigAPI)",
+    ))
+}
+
+/// Options of [`bind`].
+#[derive(Debug, Clone, Default)]
+pub struct BindOptions {
+    /// Stroke layer prim paths; empty = every layer.
+    pub layers: Vec<String>,
+    /// The pose the strokes were painted in; None = the rest pose.
+    pub time: Option<f64>,
+}
+
+/// What [`bind`] did: (layer path, points bound) per layer.
+pub type BindReport = Vec<(String, usize)>;
+
+/// Binds layers painted in the pose at `time`: each point of the layer's
+/// `points` (stroke-local, as painted) is bound to the closest point of the
+/// posed proxy; its rest position is the inverse of the skinning blend
+/// applied to it (SPEC §3). Authors `painterly:restPoints`,
+/// `painterly:bindVertices` and `painterly:bindWeights`. Baking at `time`
+/// then gives back the painted positions.
+pub fn bind(session: &EditSession, opts: &BindOptions) -> Result<BindReport> {
+    let r = &session.reader;
+    let (scene, start) = scene_at(r, opts.time)?;
+    for l in &opts.layers {
+        find_layer(&scene, l)?;
+    }
+    let mut report = Vec::new();
+    for rig in &scene.rigs {
+        let chosen: Vec<&StrokeLayer> = rig
+            .layers
+            .iter()
+            .filter(|l| opts.layers.is_empty() || opts.layers.contains(&l.path))
+            .collect();
+        if chosen.is_empty() {
+            continue;
+        }
+        let pose = pose_rig(r, rig, opts.time, start)?;
+        let bvh = ClosestPoint::new(&pose.posed, &pose.triangles);
+        let world_to_proxy = pose.proxy_to_world.inverse();
+        for layer in chosen {
+            let painted = layer.points.as_ref().ok_or_else(|| {
+                Error::attr(
+                    &layer.path,
+                    "points",
+                    "bind needs the painted `points` (a default value)",
+                )
+            })?;
+            let to_proxy = world_to_proxy * layer.local_to_world(r, pose.time)?;
+            let proxy_pts: Vec<DVec3> = painted
+                .iter()
+                .map(|p| to_proxy.transform_point3(p.as_dvec3()))
+                .collect();
+            let f32pts: Vec<Vec3> = proxy_pts.iter().map(|p| p.as_vec3()).collect();
+            let binding = bvh.bind(&f32pts);
+            let mut rest = Vec::with_capacity(proxy_pts.len());
+            for (i, p) in proxy_pts.iter().enumerate() {
+                let m = blended_motion(&pose.motions, binding.vertices[i], binding.weights[i]);
+                rest.push(invert(&m, &layer.path, i)?.transform_point3(*p).as_vec3());
+            }
+            write_binding(session, &layer.path, &rest, &binding)?;
+            report.push((layer.path.clone(), rest.len()));
+        }
+    }
+    Ok(report)
+}
+
+fn write_binding(session: &EditSession, layer: &str, rest: &[Vec3], b: &Binding) -> Result<()> {
+    session.set(layer, "painterly:restPoints", "point3f[]", true, vec3f_value(rest))?;
+    let verts = b
+        .vertices
+        .iter()
+        .map(|v| gf::Vec3i {
+            x: v[0] as i32,
+            y: v[1] as i32,
+            z: v[2] as i32,
+        })
+        .collect();
+    session.set(layer, "painterly:bindVertices", "int3[]", true, Value::Vec3iVec(verts))?;
+    let w = b.weights.iter().map(|w| gf::vec3f(w[0], w[1], w[2])).collect();
+    session.set(layer, "painterly:bindWeights", "float3[]", true, Value::Vec3fVec(w))
+}
+
+/// Which kind of key [`key`] sets.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum KeyKind {
+    /// A configuration-space `PainterlyPoseKey` at the configuration at `time`.
+    Pose,
+    /// A normal `PainterlyTimeKey` at `time`.
+    Time,
+    /// A sentinel `PainterlyTimeKey` at `time` (no data).
+    Sentinel,
+}
+
+/// Options of [`key`].
+#[derive(Debug, Clone)]
+pub struct KeyOptions {
+    pub layer: String,
+    pub time: f64,
+    pub kind: KeyKind,
+    /// Key prim name; default: the first free `keyN` / `timeN` / `sentinelN`.
+    pub name: Option<String>,
+    /// Capture the layer's current rest positions.
+    pub points: bool,
+    /// Opacity value to key.
+    pub opacity: Option<f32>,
+    /// Replace a key of the same name, or at the same coordinates/time.
+    pub replace: bool,
+    /// Camera for `viewDirection` axes without a source.
+    pub camera: Option<String>,
+}
+
+/// Sets a key on a layer; returns the key prim's path.
+///
+/// Pose keys capture the configuration at `time` (every axis of the layer,
+/// scaled), time keys capture `time`; both capture the layer's current rest
+/// positions (`points`) and/or an `opacity`. A key whose coordinates (or time)
+/// coincide with an existing key of the same channel is refused unless
+/// `replace`, which then rewrites that key.
+pub fn key(session: &EditSession, opts: &KeyOptions) -> Result<String> {
+    let r = &session.reader;
+    let (mut scene, _) = scene_at(r, Some(opts.time))?;
+    let (ri, li) = find_layer(&scene, &opts.layer)?;
+    if opts.kind != KeyKind::Sentinel && !opts.points && opts.opacity.is_none() {
+        return Err(Error::prim(
+            &opts.layer,
+            "nothing to key: pass --points and/or --opacity VALUE",
+        ));
+    }
+    if let Some(o) = opts.opacity {
+        if !o.is_finite() {
+            return Err(Error::msg(format!("--opacity {o} is not finite")));
+        }
+    }
+    let all_paths = r.prim_paths()?;
+    let layer_path = opts.layer.clone();
+    let layer_prim = r.require_prim(&layer_path)?;
+
+    // Existing keys of this layer: (path, type, coordinates or time, has points, has opacity, sentinel).
+    struct Existing {
+        path: String,
+        ty: String,
+        coords: Vec<f64>,
+        points: bool,
+        opacity: bool,
+        sentinel: bool,
+    }
+    let mut existing = Vec::new();
+    for c in layer_prim
+        .children()
+        .map_err(|e| Error::prim(&layer_path, format!("cannot list children: {e}")))?
+    {
+        let ty = r.type_name(&c)?;
+        let cp = c.path().as_str().to_string();
+        let coords = match ty.as_str() {
+            "PainterlyPoseKey" => r
+                .typed(&c, "coordinates", None, "float[]", values::f32_array)?
+                .unwrap_or_default()
+                .iter()
+                .map(|&x| x as f64)
+                .collect(),
+            "PainterlyTimeKey" => vec![r.typed(&c, "time", None, "double", values::scalar)?.unwrap_or(f64::NAN)],
+            _ => Vec::new(),
+        };
+        existing.push(Existing {
+            points: r.has_authored(&c, "points")?,
+            opacity: r.has_authored(&c, "opacity")?,
+            sentinel: r.typed(&c, "sentinel", None, "bool", values::scalar)?.unwrap_or(0.0) != 0.0,
+            path: cp,
+            ty,
+            coords,
+        });
+    }
+
+    // Where the key lives in configuration space (pose) or on the timeline.
+    let (ty, coords) = match opts.kind {
+        KeyKind::Pose => {
+            let rig = &mut scene.rigs[ri];
+            // layer_axes may add axes to the rig's table: lend it the layer apart.
+            let layers = std::mem::take(&mut rig.layers);
+            let axes = layer_axes(r, &all_paths, rig, &layers[li]);
+            rig.layers = layers;
+            let axes = axes?;
+            let pose = pose_rig(r, rig, Some(opts.time), opts.time)?;
+            let values = eval_axes(
+                r,
+                rig,
+                &axes,
+                opts.time,
+                pose.proxy_to_world,
+                &pose.posed,
+                opts.camera.as_deref(),
+            )?;
+            (
+                "PainterlyPoseKey",
+                axes.iter().map(|&a| values[a]).collect::<Vec<f64>>(),
+            )
+        }
+        KeyKind::Time | KeyKind::Sentinel => ("PainterlyTimeKey", vec![opts.time]),
+    };
+
+    // Collisions: same name, or same coordinates/time in a channel this key sets.
+    let mut replace_path: Option<String> = None;
+    if let Some(name) = &opts.name {
+        let p = format!("{layer_path}/{name}");
+        if let Some(e) = existing.iter().find(|e| e.path == p) {
+            if !opts.replace {
+                return Err(Error::prim(
+                    &p,
+                    "a key of this name exists: pass --replace to overwrite it",
+                ));
+            }
+            if e.ty != ty {
+                return Err(Error::prim(&p, format!("exists as a {:?} prim, not a {ty}", e.ty)));
+            }
+            replace_path = Some(p);
+        }
+    }
+    for e in existing.iter().filter(|e| e.ty == ty && e.coords == coords) {
+        let clash = match opts.kind {
+            KeyKind::Sentinel => e.sentinel,
+            _ => !e.sentinel && ((opts.points && e.points) || (opts.opacity.is_some() && e.opacity)),
+        };
+        if clash {
+            if !opts.replace {
+                return Err(Error::prim(
+                    &e.path,
+                    format!(
+                        "already keys this layer at the same {}: pass --replace to overwrite it",
+                        if ty == "PainterlyPoseKey" {
+                            "coordinates"
+                        } else {
+                            "time"
+                        }
+                    ),
+                ));
+            }
+            if replace_path.as_ref().is_some_and(|p| *p != e.path) {
+                return Err(Error::prim(&e.path, "--replace would overwrite two different keys"));
+            }
+            replace_path = Some(e.path.clone());
+        }
+    }
+    let path = match replace_path {
+        Some(p) => p,
+        None => match &opts.name {
+            Some(n) => format!("{layer_path}/{n}"),
+            None => {
+                let stem = match opts.kind {
+                    KeyKind::Pose => "key",
+                    KeyKind::Time => "time",
+                    KeyKind::Sentinel => "sentinel",
+                };
+                (1..)
+                    .map(|i| format!("{layer_path}/{stem}{i}"))
+                    .find(|p| !existing.iter().any(|e| e.path == *p))
+                    .expect("a free name")
+            }
+        },
+    };
+
+    let layer = &scene.rigs[ri].layers[li];
+    session.define(&path, ty)?;
+    match opts.kind {
+        KeyKind::Pose => {
+            let c: Vec<f32> = coords.iter().map(|&x| x as f32).collect();
+            session.set(&path, "coordinates", "float[]", true, Value::FloatVec(c))?;
+        }
+        KeyKind::Time | KeyKind::Sentinel => {
+            session.set(&path, "time", "double", true, Value::Double(opts.time))?;
+            session.set(
+                &path,
+                "sentinel",
+                "bool",
+                true,
+                Value::Bool(opts.kind == KeyKind::Sentinel),
+            )?;
+        }
+    }
+    if opts.kind != KeyKind::Sentinel {
+        if opts.points {
+            session.set(&path, "points", "point3f[]", true, vec3f_value(&layer.rest_points))?;
+        }
+        if let Some(o) = opts.opacity {
+            session.set(&path, "opacity", "float", true, Value::Float(o))?;
+        }
+    }
+    Ok(path)
+}
+
+/// Which brush [`brush`] applies.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Brush {
+    /// Move points along the tool path's tangent.
+    Smudge,
+    /// Move points along the proxy surface normal at their bound position.
+    Expand,
+}
+
+/// Options of [`brush`].
+#[derive(Debug, Clone)]
+pub struct BrushOptions {
+    pub layer: String,
+    /// The tool path in world space (at least two points).
+    pub path: Vec<DVec3>,
+    pub radius: f64,
+    pub strength: f64,
+    pub falloff: Falloff,
+    /// The pose the brush is applied in; None = the rest pose.
+    pub time: Option<f64>,
+    /// Edit this key's points (a PainterlyPoseKey or PainterlyTimeKey child)
+    /// instead of the layer's rest points.
+    pub key: Option<String>,
+    /// Only these strokes (curve indices); None = all.
+    pub strokes: Option<Vec<usize>>,
+}
+
+/// Applies smudge or expand (Bassett §3.3) in the pose at `time`; the
+/// displacement is taken back to rest space through the inverse of each
+/// point's skinning blend. Returns the number of points moved.
+pub fn brush(session: &EditSession, brush: Brush, opts: &BrushOptions) -> Result<usize> {
+    let r = &session.reader;
+    if opts.path.len() < 2 {
+        return Err(Error::msg(format!(
+            "the tool path has {} point(s); it needs at least two",
+            opts.path.len()
+        )));
+    }
+    if opts.path.iter().any(|p| !p.is_finite()) {
+        return Err(Error::msg("the tool path has a non-finite point"));
+    }
+    if tools::closest_on_path(&opts.path, DVec3::ZERO).is_none() {
+        return Err(Error::msg("the tool path has no segment of non-zero length"));
+    }
+    if !(opts.radius.is_finite() && opts.radius > 0.0) {
+        return Err(Error::msg(format!("--radius {} must be positive", opts.radius)));
+    }
+    if !opts.strength.is_finite() {
+        return Err(Error::msg(format!("--strength {} is not finite", opts.strength)));
+    }
+    let (scene, start) = scene_at(r, opts.time)?;
+    let (ri, li) = find_layer(&scene, &opts.layer)?;
+    let rig = &scene.rigs[ri];
+    let layer = &rig.layers[li];
+
+    // The array being edited: a key's points, or the rest points.
+    let (target_prim, target_attr, mut target): (String, &str, Vec<Vec3>) = match &opts.key {
+        None => (layer.path.clone(), "painterly:restPoints", layer.rest_points.clone()),
+        Some(k) => {
+            let kp = if k.starts_with('/') {
+                k.clone()
+            } else {
+                format!("{}/{k}", layer.path)
+            };
+            let prim = r
+                .prim(&kp)?
+                .ok_or_else(|| Error::prim(&kp, format!("no such key under {}", layer.path)))?;
+            let pts = r
+                .typed(&prim, "points", None, "point3f[]", values::vec3_array)?
+                .ok_or_else(|| Error::attr(&kp, "points", "this key has no points to edit"))?;
+            if pts.len() != layer.rest_points.len() {
+                return Err(Error::attr(&kp, "points", "point count differs from the layer's"));
+            }
+            (kp, "points", pts)
+        }
+    };
+
+    let pose = pose_rig(r, rig, opts.time, start)?;
+    let binding = match &layer.cached_binding {
+        Some(b) => b.clone(),
+        None => ClosestPoint::new(
+            &rig.proxy.rest,
+            &fan_triangulate(&rig.proxy.face_counts, &rig.proxy.face_indices),
+        )
+        .bind(&layer.rest_points),
+    };
+
+    // Selected points.
+    let mut selected = vec![opts.strokes.is_none(); target.len()];
+    if let Some(strokes) = &opts.strokes {
+        let mut starts = Vec::with_capacity(layer.curve_counts.len() + 1);
+        let mut acc = 0usize;
+        for &c in &layer.curve_counts {
+            starts.push(acc);
+            acc += c as usize;
+        }
+        starts.push(acc);
+        for &s in strokes {
+            if s >= layer.curve_counts.len() {
+                return Err(Error::prim(
+                    &layer.path,
+                    format!(
+                        "--strokes {s} is out of range (the layer has {} strokes)",
+                        layer.curve_counts.len()
+                    ),
+                ));
+            }
+            selected[starts[s]..starts[s + 1]].iter_mut().for_each(|x| *x = true);
+        }
+    }
+
+    // Posed world positions of the target points.
+    let blends: Vec<DAffine3> = (0..target.len())
+        .map(|i| blended_motion(&pose.motions, binding.vertices[i], binding.weights[i]))
+        .collect();
+    let world: Vec<DVec3> = target
+        .iter()
+        .zip(&blends)
+        .map(|(p, m)| pose.proxy_to_world.transform_point3(m.transform_point3(p.as_dvec3())))
+        .collect();
+    let disp = match brush {
+        Brush::Smudge => tools::smudge(&world, &opts.path, opts.radius, opts.strength, opts.falloff),
+        Brush::Expand => {
+            let vn = tools::vertex_normals(&pose.posed, &pose.triangles);
+            let normal_m = DMat3::from_mat4(pose.proxy_to_world).inverse().transpose();
+            let normals: Vec<DVec3> = (0..target.len())
+                .map(|i| {
+                    let n = binding.vertices[i]
+                        .iter()
+                        .zip(binding.weights[i])
+                        .fold(DVec3::ZERO, |a, (&v, w)| a + vn[v as usize] * w as f64);
+                    (normal_m * n).normalize_or_zero()
+                })
+                .collect();
+            tools::expand(&world, &normals, &opts.path, opts.radius, opts.strength, opts.falloff)
+        }
+    };
+    let to_proxy = DMat3::from_mat4(pose.proxy_to_world).inverse();
+    let mut moved = 0;
+    for i in 0..target.len() {
+        if !selected[i] || disp[i] == DVec3::ZERO {
+            continue;
+        }
+        let inv = invert(&blends[i], &layer.path, i)?;
+        let d_rest = inv.matrix3 * (to_proxy * disp[i]);
+        target[i] += d_rest.as_vec3();
+        moved += 1;
+    }
+    session.set(&target_prim, target_attr, "point3f[]", true, vec3f_value(&target))?;
+    Ok(moved)
+}
+
+/// Reads a tool path from a BasisCurves prim: its first curve's points at
+/// `time` (default value when None), in world space.
+pub fn path_from_prim(r: &StageReader, prim_path: &str, time: Option<f64>, xform_time: f64) -> Result<Vec<DVec3>> {
+    let prim = r.require_prim(prim_path)?;
+    let pts = r
+        .typed(&prim, "points", time, "point3f[]", values::vec3_array)?
+        .ok_or_else(|| Error::attr(prim_path, "points", "the tool path prim has no points"))?;
+    let n = r
+        .typed(&prim, "curveVertexCounts", None, "int[]", values::int_array)?
+        .and_then(|c| c.first().copied())
+        .map_or(pts.len(), |c| (c.max(0) as usize).min(pts.len()));
+    let m = r.local_to_world(&prim, time.unwrap_or(xform_time))?;
+    Ok(pts[..n].iter().map(|p| m.transform_point3(p.as_dvec3())).collect())
+}

@@ -1,0 +1,174 @@
+//! The smudge and expand brushes (Bassett §3.3), as pure math.
+//!
+//! Both move stroke points within `radius` of a tool path by `strength`
+//! modulated by a falloff of the distance normalised by the radius: smudge
+//! along the path's unit tangent at the closest path point, expand along the
+//! proxy surface normal at the point's bound position.
+
+use glam::DVec3;
+
+/// How a brush's effect fades with distance from the tool path.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Falloff {
+    /// The paper's cubic step 2r³ − 3r² + 1 (1 on the path, 0 at the radius).
+    Cubic,
+    /// Full strength everywhere within the radius.
+    None,
+}
+
+impl Falloff {
+    /// Weight at normalised distance `r` (0 outside the radius).
+    pub fn weight(self, r: f64) -> f64 {
+        if !(0.0..=1.0).contains(&r) {
+            return 0.0;
+        }
+        match self {
+            Falloff::Cubic => 2.0 * r * r * r - 3.0 * r * r + 1.0,
+            Falloff::None => 1.0,
+        }
+    }
+}
+
+/// The point of a polyline closest to `p`: (distance, unit tangent there).
+///
+/// The tangent is that of the segment holding the closest point. Zero-length
+/// segments are skipped; the path must have a segment of non-zero length.
+pub fn closest_on_path(path: &[DVec3], p: DVec3) -> Option<(f64, DVec3)> {
+    let mut best: Option<(f64, DVec3)> = None;
+    for w in path.windows(2) {
+        let (a, b) = (w[0], w[1]);
+        let d = b - a;
+        let len2 = d.length_squared();
+        if len2 <= 0.0 {
+            continue;
+        }
+        let t = ((p - a).dot(d) / len2).clamp(0.0, 1.0);
+        let dist = (a + d * t - p).length();
+        if best.is_none_or(|(bd, _)| dist < bd) {
+            best = Some((dist, d / len2.sqrt()));
+        }
+    }
+    best
+}
+
+/// Smudge displacements: along the path tangent, `strength · falloff(d / radius)`.
+pub fn smudge(points: &[DVec3], path: &[DVec3], radius: f64, strength: f64, falloff: Falloff) -> Vec<DVec3> {
+    points
+        .iter()
+        .map(|&p| match closest_on_path(path, p) {
+            Some((d, tangent)) if d <= radius => tangent * (strength * falloff.weight(d / radius)),
+            _ => DVec3::ZERO,
+        })
+        .collect()
+}
+
+/// Expand displacements: along each point's surface `normals`, scaled by the
+/// falloff of its distance to the path.
+pub fn expand(
+    points: &[DVec3],
+    normals: &[DVec3],
+    path: &[DVec3],
+    radius: f64,
+    strength: f64,
+    falloff: Falloff,
+) -> Vec<DVec3> {
+    points
+        .iter()
+        .zip(normals)
+        .map(|(&p, &n)| match closest_on_path(path, p) {
+            Some((d, _)) if d <= radius => n * (strength * falloff.weight(d / radius)),
+            _ => DVec3::ZERO,
+        })
+        .collect()
+}
+
+/// Area-weighted vertex normals of a triangle mesh (unit length; zero for
+/// vertices on no non-degenerate triangle).
+pub fn vertex_normals(points: &[DVec3], triangles: &[[u32; 3]]) -> Vec<DVec3> {
+    let mut n = vec![DVec3::ZERO; points.len()];
+    for t in triangles {
+        let [a, b, c] = t.map(|i| points[i as usize]);
+        // The cross product's length is twice the area: area weighting for free.
+        let f = (b - a).cross(c - a);
+        for &i in t {
+            n[i as usize] += f;
+        }
+    }
+    n.iter().map(|v| v.normalize_or_zero()).collect()
+}
+
+/// Parses a stroke selection like `3,7-12` into sorted, unique indices.
+pub fn parse_strokes(s: &str) -> Result<Vec<usize>, String> {
+    let mut out = Vec::new();
+    for part in s.split(',').map(str::trim).filter(|p| !p.is_empty()) {
+        let num = |x: &str| {
+            x.trim()
+                .parse::<usize>()
+                .map_err(|_| format!("{x:?} is not a stroke index"))
+        };
+        match part.split_once('-') {
+            Some((a, b)) => {
+                let (a, b) = (num(a)?, num(b)?);
+                if b < a {
+                    return Err(format!("range {part:?} ends before it starts"));
+                }
+                out.extend(a..=b);
+            }
+            None => out.push(num(part)?),
+        }
+    }
+    if out.is_empty() {
+        return Err("no strokes selected".into());
+    }
+    out.sort_unstable();
+    out.dedup();
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cubic_falloff_is_the_papers_step() {
+        let f = Falloff::Cubic;
+        assert_eq!(f.weight(0.0), 1.0);
+        assert_eq!(f.weight(1.0), 0.0);
+        assert!((f.weight(0.5) - 0.5).abs() < 1e-15);
+        assert_eq!(f.weight(1.5), 0.0);
+        assert_eq!(Falloff::None.weight(0.99), 1.0);
+    }
+
+    #[test]
+    fn smudge_moves_along_the_tangent_within_the_radius() {
+        let path = [DVec3::ZERO, DVec3::X * 10.0];
+        let pts = [DVec3::new(5.0, 0.5, 0.0), DVec3::new(5.0, 3.0, 0.0)];
+        let d = smudge(&pts, &path, 1.0, 2.0, Falloff::Cubic);
+        // r = 0.5: weight 0.5, along +x.
+        assert!((d[0] - DVec3::new(1.0, 0.0, 0.0)).length() < 1e-12);
+        assert_eq!(d[1], DVec3::ZERO);
+    }
+
+    #[test]
+    fn expand_moves_along_normals() {
+        let path = [DVec3::ZERO, DVec3::Y];
+        let pts = [DVec3::new(0.0, 0.5, 0.0)];
+        let d = expand(&pts, &[DVec3::Z], &path, 1.0, 0.3, Falloff::None);
+        assert!((d[0] - DVec3::new(0.0, 0.0, 0.3)).length() < 1e-12);
+    }
+
+    #[test]
+    fn normals_of_a_flat_square_point_up() {
+        let pts = [DVec3::ZERO, DVec3::X, DVec3::new(1.0, 1.0, 0.0), DVec3::Y];
+        let n = vertex_normals(&pts, &[[0, 1, 2], [0, 2, 3]]);
+        assert!(n.iter().all(|v| (*v - DVec3::Z).length() < 1e-12));
+    }
+
+    #[test]
+    fn stroke_selection_parses_ranges() {
+        assert_eq!(parse_strokes("3,7-9, 1").unwrap(), vec![1, 3, 7, 8, 9]);
+        assert!(parse_strokes("5-2").is_err());
+        assert!(parse_strokes("x").is_err());
+        assert!(parse_strokes("").is_err());
+    }
+}
