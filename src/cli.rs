@@ -25,7 +25,13 @@ use crate::usd_io::edit::{EditSession, EditTarget};
 /// the rig (Bassett et al. 2013, stroke skinning) and writes the result as an
 /// override layer to sublayer over the input.
 #[derive(Debug, Parser)]
-#[command(name = "painterly", version, about, long_about)]
+#[command(
+    name = "painterly",
+    version,
+    about,
+    long_about,
+    after_help = "Exit codes: 0 success; 1 bad input or a failed write (the message names the file, prim and attribute); 2 bad command-line usage; 3 internal error (a bug).\nDocs: README.md, docs/choices.md, schemas/painterly/schema.usda."
+)]
 pub struct Cli {
     #[command(subcommand)]
     pub command: Command,
