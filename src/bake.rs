@@ -21,9 +21,10 @@ use crate::mesh::{bounds, bounds_f64, fan_triangulate, OneRings};
 use crate::skinning::{skin_points, to_f32, SkinningRest};
 use crate::usd_io::axes::AxisFrame;
 use crate::usd_io::layer::{Format, OverLayer};
-use crate::usd_io::scene::{Rig, Scene, StrokeLayer};
+use crate::usd_io::scene::{LayerKeys, Rig, Scene};
 use crate::usd_io::stage::StageReader;
-use crate::usd_io::view_mesh::{check_camera, read_view_meshes};
+use crate::usd_io::view_mesh::{check_camera, read_view_meshes, ViewBlend};
+use rayon::prelude::*;
 
 /// What to bake.
 #[derive(Debug, Clone, Default)]
@@ -50,8 +51,8 @@ pub struct BakeSummary {
     pub seconds: f64,
 }
 
-/// Reports progress: (frames done, total frames).
-pub type Progress<'a> = &'a mut dyn FnMut(usize, usize);
+/// Reports progress: (steps done, total steps); called from worker threads.
+pub type Progress<'a> = &'a (dyn Fn(usize, usize) + Sync);
 
 /// Checks an output path before any work: format, directory, not the input.
 pub fn check_output(input: &Path, output: &Path) -> Result<Format> {
@@ -182,9 +183,8 @@ pub fn eval_axes(
     Ok(values)
 }
 
-/// A layer's keyed rest points (None: its own rest points) and keyed opacity at `t`.
-pub fn keyed_state(layer: &StrokeLayer, axis_values: &[f64], t: f64) -> (Option<Vec<Vec3>>, f32) {
-    let k = &layer.keys;
+/// A layer's keyed rest points (None: its own `rest` points) and keyed opacity at `t`.
+pub fn keyed_state(k: &LayerKeys, rest: &[Vec3], axis_values: &[f64], t: f64) -> (Option<Vec<Vec3>>, f32) {
     let x: Vec<f64> = k.axes.iter().map(|&a| axis_values[a]).collect();
     let x = if x.is_empty() { vec![0.0] } else { x };
 
@@ -198,14 +198,14 @@ pub fn keyed_state(layer: &StrokeLayer, axis_values: &[f64], t: f64) -> (Option<
             .iter()
             .map(|&(w, s)| {
                 let v: &[Vec3] = match s {
-                    Source::Rest => &layer.rest_points,
+                    Source::Rest => rest,
                     Source::Pose(i) => &k.pose_points.as_ref().expect("pose weights come from pose keys").values[i],
                     Source::Time(i) => &k.time_points.as_ref().expect("time weights come from time keys").values[i],
                 };
                 (w, v)
             })
             .collect();
-        let mut out = vec![Vec3::ZERO; layer.rest_points.len()];
+        let mut out = vec![Vec3::ZERO; rest.len()];
         blend_points(&mut out, &arrays);
         Some(out)
     };
@@ -223,6 +223,122 @@ pub fn keyed_state(layer: &StrokeLayer, axis_values: &[f64], t: f64) -> (Option<
         })
         .sum();
     (points, opacity as f32)
+}
+
+/// One rig at one frame, as read from the stage.
+struct RigFrame {
+    posed: Vec<glam::DVec3>,
+    axis_values: Vec<f64>,
+    /// Per layer: proxy-local → stroke-local transform and `painterly:opacity`.
+    layers: Vec<(Affine3A, f32)>,
+}
+
+/// Everything one frame needs, read serially from the stage.
+struct FrameInput {
+    time: f64,
+    rigs: Vec<RigFrame>,
+    /// Per view-dependent mesh: base points, the camera position (mesh-local), sharpness.
+    views: Vec<(Vec<Vec3>, glam::DVec3, f64)>,
+}
+
+/// One frame's results.
+struct FrameOutput {
+    time: f64,
+    /// Per stroke layer (all rigs, in order): points and per-curve opacity.
+    layers: Vec<(Vec<Vec3>, Vec<f32>)>,
+    /// Per rig: proxy points, when baking proxies.
+    proxies: Vec<Option<Vec<Vec3>>>,
+    views: Vec<Vec<Vec3>>,
+}
+
+/// The pure data of one rig that evaluation needs (shared across threads).
+struct RigCompute<'a> {
+    skin: &'a SkinningRest,
+    bindings: &'a [Binding],
+    /// Per layer: keys, rest points, authored opacity per curve, path.
+    layers: Vec<(&'a LayerKeys, &'a [Vec3], &'a [f32], &'a str)>,
+}
+
+fn read_frame(
+    r: &StageReader,
+    rigs: &[RigBake],
+    views: &[crate::usd_io::view_mesh::ViewMesh],
+    t: f64,
+    camera: Option<&str>,
+) -> Result<FrameInput> {
+    let mut rig_frames = Vec::with_capacity(rigs.len());
+    for rb in rigs {
+        let proxy = &rb.rig.proxy;
+        let posed = proxy.posed_points(r, t)?;
+        let proxy_l2w = proxy.local_to_world(r, t)?;
+        let axis_values = eval_axes(r, rb.rig, &rb.needed_axes, t, proxy_l2w, &posed, camera)?;
+        let mut layers = Vec::with_capacity(rb.rig.layers.len());
+        for layer in &rb.rig.layers {
+            let frame = affine_f32(layer.local_to_world(r, t)?.inverse() * proxy_l2w);
+            layers.push((frame, layer.opacity_at(r, t)?));
+        }
+        rig_frames.push(RigFrame {
+            posed,
+            axis_values,
+            layers,
+        });
+    }
+    let mut view_frames = Vec::with_capacity(views.len());
+    for vm in views {
+        let base: Vec<Vec3> = vm.mesh.posed_points(r, t)?.iter().map(|p| p.as_vec3()).collect();
+        let cam = r.require_prim(vm.camera_for(camera)?)?;
+        let cam_world = r.local_to_world(&cam, t)?.transform_point3(glam::DVec3::ZERO);
+        let cam_local = vm.mesh.local_to_world(r, t)?.inverse().transform_point3(cam_world);
+        view_frames.push((base, cam_local, vm.sharpness_at(r, t)?));
+    }
+    Ok(FrameInput {
+        time: t,
+        rigs: rig_frames,
+        views: view_frames,
+    })
+}
+
+fn evaluate_frame(
+    rigs: &[RigCompute],
+    views: &[&ViewBlend],
+    input: FrameInput,
+    bake_proxy: bool,
+) -> Result<FrameOutput> {
+    let t = input.time;
+    let mut layers = Vec::new();
+    let mut proxies = Vec::with_capacity(rigs.len());
+    for (rc, rf) in rigs.iter().zip(input.rigs) {
+        let motions = to_f32(&rc.skin.vertex_motions(&rf.posed));
+        for ((binding, &(keys, rest, display, path)), (frame, opacity)) in
+            rc.bindings.iter().zip(&rc.layers).zip(rf.layers)
+        {
+            let (keyed, keyed_opacity) = keyed_state(keys, rest, &rf.axis_values, t);
+            let mut out = vec![Vec3::ZERO; rest.len()];
+            skin_points(binding, &motions, &frame, keyed.as_deref().unwrap_or(rest), &mut out);
+            if let Some(i) = out.iter().position(|p| !p.is_finite()) {
+                return Err(Error::prim(path, format!("baked point {i} is not finite at time {t}")));
+            }
+            let o = opacity * keyed_opacity;
+            layers.push((out, display.iter().map(|d| d * o).collect()));
+        }
+        proxies.push(bake_proxy.then(|| rf.posed.iter().map(|p| p.as_vec3()).collect()));
+    }
+    let mut view_out = Vec::with_capacity(views.len());
+    for (vb, (base, cam, sharpness)) in views.iter().zip(input.views) {
+        let out = vb.evaluate(t, &base, cam, sharpness)?;
+        if let Some(i) = out.iter().position(|p| !p.is_finite()) {
+            return Err(Error::msg(format!(
+                "view-dependent point {i} is not finite at time {t}"
+            )));
+        }
+        view_out.push(out);
+    }
+    Ok(FrameOutput {
+        time: t,
+        layers,
+        proxies,
+        views: view_out,
+    })
 }
 
 /// Bakes `input` into `output`.
@@ -253,73 +369,75 @@ fn bake_stage(
             check_camera(r, cam, &format!("{}.painterly:camera", vm.path))?;
         }
     }
-    let mut view_pts: Vec<Vec<(f64, Value)>> = vec![Vec::with_capacity(times.len()); view_meshes.len()];
-    let mut view_ext: Vec<Vec<(f64, Value)>> = vec![Vec::with_capacity(times.len()); view_meshes.len()];
     let rigs: Vec<RigBake> = scene.rigs.iter().map(prepare).collect();
 
-    // Per layer: samples of points, extent, opacity.
+    // Read: everything each frame needs from the stage, serially (the stage
+    // is single-threaded).
+    let mut inputs = Vec::with_capacity(times.len());
+    for (fi, &t) in times.iter().enumerate() {
+        inputs.push(read_frame(r, &rigs, &view_meshes, t, opts.camera.as_deref())?);
+        progress(fi + 1, 2 * times.len());
+    }
+
+    // Evaluate: frames in parallel over pure data.
+    let done = std::sync::atomic::AtomicUsize::new(times.len());
+    let computes: Vec<RigCompute> = rigs
+        .iter()
+        .map(|rb| RigCompute {
+            skin: &rb.skin,
+            bindings: &rb.bindings,
+            layers: rb
+                .rig
+                .layers
+                .iter()
+                .map(|l| {
+                    (
+                        &l.keys,
+                        l.rest_points.as_slice(),
+                        &l.display_opacity[..],
+                        l.path.as_str(),
+                    )
+                })
+                .collect(),
+        })
+        .collect();
+    let blends: Vec<&ViewBlend> = view_meshes.iter().map(|v| &v.blend).collect();
+    let outputs: Vec<FrameOutput> = inputs
+        .into_par_iter()
+        .map(|input| {
+            let out = evaluate_frame(&computes, &blends, input, opts.bake_proxy);
+            let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+            progress(n, 2 * times.len());
+            out
+        })
+        .collect::<Result<_>>()?;
+
+    // Assemble samples per attribute, moving the arrays.
     let nlayers: usize = rigs.iter().map(|rb| rb.rig.layers.len()).sum();
     let mut pts_samples: Vec<Vec<(f64, Value)>> = vec![Vec::with_capacity(times.len()); nlayers];
     let mut ext_samples: Vec<Vec<(f64, Value)>> = vec![Vec::with_capacity(times.len()); nlayers];
     let mut opa_samples: Vec<Vec<(f64, Value)>> = vec![Vec::with_capacity(times.len()); nlayers];
     let mut proxy_pts: Vec<Vec<(f64, Value)>> = vec![Vec::new(); rigs.len()];
     let mut proxy_ext: Vec<Vec<(f64, Value)>> = vec![Vec::new(); rigs.len()];
-
-    for (fi, &t) in times.iter().enumerate() {
-        let mut li = 0;
-        for (ri, rb) in rigs.iter().enumerate() {
-            let proxy = &rb.rig.proxy;
-            let posed = proxy.posed_points(r, t)?;
-            let proxy_l2w = proxy.local_to_world(r, t)?;
-            let motions = to_f32(&rb.skin.vertex_motions(&posed));
-            let axis_values = eval_axes(r, rb.rig, &rb.needed_axes, t, proxy_l2w, &posed, opts.camera.as_deref())?;
-            for (layer, binding) in rb.rig.layers.iter().zip(&rb.bindings) {
-                let frame = affine_f32(layer.local_to_world(r, t)?.inverse() * proxy_l2w);
-                let (rest, keyed_opacity) = keyed_state(layer, &axis_values, t);
-                let mut out = vec![Vec3::ZERO; layer.num_points()];
-                skin_points(
-                    binding,
-                    &motions,
-                    &frame,
-                    rest.as_deref().unwrap_or(&layer.rest_points),
-                    &mut out,
-                );
-                if let Some(i) = out.iter().position(|p| !p.is_finite()) {
-                    return Err(Error::prim(
-                        &layer.path,
-                        format!("baked point {i} is not finite at time {t}"),
-                    ));
-                }
-                let opacity = layer.opacity_at(r, t)? * keyed_opacity;
-                let opa: Vec<f32> = layer.display_opacity.iter().map(|o| o * opacity).collect();
-                ext_samples[li].push((t, extent_value(&out)));
-                pts_samples[li].push((t, points_value(out)));
-                opa_samples[li].push((t, Value::FloatVec(opa)));
-                li += 1;
-            }
-            if opts.bake_proxy {
-                let pts: Vec<Vec3> = posed.iter().map(|p| p.as_vec3()).collect();
+    let mut view_pts: Vec<Vec<(f64, Value)>> = vec![Vec::with_capacity(times.len()); view_meshes.len()];
+    let mut view_ext: Vec<Vec<(f64, Value)>> = vec![Vec::with_capacity(times.len()); view_meshes.len()];
+    for out in outputs {
+        let t = out.time;
+        for (li, (pts, opa)) in out.layers.into_iter().enumerate() {
+            ext_samples[li].push((t, extent_value(&pts)));
+            pts_samples[li].push((t, points_value(pts)));
+            opa_samples[li].push((t, Value::FloatVec(opa)));
+        }
+        for (ri, pts) in out.proxies.into_iter().enumerate() {
+            if let Some(pts) = pts {
                 proxy_ext[ri].push((t, extent_value(&pts)));
                 proxy_pts[ri].push((t, points_value(pts)));
             }
         }
-        for (vi, vm) in view_meshes.iter().enumerate() {
-            let base: Vec<Vec3> = vm.mesh.posed_points(r, t)?.iter().map(|p| p.as_vec3()).collect();
-            let cam_path = vm.camera_for(opts.camera.as_deref())?;
-            let cam = r.require_prim(cam_path)?;
-            let cam_world = r.local_to_world(&cam, t)?.transform_point3(glam::DVec3::ZERO);
-            let cam_local = vm.mesh.local_to_world(r, t)?.inverse().transform_point3(cam_world);
-            let out = vm.evaluate(t, &base, cam_local);
-            if let Some(i) = out.iter().position(|p| !p.is_finite()) {
-                return Err(Error::prim(
-                    &vm.path,
-                    format!("baked point {i} is not finite at time {t}"),
-                ));
-            }
-            view_ext[vi].push((t, extent_value(&out)));
-            view_pts[vi].push((t, points_value(out)));
+        for (vi, pts) in out.views.into_iter().enumerate() {
+            view_ext[vi].push((t, extent_value(&pts)));
+            view_pts[vi].push((t, points_value(pts)));
         }
-        progress(fi + 1, times.len());
     }
 
     let mut layer_out = OverLayer::new(r.metadata());

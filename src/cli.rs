@@ -63,8 +63,8 @@ pub enum Command {
         /// proxies get skel:skeleton blocked so viewers do not deform them twice.
         #[arg(long)]
         bake_proxy: bool,
-        /// Camera prim for viewDirection axes without a source and for
-        /// view-dependent meshes without painterly:camera.
+        /// Camera prim for viewDirection axes without a source and for every
+        /// view-dependent mesh (overrides their painterly:camera).
         #[arg(long, value_name = "PRIM")]
         camera: Option<String>,
         /// Print nothing on success.
@@ -340,7 +340,7 @@ pub fn run(cli: Cli) -> i32 {
                     .unwrap_or_else(|_| ProgressStyle::default_bar()),
                 );
             }
-            let mut progress = |done: usize, total: usize| {
+            let progress = |done: usize, total: usize| {
                 bar.set_length(total as u64);
                 bar.set_position(done as u64);
             };
@@ -349,7 +349,7 @@ pub fn run(cli: Cli) -> i32 {
                 bake_proxy,
                 camera,
             };
-            let result = bake(&input, &output, &opts, &mut progress);
+            let result = bake(&input, &output, &opts, &progress);
             bar.finish_and_clear();
             match result {
                 Ok(s) => {
@@ -357,11 +357,12 @@ pub fn run(cli: Cli) -> i32 {
                         println!("{}", serde_json::to_string(&s).unwrap_or_default());
                     } else if !quiet {
                         println!(
-                            "baked {} frames: {} layers, {} strokes, {} points -> {} in {:.2} s",
+                            "baked {} frames: {} layers, {} strokes, {} points, {} view-dependent meshes -> {} in {:.2} s",
                             s.frames,
                             s.layers,
                             s.strokes,
                             s.points,
+                            s.view_meshes,
                             s.output.display(),
                             s.seconds
                         );

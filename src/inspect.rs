@@ -11,8 +11,9 @@ use std::path::{Path, PathBuf};
 use serde::Serialize;
 
 use crate::error::{Error, Result};
-use crate::usd_io::scene::{ProxyMotion, Scene, VIEW_DEPENDENT_API};
+use crate::usd_io::scene::{ProxyMotion, Scene};
 use crate::usd_io::stage::StageReader;
+use crate::usd_io::view_mesh::read_view_meshes_lenient;
 
 #[derive(Debug, Serialize)]
 pub struct Report {
@@ -63,7 +64,19 @@ pub struct AxisReport {
 #[derive(Debug, Serialize)]
 pub struct ViewMeshReport {
     pub path: String,
-    pub key_viewpoints: Vec<String>,
+    /// Key viewpoints: their direction and key prims (one per key time).
+    pub key_viewpoints: Vec<ViewpointReport>,
+    pub camera: Option<String>,
+    pub uncovered: String,
+    pub sharpness: f64,
+    /// Whether the key directions' hull encloses the centre.
+    pub encloses: bool,
+}
+
+#[derive(Debug, Serialize)]
+pub struct ViewpointReport {
+    pub direction: [f64; 3],
+    pub keys: Vec<String>,
 }
 
 #[derive(Debug, Serialize)]
@@ -176,21 +189,26 @@ pub fn inspect(path: &Path) -> Result<Report> {
                 source,
             });
         }
-        if r.api_schemas(&prim)?.iter().any(|a| a == VIEW_DEPENDENT_API) {
-            let mut keys = Vec::new();
-            for c in prim
-                .children()
-                .map_err(|e| Error::prim(&p, format!("cannot list children: {e}")))?
-            {
-                if r.type_name(&c)? == "PainterlyViewKey" {
-                    keys.push(c.path().as_str().to_string());
-                }
-            }
-            view_meshes.push(ViewMeshReport {
-                path: p.clone(),
-                key_viewpoints: keys,
-            });
-        }
+    }
+    let (meshes, view_problems) = read_view_meshes_lenient(&r, &r.prim_paths()?).map_err(|e| e.in_file(path))?;
+    problems.extend(view_problems.into_iter().map(Problem::from));
+    for m in meshes {
+        view_meshes.push(ViewMeshReport {
+            path: m.path.clone(),
+            key_viewpoints: m
+                .blend
+                .viewpoints
+                .iter()
+                .map(|v| ViewpointReport {
+                    direction: v.direction,
+                    keys: v.paths.clone(),
+                })
+                .collect(),
+            camera: m.camera.clone(),
+            uncovered: m.uncovered.token().to_string(),
+            sharpness: m.sharpness,
+            encloses: m.blend.blender.encloses(),
+        });
     }
     Ok(Report {
         file: path.to_path_buf(),
@@ -267,12 +285,21 @@ impl Report {
         for v in &self.view_dependent_meshes {
             let _ = writeln!(
                 s,
-                "view-dependent mesh {} ({} key viewpoints)",
+                "view-dependent mesh {} ({} key viewpoints, sharpness {}, uncovered {}, hull {}, camera {})",
                 v.path,
-                v.key_viewpoints.len()
+                v.key_viewpoints.len(),
+                v.sharpness,
+                v.uncovered,
+                if v.encloses {
+                    "encloses the centre"
+                } else {
+                    "does not enclose the centre"
+                },
+                v.camera.as_deref().unwrap_or("from --camera")
             );
             for k in &v.key_viewpoints {
-                let _ = writeln!(s, "  {k}");
+                let [x, y, z] = k.direction;
+                let _ = writeln!(s, "  ({x:.3}, {y:.3}, {z:.3}): {}", k.keys.join(", "));
             }
         }
         if self.problems.is_empty() {

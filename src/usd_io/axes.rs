@@ -119,9 +119,19 @@ impl Axis {
                     )
                 })?;
                 let p = require(prim_path, "attribute's prim")?;
-                if !r.has_authored(&p, attr)? && r.value(&p, attr, None)?.is_none() {
+                // Check element/component against a value now (the default, or
+                // the first time sample), so inspect reports a bad axis too.
+                let probe = match r.value(&p, attr, None)? {
+                    Some(v) => Some(v),
+                    None => match r.sample_times(&p, attr)?.first() {
+                        Some(&t0) => r.value(&p, attr, Some(t0))?,
+                        None => None,
+                    },
+                };
+                let Some(probe) = probe else {
                     return Err(Error::attr(path, "source", format!("targets {t}, which has no value")));
-                }
+                };
+                pick(&probe, element, component).map_err(|(which, m)| Error::attr(path, which, format!("{t}: {m}")))?;
                 AxisSource::Attribute {
                     prim: prim_path.to_string(),
                     attr: attr.to_string(),
@@ -211,7 +221,7 @@ impl Axis {
                     Error::attr(&self.path, "source", format!("{prim}.{attr} has no value at time {t}"))
                 })?;
                 pick(&v, self.element, self.component)
-                    .map_err(|m| Error::attr(&self.path, "source", format!("{prim}.{attr}: {m}")))?
+                    .map_err(|(which, m)| Error::attr(&self.path, which, format!("{prim}.{attr}: {m}")))?
             }
             AxisSource::BlendShape { anim, index } => match (anim, index) {
                 (Some(a), Some(i)) => a
@@ -300,21 +310,34 @@ pub fn rotation_vector(q: DQuat) -> DVec3 {
 
 /// Picks a scalar out of a value: scalars as is, arrays by `element`,
 /// vectors and quaternions (x, y, z, w) by `component`.
-fn pick(v: &Value, element: i64, component: i64) -> std::result::Result<f64, String> {
+/// Why [`pick`] failed: the axis attribute at fault and a message.
+type PickError = (&'static str, String);
+
+fn pick(v: &Value, element: i64, component: i64) -> std::result::Result<f64, PickError> {
     if let Some(x) = values::scalar(v) {
         return Ok(x);
     }
-    let comp = |c: &[f64]| -> std::result::Result<f64, String> {
+    let comp = |c: &[f64]| -> std::result::Result<f64, PickError> {
         usize::try_from(component)
             .ok()
             .and_then(|i| c.get(i).copied())
-            .ok_or_else(|| format!("component {component} is out of range (0..{})", c.len()))
+            .ok_or_else(|| {
+                (
+                    "component",
+                    format!(
+                        "component {component} is out of range: the value has components 0..={}",
+                        c.len() - 1
+                    ),
+                )
+            })
     };
-    let elem = |n: usize| -> std::result::Result<usize, String> {
-        usize::try_from(element)
-            .ok()
-            .filter(|&e| e < n)
-            .ok_or_else(|| format!("element {element} is out of range ({n} elements)"))
+    let elem = |n: usize| -> std::result::Result<usize, PickError> {
+        usize::try_from(element).ok().filter(|&e| e < n).ok_or_else(|| {
+            (
+                "element",
+                format!("element {element} is out of range: the array has {n} elements"),
+            )
+        })
     };
     macro_rules! vecs {
         ($a:expr, $f:expr) => {{
@@ -344,9 +367,9 @@ fn pick(v: &Value, element: i64, component: i64) -> std::result::Result<f64, Str
             q.x as f64, q.y as f64, q.z as f64, q.w as f64
         ]),
         Value::QuatdVec(a) => vecs!(a, |q: &openusd::gf::Quatd| [q.x, q.y, q.z, q.w]),
-        other => Err(format!(
-            "cannot take a coordinate from a {} value",
-            values::kind_name(other)
+        other => Err((
+            "source",
+            format!("cannot take a coordinate from a {} value", values::kind_name(other)),
         )),
     }
 }
@@ -380,7 +403,11 @@ mod tests {
         // Quaternions as x, y, z, w: imaginary then real.
         assert!((pick(&q, 0, 3).unwrap() - 0.1).abs() < 1e-7);
         assert!((pick(&q, 0, 0).unwrap() - 0.2).abs() < 1e-7);
-        assert!(pick(&Value::DoubleVec(vec![1.0]), 2, 0).is_err());
+        assert_eq!(pick(&Value::DoubleVec(vec![1.0]), 2, 0).unwrap_err().0, "element");
+        assert_eq!(
+            pick(&Value::Vec3f(gf::vec3f(1.0, 2.0, 3.0)), 0, 3).unwrap_err().0,
+            "component"
+        );
         let v = Value::Vec3fVec(vec![gf::vec3f(1.0, 2.0, 3.0), gf::vec3f(4.0, 5.0, 6.0)]);
         assert_eq!(pick(&v, 1, 2).unwrap(), 6.0);
     }

@@ -89,7 +89,7 @@ impl OverLayer {
     }
 
     /// Builds the Sdf data: over specs for every authored prim and its ancestors.
-    fn to_data(&self) -> Result<sdf::Data> {
+    fn into_data(self) -> Result<sdf::Data> {
         let mut data = sdf::Data::new();
         // Every prim path that needs a spec, with its children names in order.
         let mut children: BTreeMap<String, Vec<String>> = BTreeMap::new();
@@ -115,6 +115,7 @@ impl OverLayer {
             }
         }
         let path = |p: &str| sdf::Path::new(p).map_err(|e| Error::prim(p, format!("invalid path: {e}")));
+        let mut prims = self.prims;
 
         let root = data.create_spec(sdf::Path::abs_root(), SpecType::PseudoRoot);
         let m = &self.meta;
@@ -154,9 +155,9 @@ impl OverLayer {
                 continue;
             }
             let p = path(prim_path)?;
-            let out = self.prims.get(prim_path);
+            let out = prims.remove(prim_path);
             let mut props: Vec<String> = Vec::new();
-            if let Some(o) = out {
+            if let Some(o) = &out {
                 props.extend(o.attrs.keys().cloned());
                 props.extend(o.blocked_rels.iter().cloned());
             }
@@ -177,16 +178,17 @@ impl OverLayer {
                 }
             }
             let Some(o) = out else { continue };
-            for (name, a) in &o.attrs {
+            for (name, a) in o.attrs {
                 let ap = path(&format!("{prim_path}.{name}"))?;
                 let spec = data.create_spec(ap, SpecType::Attribute);
                 spec.add(FieldKey::TypeName, Value::Token(a.type_name.into()));
                 spec.add(FieldKey::Custom, Value::Bool(false));
                 spec.add(FieldKey::Variability, Value::Variability(Variability::Varying));
-                for (k, v) in &a.metadata {
-                    spec.add(*k, v.clone());
+                for (k, v) in a.metadata {
+                    spec.add(k, v);
                 }
-                spec.add(FieldKey::TimeSamples, Value::TimeSamples(a.samples.clone()));
+                // Moved, not cloned: bakes hold hundreds of MB of samples.
+                spec.add(FieldKey::TimeSamples, Value::TimeSamples(a.samples));
             }
             for rel in &o.blocked_rels {
                 let rp = path(&format!("{prim_path}.{rel}"))?;
@@ -203,8 +205,8 @@ impl OverLayer {
     }
 
     /// Serialises to bytes in `format`.
-    pub fn to_bytes(&self, format: Format) -> Result<Vec<u8>> {
-        let data = self.to_data()?;
+    pub fn into_bytes(self, format: Format) -> Result<Vec<u8>> {
+        let data = self.into_data()?;
         match format {
             Format::Usdc => {
                 let mut buf = Cursor::new(Vec::new());
@@ -221,8 +223,8 @@ impl OverLayer {
     }
 
     /// Writes atomically: a temporary file beside `path`, then a rename.
-    pub fn write(&self, path: &Path) -> Result<()> {
-        let bytes = self.to_bytes(Format::from_path(path)?)?;
+    pub fn write(self, path: &Path) -> Result<()> {
+        let bytes = self.into_bytes(Format::from_path(path)?)?;
         write_atomic(path, &bytes)
     }
 }
@@ -243,8 +245,9 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     ));
     let result = (|| -> std::io::Result<()> {
         let mut f = std::fs::File::create(&tmp)?;
+        // No fsync: the rename makes the write atomic for readers and for a
+        // failed bake; durability across power loss is the filesystem's.
         f.write_all(bytes)?;
-        f.sync_all()?;
         std::fs::rename(&tmp, path)
     })();
     if let Err(e) = result {

@@ -25,13 +25,18 @@ pub struct Viewpoint {
     pub spline: Option<NaturalCubicSpline>,
 }
 
+/// The pure-math part of a view-dependent mesh: viewpoints and their hull.
+pub struct ViewBlend {
+    pub viewpoints: Vec<Viewpoint>,
+    pub blender: ViewBlender,
+}
+
 /// A view-dependent mesh ready to bake.
 pub struct ViewMesh {
     pub path: String,
     /// The base model (topology, rest pose, motion).
     pub mesh: Proxy,
-    pub viewpoints: Vec<Viewpoint>,
-    pub blender: ViewBlender,
+    pub blend: ViewBlend,
     /// `painterly:camera`, if authored.
     pub camera: Option<String>,
     pub uncovered: Uncovered,
@@ -79,16 +84,31 @@ fn view_error(keys: &[KeyIn], vp_paths: &[Vec<String>], mesh: &str, e: ViewError
     }
 }
 
-/// Finds and reads every view-dependent mesh in the stage.
+/// Finds and reads every view-dependent mesh in the stage; fails on the first problem.
 pub fn read_view_meshes(r: &StageReader, paths: &[String]) -> Result<Vec<ViewMesh>> {
+    let (meshes, mut problems) = read_view_meshes_lenient(r, paths)?;
+    if problems.is_empty() {
+        Ok(meshes)
+    } else {
+        Err(problems.swap_remove(0))
+    }
+}
+
+/// Like [`read_view_meshes`], but skips broken meshes and returns every
+/// problem (for `painterly inspect`).
+pub fn read_view_meshes_lenient(r: &StageReader, paths: &[String]) -> Result<(Vec<ViewMesh>, Vec<Error>)> {
     let mut out = Vec::new();
+    let mut problems = Vec::new();
     for p in paths {
         let prim = r.require_prim(p)?;
         if r.api_schemas(&prim)?.iter().any(|a| a == VIEW_DEPENDENT_API) {
-            out.push(read_view_mesh(r, prim)?);
+            match read_view_mesh(r, prim) {
+                Ok(m) => out.push(m),
+                Err(e) => problems.push(e),
+            }
         }
     }
-    Ok(out)
+    Ok((out, problems))
 }
 
 fn read_view_mesh(r: &StageReader, prim: usd::Prim) -> Result<ViewMesh> {
@@ -194,7 +214,8 @@ fn read_view_mesh(r: &StageReader, prim: usd::Prim) -> Result<ViewMesh> {
                         "direction",
                         format!(
                             "shares viewpoint {:?} with {} but not its direction",
-                            k.viewpoint, f.path
+                            k.viewpoint.as_deref().unwrap_or(""),
+                            f.path
                         ),
                     ));
                 }
@@ -245,7 +266,10 @@ fn read_view_mesh(r: &StageReader, prim: usd::Prim) -> Result<ViewMesh> {
             return Err(Error::attr(
                 &keys[g[1]].path,
                 "direction",
-                format!("{} has the same direction and no time", keys[g[0]].path),
+                format!(
+                    "{} has the same direction and neither has a time: one viewpoint needs one key, or keys at different times",
+                    keys[g[0]].path
+                ),
             ));
         } else {
             None
@@ -263,8 +287,7 @@ fn read_view_mesh(r: &StageReader, prim: usd::Prim) -> Result<ViewMesh> {
     Ok(ViewMesh {
         path,
         mesh,
-        viewpoints,
-        blender,
+        blend: ViewBlend { viewpoints, blender },
         camera,
         uncovered,
         sharpness,
@@ -295,6 +318,22 @@ pub fn check_camera(r: &StageReader, path: &str, origin: &str) -> Result<()> {
 }
 
 impl ViewMesh {
+    /// `painterly:sharpness` at `t` (it may be animated), checked positive.
+    pub fn sharpness_at(&self, r: &StageReader, t: f64) -> Result<f64> {
+        let prim = r.require_prim(&self.path)?;
+        let s = r
+            .typed(&prim, "painterly:sharpness", Some(t), "float", values::scalar)?
+            .unwrap_or(1.0);
+        if !(s.is_finite() && s > 0.0) {
+            return Err(Error::attr(
+                &self.path,
+                "painterly:sharpness",
+                format!("sharpness {s} at time {t} must be positive"),
+            ));
+        }
+        Ok(s)
+    }
+
     /// The camera for this mesh: the bake's `--camera`, else `painterly:camera`.
     pub fn camera_for<'a>(&'a self, bake_camera: Option<&'a str>) -> Result<&'a str> {
         bake_camera.or(self.camera.as_deref()).ok_or_else(|| {
@@ -305,15 +344,27 @@ impl ViewMesh {
             )
         })
     }
+}
 
+impl ViewBlend {
     /// The view-dependent points at `t` for a camera at `camera_local`
-    /// (mesh-local), given the base model's points at `t`.
-    pub fn evaluate(&self, t: f64, base: &[Vec3], camera_local: glam::DVec3) -> Vec<Vec3> {
+    /// (mesh-local), given the base model's points at `t` and the sharpness
+    /// α at `t` (`painterly:sharpness` may be animated).
+    pub fn evaluate(&self, t: f64, base: &[Vec3], camera_local: glam::DVec3, sharpness: f64) -> Result<Vec<Vec3>> {
         let [lo, hi] = crate::mesh::bounds(base).unwrap_or([Vec3::ZERO; 2]);
         let centre = ((lo + hi) * 0.5).as_dvec3();
         let eye = camera_local - centre;
+        let rebuilt;
+        let blender = if sharpness == self.blender.sharpness() {
+            &self.blender
+        } else {
+            let dirs: Vec<[f64; 3]> = self.viewpoints.iter().map(|v| v.direction).collect();
+            rebuilt = ViewBlender::new(&dirs, sharpness, self.blender.mode())
+                .map_err(|e| Error::msg(format!("sharpness {sharpness} at time {t}: {e}")))?;
+            &rebuilt
+        };
         let weights = if eye.length() > 0.0 && eye.is_finite() {
-            self.blender.weights(eye.normalize().to_array())
+            blender.weights(eye.normalize().to_array())
         } else {
             crate::view::ViewWeights::base_only()
         };
@@ -334,7 +385,7 @@ impl ViewMesh {
         let refs: Vec<&[Vec3]> = current.iter().map(|o| o.as_slice()).collect();
         let mut out = vec![Vec3::ZERO; base.len()];
         crate::view::blend_offsets(base, &refs, &weights, &mut out);
-        out
+        Ok(out)
     }
 }
 

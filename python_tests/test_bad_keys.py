@@ -1,0 +1,254 @@
+"""Bad axes and keys (SPEC sections 4-5): each case exits 1 with a message on
+stderr of the form `error: FILE: PRIM.ATTR: message` naming the prim(s) and
+attribute involved, leaves no output file behind, never panics and never
+modifies the input. `painterly inspect` reports the same problems (exit 1).
+
+Every case starts from a stage that bakes cleanly (test_good_stage_bakes)
+and breaks exactly one thing.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+
+import numpy as np
+import pytest
+from pxr import Sdf, Usd, Vt
+
+import authoring as Au
+import authoring_keys as AK
+
+SKEL = "/World/Character/Skel"
+ANIM = "/World/Character/Anim"
+RIG = "/World/Paint"
+LAYER = "/World/Paint/Keyed"
+AXIS = "/World/Paint/bulge"
+
+
+def good_stage(tmp_path, name="rig.usda"):
+    """A skinned tube with a blend-shape axis, a keyed layer (two position
+    keys, one opacity key, a sentinel and two time keys), a locator, a
+    camera and a controls prim."""
+    rig = Au.build_skel_rig(tmp_path / name, blend_shapes={"dense"}, n_strokes=3)
+    stage = Usd.Stage.Open(str(rig.path))
+    AK.add_controls(stage)
+    AK.add_locator(stage)
+    AK.add_orbit_camera(stage)
+    AK.add_axis(stage, AXIS, "blendShape", source=ANIM, name="bulge")
+    rng = np.random.default_rng(1)
+    rest, _ = AK.add_layer(stage, rig, LAYER, rng, n_strokes=3)
+    AK.set_layer_axes(stage, LAYER, [AXIS])
+    AK.add_pose_key(stage, LAYER, "flat", [0.0], points=AK.displaced(rest, rng, 0.1))
+    AK.add_pose_key(stage, LAYER, "puffed", [0.9], points=AK.displaced(rest, rng, 0.1), opacity=0.5)
+    AK.add_pose_key(stage, LAYER, "dim", [0.4], opacity=0.2)
+    AK.add_time_key(stage, LAYER, "s0", 3, sentinel=True)
+    AK.add_time_key(stage, LAYER, "shock", 6, points=AK.displaced(rest, rng, 0.2), opacity=1.0)
+    AK.add_time_key(stage, LAYER, "settle", 8, points=AK.displaced(rest, rng, 0.2))
+    stage.GetRootLayer().Save()
+    return rig, rest
+
+
+def edit(path, fn):
+    stage = Usd.Stage.Open(str(path))
+    fn(stage)
+    stage.GetRootLayer().Save()
+
+
+def expect_failure(painterly, tmp_path, input_path, names=(), extra=()):
+    """Run a bake that must fail; check the error contract. `names`: strings
+    stderr must contain (prim paths, PRIM.ATTR, attribute names)."""
+    out_dir = tmp_path / "out"
+    out_dir.mkdir(exist_ok=True)
+    out = out_dir / "bake.usdc"
+    before = Au.file_hash(input_path)
+    listing = sorted(os.listdir(tmp_path))
+    proc = painterly("bake", input_path, "-o", out, *extra, check=False)
+    err = proc.stderr
+    assert proc.returncode == 1, f"exit {proc.returncode}, expected 1\nstderr:\n{err}\nstdout:\n{proc.stdout}"
+    assert "panicked" not in err and "RUST_BACKTRACE" not in err, f"panic:\n{err}"
+    assert re.search(r"^error: ", err, re.M), f"no line starting with 'error: ' on stderr:\n{err}"
+    base = os.path.basename(str(input_path))
+    assert base in err, f"error does not name the file {base}:\n{err}"
+    for s in names:
+        assert s in err, f"error does not mention {s!r}:\n{err}"
+    assert not out.exists(), "failed bake left an output file"
+    assert os.listdir(out_dir) == [], f"failed bake left files: {os.listdir(out_dir)}"
+    assert sorted(os.listdir(tmp_path)) == listing, "failed bake left files next to the input"
+    assert Au.file_hash(input_path) == before, "input modified"
+    return err
+
+
+# ---------------------------------------------------------------------------
+# the bad cases: name -> (edit(stage, rig, rest), names that must appear,
+# extra bake arguments)
+
+
+def _set(prim_path, name, tname, value):
+    def f(stage, rig, rest):
+        prim = stage.GetPrimAtPath(prim_path)
+        a = prim.GetAttribute(name) or prim.CreateAttribute(name, tname, False)
+        a.Set(value)
+    return f
+
+
+def _retarget(prim_path, rel, targets):
+    def f(stage, rig, rest):
+        stage.GetPrimAtPath(prim_path).CreateRelationship(rel, False).SetTargets(
+            [Sdf.Path(t) for t in targets])
+    return f
+
+
+def _remove(prim_path, prop):
+    return lambda stage, rig, rest: stage.GetPrimAtPath(prim_path).RemoveProperty(prop)
+
+
+def _new_axis(axis_name, kind, **kw):
+    """Add an axis to the keyed layer (as its second axis) and give every pose
+    key a second coordinate, so only the axis itself is wrong."""
+    path = f"{RIG}/{axis_name}"
+
+    def f(stage, rig, rest):
+        AK.add_axis(stage, path, kind, **kw)
+        AK.set_layer_axes(stage, LAYER, [AXIS, path])
+        for c in stage.GetPrimAtPath(LAYER).GetChildren():
+            if c.GetTypeName() == "PainterlyPoseKey":
+                a = c.GetAttribute("coordinates")
+                a.Set(Vt.FloatArray(list(a.Get()) + [0.25]))
+    return path, f
+
+
+def _both(*fns):
+    def f(stage, rig, rest):
+        for fn in fns:
+            fn(stage, rig, rest)
+    return f
+
+
+def _dup_pose(channel):
+    def f(stage, rig, rest):
+        if channel == "points":
+            AK.add_pose_key(stage, LAYER, "flat2", [0.0], points=rest + 0.05)
+        else:
+            AK.add_pose_key(stage, LAYER, "dim2", [0.4], opacity=0.6)
+    return f
+
+
+def _dup_time(channel):
+    def f(stage, rig, rest):
+        if channel == "points":
+            AK.add_time_key(stage, LAYER, "shock2", 6, points=rest + 0.05)
+        else:
+            AK.add_time_key(stage, LAYER, "shock2", 6, opacity=0.3)
+    return f
+
+
+def _short_points(kind):
+    def f(stage, rig, rest):
+        if kind == "pose":
+            AK.add_pose_key(stage, LAYER, "short", [0.5], points=rest[:-1])
+        else:
+            AK.add_time_key(stage, LAYER, "short", 10, points=rest[:-2])
+    return f
+
+
+_missing_src_path, _missing_src = _new_axis("noSource", "blendShape", name="bulge")
+_ghost_path, _ghost = _new_axis("ghost", "position", source="/World/Nope", component=1)
+_ghost_attr_path, _ghost_attr = _new_axis("ghostAttr", "attribute", source="/World/Controls.ctl:nope")
+_kind_path, _kind = _new_axis("weird", "bogus", source="/World/Controls.ctl:scalar")
+_joint_path, _joint = _new_axis("elbow", "jointRotation", source=SKEL, name="root/elbow", component=0)
+_jc_path, _jc = _new_axis("jointC", "jointRotation", source=SKEL, name="root/mid", component=3)
+_pc_path, _pc = _new_axis("posC", "position", source="/World/LocParent/Locator", component=3)
+_vc_path, _vc = _new_axis("viewC", "viewDirection", source="/World/Orbit/Cam", component=-1)
+_ac_path, _ac = _new_axis("vecC", "attribute", source="/World/Controls.ctl:vec", component=3)
+_qc_path, _qc = _new_axis("quatC", "attribute", source="/World/Controls.ctl:quat", component=4)
+_vn_path, _vn = _new_axis("viewNoCam", "viewDirection", component=0)
+_vghost_path, _vghost = _new_axis("viewGhost", "viewDirection", source="/World/NoCam", component=0)
+
+CASES = {
+    # coordinates: one per layer axis
+    "coordinates_too_many": (_set(f"{LAYER}/flat", "coordinates", Sdf.ValueTypeNames.FloatArray,
+                                  Vt.FloatArray([0.0, 1.0])), [f"{LAYER}/flat.coordinates"], ()),
+    "coordinates_empty": (_set(f"{LAYER}/dim", "coordinates", Sdf.ValueTypeNames.FloatArray,
+                               Vt.FloatArray([])), [f"{LAYER}/dim.coordinates"], ()),
+    "coordinates_default_axes": (  # no painterly:axes: every axis under the rig (two of them)
+        _both(_remove(LAYER, "painterly:axes"),
+              lambda st, rig, rest: AK.add_axis(st, f"{RIG}/extra", "blendShape", source=ANIM, name="bulge")),
+        [f"{LAYER}/flat.coordinates"], ()),
+    # key points: all of the layer's points
+    "pose_points_count": (_short_points("pose"), [f"{LAYER}/short.points"], ()),
+    "time_points_count": (_short_points("time"), [f"{LAYER}/short.points"], ()),
+    # duplicates within one channel name both keys
+    "pose_duplicate_position": (_dup_pose("points"), [f"{LAYER}/flat", f"{LAYER}/flat2"], ()),
+    "pose_duplicate_opacity": (_dup_pose("opacity"), [f"{LAYER}/dim", f"{LAYER}/dim2"], ()),
+    "time_duplicate_points": (_dup_time("points"), [f"{LAYER}/shock", f"{LAYER}/shock2"], ()),
+    "time_duplicate_opacity": (_dup_time("opacity"), [f"{LAYER}/shock", f"{LAYER}/shock2"], ()),
+    # axis sources
+    "axis_source_not_authored": (_missing_src, [f"{_missing_src_path}.source"], ()),
+    "axis_source_missing_prim": (_ghost, [f"{_ghost_path}.source"], ()),
+    "axis_source_missing_attribute": (_ghost_attr, [f"{_ghost_attr_path}.source"], ()),
+    "axis_source_empty_targets": (_retarget(AXIS, "source", []), [f"{AXIS}.source"], ()),
+    "view_source_missing_prim_with_camera": (_vghost, [f"{_vghost_path}.source"],
+                                             ("--camera", "/World/Orbit/Cam")),
+    # axis kind, interpolation, radius
+    "unknown_axis_kind": (_kind, [f"{_kind_path}.kind"], ()),
+    "unknown_interpolation": (_set(LAYER, "painterly:interpolation", Sdf.ValueTypeNames.Token, "linear"),
+                              [f"{LAYER}.painterly:interpolation"], ()),
+    "rbf_radius_zero": (_both(_set(LAYER, "painterly:interpolation", Sdf.ValueTypeNames.Token, "rbf"),
+                              _set(LAYER, "painterly:rbfRadius", Sdf.ValueTypeNames.Float, 0.0)),
+                        [f"{LAYER}.painterly:rbfRadius"], ()),
+    "rbf_radius_negative": (_both(_set(LAYER, "painterly:interpolation", Sdf.ValueTypeNames.Token, "rbf"),
+                                  _set(LAYER, "painterly:rbfRadius", Sdf.ValueTypeNames.Float, -1.0)),
+                            [f"{LAYER}.painterly:rbfRadius"], ()),
+    # joints and components
+    "joint_name_not_in_joints": (_joint, [f"{_joint_path}.name"], ()),
+    "joint_component_3": (_jc, [f"{_jc_path}.component"], ()),
+    "position_component_3": (_pc, [f"{_pc_path}.component"], ()),
+    "view_component_negative": (_vc, [f"{_vc_path}.component"], ()),
+    "vector_component_3": (_ac, [f"{_ac_path}.component"], ()),
+    "quaternion_component_4": (_qc, [f"{_qc_path}.component"], ()),
+    # a viewDirection axis with neither a source nor --camera
+    "view_without_source_or_camera": (_vn, [_vn_path], ()),
+}
+
+
+def test_good_stage_bakes(painterly, tmp_path):
+    """The starting point is valid (so every failure below is the edit's)."""
+    rig, _ = good_stage(tmp_path)
+    out = tmp_path / "bake.usdc"
+    proc = painterly("bake", rig.path, "-o", out, "--quiet")
+    assert proc.returncode == 0 and out.exists()
+    assert "panicked" not in proc.stderr
+    # and the view axis without a source is fine once --camera is given
+    edit(rig.path, lambda st: _vn(st, rig, None))
+    out2 = tmp_path / "bake2.usdc"
+    painterly("bake", rig.path, "-o", out2, "--quiet", "--camera", "/World/Orbit/Cam")
+    assert out2.exists()
+
+
+@pytest.mark.parametrize("case", list(CASES))
+def test_bad_key(painterly, tmp_path, case):
+    fn, names, extra = CASES[case]
+    rig, rest = good_stage(tmp_path)
+    edit(rig.path, lambda st: fn(st, rig, rest))
+    expect_failure(painterly, tmp_path, rig.path, names=names, extra=extra)
+
+
+INSPECT_CASES = [c for c in CASES if c not in ("view_without_source_or_camera",
+                                               "view_source_missing_prim_with_camera")]
+
+
+@pytest.mark.parametrize("case", INSPECT_CASES)
+def test_inspect_reports_bad_key(painterly, tmp_path, case):
+    fn, names, _ = CASES[case]
+    rig, rest = good_stage(tmp_path)
+    edit(rig.path, lambda st: fn(st, rig, rest))
+    before = Au.file_hash(rig.path)
+    proc = painterly("inspect", rig.path, check=False)
+    assert proc.returncode == 1, f"inspect exit {proc.returncode}\n{proc.stdout}\n{proc.stderr}"
+    assert "panicked" not in proc.stderr
+    text = proc.stdout + proc.stderr
+    prims = {n.split(".")[0] for n in names}
+    for p in prims:
+        assert p in text, f"inspect does not mention {p}:\n{text}"
+    assert Au.file_hash(rig.path) == before
