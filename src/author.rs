@@ -96,10 +96,10 @@ fn vec3f_value(points: &[Vec3]) -> Value {
     Value::Vec3fVec(points.iter().map(|p| gf::vec3f(p.x, p.y, p.z)).collect())
 }
 
-/// Reads the scene and the stage's time range; checks `time` lies inside it.
-fn scene_at(r: &StageReader, time: Option<f64>) -> Result<(Scene, f64)> {
-    let scene = Scene::read(r)?;
-    let meta = r.metadata();
+/// Reads the scene and the input's time range; checks `time` lies inside it.
+fn scene_at(session: &EditSession, time: Option<f64>) -> Result<(Scene, f64)> {
+    let scene = Scene::read(&session.reader)?;
+    let meta = &session.input_meta;
     let start = meta.start_time_code.unwrap_or(0.0);
     if let Some(t) = time {
         if !t.is_finite() {
@@ -149,7 +149,7 @@ pub type BindReport = Vec<(String, usize)>;
 /// then gives back the painted positions.
 pub fn bind(session: &EditSession, opts: &BindOptions) -> Result<BindReport> {
     let r = &session.reader;
-    let (scene, start) = scene_at(r, opts.time)?;
+    let (scene, start) = scene_at(session, opts.time)?;
     for l in &opts.layers {
         find_layer(&scene, l)?;
     }
@@ -247,7 +247,7 @@ pub struct KeyOptions {
 /// `replace`, which then rewrites that key.
 pub fn key(session: &EditSession, opts: &KeyOptions) -> Result<String> {
     let r = &session.reader;
-    let (mut scene, _) = scene_at(r, Some(opts.time))?;
+    let (mut scene, _) = scene_at(session, Some(opts.time))?;
     let (ri, li) = find_layer(&scene, &opts.layer)?;
     if opts.kind != KeyKind::Sentinel && !opts.points && opts.opacity.is_none() {
         return Err(Error::prim(
@@ -321,7 +321,8 @@ pub fn key(session: &EditSession, opts: &KeyOptions) -> Result<String> {
             )?;
             (
                 "PainterlyPoseKey",
-                axes.iter().map(|&a| values[a]).collect::<Vec<f64>>(),
+                // Coordinates are stored as float[]: compare and write the f32 values.
+                axes.iter().map(|&a| values[a] as f32 as f64).collect::<Vec<f64>>(),
             )
         }
         KeyKind::Time | KeyKind::Sentinel => ("PainterlyTimeKey", vec![opts.time]),
@@ -466,7 +467,7 @@ pub fn brush(session: &EditSession, brush: Brush, opts: &BrushOptions) -> Result
     if !opts.strength.is_finite() {
         return Err(Error::msg(format!("--strength {} is not finite", opts.strength)));
     }
-    let (scene, start) = scene_at(r, opts.time)?;
+    let (scene, start) = scene_at(session, opts.time)?;
     let (ri, li) = find_layer(&scene, &opts.layer)?;
     let rig = &scene.rigs[ri];
     let layer = &rig.layers[li];

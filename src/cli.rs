@@ -101,7 +101,7 @@ pub enum Command {
         #[arg(long, value_name = "PRIM")]
         layer: Vec<String>,
         /// The pose the strokes were painted in (default: the rest pose).
-        #[arg(long, value_name = "T")]
+        #[arg(long, value_name = "T", allow_negative_numbers = true)]
         time: Option<f64>,
     },
     /// Set a pose key (configuration at --time), a time key or a sentinel.
@@ -121,7 +121,7 @@ pub enum Command {
         #[arg(long, value_name = "PRIM")]
         layer: String,
         /// Time code whose configuration (or timeline position) is keyed.
-        #[arg(long, value_name = "T")]
+        #[arg(long, value_name = "T", allow_negative_numbers = true)]
         time: f64,
         /// Key prim name (default: key1, time1, sentinel1, ...).
         #[arg(long)]
@@ -130,7 +130,7 @@ pub enum Command {
         #[arg(long)]
         points: bool,
         /// Key this opacity.
-        #[arg(long, value_name = "V")]
+        #[arg(long, value_name = "V", allow_negative_numbers = true)]
         opacity: Option<f32>,
         /// Set a time key instead of a pose key.
         #[arg(long, conflicts_with = "sentinel")]
@@ -220,16 +220,16 @@ pub struct BrushArgs {
     #[arg(long, value_name = "PRIM")]
     pub path_prim: Option<String>,
     /// Radius of influence around the path (world units, > 0).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub radius: f64,
-    /// Displacement at the path (world units).
-    #[arg(long)]
+    /// Displacement at the path (world units; negative moves the other way).
+    #[arg(long, allow_negative_numbers = true)]
     pub strength: f64,
     /// Falloff of the distance normalised by the radius.
     #[arg(long, value_enum, default_value = "cubic")]
     pub falloff: FalloffArg,
     /// Apply in the pose at this time (default: the rest pose).
-    #[arg(long, value_name = "T")]
+    #[arg(long, value_name = "T", allow_negative_numbers = true)]
     pub time: Option<f64>,
     /// Edit this key's points instead of the layer's rest points.
     #[arg(long, value_name = "NAME")]

@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 use openusd::sdf::{self, Value};
 
 use super::layer::{write_atomic, Format};
-use super::stage::StageReader;
+use super::stage::{StageMetadata, StageReader};
 use crate::error::{Error, Result};
 
 /// Where an edit session writes.
@@ -27,6 +27,9 @@ pub enum EditTarget {
 pub struct EditSession {
     /// The composed stage (the edit layer over the input, or the input).
     pub reader: StageReader,
+    /// The input's stage metadata (time range, rates): an edit layer's own
+    /// metadata may be missing, and the input's range is what `--time` means.
+    pub input_meta: StageMetadata,
     target: PathBuf,
     /// A temporary header written to open a new edit layer; removed on drop.
     scratch: Option<PathBuf>,
@@ -57,7 +60,7 @@ impl EditSession {
     /// Opens `input` for editing into `target`.
     pub fn open(input: &Path, target: &EditTarget) -> Result<EditSession> {
         // Reading the input first gives its own errors (missing, unreadable).
-        StageReader::open(input)?;
+        let input_meta = StageReader::open(input)?.metadata();
         match target {
             EditTarget::InPlace => {
                 let ext = input.extension().and_then(|e| e.to_str()).unwrap_or("");
@@ -66,6 +69,7 @@ impl EditSession {
                 }
                 Ok(EditSession {
                     reader: StageReader::open(input)?,
+                    input_meta,
                     target: input.to_path_buf(),
                     scratch: None,
                 })
@@ -83,6 +87,7 @@ impl EditSession {
                 if edit.exists() {
                     return Ok(EditSession {
                         reader: StageReader::open(edit)?,
+                        input_meta,
                         target: edit.to_path_buf(),
                         scratch: None,
                     });
@@ -102,12 +107,32 @@ impl EditSession {
                     .map(|n| n.to_string_lossy().into_owned())
                     .unwrap_or_default();
                 let scratch = dir.join(format!(".{name}.painterly-new-{}.usda", std::process::id()));
-                let header = format!(
-                    "#usda 1.0\n(\n    doc = \"painterly edit layer over {sub}\"\n    subLayers = [@{sub}@]\n)\n"
-                );
+                // Stage metadata comes from the root layer: copy the input's, or
+                // opening the edit layer would retime and re-orient the input.
+                let mut header = format!("#usda 1.0\n(\n    doc = \"painterly edit layer over {sub}\"\n");
+                let m = &input_meta;
+                for (key, v) in [
+                    ("startTimeCode", m.start_time_code),
+                    ("endTimeCode", m.end_time_code),
+                    ("timeCodesPerSecond", m.time_codes_per_second),
+                    ("framesPerSecond", m.frames_per_second),
+                    ("metersPerUnit", m.meters_per_unit),
+                ] {
+                    if let Some(v) = v {
+                        header.push_str(&format!("    {key} = {v:?}\n"));
+                    }
+                }
+                if let Some(up) = &m.up_axis {
+                    header.push_str(&format!("    upAxis = \"{up}\"\n"));
+                }
+                if let Some(dp) = StageReader::open(input)?.stage.default_prim() {
+                    header.push_str(&format!("    defaultPrim = \"{}\"\n", dp.as_str()));
+                }
+                header.push_str(&format!("    subLayers = [@{sub}@]\n)\n"));
                 std::fs::write(&scratch, header)
                     .map_err(|e| Error::msg(format!("cannot create edit layer: {e}")).in_file(edit))?;
                 let session = EditSession {
+                    input_meta,
                     reader: StageReader {
                         stage: StageReader::open(&scratch)?.stage,
                         file: edit.to_path_buf(),

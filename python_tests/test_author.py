@@ -1,0 +1,832 @@
+"""Authoring commands (Bassett et al. 2013 sections 3.1-3.3): `painterly bind`
+(strokes painted in any pose), `key` (pose keys, time keys, sentinels),
+`smudge` and `expand`, and the edit layers they write.
+
+Expected values come from reference_author.py (independent numpy, on top of
+reference_skinning.py) fed with usd-core's own evaluation of the posed
+proxy (UsdSkel.BakeSkinning or the points attribute). Positions must agree
+within 1e-5 x the proxy's bbox diagonal.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import pathlib
+import shutil
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from pxr import Gf, Sdf, Usd, UsdGeom, UsdSkel, Vt
+
+import authoring as Au
+import reference_author as RA
+import reference_skinning as RS
+
+TOL = 1e-5
+T = Sdf.ValueTypeNames
+
+
+# ---------------------------------------------------------------------------
+# helpers
+
+
+def fresh(path):
+    """Forget any cached copy of the file's layers (the CLI rewrites them)."""
+    for lyr in Sdf.Layer.GetLoadedLayers():
+        if lyr.realPath and not lyr.anonymous:
+            lyr.Reload()
+
+
+def open_stage(path):
+    fresh(path)
+    return Usd.Stage.Open(str(path))
+
+
+def edit(painterly, cmd, inp, *args, layer=None, check=True):
+    """Run an authoring command into the edit layer `layer` (or --in-place)."""
+    target = ["--in-place"] if layer is None else ["--edit-layer", layer]
+    p = painterly(cmd, inp, *args, *target, "--quiet", check=check)
+    fresh(layer)
+    return p
+
+
+def posed_local(input_path, mesh, t):
+    """usd-core's posed proxy at t, in the proxy's local space, and the world one."""
+    pw = Au.usdcore_world_points(input_path, [mesh], [t])
+    st = Usd.Stage.Open(str(input_path))
+    m = RA.l2w(st, mesh, t)
+    return RA.transform_points(np.linalg.inv(m), pw[mesh][t]), pw
+
+
+def repaint(stage, layer_path, counts, pts):
+    """Replace a stroke layer's strokes by `pts` (its `points`, stroke-local)
+    and drop its rest points and binding: what a painting UI writes."""
+    prim = stage.GetPrimAtPath(layer_path)
+    c = UsdGeom.BasisCurves(prim)
+    c.GetCurveVertexCountsAttr().Set(Vt.IntArray([int(x) for x in counts]))
+    c.GetPointsAttr().Set(Au.v3f(pts))
+    c.GetWidthsAttr().Set(Vt.FloatArray([0.01] * len(pts)))
+    c.GetExtentAttr().Set(UsdGeom.PointBased.ComputeExtent(Au.v3f(pts)))
+    for name in ("painterly:restPoints", "painterly:bindVertices", "painterly:bindWeights"):
+        if prim.HasAttribute(name):
+            prim.RemoveProperty(name)
+
+
+def paint_in_pose(input_path, rig, layer_path, t, seed, n_strokes=8, offsets=(0.0, 0.01, 0.03)):
+    """Paint strokes near the POSED proxy at t (in proxy space), store them as
+    the layer's stroke-local `points`. Returns (painted stroke-local, posed_world)."""
+    local, pw = posed_local(input_path, rig.mesh, t)
+    st = Usd.Stage.Open(str(input_path))
+    mesh = UsdGeom.Mesh(st.GetPrimAtPath(rig.mesh))
+    counts = list(mesh.GetFaceVertexCountsAttr().Get())
+    idx = list(mesh.GetFaceVertexIndicesAttr().Get())
+    rng = np.random.default_rng(seed)
+    sc, sp = Au.make_strokes(local, counts, idx, rng, n_strokes, offsets=offsets)
+    to_stroke = np.linalg.inv(RA.l2w(st, layer_path, t)) @ RA.l2w(st, rig.mesh, t)
+    stroke_pts = RA.transform_points(to_stroke, sp)
+    repaint(st, layer_path, sc, stroke_pts)
+    st.GetRootLayer().Save()
+    return np.array(Au.v3f(stroke_pts), dtype=np.float64), pw
+
+
+def attr_np(stage, prim_path, name, dtype=np.float64):
+    a = stage.GetPrimAtPath(prim_path).GetAttribute(name)
+    assert a and a.HasAuthoredValue(), f"{prim_path}.{name} is not authored"
+    return np.array(a.Get(), dtype=dtype)
+
+
+def binding_dicts(verts, weights):
+    out = []
+    for v, w in zip(np.asarray(verts), np.asarray(weights, dtype=np.float64)):
+        d = {}
+        for k in range(3):
+            d[int(v[k])] = d.get(int(v[k]), 0.0) + float(w[k])
+        out.append(d)
+    return out
+
+
+def assert_binding(verts, weights, exp_verts, exp_weights, what, tol=1e-4):
+    assert len(verts) == len(exp_verts), f"{what}: {len(verts)} bound points, expected {len(exp_verts)}"
+    ours, exp = binding_dicts(verts, weights), binding_dicts(exp_verts, exp_weights)
+    for i, (a, b) in enumerate(zip(ours, exp)):
+        keys = set(a) | set(b)
+        err = sum(abs(a.get(k, 0.0) - b.get(k, 0.0)) for k in keys)
+        assert err <= tol, f"{what}: point {i} bound to {a}, expected {b}"
+
+
+def assert_close(ours, exp, scale, what, tol=TOL, mask=None):
+    ours = np.asarray(ours, dtype=np.float64)
+    exp = np.asarray(exp, dtype=np.float64)
+    assert ours.shape == exp.shape, f"{what}: shape {ours.shape}, expected {exp.shape}"
+    err = np.linalg.norm(ours - exp, axis=1) / scale
+    if mask is not None:
+        err = np.where(mask, err, 0.0)
+    i = int(err.argmax())
+    assert err[i] <= tol, (f"{what}: point {i} off by {err[i]:.3g} x bbox diagonal "
+                           f"(ours {ours[i]}, expected {exp[i]})")
+
+
+def rig_of(path, layer_path):
+    stage, rigs = RS.describe(path)
+    rig, layer = RA.find_rig(rigs, layer_path)
+    return stage, rig, layer
+
+
+def bake_at(painterly, path, t, tmp_path, name):
+    out = tmp_path / name
+    painterly("bake", path, "-o", out, "--frames", f"{t:g}:{t:g}", "--quiet")
+    return Au.compose(path, out)
+
+
+def brush_expected(path, layer_path, which, path_pts, radius, strength, kind="cubic", t=None,
+                   posed_world=None, strokes=None, key=None):
+    """Reference result for a brush applied to `path` (tie-safe at joints)."""
+    stage, rig, layer = rig_of(path, layer_path)
+    target = layer["rest"] if key is None else attr_np(stage, key, "points")
+    res = []
+    for tie in ("first", "last"):
+        res.append(RA.brush(stage, rig, layer, which, target, path_pts, radius, strength, kind=kind, t=t,
+                            posed_world=posed_world, strokes=strokes, tie=tie))
+    scale = Au.bbox_diag(rig["topo"].rest)
+    return res, scale, target
+
+
+def check_brush(ours, res, scale, what):
+    a, b = res[0][0], res[1][0]
+    ea = np.linalg.norm(ours - a, axis=1)
+    eb = np.linalg.norm(ours - b, axis=1)
+    best = np.where(ea <= eb, a.T, b.T).T
+    assert_close(ours, best, scale, what)
+
+
+def safe_radius(d, radius, kind):
+    """With falloff none the result jumps at d = R: keep points off it."""
+    if kind != "none":
+        return radius
+    r = radius
+    for _ in range(50):
+        if np.all(np.abs(d - r) > 1e-4 * r):
+            return r
+        r *= 1.013
+    raise AssertionError("no radius clear of the points")
+
+
+# ---------------------------------------------------------------------------
+# rigs
+
+
+def skel_rig(tmp_path, name="tube.usda", **kw):
+    kw.setdefault("world_xform", Au.xf_static(translate=(0.5, -1, 2), rotate=(0, 30, 0), scale=(1.5, 1.5, 1.5)))
+    kw.setdefault("rig_xform", Au.xf_static(translate=(1, 0, 0), rotate=(10, 0, 0)))
+    kw.setdefault("layer_xform", Au.xf_static(translate=(0, 0.3, -0.2), rotate=(0, 0, 25), scale=(1, 2, 1)))
+    return Au.build_skel_rig(tmp_path / name, **kw)
+
+
+def points_rig(tmp_path, name="pts.usda", **kw):
+    kw.setdefault("proxy_xform", Au.xf_animated({
+        1.0: ((0, 0, 0), (0, 0, 0), (1, 1, 1)),
+        10.0: ((1, 0.5, -1), (20, 40, 0), (1.5, 0.8, 1.2)),
+    }))
+    kw.setdefault("layer_xform", Au.xf_animated({
+        1.0: ((0.2, 0, 0), (0, 10, 0), (1, 1, 1)),
+        10.0: ((0, 1, 0), (0, -20, 15), (1, 1.3, 1)),
+    }))
+    return Au.build_points_rig(tmp_path / name, **kw)
+
+
+# ---------------------------------------------------------------------------
+# (a) bind: strokes painted in any pose
+
+
+def check_bind(painterly, rig, tmp_path, t, seed, extra_args=(), layer_path=None):
+    layer_path = layer_path or rig.layers[0]
+    painted, pw = paint_in_pose(rig.path, rig, layer_path, t, seed)
+    before = Au.file_hash(rig.path)
+    e = tmp_path / "edits.usda"
+    edit(painterly, "bind", rig.path, "--time", t, *extra_args, layer=e)
+    assert Au.file_hash(rig.path) == before, "bind modified its input"
+
+    st = Usd.Stage.Open(str(e))
+    _, rigs = RS.describe(e)
+    rrig, _ = RA.find_rig(rigs, layer_path)
+    exp_rest, exp_v, exp_w, _ = RA.bind_layer(st, rrig, layer_path, t, pw)
+    scale = Au.bbox_diag(rrig["topo"].rest)
+    rest = attr_np(st, layer_path, "painterly:restPoints")
+    verts = attr_np(st, layer_path, "painterly:bindVertices", np.int64)
+    weights = attr_np(st, layer_path, "painterly:bindWeights")
+    assert_binding(verts, weights, exp_v, exp_w, f"{layer_path} binding (posed proxy at t={t})")
+    assert np.all(weights >= 0) and np.allclose(weights.sum(axis=1), 1, atol=1e-5), "weights not clamped barycentrics"
+    assert_close(rest, exp_rest, scale, f"{layer_path} restPoints after bind --time {t}")
+    for name in ("painterly:restPoints", "painterly:bindVertices", "painterly:bindWeights"):
+        a = st.GetPrimAtPath(layer_path).GetAttribute(name)
+        assert a.GetVariability() == Sdf.VariabilityUniform, f"{name} is not uniform"
+
+    # Baking the edited character at t gives back the painted strokes.
+    comp = bake_at(painterly, e, t, tmp_path, "bake_t.usda")
+    baked = Au.local_points(comp, layer_path, t)
+    m = np.linalg.inv(RA.l2w(st, layer_path, t))
+    sscale = Au.bbox_diag(RA.transform_points(m, pw[rig.mesh][t]))
+    assert_close(baked, painted, sscale, f"{layer_path}: baked at t={t} vs as painted")
+    return e, st
+
+
+def test_bind_skel_tube_in_pose(painterly, tmp_path):
+    rig = skel_rig(tmp_path, extra_layers=1)
+    e, st = check_bind(painterly, rig, tmp_path, 8.0, seed=21, extra_args=("--layer", rig.layers[0]))
+    # --layer: the other layer is untouched
+    layer = Sdf.Layer.FindOrOpen(str(e))
+    other = layer.GetPrimAtPath(rig.layers[1])
+    assert other is None or not other.properties, f"bind --layer {rig.layers[0]} also wrote {rig.layers[1]}"
+
+
+def test_bind_points_rig_animated_transforms(painterly, tmp_path):
+    # time-sampled proxy points between samples; animated proxy and layer transforms
+    rig = points_rig(tmp_path)
+    check_bind(painterly, rig, tmp_path, 7.0, seed=5)
+
+
+def test_bind_real_asset(painterly, tmp_path, real_assets):
+    rig = Au.wrap_real_asset(real_assets, "RiggedFigure", tmp_path,
+                             rig_xform=Au.xf_static(translate=(0.2, 0, 0), rotate=(0, 15, 0)),
+                             layer_xform=Au.xf_static(translate=(0, 0.1, 0), scale=(1.2, 1.2, 1.2)))
+    check_bind(painterly, rig, tmp_path, 15.0, seed=9)
+
+
+def test_bind_rest_pose(painterly, tmp_path):
+    """No --time: the rest pose, transforms at startTimeCode (3 here; the
+    proxy's transform moves between its samples at 1 and 10)."""
+    rig = points_rig(tmp_path, rest_time=None, frames=(3, 10))
+    st = Usd.Stage.Open(str(rig.path))
+    t0 = st.GetStartTimeCode()
+    _, rigs = RS.describe(rig.path)
+    rest = rigs[0]["topo"].rest
+    rng = np.random.default_rng(4)
+    mesh = UsdGeom.Mesh(st.GetPrimAtPath(rig.mesh))
+    sc, sp = Au.make_strokes(rest, mesh.GetFaceVertexCountsAttr().Get(), mesh.GetFaceVertexIndicesAttr().Get(),
+                             rng, 6, offsets=(0.0, 0.05))
+    to_stroke = np.linalg.inv(RA.l2w(st, rig.layers[0], t0)) @ RA.l2w(st, rig.mesh, t0)
+    repaint(st, rig.layers[0], sc, RA.transform_points(to_stroke, sp))
+    st.GetRootLayer().Save()
+    e = tmp_path / "e.usda"
+    edit(painterly, "bind", rig.path, layer=e)
+    es = Usd.Stage.Open(str(e))
+    _, rigs = RS.describe(e)
+    exp_rest, exp_v, exp_w, _ = RA.bind_layer(es, rigs[0], rig.layers[0], None, start=t0)
+    assert_close(attr_np(es, rig.layers[0], "painterly:restPoints"), exp_rest, Au.bbox_diag(rest), "rest bind")
+    assert_close(exp_rest, sp, Au.bbox_diag(rest), "reference sanity: rest bind = painted in proxy space")
+    assert_binding(attr_np(es, rig.layers[0], "painterly:bindVertices", np.int64),
+                   attr_np(es, rig.layers[0], "painterly:bindWeights"), exp_v, exp_w, "rest binding")
+
+
+# ---------------------------------------------------------------------------
+# (b) key
+
+
+def _set(prim, name, tname, value):
+    a = prim.CreateAttribute(name, tname, False, Sdf.VariabilityUniform)
+    a.Set(value)
+
+
+def add_axis(stage, path, kind, source=None, name=None, element=None, component=None, scale=None):
+    prim = stage.DefinePrim(path, "PainterlyAxis")
+    _set(prim, "kind", T.Token, kind)
+    if source is not None:
+        prim.CreateRelationship("source", False).SetTargets([Sdf.Path(source)])
+    if name is not None:
+        _set(prim, "name", T.Token, name)
+    if element is not None:
+        _set(prim, "element", T.Int, element)
+    if component is not None:
+        _set(prim, "component", T.Int, component)
+    if scale is not None:
+        _set(prim, "scale", T.Float, scale)
+    return prim
+
+
+@pytest.fixture
+def keyed_rig(tmp_path):
+    rig = skel_rig(tmp_path, blend_shapes={"dense"}, extra_layers=1)
+    st = Usd.Stage.Open(str(rig.path))
+    ctl = st.DefinePrim("/World/Controls", "Scope")
+    knob = ctl.CreateAttribute("knobs", T.Float3Array)
+    for t in (1.0, 12.0):
+        knob.Set(Vt.Vec3fArray([Gf.Vec3f(0, 0, 0), Gf.Vec3f(1, 2, 0.1 * t * t)]), t)
+    loc = UsdGeom.Xform.Define(st, "/World/Loc")
+    op = loc.AddTranslateOp()
+    op.Set(Gf.Vec3d(0, 0, 0), 1.0)
+    op.Set(Gf.Vec3d(2, 3, -1), 12.0)
+    cam = UsdGeom.Camera.Define(st, "/World/Cam")
+    cam.AddTranslateOp().Set(Gf.Vec3d(3, 2, 8))
+    # namespace order (not alphabetical): zKnob, bulge, loc, bend, view
+    add_axis(st, "/World/Paint/zKnob", "attribute", "/World/Controls.knobs", element=1, component=2, scale=2.0)
+    add_axis(st, "/World/Paint/bulge", "blendShape", "/World/Character/Anim", name="bulge")
+    add_axis(st, "/World/Paint/loc", "position", "/World/Loc", component=1)
+    add_axis(st, "/World/Paint/bend", "jointRotation", "/World/Character/Skel", name="root/mid", component=0)
+    add_axis(st, "/World/Paint/view", "viewDirection", component=2, scale=0.5)
+    st.GetPrimAtPath(rig.layers[1]).CreateRelationship("painterly:axes", False).SetTargets(
+        [Sdf.Path("/World/Paint/bulge"), Sdf.Path("/World/Paint/zKnob")])
+    st.GetRootLayer().Save()
+    return rig
+
+
+def axis_values(rig, t):
+    """Every axis of keyed_rig at t, computed with usd-core."""
+    st = Usd.Stage.Open(str(rig.path))
+    proxy = RA.l2w(st, rig.mesh, t)
+    inv = np.linalg.inv(proxy)
+    out = {}
+    out["zKnob"] = 2.0 * float(st.GetPrimAtPath("/World/Controls").GetAttribute("knobs").Get(t)[1][2])
+    anim = UsdSkel.Animation(st.GetPrimAtPath("/World/Character/Anim"))
+    names = list(anim.GetBlendShapesAttr().Get())
+    out["bulge"] = float(anim.GetBlendShapeWeightsAttr().Get(t)[names.index("bulge")])
+    loc = RA.l2w(st, "/World/Loc", t)[:3, 3]
+    out["loc"] = float(RA.transform_points(inv, loc)[0, 1])
+    joints = list(anim.GetJointsAttr().Get())
+    q = anim.GetRotationsAttr().Get(t)[joints.index("root/mid")]
+    w, v = q.GetReal(), np.array(q.GetImaginary(), dtype=np.float64)
+    if w < 0:
+        w, v = -w, -v
+    s = np.linalg.norm(v)
+    rotvec = v / s * 2 * math.atan2(s, w) if s > 0 else np.zeros(3)
+    out["bend"] = float(rotvec[0])  # the rig's rest rotations are identity
+    local, _ = posed_local(rig.path, rig.mesh, t)
+    centre = (local.min(axis=0) + local.max(axis=0)) / 2
+    cam = RA.transform_points(inv, RA.l2w(st, "/World/Cam", t)[:3, 3])[0]
+    d = cam - centre
+    out["view"] = 0.5 * float(d[2] / np.linalg.norm(d))
+    return out
+
+
+def key_prim(stage, path):
+    p = stage.GetPrimAtPath(path)
+    assert p and p.IsValid(), f"no key prim {path}"
+    return p
+
+
+CAM = ("--camera", "/World/Cam")
+ORDER0 = ["zKnob", "bulge", "loc", "bend", "view"]
+
+
+def coords_of(stage, path):
+    return np.array(key_prim(stage, path).GetAttribute("coordinates").Get(), dtype=np.float64)
+
+
+def test_key_pose_keys(painterly, keyed_rig, tmp_path):
+    rig = keyed_rig
+    L0, L1 = rig.layers
+    e = tmp_path / "keys.usda"
+    t = 6.0
+    vals = axis_values(rig, t)
+    assert abs(vals["bend"]) > 1e-3 and abs(vals["bulge"]) > 1e-3 and abs(vals["loc"]) > 1e-3
+
+    # default: a points key at the configuration at t (every axis, namespace order, scaled)
+    edit(painterly, "key", rig.path, "--layer", L0, "--time", t, *CAM, layer=e)
+    st = Usd.Stage.Open(str(e))
+    k1 = key_prim(st, f"{L0}/key1")
+    assert k1.GetTypeName() == "PainterlyPoseKey"
+    coords = coords_of(st, f"{L0}/key1")
+    exp = np.array([vals[n] for n in ORDER0])
+    assert coords.shape == exp.shape, f"coordinates {coords} for axes {ORDER0}"
+    assert np.allclose(coords, exp, rtol=1e-5, atol=1e-5), f"coordinates {coords}, expected {exp} ({ORDER0})"
+    rest0 = attr_np(st, L0, "painterly:restPoints")
+    assert np.array_equal(attr_np(st, f"{L0}/key1", "points"), rest0), "key points are not the layer's rest points"
+    assert not k1.GetAttribute("opacity").HasAuthoredValue(), "a points-only key authored opacity"
+
+    # an opacity key at the same configuration: another channel, no clash
+    edit(painterly, "key", rig.path, "--layer", L0, "--time", t, "--opacity", 0.25, *CAM, layer=e)
+    st = Usd.Stage.Open(str(e))
+    k2 = key_prim(st, f"{L0}/key2")
+    assert k2.GetTypeName() == "PainterlyPoseKey"
+    assert k2.GetAttribute("opacity").Get() == pytest.approx(0.25)
+    assert not k2.GetAttribute("points").HasAuthoredValue(), "--opacity alone keyed points"
+    assert np.allclose(coords_of(st, f"{L0}/key2"), exp, rtol=1e-5, atol=1e-5)
+
+    # a named key elsewhere; a layer with its own axes (painterly:axes order)
+    edit(painterly, "key", rig.path, "--layer", L0, "--name", "smile", "--time", 12, "--points", *CAM, layer=e)
+    edit(painterly, "key", rig.path, "--layer", L1, "--time", t, layer=e)
+    st = Usd.Stage.Open(str(e))
+    assert key_prim(st, f"{L0}/smile").GetTypeName() == "PainterlyPoseKey"
+    v12 = axis_values(rig, 12.0)
+    assert np.allclose(coords_of(st, f"{L0}/smile"), [v12[n] for n in ORDER0], rtol=1e-5, atol=1e-5)
+    assert np.allclose(coords_of(st, f"{L1}/key1"), [vals["bulge"], vals["zKnob"]], rtol=1e-5, atol=1e-5), \
+        "painterly:axes order not followed"
+    rest_l1 = RS.describe(e)[1][0]["layers"][1]["rest"]
+    assert np.allclose(attr_np(st, f"{L1}/key1", "points"), rest_l1)
+
+    # the keys are valid input: the edited character bakes
+    painterly("bake", e, "-o", tmp_path / "bake.usdc", "--frames", "1:12", "--camera", "/World/Cam", "--quiet")
+
+
+def test_key_same_coordinates_refused_then_replaced(painterly, keyed_rig, tmp_path):
+    rig = keyed_rig
+    L0 = rig.layers[0]
+    e = tmp_path / "keys.usda"
+    t = 6.0
+    edit(painterly, "key", rig.path, "--layer", L0, "--time", t, *CAM, layer=e)
+    before = Au.file_hash(e)
+    p = edit(painterly, "key", rig.path, "--layer", L0, "--time", t, "--points", *CAM, layer=e, check=False)
+    assert p.returncode == 1, f"a second points key at the same coordinates was accepted (exit {p.returncode})"
+    assert f"{L0}/key1" in p.stderr and "panicked" not in p.stderr, p.stderr
+    assert Au.file_hash(e) == before
+
+    # smudge the rest points, then --replace re-keys key1 with the new ones
+    st = Usd.Stage.Open(str(e))
+    rest0 = attr_np(st, L0, "painterly:restPoints")
+    w = RA.transform_points(RA.l2w(st, rig.mesh, st.GetStartTimeCode()), rest0)
+    c = w.mean(axis=0)
+    edit(painterly, "smudge", rig.path, "--layer", L0, "--path", f"{c[0]},{c[1]},{c[2]} {c[0] + 1},{c[1]},{c[2]}",
+         "--radius", 2.0, "--strength", 0.3, layer=e)
+    edit(painterly, "key", rig.path, "--layer", L0, "--time", t, "--points", "--replace", *CAM, layer=e)
+    st = Usd.Stage.Open(str(e))
+    rest1 = attr_np(st, L0, "painterly:restPoints")
+    assert not np.allclose(rest1, rest0), "smudge did not move anything (test setup)"
+    assert np.array_equal(attr_np(st, f"{L0}/key1", "points"), rest1), "--replace did not re-capture the points"
+    assert not st.GetPrimAtPath(f"{L0}/key2"), "--replace made a new key instead of rewriting key1"
+
+
+def test_key_same_name_refused_then_replaced(painterly, keyed_rig, tmp_path):
+    rig = keyed_rig
+    L0 = rig.layers[0]
+    e = tmp_path / "keys.usda"
+    edit(painterly, "key", rig.path, "--layer", L0, "--name", "fade", "--time", 6, "--opacity", 0.25, *CAM, layer=e)
+    before = Au.file_hash(e)
+    p = edit(painterly, "key", rig.path, "--layer", L0, "--name", "fade", "--time", 10, "--opacity", 0.5, *CAM,
+             layer=e, check=False)
+    assert p.returncode == 1 and f"{L0}/fade" in p.stderr, p.stderr
+    assert Au.file_hash(e) == before
+    edit(painterly, "key", rig.path, "--layer", L0, "--name", "fade", "--time", 10, "--opacity", 0.5, "--replace",
+         *CAM, layer=e)
+    st = Usd.Stage.Open(str(e))
+    v10 = axis_values(rig, 10.0)
+    assert np.allclose(coords_of(st, f"{L0}/fade"), [v10[n] for n in ORDER0], rtol=1e-5, atol=1e-5)
+    assert key_prim(st, f"{L0}/fade").GetAttribute("opacity").Get() == pytest.approx(0.5)
+    assert len([c for c in st.GetPrimAtPath(L0).GetChildren()]) == 1
+
+
+def test_key_time_keys_and_sentinels(painterly, keyed_rig, tmp_path):
+    rig = keyed_rig
+    L0 = rig.layers[0]
+    e = tmp_path / "tkeys.usda"
+    edit(painterly, "key", rig.path, "--layer", L0, "--time", 4, "--time-key", layer=e)
+    edit(painterly, "key", rig.path, "--layer", L0, "--time", 9, "--sentinel", layer=e)
+    edit(painterly, "key", rig.path, "--layer", L0, "--time", 4, "--time-key", "--opacity", 0.3, layer=e)
+    st = Usd.Stage.Open(str(e))
+    k = key_prim(st, f"{L0}/time1")
+    assert k.GetTypeName() == "PainterlyTimeKey"
+    assert k.GetAttribute("time").Get() == 4.0
+    assert not k.GetAttribute("sentinel").Get()
+    assert np.array_equal(attr_np(st, f"{L0}/time1", "points"), RS.describe(e)[1][0]["layers"][0]["rest"])
+    s = key_prim(st, f"{L0}/sentinel1")
+    assert s.GetTypeName() == "PainterlyTimeKey"
+    assert s.GetAttribute("time").Get() == 9.0 and s.GetAttribute("sentinel").Get() is True
+    assert not s.GetAttribute("points").HasAuthoredValue() and not s.GetAttribute("opacity").HasAuthoredValue()
+    o = key_prim(st, f"{L0}/time2")
+    assert o.GetAttribute("opacity").Get() == pytest.approx(0.3) and not o.GetAttribute("points").HasAuthoredValue()
+
+    for args, clash in ((("--time", 4, "--time-key"), "time1"), (("--time", 9, "--sentinel"), "sentinel1")):
+        before = Au.file_hash(e)
+        p = edit(painterly, "key", rig.path, "--layer", L0, *args, layer=e, check=False)
+        assert p.returncode == 1 and f"{L0}/{clash}" in p.stderr, p.stderr
+        assert Au.file_hash(e) == before
+    edit(painterly, "key", rig.path, "--layer", L0, "--time", 4, "--time-key", "--replace", layer=e)
+    st = Usd.Stage.Open(str(e))
+    assert not st.GetPrimAtPath(f"{L0}/time3"), "--replace added a key"
+    painterly("bake", e, "-o", tmp_path / "bake.usdc", "--frames", "1:12", "--camera", "/World/Cam", "--quiet")
+
+
+# ---------------------------------------------------------------------------
+# (c) smudge and expand
+
+
+def world_rest(path, layer_path, t=None):
+    """World positions of a layer's rest points skinned at t (for placing tools)."""
+    stage, rig, layer = rig_of(path, layer_path)
+    _, w, _ = RA.brush(stage, rig, layer, "smudge", layer["rest"], [[0, 0, 0], [1, 0, 0]], 1.0, 0.0, t=t,
+                       posed_world=None if t is None else Au.usdcore_world_points(path, [rig["mesh"]], [t]))
+    return w
+
+
+def tool_through(w, direction, length=None):
+    c = w.mean(axis=0)
+    d = np.asarray(direction, dtype=np.float64)
+    d /= np.linalg.norm(d)
+    half = (length or Au.bbox_diag(w)) / 2
+    return np.array([c - half * d, c + half * d])
+
+
+def path_arg(pts):
+    return " ".join(",".join(f"{x:.9g}" for x in p) for p in pts)
+
+
+def run_brush(painterly, rig_path, layer_path, which, tool, radius, strength, e, kind="cubic", t=None,
+              strokes=None, key=None, extra=()):
+    args = ["--layer", layer_path, "--path", path_arg(tool), f"--radius={radius:.9g}",
+            f"--strength={strength:.9g}", "--falloff", kind, *extra]
+    if t is not None:
+        args += ["--time", t]
+    if strokes is not None:
+        args += ["--strokes", strokes]
+    if key is not None:
+        args += ["--key", key]
+    edit(painterly, which, rig_path, *args, layer=e)
+
+
+def brush_case(painterly, rig, tmp_path, which, kind, t, strokes=None, strokes_list=None, name="b.usda",
+               direction=(1, 0.3, 0.2), strength=0.15, frac=0.25, multi=False):
+    """Apply one brush stroke via the CLI and compare with the reference."""
+    src = rig.path
+    lp = rig.layers[0]
+    pw = None if t is None else Au.usdcore_world_points(src, [rig.mesh], [t])
+    stage, rrig, layer = rig_of(src, lp)
+    _, w, _ = RA.brush(stage, rrig, layer, "smudge", layer["rest"], [[0, 0, 0], [1, 0, 0]], 1.0, 0.0, t=t,
+                       posed_world=pw)
+    tool = tool_through(w, direction)
+    if multi:
+        mid = tool.mean(axis=0) + 0.2 * Au.bbox_diag(w) * np.array([0, 1, 0])
+        tool = np.array([tool[0], mid, tool[1]])
+    radius = frac * Au.bbox_diag(w)
+    d, _ = RA.closest_on_path(tool, w)
+    radius = safe_radius(d, radius, kind)
+    e = tmp_path / name
+    run_brush(painterly, rig.path, lp, which, tool, radius, strength, e, kind=kind, t=t, strokes=strokes)
+    res, scale, target = brush_expected(src, lp, which, tool, radius, strength, kind=kind, t=t, posed_world=pw,
+                                        strokes=strokes_list)
+    st = Usd.Stage.Open(str(e))
+    ours = attr_np(st, lp, "painterly:restPoints")
+    check_brush(ours, res, scale, f"{which} {kind} t={t} strokes={strokes}")
+    moved = np.linalg.norm(res[0][0] - target, axis=1) > 1e-6 * scale
+    assert moved.sum() >= 3, f"test setup: only {moved.sum()} points within the tool radius"
+    assert (~moved).sum() >= 3, "test setup: every point within the tool radius"
+    # untouched points are bit-identical
+    assert np.array_equal(ours[~moved].astype(np.float32), target[~moved].astype(np.float32)), \
+        "points outside the tool's reach moved"
+    return e
+
+
+def test_smudge_rest_cubic(painterly, tmp_path):
+    rig = skel_rig(tmp_path, n_strokes=10)
+    brush_case(painterly, rig, tmp_path, "smudge", "cubic", None)
+
+
+def test_smudge_pose_none_strokes_multisegment(painterly, tmp_path):
+    rig = skel_rig(tmp_path, n_strokes=10)
+    brush_case(painterly, rig, tmp_path, "smudge", "none", 8.0, strokes="0,2-5,9", strokes_list=[0, 2, 3, 4, 5, 9],
+               multi=True, frac=0.3)
+
+
+def test_expand_rest_and_pose_nonuniform_proxy(painterly, tmp_path):
+    rig = points_rig(tmp_path, n_strokes=10)
+    brush_case(painterly, rig, tmp_path, "expand", "cubic", None, name="rest.usda", frac=0.3)
+    brush_case(painterly, rig, tmp_path, "expand", "none", 7.0, name="pose.usda", frac=0.3, strength=-0.1)
+
+
+def test_brush_rest_pose_transforms_at_start(painterly, tmp_path):
+    """No --time: transforms at startTimeCode (3; the proxy moves between 1 and 10)."""
+    rig = points_rig(tmp_path, n_strokes=10, frames=(3, 10))
+    brush_case(painterly, rig, tmp_path, "smudge", "cubic", None, frac=0.3)
+
+
+def test_expand_skel_pose_strokes(painterly, tmp_path):
+    rig = skel_rig(tmp_path, n_strokes=10)
+    brush_case(painterly, rig, tmp_path, "expand", "cubic", 10.0, strokes="1-6", strokes_list=range(1, 7), frac=0.35)
+
+
+def test_negative_strength_as_its_own_argument(painterly, tmp_path):
+    """`--strength -0.1` (expand inwards) is a value, not an unknown flag."""
+    rig = skel_rig(tmp_path, n_strokes=6)
+    w = world_rest(rig.path, rig.layers[0])
+    p = painterly("expand", rig.path, "--layer", rig.layers[0], "--path", path_arg(tool_through(w, (1, 0, 0))),
+                  "--radius", "1", "--strength", "-0.1", "--edit-layer", tmp_path / "e.usda", check=False)
+    assert p.returncode == 0, p.stderr
+
+
+def test_brush_key_points(painterly, tmp_path):
+    """--key edits that key's points (in the pose at --time); restPoints stay."""
+    rig = skel_rig(tmp_path, n_strokes=8)
+    lp = rig.layers[0]
+    st = Usd.Stage.Open(str(rig.path))
+    rest = np.array(st.GetPrimAtPath(lp).GetAttribute("painterly:restPoints").Get(), dtype=np.float64)
+    kp = st.DefinePrim(f"{lp}/wide", "PainterlyPoseKey")
+    _set(kp, "coordinates", T.FloatArray, Vt.FloatArray([]))
+    rng = np.random.default_rng(3)
+    keypts = rest + rng.uniform(-0.03, 0.03, rest.shape)
+    _set(kp, "points", T.Point3fArray, Au.v3f(keypts))
+    st.GetRootLayer().Save()
+    keypts = np.array(Au.v3f(keypts), dtype=np.float64)
+    t = 9.0
+    pw = Au.usdcore_world_points(rig.path, [rig.mesh], [t])
+    stage, rrig, layer = rig_of(rig.path, lp)
+    _, w, _ = RA.brush(stage, rrig, layer, "smudge", keypts, [[0, 0, 0], [1, 0, 0]], 1.0, 0.0, t=t, posed_world=pw)
+    for which in ("smudge", "expand"):
+        tool = tool_through(w, (0.2, 1, 0.1))
+        radius = 0.3 * Au.bbox_diag(w)
+        e = tmp_path / f"{which}_key.usda"
+        run_brush(painterly, rig.path, lp, which, tool, radius, 0.2, e, t=t, key="wide")
+        res, scale, target = brush_expected(rig.path, lp, which, tool, radius, 0.2, t=t, posed_world=pw,
+                                            key=f"{lp}/wide")
+        es = Usd.Stage.Open(str(e))
+        check_brush(attr_np(es, f"{lp}/wide", "points"), res, scale, f"{which} --key")
+        assert np.linalg.norm(res[0][0] - target, axis=1).max() > 1e-3, "test setup: nothing moved"
+        assert not Sdf.Layer.FindOrOpen(str(e)).GetPropertyAtPath(f"{lp}.painterly:restPoints"), \
+            f"{which} --key also wrote the layer's restPoints"
+
+
+def test_brush_path_prim_and_cached_binding(painterly, tmp_path):
+    """--path-prim (first curve, world space at --time) and a cached binding
+    from `bind --time` (not the closest point on the rest proxy)."""
+    rig = skel_rig(tmp_path, n_strokes=8)
+    lp = rig.layers[0]
+    t = 8.0
+    painted, pw = paint_in_pose(rig.path, rig, lp, t, seed=33)
+    e = tmp_path / "e.usda"
+    edit(painterly, "bind", rig.path, "--time", t, layer=e)
+    stage, rrig, layer = rig_of(e, lp)
+    assert layer["cached"]
+    rv, rw = RS.bind(rrig["topo"].rest, rrig["topo"].tris, layer["rest"])
+    differs = [a != b for a, b in zip(binding_dicts(layer["verts"], layer["weights"]), binding_dicts(rv, rw))]
+    assert sum(differs) >= 3, "test setup: the cached binding equals the rest-pose closest point"
+    _, w, _ = RA.brush(stage, rrig, layer, "smudge", layer["rest"], [[0, 0, 0], [1, 0, 0]], 1.0, 0.0, t=t,
+                       posed_world=pw)
+    tool = tool_through(w, (0.5, 1, 0))
+    # the tool path as a BasisCurves under a transformed parent: 2 curves, the first is the path
+    st = Usd.Stage.Open(str(rig.path))
+    holder = UsdGeom.Xform.Define(st, "/World/Tools")
+    holder.AddTranslateOp().Set(Gf.Vec3d(0.3, -0.2, 0.1))
+    holder.AddRotateYOp().Set(35.0)
+    m = np.linalg.inv(RA.l2w(st, "/World/Tools", t))
+    local = RA.transform_points(m, tool)
+    mid = (local[0] + local[1]) / 2
+    curve_pts = np.array([local[0], mid, local[1], local[1] + 5, local[1] + 6])
+    cv = UsdGeom.BasisCurves.Define(st, "/World/Tools/Path")
+    cv.CreateTypeAttr(UsdGeom.Tokens.linear)
+    cv.CreateCurveVertexCountsAttr(Vt.IntArray([3, 2]))
+    cv.CreatePointsAttr(Au.v3f(curve_pts))
+    st.GetRootLayer().Save()
+    es = Usd.Stage.Open(str(e))
+    path_world = RA.path_from_curves(es, "/World/Tools/Path", t)
+    radius = 0.3 * Au.bbox_diag(w)
+    edit(painterly, "expand", rig.path, "--layer", lp, "--path-prim", "/World/Tools/Path", "--radius", radius,
+         "--strength", 0.12, "--time", t, layer=e)
+    scale = Au.bbox_diag(rrig["topo"].rest)
+    before = layer["rest"]
+    st2, rrig2, layer2 = rig_of(e, lp)
+    exp = []
+    for tie in ("first", "last"):
+        exp.append(RA.brush(stage, rrig, layer, "expand", before, path_world, radius, 0.12, t=t, posed_world=pw,
+                            tie=tie))
+    check_brush(layer2["rest"], exp, scale, "expand --path-prim with a cached binding")
+    assert np.linalg.norm(exp[0][0] - before, axis=1).max() > 1e-3, "test setup: nothing moved"
+    # binding still cached, unchanged
+    assert np.array_equal(layer2["verts"], layer["verts"])
+
+
+# ---------------------------------------------------------------------------
+# (d) edit layers
+
+
+READ_ALL = r"""
+import sys
+from pxr import Usd
+s = Usd.Stage.Open(sys.argv[1])
+assert s, "cannot open"
+n = 0
+for p in s.TraverseAll():
+    for a in p.GetAttributes():
+        a.Get()
+        for t in a.GetTimeSamples()[:3]:
+            a.Get(t)
+        n += 1
+    for r in p.GetRelationships():
+        r.GetTargets()
+print(n)
+"""
+
+
+def open_quietly(path, plugin=True):
+    env = dict(os.environ)
+    if not plugin:
+        env.pop("PXR_PLUGINPATH_NAME", None)
+    p = subprocess.run([sys.executable, "-c", READ_ALL, str(path)], capture_output=True, text=True, env=env,
+                       timeout=120)
+    assert p.returncode == 0, p.stderr
+    assert p.stderr.strip() == "", f"usd-core warnings opening {path} (plugin={plugin}):\n{p.stderr}"
+    return int(p.stdout.strip())
+
+
+def test_edit_layer_composes_and_appends(painterly, tmp_path):
+    rig = skel_rig(tmp_path, n_strokes=6, extra_layers=1)
+    lp = rig.layers[0]
+    before = Au.file_hash(rig.path)
+    e = tmp_path / "edits.usda"
+    edit(painterly, "bind", rig.path, "--time", 6, "--layer", lp, layer=e)
+    first = Sdf.Layer.FindOrOpen(str(e))
+    assert list(first.subLayerPaths) == [f"./{rig.path.name}"], f"subLayers {list(first.subLayerPaths)}"
+    w = world_rest(e, lp)
+    tool = tool_through(w, (1, 0, 0))
+    run_brush(painterly, rig.path, lp, "smudge", tool, 0.4 * Au.bbox_diag(w), 0.1, e)
+    edit(painterly, "key", rig.path, "--layer", lp, "--time", 6, layer=e)
+    assert Au.file_hash(rig.path) == before, "an edit-layer command modified its input"
+
+    layer = Sdf.Layer.FindOrOpen(str(e))
+    layer.Reload()
+    assert list(layer.subLayerPaths) == [f"./{rig.path.name}"], "the sublayer list changed on append"
+    specs = {str(s.path): s for s in Au.layer_prim_specs(layer)}
+    # only edits: overs down to the layer, one new key prim
+    for path, spec in specs.items():
+        if path == f"{lp}/key1":
+            assert spec.specifier == Sdf.SpecifierDef and spec.typeName == "PainterlyPoseKey"
+        else:
+            assert spec.specifier == Sdf.SpecifierOver, f"{path} is not an over in the edit layer"
+            assert not spec.typeName, f"{path}: the edit layer re-types an input prim"
+    props = {f"{p}.{name}" for p, s in specs.items() for name in s.properties.keys()}
+    assert props == {f"{lp}.painterly:restPoints", f"{lp}.painterly:bindVertices", f"{lp}.painterly:bindWeights",
+                     f"{lp}/key1.coordinates", f"{lp}/key1.points"}, sorted(props)
+    assert open_quietly(e) > 0
+    assert open_quietly(e, plugin=False) > 0
+    # composed: input content intact, edits on top
+    es, src = Usd.Stage.Open(str(e)), Usd.Stage.Open(str(rig.path))
+    for path in (rig.mesh, "/World/Character/Anim"):
+        for a in src.GetPrimAtPath(path).GetAttributes():
+            b = es.GetPrimAtPath(path).GetAttribute(a.GetName())
+            assert b.GetTimeSamples() == a.GetTimeSamples(), f"{a.GetPath()} samples differ through the edit layer"
+            assert b.Get(Usd.TimeCode.Default()) == a.Get(Usd.TimeCode.Default())
+
+
+def test_edit_layer_keeps_time_metadata(painterly, tmp_path):
+    """Opened on its own, the edit layer shows the input's animation as authored:
+    same time range and timeCodesPerSecond (else usd-core retimes the input)."""
+    rig = points_rig(tmp_path, tcps=30.0)
+    e = tmp_path / "e.usda"
+    edit(painterly, "bind", rig.path, layer=e)
+    src, es = Usd.Stage.Open(str(rig.path)), Usd.Stage.Open(str(e))
+    a, b = src.GetPrimAtPath(rig.mesh).GetAttribute("points"), es.GetPrimAtPath(rig.mesh).GetAttribute("points")
+    assert b.GetTimeSamples() == a.GetTimeSamples(), \
+        f"input retimed through the edit layer: samples {a.GetTimeSamples()} -> {b.GetTimeSamples()}"
+    assert es.GetTimeCodesPerSecond() == src.GetTimeCodesPerSecond()
+    assert (es.GetStartTimeCode(), es.GetEndTimeCode()) == (src.GetStartTimeCode(), src.GetEndTimeCode())
+    # and the product itself bakes it without being told the frames
+    painterly("bake", e, "-o", tmp_path / "bake.usda", "--quiet")
+
+
+def test_edit_layer_elsewhere_and_usdc(painterly, tmp_path):
+    rig = skel_rig(tmp_path, n_strokes=6)
+    lp = rig.layers[0]
+    sub = tmp_path / "sub"
+    sub.mkdir()
+    ea = sub / "e.usda"
+    ec = tmp_path / "e.usdc"
+    for e in (ea, ec):
+        edit(painterly, "bind", rig.path, "--time", 5, layer=e)
+    la = Sdf.Layer.FindOrOpen(str(ea))
+    assert pathlib.Path(la.subLayerPaths[0]).resolve() == rig.path.resolve()
+    assert ec.read_bytes()[:8] == b"PXR-USDC", "a .usdc edit layer is not a crate file"
+    lc = Sdf.Layer.FindOrOpen(str(ec))
+    assert lc and list(lc.subLayerPaths) == [f"./{rig.path.name}"]
+    open_quietly(ec)
+    sa, sc = Usd.Stage.Open(str(ea)), Usd.Stage.Open(str(ec))
+    for name in ("painterly:restPoints", "painterly:bindWeights"):
+        assert np.array_equal(attr_np(sa, lp, name), attr_np(sc, lp, name)), f"{name}: usda and usdc differ"
+    # appending to a .usdc edit layer
+    w = world_rest(ec, lp)
+    run_brush(painterly, rig.path, lp, "expand", tool_through(w, (0, 1, 0)), 0.3 * Au.bbox_diag(w), 0.1, ec)
+    assert Sdf.Layer.FindOrOpen(str(ec)).GetPropertyAtPath(f"{lp}.painterly:bindWeights"), "append lost edits"
+
+
+def test_in_place(painterly, tmp_path):
+    rig = skel_rig(tmp_path, n_strokes=6)
+    lp = rig.layers[0]
+    ref = tmp_path / "ref"
+    ref.mkdir()
+    copy = ref / rig.path.name
+    shutil.copy(rig.path, copy)
+    # same edit as an edit layer, for comparison
+    t = 7.0
+    e = ref / "e.usda"
+    edit(painterly, "bind", copy, "--time", t, layer=e)
+    listing = sorted(os.listdir(tmp_path))
+    edit(painterly, "bind", rig.path, "--time", t)
+    assert sorted(os.listdir(tmp_path)) == listing, "--in-place left files behind"
+    st, se = Usd.Stage.Open(str(rig.path)), Usd.Stage.Open(str(e))
+    for name in ("painterly:restPoints", "painterly:bindVertices", "painterly:bindWeights"):
+        assert np.array_equal(attr_np(st, lp, name), attr_np(se, lp, name)), f"in place {name} differs"
+    _, rigs = RS.describe(rig.path)
+    pw = Au.usdcore_world_points(copy, [rig.mesh], [t])
+    exp_rest, _, _, _ = RA.bind_layer(st, rigs[0], lp, t, pw)
+    assert_close(attr_np(st, lp, "painterly:restPoints"), exp_rest, Au.bbox_diag(rig.rest), "in place bind")
+    # everything else is as it was
+    orig = Usd.Stage.Open(str(copy))
+    for prim in orig.TraverseAll():
+        q = st.GetPrimAtPath(prim.GetPath())
+        assert q and q.GetTypeName() == prim.GetTypeName(), f"{prim.GetPath()} lost"
+        for a in prim.GetAttributes():
+            if str(a.GetPath()).startswith(lp + "."):
+                continue
+            b = q.GetAttribute(a.GetName())
+            assert b.GetTimeSamples() == a.GetTimeSamples(), f"{a.GetPath()} samples changed"
+            assert b.Get() == a.Get(), f"{a.GetPath()} changed"
+    for key in ("startTimeCode", "endTimeCode", "timeCodesPerSecond", "upAxis", "metersPerUnit", "defaultPrim"):
+        assert st.GetRootLayer().pseudoRoot.GetInfo(key) == orig.GetRootLayer().pseudoRoot.GetInfo(key), key
+    open_quietly(rig.path)

@@ -1,0 +1,197 @@
+"""Authoring commands on bad input: every refusal exits 1 (2 for command-line
+usage), names the file and the prim at fault, writes nothing (no edit layer,
+no scratch file, an existing edit layer byte-identical, the input untouched)
+and never panics.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+
+import pytest
+from pxr import Sdf, Usd, UsdGeom, Vt
+
+import authoring as Au
+
+LAYER = "/World/Paint/Strokes"
+GOOD_PATH = "0,0,0 1,2,0"
+
+
+@pytest.fixture(scope="module")
+def base(tmp_path_factory):
+    d = tmp_path_factory.mktemp("bad_author_base")
+    rig = Au.build_skel_rig(d / "tube.usda", frames=(1, 12), n_strokes=4)
+    st = Usd.Stage.Open(str(rig.path))
+    cv = UsdGeom.BasisCurves.Define(st, "/World/OnePoint")
+    cv.CreateCurveVertexCountsAttr(Vt.IntArray([1]))
+    cv.CreatePointsAttr(Au.v3f([[0, 0, 0]]))
+    k = st.DefinePrim(f"{LAYER}/nopts", "PainterlyPoseKey")  # an opacity-only key
+    k.CreateAttribute("coordinates", Sdf.ValueTypeNames.FloatArray, False, Sdf.VariabilityUniform).Set(
+        Vt.FloatArray([]))
+    k.CreateAttribute("opacity", Sdf.ValueTypeNames.Float, False, Sdf.VariabilityUniform).Set(0.5)
+    st.GetRootLayer().Save()
+    return rig.path
+
+
+@pytest.fixture
+def case(base, tmp_path):
+    """A fresh copy of the rig, and a checker for 'refused, nothing written'."""
+    inp = tmp_path / "tube.usda"
+    shutil.copy(base, inp)
+
+    def refused(painterly, *args, code=1, names=(), edit_layer="e.usda", existing=False, file=None):
+        e = tmp_path / edit_layer if edit_layer else None
+        if existing and not e.exists():
+            painterly("key", inp, "--layer", LAYER, "--time", 1, "--points", "--edit-layer", e, "--quiet")
+        before_in = Au.file_hash(inp)
+        before_e = Au.file_hash(e) if e and e.exists() else None
+        listing = sorted(os.listdir(tmp_path))
+        target = ["--edit-layer", e] if e else []
+        p = painterly(*args, *target, check=False)
+        msg = p.stderr
+        assert p.returncode == code, f"exit {p.returncode}, expected {code}: {args}\n{msg}"
+        assert "panicked" not in msg and "RUST_BACKTRACE" not in msg, msg
+        assert msg.strip(), "no error message"
+        if code == 1:
+            files = [file.name] if file is not None else [inp.name] + ([e.name] if e is not None else [])
+            assert any(f in msg for f in files), f"message does not name the file ({files}):\n{msg}"
+        for n in names:
+            assert str(n) in msg, f"message does not name {n!r}:\n{msg}"
+        assert Au.file_hash(inp) == before_in, "a refused command modified its input"
+        if before_e is not None:
+            assert Au.file_hash(e) == before_e, "a refused command modified the existing edit layer"
+        assert sorted(os.listdir(tmp_path)) == listing, \
+            f"a refused command left files: {sorted(set(os.listdir(tmp_path)) - set(listing))}"
+        return msg
+
+    return inp, refused
+
+
+def brush_args(inp, which="smudge", layer=LAYER, path=GOOD_PATH, radius="1", strength="0.1", extra=()):
+    return [which, inp, "--layer", layer, "--path", path, f"--radius={radius}", f"--strength={strength}", *extra]
+
+
+# ---------------------------------------------------------------------------
+# bad input: exit 1
+
+
+@pytest.mark.parametrize("existing", [False, True])
+def test_unknown_layer(painterly, case, existing):
+    inp, refused = case
+    refused(painterly, "bind", inp, "--layer", "/World/Nope", names=["/World/Nope"], existing=existing)
+    refused(painterly, "key", inp, "--layer", "/World/Nope", "--time", 3, names=["/World/Nope"], existing=existing)
+    for which in ("smudge", "expand"):
+        refused(painterly, *brush_args(inp, which, layer="/World/Nope"), names=["/World/Nope"], existing=existing)
+    # a prim that exists but is not a stroke layer
+    refused(painterly, *brush_args(inp, layer="/World/Character/Body"), names=["/World/Character/Body"])
+
+
+@pytest.mark.parametrize("mode", ["edit-layer", "in-place"])
+@pytest.mark.parametrize("t", ["0", "13", "nan"])
+def test_time_outside_range(painterly, case, t, mode):
+    inp, refused = case
+    kw = dict(names=[t]) if mode == "edit-layer" else dict(names=[t], edit_layer=None)
+    extra = ["--in-place"] if mode == "in-place" else []
+    refused(painterly, "bind", inp, "--time", t, *extra, **kw)
+    refused(painterly, "key", inp, "--layer", LAYER, "--time", t, *extra, **kw)
+    refused(painterly, *brush_args(inp, extra=("--time", t, *extra)), **kw)
+
+
+@pytest.mark.parametrize("path", ["1,2,3", "1,2,3 1,2,3"])
+def test_tool_path_too_short(painterly, case, path):
+    inp, refused = case
+    for which in ("smudge", "expand"):
+        refused(painterly, *brush_args(inp, which, path=path), names=["path"])
+
+
+def test_tool_path_prim_too_short_or_missing(painterly, case):
+    inp, refused = case
+    args = ["smudge", inp, "--layer", LAYER, "--radius", "1", "--strength", "0.1"]
+    refused(painterly, *args, "--path-prim", "/World/OnePoint", names=["path"])
+    refused(painterly, *args, "--path-prim", "/World/NoCurve", names=["/World/NoCurve"])
+
+
+@pytest.mark.parametrize("radius", ["0", "-1", "inf"])
+def test_radius_not_positive(painterly, case, radius):
+    inp, refused = case
+    for which in ("smudge", "expand"):
+        refused(painterly, *brush_args(inp, which, radius=radius), names=["radius"])
+
+
+def test_key_name_exists(painterly, case):
+    inp, refused = case
+    # 'e.usda' already holds key1 (from `existing`)
+    refused(painterly, "key", inp, "--layer", LAYER, "--time", 5, "--name", "key1", "--points",
+            names=[f"{LAYER}/key1", "--replace"], existing=True)
+    # the rig has no axes: every pose key sits at coordinates [], so a second points key clashes
+    refused(painterly, "key", inp, "--layer", LAYER, "--time", 7, "--points", names=[f"{LAYER}/key1"])
+
+
+def test_edit_layer_is_the_input(painterly, case):
+    inp, refused = case
+    refused(painterly, "bind", inp, names=["--in-place"], edit_layer="tube.usda")
+    refused(painterly, *brush_args(inp), names=["--in-place"], edit_layer="tube.usda")
+
+
+def test_brush_bad_key_and_strokes(painterly, case):
+    inp, refused = case
+    refused(painterly, *brush_args(inp, extra=("--key", "nokey")), names=[f"{LAYER}/nokey"])
+    refused(painterly, *brush_args(inp, extra=("--key", "nopts")), names=[f"{LAYER}/nopts"])
+    refused(painterly, *brush_args(inp, extra=("--strokes", "2,40")), names=[LAYER, "40"])
+
+
+def test_bad_path_text(painterly, case):
+    inp, refused = case
+    for bad in ("1,2 3,4,5", "a,b,c 1,2,3"):
+        msg = refused(painterly, *brush_args(inp, path=bad), code=1)
+        assert "--path" in msg
+
+
+def test_in_place_usdz_and_missing_dir(painterly, case, tmp_path):
+    inp, refused = case
+    z = tmp_path / "x.usdz"
+    shutil.copy(Au.pathlib.Path(inp), tmp_path / "copy.usda")
+    from pxr import UsdUtils
+    assert UsdUtils.CreateNewUsdzPackage(str(tmp_path / "copy.usda"), str(z))
+    os.remove(tmp_path / "copy.usda")
+    before = Au.file_hash(z)
+    refused(painterly, "bind", z, "--in-place", edit_layer=None, file=z)
+    assert Au.file_hash(z) == before
+    refused(painterly, "bind", inp, edit_layer="nodir/e.usda", names=["nodir"])
+
+
+def test_missing_input(painterly, case, tmp_path):
+    inp, refused = case
+    p = painterly("bind", tmp_path / "missing.usda", "--edit-layer", tmp_path / "e.usda", check=False)
+    assert p.returncode == 1 and "missing.usda" in p.stderr and "panicked" not in p.stderr
+    assert not (tmp_path / "e.usda").exists()
+
+
+# ---------------------------------------------------------------------------
+# command-line usage: exit 2
+
+
+USAGE = [
+    ["bind", "{inp}"],                                                     # neither --edit-layer nor --in-place
+    ["bind", "{inp}", "--in-place", "--edit-layer", "{e}"],                # both
+    ["key", "{inp}", "--layer", LAYER, "--edit-layer", "{e}"],             # no --time
+    ["key", "{inp}", "--time", "3", "--edit-layer", "{e}"],                # no --layer
+    ["key", "{inp}", "--layer", LAYER, "--time", "3", "--time-key", "--sentinel", "--edit-layer", "{e}"],
+    ["key", "{inp}", "--layer", LAYER, "--time", "x", "--edit-layer", "{e}"],
+    ["smudge", "{inp}", "--layer", LAYER, "--radius", "1", "--strength", "1", "--edit-layer", "{e}"],  # no path
+    ["smudge", "{inp}", "--layer", LAYER, "--path", GOOD_PATH, "--path-prim", "/World/OnePoint",
+     "--radius", "1", "--strength", "1", "--edit-layer", "{e}"],
+    ["expand", "{inp}", "--layer", LAYER, "--path", GOOD_PATH, "--strength", "1", "--edit-layer", "{e}"],
+    ["expand", "{inp}", "--layer", LAYER, "--path", GOOD_PATH, "--radius", "1", "--strength", "1",
+     "--falloff", "gauss", "--edit-layer", "{e}"],
+    ["smudge", "{inp}", "--layer", LAYER, "--path", GOOD_PATH, "--radius", "r", "--strength", "1",
+     "--edit-layer", "{e}"],
+]
+
+
+@pytest.mark.parametrize("argv", USAGE, ids=[" ".join(a[:1] + a[2:6]) for a in USAGE])
+def test_usage_errors(painterly, case, tmp_path, argv):
+    inp, refused = case
+    args = [str(a).format(inp=inp, e=tmp_path / "e.usda") for a in argv]
+    refused(painterly, *args, code=2, edit_layer=None)
