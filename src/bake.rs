@@ -285,7 +285,7 @@ fn read_frame(
     }
     let mut view_frames = Vec::with_capacity(views.len());
     for vm in views {
-        let base: Vec<Vec3> = vm.mesh.posed_points(r, t)?.iter().map(|p| p.as_vec3()).collect();
+        let base = vm.mesh.posed_points_f32(r, t)?;
         let cam = r.require_prim(vm.camera_for(camera)?)?;
         let cam_world = r.local_to_world(&cam, t)?.transform_point3(glam::DVec3::ZERO);
         let cam_local = vm.mesh.local_to_world(r, t)?.inverse().transform_point3(cam_world);

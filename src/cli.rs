@@ -169,6 +169,19 @@ pub enum Command {
         #[command(flatten)]
         brush: BrushArgs,
     },
+    /// Render preview frames: linear EXR (R, G, B, A, Z), optional sRGB PNGs
+    /// and a contact sheet.
+    ///
+    /// Composes the input with a bake layer (--bake, or the input baked on
+    /// the fly), projects through the USD camera's own focal length,
+    /// apertures, offsets and clipping range (image aspect conformed by
+    /// keeping the horizontal aperture), draws every BasisCurves curve as an
+    /// antialiased camera-facing ribbon (widths, displayColor,
+    /// displayOpacity) composited back to front, and every non-guide Mesh
+    /// with Rademacher's warm/cool shading and silhouette lines.
+    ///
+    /// Example: painterly render shot.usda --camera /World/Cam --frames 1:48 -o out/shot.####.exr --png --sheet
+    Render(crate::render::RenderArgs),
     /// Interpolation weights for keys and query points, JSON on stdin.
     ///
     /// Input: {"method": "smoothVoronoi"|"rbf"|"shepard", "radius": 1.0,
@@ -444,6 +457,15 @@ pub fn run(cli: Cli) -> i32 {
         }
         Command::Smudge { edit, brush } => finish(run_brush(&edit, &brush, Brush::Smudge), edit.quiet, &edit.input),
         Command::Expand { edit, brush } => finish(run_brush(&edit, &brush, Brush::Expand), edit.quiet, &edit.input),
+        Command::Render(args) => match crate::render::run(&args) {
+            Ok(summary) => {
+                if !args.quiet {
+                    println!("{summary}");
+                }
+                0
+            }
+            Err(e) => report(&e),
+        },
         Command::Interpolate => {
             let mut input = String::new();
             if let Err(e) = std::io::Read::read_to_string(&mut std::io::stdin(), &mut input) {

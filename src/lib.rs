@@ -19,6 +19,7 @@
 //! | [`bake`] | the `bake` command |
 //! | [`inspect`] | the `inspect` command |
 //! | [`interp`] | configuration-space interpolation (smooth Voronoi, RBF, Shepard) |
+//! | [`render`] | the `render` command: preview EXR/PNG frames and contact sheets |
 
 pub mod author;
 pub mod bake;
@@ -30,6 +31,7 @@ pub mod inspect;
 pub mod interp;
 pub mod keys;
 pub mod mesh;
+pub mod render;
 pub mod skel_deform;
 pub mod skinning;
 pub mod tools;

@@ -6,6 +6,7 @@
 pub mod axes;
 pub mod edit;
 pub mod layer;
+pub mod render_scene;
 pub mod scene;
 pub mod skel;
 pub mod stage;

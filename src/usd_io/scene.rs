@@ -52,6 +52,9 @@ pub struct Proxy {
     pub rest: Vec<DVec3>,
     pub motion: ProxyMotion,
     prim: usd::Prim,
+    /// A cached query on `points`: per-frame reads through a plain attribute
+    /// decode every time sample of a crate file each time.
+    points_query: usd::AttributeQuery,
 }
 
 /// One stroke layer (a BasisCurves prim).
@@ -319,6 +322,7 @@ pub fn read_mesh(r: &StageReader, prim: usd::Prim, rest_time: Option<f64>) -> Re
         face_indices: indices.iter().map(|&i| i as u32).collect(),
         rest,
         motion,
+        points_query: usd::AttributeQuery::new(&prim.attribute("points")),
         prim,
     })
 }
@@ -329,20 +333,7 @@ impl Proxy {
         let pts = match &self.motion {
             ProxyMotion::Static => return Ok(self.rest.clone()),
             ProxyMotion::Sampled => {
-                let p = r
-                    .typed(&self.prim, "points", Some(t), "point3f[]", values::vec3_array)?
-                    .unwrap_or_default();
-                if p.len() != self.rest.len() {
-                    return Err(Error::attr(
-                        &self.path,
-                        "points",
-                        format!(
-                            "{} points at time {t}, but the rest pose has {}",
-                            p.len(),
-                            self.rest.len()
-                        ),
-                    ));
-                }
+                let p = self.sampled_points(t)?;
                 p.iter().map(|p| p.as_dvec3()).collect::<Vec<_>>()
             }
             ProxyMotion::Skel(s) => {
@@ -361,6 +352,55 @@ impl Proxy {
             ));
         }
         Ok(pts)
+    }
+
+    /// Posed points in f32 (what view-dependent blending and output use);
+    /// time-sampled points are returned without a round trip through f64.
+    pub fn posed_points_f32(&self, r: &StageReader, t: f64) -> Result<Vec<Vec3>> {
+        match self.motion {
+            ProxyMotion::Sampled => {
+                let p = self.sampled_points(t)?;
+                if let Some(i) = p.iter().position(|p| !p.is_finite()) {
+                    return Err(Error::attr(
+                        &self.path,
+                        "points",
+                        format!("point {i} is not finite at time {t}"),
+                    ));
+                }
+                Ok(p)
+            }
+            _ => Ok(self.posed_points(r, t)?.iter().map(|p| p.as_vec3()).collect()),
+        }
+    }
+
+    /// Time-sampled `points` at `t` (USD's linear interpolation), checked for count.
+    fn sampled_points(&self, t: f64) -> Result<Vec<Vec3>> {
+        let v = self
+            .points_query
+            .get_at::<openusd::sdf::Value>(usd::TimeCode::new(t))
+            .map_err(|e| Error::attr(&self.path, "points", format!("cannot read at time {t}: {e}")))?;
+        let p = match v {
+            None => Vec::new(),
+            Some(v) => values::into_vec3_array(v).map_err(|v| {
+                Error::attr(
+                    &self.path,
+                    "points",
+                    format!("expected point3f[], found {}", values::kind_name(&v)),
+                )
+            })?,
+        };
+        if p.len() != self.rest.len() {
+            return Err(Error::attr(
+                &self.path,
+                "points",
+                format!(
+                    "{} points at time {t}, but the rest pose has {}",
+                    p.len(),
+                    self.rest.len()
+                ),
+            ));
+        }
+        Ok(p)
     }
 
     /// The proxy's local-to-world transform at `t`.

@@ -22,6 +22,15 @@ pub fn vec3_array(v: &Value) -> Option<Vec<Vec3>> {
     })
 }
 
+/// Like [`vec3_array`], taking the value: float arrays are reinterpreted in
+/// place (no copy), which matters for per-frame reads of big meshes.
+pub fn into_vec3_array(v: Value) -> Result<Vec<Vec3>, Value> {
+    match v {
+        Value::Vec3fVec(a) => Ok(bytemuck::allocation::cast_vec(a)),
+        other => vec3_array(&other).ok_or(other),
+    }
+}
+
 /// A single 3-vector in any precision.
 pub fn vec3(v: &Value) -> Option<[f64; 3]> {
     Some(match v {

@@ -368,23 +368,39 @@ impl ViewBlend {
         } else {
             crate::view::ViewWeights::base_only()
         };
-        // Offsets at t of the viewpoints that carry weight.
-        let mut current: Vec<Vec<Vec3>> = vec![Vec::new(); self.viewpoints.len()];
-        for &(k, _) in weights.keys() {
+        // Fold each viewpoint's spline coefficients at t into its view
+        // weight, so the output is one pass over at most 3 × (key times)
+        // offset arrays: out = s·base + Σ_k w_k Σ_j c_kj(t) offset_kj.
+        let mut terms: Vec<(f32, &[Vec3])> = Vec::new();
+        for &(k, w) in weights.keys() {
             let vp = &self.viewpoints[k];
-            current[k] = match &vp.spline {
-                None => vp.offsets[0].clone(),
+            match &vp.spline {
+                None => terms.push((w as f32, &vp.offsets[0])),
                 Some(s) => {
-                    let mut out = vec![Vec3::ZERO; base.len()];
-                    let refs: Vec<&[Vec3]> = vp.offsets.iter().map(|o| o.as_slice()).collect();
-                    s.evaluate(t, &refs, &mut out);
-                    out
+                    for (c, off) in s.weights(t).into_iter().zip(&vp.offsets) {
+                        if c != 0.0 {
+                            terms.push(((w * c) as f32, off));
+                        }
+                    }
                 }
-            };
+            }
         }
-        let refs: Vec<&[Vec3]> = current.iter().map(|o| o.as_slice()).collect();
+        let scale = weights.base_scale() as f32;
         let mut out = vec![Vec3::ZERO; base.len()];
-        crate::view::blend_offsets(base, &refs, &weights, &mut out);
+        {
+            use rayon::prelude::*;
+            out.par_chunks_mut(8192).enumerate().for_each(|(c, chunk)| {
+                let start = c * 8192;
+                for (i, o) in chunk.iter_mut().enumerate() {
+                    let p = start + i;
+                    let mut v = base[p] * scale;
+                    for (w, off) in &terms {
+                        v += off[p] * *w;
+                    }
+                    *o = v;
+                }
+            });
+        }
         Ok(out)
     }
 }

@@ -1,0 +1,335 @@
+"""Contract tests for `painterly render` (preview EXR/PNG frames).
+
+Pixel predictions come from usd-core's own camera math:
+`UsdGeom.Camera(prim).GetCamera(t).frustum`, with the window conformed to
+the image aspect by painterly's documented policy (keep the horizontal
+extent, vertical = width / aspect around the same centre, CameraUtil's
+MatchHorizontally), projected with `Gf.Frustum`'s view and projection
+matrices. EXR files are read back with the OpenEXR bindings (an independent
+reader), PNGs with Pillow.
+"""
+
+import math
+
+import numpy as np
+import OpenEXR
+import pytest
+from PIL import Image
+from pxr import Gf, Usd, UsdGeom
+
+W, H = 320, 200
+
+
+def read_exr(path):
+    with OpenEXR.File(str(path), separate_channels=True) as f:
+        return {k: np.array(v.pixels) for k, v in f.channels().items()}
+
+
+def author(path, camera=None, strokes=(), meshes=(), camera_type="Camera", start=1, end=1):
+    """A stage with a camera at /Cam and linear BasisCurves strokes at /S0, /S1, ..."""
+    stage = Usd.Stage.CreateNew(str(path))
+    stage.SetStartTimeCode(start)
+    stage.SetEndTimeCode(end)
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y)
+    if camera is not None:
+        if camera_type == "Camera":
+            cam = UsdGeom.Camera.Define(stage, "/Cam")
+            for name, value in camera.get("attrs", {}).items():
+                cam.GetPrim().GetAttribute(name).Set(value)
+            xf = cam
+        else:
+            xf = UsdGeom.Xform.Define(stage, "/Cam")
+        x = UsdGeom.Xformable(xf)
+        x.AddTranslateOp().Set(Gf.Vec3d(*camera.get("translate", (0, 0, 0))))
+        x.AddRotateXYZOp().Set(Gf.Vec3f(*camera.get("rotate", (0, 0, 0))))
+    for i, s in enumerate(strokes):
+        c = UsdGeom.BasisCurves.Define(stage, f"/S{i}")
+        c.CreateTypeAttr("linear")
+        pts = s["points"]
+        c.CreateCurveVertexCountsAttr([len(pts)])
+        c.CreatePointsAttr([Gf.Vec3f(*p) for p in pts])
+        c.CreateWidthsAttr([s.get("width", 0.1)])
+        c.SetWidthsInterpolation(UsdGeom.Tokens.constant)
+        c.CreateDisplayColorPrimvar(UsdGeom.Tokens.constant).Set([Gf.Vec3f(*s.get("color", (1, 1, 1)))])
+        c.CreateDisplayOpacityPrimvar(UsdGeom.Tokens.constant).Set([s.get("opacity", 1.0)])
+    for i, m in enumerate(meshes):
+        mesh = UsdGeom.Mesh.Define(stage, f"/M{i}")
+        mesh.CreatePointsAttr([Gf.Vec3f(*p) for p in m["points"]])
+        mesh.CreateFaceVertexCountsAttr(m["counts"])
+        mesh.CreateFaceVertexIndicesAttr(m["indices"])
+        if "purpose" in m:
+            mesh.CreatePurposeAttr(m["purpose"])
+    stage.GetRootLayer().Save()
+    return path
+
+
+def predict(stage_path, world_point, time=1, size=(W, H)):
+    """Pixel (x, y) and camera depth of a world point, by usd-core's frustum."""
+    stage = Usd.Stage.Open(str(stage_path))
+    gc = UsdGeom.Camera(stage.GetPrimAtPath("/Cam")).GetCamera(time)
+    frustum = gc.frustum
+    win = frustum.window
+    aspect = size[0] / size[1]
+    cy = 0.5 * (win.min[1] + win.max[1])
+    half = 0.5 * (win.max[0] - win.min[0]) / aspect
+    frustum.window = Gf.Range2d(Gf.Vec2d(win.min[0], cy - half), Gf.Vec2d(win.max[0], cy + half))
+    m = frustum.ComputeViewMatrix() * frustum.ComputeProjectionMatrix()
+    ndc = m.Transform(Gf.Vec3d(*world_point))
+    cam_pt = frustum.ComputeViewMatrix().Transform(Gf.Vec3d(*world_point))
+    return ((ndc[0] + 1) / 2 * size[0], (1 - ndc[1]) / 2 * size[1]), -cam_pt[2], gc
+
+
+def render(painterly, stage, out_dir, *extra, frames="1", name="f.####.exr", size=(W, H), check=True):
+    out = out_dir / name
+    return painterly(
+        "render", stage, "--camera", "/Cam", "--frames", frames, "-o", out, "--size", f"{size[0]}x{size[1]}", *extra,
+        check=check,
+    )
+
+
+def centroid(alpha):
+    ys, xs = np.mgrid[0 : alpha.shape[0], 0 : alpha.shape[1]]
+    total = alpha.sum()
+    assert total > 0, "nothing was drawn"
+    return (xs + 0.5).ravel() @ alpha.ravel() / total, (ys + 0.5).ravel() @ alpha.ravel() / total
+
+
+def camera_axes(gc):
+    m = gc.transform
+    right = Gf.Vec3d(m.GetRow3(0)).GetNormalized()
+    up = Gf.Vec3d(m.GetRow3(1)).GetNormalized()
+    return right, up
+
+
+CAMERAS = {
+    "perspective_offset": {
+        "translate": (1.5, -0.5, 12.0),
+        "rotate": (4.0, 6.0, 3.0),
+        "attrs": {
+            "focalLength": 42.0,
+            "horizontalAperture": 24.0,
+            "verticalAperture": 20.0,  # aspect 1.2, image 1.6: conform applies
+            "horizontalApertureOffset": 1.3,
+            "verticalApertureOffset": -0.8,
+            "clippingRange": Gf.Vec2f(0.5, 500.0),
+        },
+    },
+    "orthographic": {
+        "translate": (0.3, 0.2, 20.0),
+        "rotate": (2.0, 3.0, 0.0),
+        "attrs": {
+            "projection": "orthographic",
+            "horizontalAperture": 100.0,
+            "verticalAperture": 40.0,
+            "verticalApertureOffset": 2.0,
+            "clippingRange": Gf.Vec2f(0.1, 100.0),
+        },
+    },
+}
+
+
+@pytest.mark.parametrize("cam_name", sorted(CAMERAS))
+@pytest.mark.parametrize("target", [(0.4, 0.3, 0.0), (-1.2, 0.9, -2.0)])
+def test_point_lands_where_usd_core_projects_it(painterly, tmp_path, cam_name, target):
+    cam = CAMERAS[cam_name]
+    probe = author(tmp_path / "probe.usda", camera=cam)
+    (px, py), depth, gc = predict(probe, target)
+    assert 20 < px < W - 20 and 20 < py < H - 20, "test point must be well inside the frame"
+    right, _ = camera_axes(gc)
+    # A short stroke across the view, centred on the target, at one depth.
+    d = 0.02 * depth if cam_name != "orthographic" else 0.05
+    a = Gf.Vec3d(*target) - right * d
+    b = Gf.Vec3d(*target) + right * d
+    stage = author(tmp_path / "s.usda", camera=cam, strokes=[{"points": [tuple(a), tuple(b)], "width": d}])
+    render(painterly, stage, tmp_path)
+    exr = read_exr(tmp_path / "f.0001.exr")
+    cx, cy = centroid(exr["A"])
+    assert abs(cx - px) < 0.15 and abs(cy - py) < 0.15, f"centroid {(cx, cy)} vs usd-core {(px, py)}"
+    # Z holds the camera depth of the stroke.
+    iy, ix = int(py), int(px)
+    assert exr["Z"][iy, ix] == pytest.approx(depth, rel=1e-4)
+    assert math.isinf(exr["Z"][0, 0])
+
+
+def test_stroke_covers_width_times_length(painterly, tmp_path):
+    cam = {"translate": (0, 0, 10), "attrs": {"focalLength": 35.0, "clippingRange": Gf.Vec2f(0.1, 100)}}
+    width, opacity = 0.15, 0.8
+    a, b = (-1.6, -0.7, 0.0), (1.4, 0.9, 0.0)
+    stage = author(tmp_path / "s.usda", camera=cam, strokes=[{"points": [a, b], "width": width, "opacity": opacity}])
+    (pa, _, _), (pb, _, _) = predict(stage, a), predict(stage, b)
+    length_px = math.dist(pa, pb)
+    world_len = math.dist(a, b)
+    width_px = width * length_px / world_len  # both ends at the same depth
+    render(painterly, stage, tmp_path)
+    alpha = read_exr(tmp_path / "f.0001.exr")["A"]
+    area = alpha.sum() / opacity
+    expected = width_px * length_px
+    assert width_px > 5 and abs(area - expected) / expected < 0.02, (area, expected)
+    assert alpha.max() == pytest.approx(opacity, abs=1e-5)
+
+
+@pytest.mark.parametrize("red_nearer", [True, False])
+@pytest.mark.parametrize("authored_red_first", [True, False])
+def test_compositing_order_follows_depth(painterly, tmp_path, red_nearer, authored_red_first):
+    cam = {"translate": (0, 0, 10), "attrs": {"clippingRange": Gf.Vec2f(0.1, 100)}}
+    zr, zb = (1.0, -1.0) if red_nearer else (-1.0, 1.0)
+    red = {"points": [(-1, 0, zr), (1, 0, zr)], "width": 0.4, "color": (1, 0, 0), "opacity": 0.5}
+    blue = {"points": [(0, -1, zb), (0, 1, zb)], "width": 0.4, "color": (0, 0, 1), "opacity": 0.5}
+    strokes = [red, blue] if authored_red_first else [blue, red]
+    stage = author(tmp_path / "s.usda", camera=cam, strokes=strokes)
+    render(painterly, stage, tmp_path)
+    exr = read_exr(tmp_path / "f.0001.exr")
+    y, x = H // 2, W // 2
+    near, far = ("R", "B") if red_nearer else ("B", "R")
+    # near·0.5 over far·0.5 (premultiplied): near 0.5, far 0.25, alpha 0.75.
+    assert exr[near][y, x] == pytest.approx(0.5, abs=1e-4)
+    assert exr[far][y, x] == pytest.approx(0.25, abs=1e-4)
+    assert exr["A"][y, x] == pytest.approx(0.75, abs=1e-4)
+    assert exr["Z"][y, x] == pytest.approx(10 - max(zr, zb), rel=1e-4)
+
+
+def srgb(x):
+    x = np.clip(x, 0, 1)
+    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
+
+
+def test_exr_channels_match_png(painterly, tmp_path):
+    cam = {"translate": (0, 0, 10), "attrs": {"clippingRange": Gf.Vec2f(0.1, 100)}}
+    strokes = [
+        {"points": [(-2, -1, 0), (2, 1, 0)], "width": 0.5, "color": (0.9, 0.4, 0.1), "opacity": 0.7},
+        {"points": [(-2, 1, 1), (2, -1, 1)], "width": 0.3, "color": (0.1, 0.5, 0.8), "opacity": 0.9},
+    ]
+    stage = author(tmp_path / "s.usda", camera=cam, strokes=strokes)
+    render(painterly, stage, tmp_path, "--png")
+    exr = read_exr(tmp_path / "f.0001.exr")
+    assert sorted(exr) == ["A", "B", "G", "R", "Z"]
+    assert all(v.dtype == np.float32 and v.shape == (H, W) for v in exr.values())
+    png = Image.open(tmp_path / "f.0001.png")
+    assert png.mode == "RGBA" and png.size == (W, H)
+    p = np.asarray(png).astype(int)
+    a = exr["A"]
+    assert np.abs(p[..., 3] - np.round(a * 255)).max() <= 1
+    mask = a > 0.02
+    for k, c in enumerate("RGB"):
+        want = np.round(srgb(exr[c][mask] / a[mask]) * 255)
+        assert np.abs(p[..., k][mask] - want).max() <= 1, c
+    # Flattened over a background: RGB = srgb(C + (1 − A)·bg).
+    render(painterly, stage, tmp_path, "--png", "--background", "#336699", name="g.####.exr")
+    flat = np.asarray(Image.open(tmp_path / "g.0001.png")).astype(int)
+    bg = [((v / 255 + 0.055) / 1.055) ** 2.4 for v in (0x33, 0x66, 0x99)]
+    for k, c in enumerate("RGB"):
+        want = np.round(srgb(exr[c] + (1 - a) * bg[k]) * 255)
+        assert np.abs(flat[..., k] - want).max() <= 1, c
+
+
+def test_bake_layer_option_matches_baking_on_the_fly(painterly, tmp_path, repo_root):
+    fish = repo_root / "fixtures" / "blowfish.usda"
+    wrapper = tmp_path / "fish_cam.usda"
+    stage = Usd.Stage.CreateNew(str(wrapper))
+    stage.GetRootLayer().subLayerPaths.append(str(fish))
+    stage.SetStartTimeCode(1)
+    stage.SetEndTimeCode(48)
+    cam = UsdGeom.Camera.Define(stage, "/Cam")
+    cam.CreateFocalLengthAttr(35.0)
+    cam.CreateClippingRangeAttr(Gf.Vec2f(0.1, 1000))
+    UsdGeom.Xformable(cam).AddTranslateOp().Set(Gf.Vec3d(-0.9, 4.2, 40))
+    stage.GetRootLayer().Save()
+    painterly("bake", wrapper, "-o", tmp_path / "bake.usdc", "--frames", "24:25")
+    render(painterly, wrapper, tmp_path, "--bake", tmp_path / "bake.usdc", frames="24:25", name="a.####.exr")
+    out = render(painterly, wrapper, tmp_path, "--sheet", frames="24:25", name="b.####.exr")
+    assert "2 frames" in out.stdout and "strokes" in out.stdout
+    for f in (24, 25):
+        a = read_exr(tmp_path / f"a.{f:04d}.exr")
+        b = read_exr(tmp_path / f"b.{f:04d}.exr")
+        assert a["A"].sum() > 1000, "the fish is in view"
+        for c in "RGBAZ":
+            np.testing.assert_array_equal(a[c], b[c])
+    sheet = Image.open(tmp_path / "b.sheet.png")
+    assert sheet.mode == "RGB" and sheet.size[0] > 100
+
+
+def test_meshes_are_shaded_guides_are_not(painterly, tmp_path):
+    cam = {"translate": (0, 0, 10), "attrs": {"clippingRange": Gf.Vec2f(0.1, 100)}}
+    quad = {"points": [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)], "counts": [4], "indices": [0, 1, 2, 3]}
+    stage = author(tmp_path / "m.usda", camera=cam, meshes=[quad])
+    render(painterly, stage, tmp_path)
+    exr = read_exr(tmp_path / "f.0001.exr")
+    assert exr["A"][H // 2, W // 2] == 1.0
+    assert exr["Z"][H // 2, W // 2] == pytest.approx(10.0, rel=1e-5)
+    guide = author(tmp_path / "g.usda", camera=cam, meshes=[dict(quad, purpose="guide")])
+    render(painterly, guide, tmp_path, name="g.####.exr")
+    assert read_exr(tmp_path / "g.0001.exr")["A"].max() == 0.0
+
+
+BAD_CAMERAS = [
+    ("missing", None, "Camera", "does not exist"),
+    ("xform", {"translate": (0, 0, 10)}, "Xform", "not a Camera"),
+    ("zero_aperture", {"attrs": {"horizontalAperture": 0.0}}, "Camera", "horizontalAperture"),
+    ("zero_focal", {"attrs": {"focalLength": 0.0}}, "Camera", "focalLength"),
+    ("bad_clip", {"attrs": {"clippingRange": Gf.Vec2f(5, 1)}}, "Camera", "clippingRange"),
+]
+
+
+@pytest.mark.parametrize("name,camera,ctype,needle", BAD_CAMERAS, ids=[b[0] for b in BAD_CAMERAS])
+def test_bad_cameras_exit_1_naming_file_and_prim(painterly, tmp_path, name, camera, ctype, needle):
+    stage = author(tmp_path / "s.usda", camera=camera, camera_type=ctype, strokes=[{"points": [(0, 0, 0), (1, 0, 0)]}])
+    p = render(painterly, stage, tmp_path, check=False)
+    assert p.returncode == 1, p.stderr
+    assert "/Cam" in p.stderr and needle in p.stderr and "s.usda" in p.stderr, p.stderr
+    assert "internal error" not in p.stderr and "panicked" not in p.stderr
+
+
+@pytest.mark.parametrize(
+    "args,code,needle",
+    [
+        (["--frames", "a:b"], 2, "frames"),
+        (["--frames", "5:1"], 2, "before start"),
+        (["--frames", "1:3:0"], 2, "step"),
+        (["--size", "0x10"], 2, "size"),
+        (["--background", "#12"], 2, "colour"),
+    ],
+)
+def test_bad_usage_exits_2(painterly, tmp_path, args, code, needle):
+    stage = author(tmp_path / "s.usda", camera={"translate": (0, 0, 10)})
+    base = ["render", stage, "--camera", "/Cam", "-o", tmp_path / "f.####.exr"]
+    if "--frames" not in args:
+        base += ["--frames", "1"]
+    p = painterly(*base, *args, check=False)
+    assert p.returncode == code and needle in p.stderr, p.stderr
+
+
+def test_bad_outputs_and_inputs_exit_1(painterly, tmp_path):
+    stage = author(tmp_path / "s.usda", camera={"translate": (0, 0, 10)})
+
+    def run(output, *extra, input=stage, frames="1"):
+        p = painterly("render", input, "--camera", "/Cam", "--frames", frames, "-o", output, *extra, check=False)
+        assert p.returncode == 1 and "internal error" not in p.stderr, p.stderr
+        return p.stderr
+
+    err = run(tmp_path / "nope" / "f.####.exr")
+    assert "nope" in err and "does not exist" in err
+    assert "####" in run(tmp_path / "f.exr", frames="1:3")
+    assert ".exr" in run(tmp_path / "f.png")
+    assert "absent.usda" in run(tmp_path / "f.exr", input=tmp_path / "absent.usda")
+    assert "b.png" in run(tmp_path / "f.exr", "--brush", tmp_path / "b.png")
+    assert "bake.usdc" in run(tmp_path / "f.exr", "--bake", tmp_path / "bake.usdc")
+
+
+def test_brush_footprint_modulates_alpha(painterly, tmp_path):
+    cam = {"translate": (0, 0, 10), "attrs": {"clippingRange": Gf.Vec2f(0.1, 100)}}
+    stage = author(tmp_path / "s.usda", camera=cam, strokes=[{"points": [(-1, 0, 0), (1, 0, 0)], "width": 0.4}])
+    # Left half of the footprint (one side of the stroke) transparent.
+    brush = np.zeros((8, 16), dtype=np.uint8)
+    brush[:, 8:] = 255
+    Image.fromarray(brush, mode="L").save(tmp_path / "brush.png")
+    render(painterly, stage, tmp_path, name="plain.####.exr")
+    render(painterly, stage, tmp_path, "--brush", tmp_path / "brush.png", name="brushed.####.exr")
+    plain = read_exr(tmp_path / "plain.0001.exr")["A"]
+    brushed = read_exr(tmp_path / "brushed.0001.exr")["A"]
+    ratio = brushed.sum() / plain.sum()
+    assert 0.4 < ratio < 0.6, ratio
+    # One side of the stroke is kept, the other cleared.
+    rows = np.nonzero(brushed.sum(axis=1) > 0)[0]
+    assert plain.sum(axis=1)[rows].sum() > 0
+    top, bottom = brushed[: H // 2].sum(), brushed[H // 2 :].sum()
+    assert min(top, bottom) < 0.1 * max(top, bottom)

@@ -1,0 +1,279 @@
+//! Image files: linear EXR frames (R, G, B, A, Z), sRGB PNG previews, brush
+//! footprints.
+//!
+//! - EXR: 32-bit float channels `R`, `G`, `B` (linear, premultiplied by
+//!   `A`), `A`, and `Z` (camera depth in scene units, +∞ where nothing was
+//!   drawn), ZIP-compressed scan lines.
+//! - PNG: 8-bit sRGB. Without a background colour, RGBA with straight
+//!   (unpremultiplied) alpha: `rgb = srgb(RGB / A)`, `a = A`. With one, RGB
+//!   flattened over it: `rgb = srgb(RGB + (1 − A)·background)`.
+//!
+//! Every file is written to a temporary sibling and renamed into place.
+
+use std::io::Cursor;
+use std::path::Path;
+
+use exr::prelude::{
+    AnyChannel, AnyChannels, Encoding, FlatSamples, Image, Layer, LayerAttributes, SmallVec, WritableImage,
+};
+use glam::Vec3;
+
+use super::composite::{Brush, Frame};
+use crate::error::{Error, Result};
+use crate::usd_io::layer::write_atomic;
+
+/// Linear → sRGB transfer function (IEC 61966-2-1), input clamped to [0, 1].
+pub fn srgb_encode(x: f32) -> f32 {
+    let x = x.clamp(0.0, 1.0);
+    if x <= 0.003_130_8 {
+        12.92 * x
+    } else {
+        1.055 * x.powf(1.0 / 2.4) - 0.055
+    }
+}
+
+/// sRGB → linear.
+pub fn srgb_decode(x: f32) -> f32 {
+    if x <= 0.040_45 {
+        x / 12.92
+    } else {
+        ((x + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// A float in [0, 1] to 8 bits, rounded.
+#[inline]
+pub fn to_u8(x: f32) -> u8 {
+    (x.clamp(0.0, 1.0) * 255.0 + 0.5) as u8
+}
+
+/// The sRGB curve tabulated at 4096 points (within one 8-bit step of the
+/// exact value; the exact function is used below 0.01, where it is steep).
+struct SrgbTable(Vec<u8>);
+
+impl SrgbTable {
+    const N: usize = 4096;
+
+    fn new() -> Self {
+        SrgbTable(
+            (0..=Self::N)
+                .map(|i| to_u8(srgb_encode(i as f32 / Self::N as f32)))
+                .collect(),
+        )
+    }
+
+    #[inline]
+    fn get(&self, x: f32) -> u8 {
+        let x = x.clamp(0.0, 1.0);
+        if x.is_nan() || x <= 0.0 {
+            return 0;
+        }
+        // The curve is steep near 0: use the exact function there.
+        if x < 0.01 {
+            return to_u8(srgb_encode(x));
+        }
+        self.0[(x * Self::N as f32 + 0.5) as usize]
+    }
+}
+
+/// Writes a frame as a linear float EXR with R, G, B, A and Z.
+pub fn write_exr(path: &Path, frame: &Frame) -> Result<()> {
+    let n = frame.width * frame.height;
+    let mut chans: [Vec<f32>; 4] = std::array::from_fn(|_| Vec::with_capacity(n));
+    for p in &frame.rgba {
+        for (c, v) in chans.iter_mut().zip(p) {
+            c.push(*v);
+        }
+    }
+    let [r, g, b, a] = chans;
+    let list: SmallVec<[AnyChannel<FlatSamples>; 4]> = SmallVec::from_vec(vec![
+        AnyChannel::new("R", FlatSamples::F32(r)),
+        AnyChannel::new("G", FlatSamples::F32(g)),
+        AnyChannel::new("B", FlatSamples::F32(b)),
+        AnyChannel::new("A", FlatSamples::F32(a)),
+        AnyChannel::new("Z", FlatSamples::F32(frame.z.clone())),
+    ]);
+    let layer = Layer::new(
+        (frame.width, frame.height),
+        LayerAttributes::default(),
+        Encoding::SMALL_LOSSLESS,
+        AnyChannels::sort(list),
+    );
+    let image = Image::from_layer(layer);
+    let mut bytes = Cursor::new(Vec::new());
+    image
+        .write()
+        .to_buffered(&mut bytes)
+        .map_err(|e| Error::msg(format!("cannot encode EXR: {e}")).in_file(path))?;
+    write_atomic(path, bytes.get_ref())
+}
+
+/// 8-bit sRGB pixels of a frame: RGBA straight alpha, or RGB over `background`.
+pub fn frame_to_srgb8(frame: &Frame, background: Option<Vec3>) -> Vec<u8> {
+    let lut = SrgbTable::new();
+    match background {
+        Some(bg) => {
+            let mut out = Vec::with_capacity(frame.rgba.len() * 3);
+            for p in &frame.rgba {
+                let k = 1.0 - p[3];
+                out.push(lut.get(p[0] + k * bg.x));
+                out.push(lut.get(p[1] + k * bg.y));
+                out.push(lut.get(p[2] + k * bg.z));
+            }
+            out
+        }
+        None => {
+            let mut out = Vec::with_capacity(frame.rgba.len() * 4);
+            for p in &frame.rgba {
+                let a = p[3];
+                if a > 0.0 {
+                    out.push(lut.get(p[0] / a));
+                    out.push(lut.get(p[1] / a));
+                    out.push(lut.get(p[2] / a));
+                } else {
+                    out.extend_from_slice(&[0, 0, 0]);
+                }
+                out.push(to_u8(a));
+            }
+            out
+        }
+    }
+}
+
+/// Writes 8-bit pixels (3 or 4 channels per pixel) as a PNG tagged sRGB.
+pub fn write_png8(path: &Path, width: usize, height: usize, channels: usize, data: &[u8], small: bool) -> Result<()> {
+    let mut bytes = Vec::new();
+    let result = (|| -> std::result::Result<(), png::EncodingError> {
+        let mut enc = png::Encoder::new(&mut bytes, width as u32, height as u32);
+        enc.set_color(if channels == 4 {
+            png::ColorType::Rgba
+        } else {
+            png::ColorType::Rgb
+        });
+        enc.set_depth(png::BitDepth::Eight);
+        enc.set_source_srgb(png::SrgbRenderingIntent::Perceptual);
+        enc.set_compression(if small {
+            png::Compression::High
+        } else {
+            png::Compression::Fast
+        });
+        let mut w = enc.write_header()?;
+        w.write_image_data(data)?;
+        w.finish()
+    })();
+    result.map_err(|e| Error::msg(format!("cannot encode PNG: {e}")).in_file(path))?;
+    write_atomic(path, &bytes)
+}
+
+/// Writes a frame as an sRGB PNG preview.
+pub fn write_png(path: &Path, frame: &Frame, background: Option<Vec3>) -> Result<()> {
+    let data = frame_to_srgb8(frame, background);
+    let channels = if background.is_some() { 3 } else { 4 };
+    write_png8(path, frame.width, frame.height, channels, &data, false)
+}
+
+/// Reads a PNG as a grayscale footprint in [0, 1]: gray (times alpha when
+/// present), or for colour images their Rec. 709 luma times alpha. Values
+/// are used as stored (no sRGB decoding): a footprint is a mask.
+pub fn read_brush(path: &Path) -> Result<Brush> {
+    let err = |m: String| Error::msg(m).in_file(path);
+    let file = std::fs::File::open(path).map_err(|e| err(format!("cannot open brush: {e}")))?;
+    let mut dec = png::Decoder::new(std::io::BufReader::new(file));
+    dec.set_transformations(png::Transformations::EXPAND | png::Transformations::STRIP_16);
+    let mut reader = dec
+        .read_info()
+        .map_err(|e| err(format!("cannot read brush PNG: {e}")))?;
+    let size = reader
+        .output_buffer_size()
+        .ok_or_else(|| err("brush PNG is too large".into()))?;
+    let mut buf = vec![0u8; size];
+    let info = reader
+        .next_frame(&mut buf)
+        .map_err(|e| err(format!("cannot read brush PNG: {e}")))?;
+    let (w, h) = (info.width as usize, info.height as usize);
+    if w == 0 || h == 0 {
+        return Err(err("brush PNG is empty".into()));
+    }
+    let ch = match info.color_type {
+        png::ColorType::Grayscale => 1,
+        png::ColorType::GrayscaleAlpha => 2,
+        png::ColorType::Rgb => 3,
+        png::ColorType::Rgba => 4,
+        png::ColorType::Indexed => return Err(err("brush PNG: unexpanded palette".into())),
+    };
+    let values = buf[..w * h * ch]
+        .chunks_exact(ch)
+        .map(|p| {
+            let f = |i: usize| p[i] as f32 / 255.0;
+            match ch {
+                1 => f(0),
+                2 => f(0) * f(1),
+                3 => 0.2126 * f(0) + 0.7152 * f(1) + 0.0722 * f(2),
+                _ => (0.2126 * f(0) + 0.7152 * f(1) + 0.0722 * f(2)) * f(3),
+            }
+        })
+        .collect();
+    Ok(Brush {
+        width: w,
+        height: h,
+        values,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn srgb_round_trips_and_table_matches() {
+        let lut = SrgbTable::new();
+        for i in 0..=1000 {
+            let x = i as f32 / 1000.0;
+            assert!((srgb_decode(srgb_encode(x)) - x).abs() < 1e-5);
+            let exact = to_u8(srgb_encode(x)) as i32;
+            assert!((lut.get(x) as i32 - exact).abs() <= 1, "{x}");
+        }
+        assert_eq!(to_u8(srgb_encode(0.5)), 188);
+    }
+
+    #[test]
+    fn png_pixels_unpremultiply_or_flatten() {
+        let frame = Frame {
+            width: 2,
+            height: 1,
+            rgba: vec![[0.25, 0.0, 0.0, 0.5], [0.0; 4]],
+            z: vec![1.0, f32::INFINITY],
+        };
+        assert_eq!(frame_to_srgb8(&frame, None), vec![188, 0, 0, 128, 0, 0, 0, 0]);
+        let flat = frame_to_srgb8(&frame, Some(Vec3::new(0.0, 0.0, 1.0)));
+        assert_eq!(flat, vec![137, 0, 188, 0, 0, 255]);
+    }
+
+    #[test]
+    fn exr_and_png_files_round_trip_through_their_decoders() {
+        let dir = std::env::temp_dir().join(format!("painterly-image-io-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let frame = Frame {
+            width: 3,
+            height: 2,
+            rgba: (0..6).map(|i| [i as f32 * 0.1, 0.5, 0.25, 1.0]).collect(),
+            z: (0..6).map(|i| i as f32).collect(),
+        };
+        let exr_path = dir.join("f.exr");
+        write_exr(&exr_path, &frame).unwrap();
+        let img = exr::prelude::read_all_flat_layers_from_file(&exr_path).unwrap();
+        let names: Vec<String> = img.layer_data[0]
+            .channel_data
+            .list
+            .iter()
+            .map(|c| c.name.to_string())
+            .collect();
+        assert_eq!(names, ["A", "B", "G", "R", "Z"]);
+        let png_path = dir.join("g.png");
+        write_png8(&png_path, 2, 1, 3, &[1, 2, 3, 4, 5, 6], true).unwrap();
+        let b = read_brush(&png_path).unwrap();
+        assert_eq!((b.width, b.height), (2, 1));
+        assert!((b.values[0] - (0.2126 + 0.7152 * 2.0 + 0.0722 * 3.0) / 255.0).abs() < 1e-6);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}

@@ -1,0 +1,408 @@
+//! `painterly render`: preview frames of painted strokes and view-dependent
+//! meshes, as linear EXR (R, G, B, A, Z) and optional sRGB PNG previews and a
+//! contact sheet.
+//!
+//! The input is composed with a bake layer (`--bake`, or one baked on the
+//! fly into a temporary folder) through a temporary root layer that
+//! sublayers both; each frame is then read ([`crate::usd_io::render_scene`]),
+//! projected with the USD camera's own parameters ([`camera`]), turned into
+//! pixel-space primitives ([`prepare`]), rasterised and composited
+//! ([`raster`], [`composite`], shaded by [`shade`]) and written
+//! ([`image_io`], [`sheet`]). Everything under this module except `run` is
+//! pure math on plain numbers. See docs/render.md for the design notes.
+//!
+//! | module | concept |
+//! |---|---|
+//! | [`camera`] | UsdGeomCamera → frustum window → pixels; conform policy |
+//! | [`curves`] | BasisCurves tessellation into stroke polylines |
+//! | [`prepare`] | world-space strokes and meshes → pixel-space primitives |
+//! | [`raster`] | ribbon coverage, triangle rasterisation |
+//! | [`shade`] | Rademacher's warm/cool shading |
+//! | [`composite`] | tiles, z-buffer, silhouettes, stroke compositing |
+//! | [`image_io`] | EXR, PNG, brush footprints |
+//! | [`sheet`] | contact sheets |
+
+pub mod camera;
+pub mod composite;
+pub mod curves;
+pub mod image_io;
+pub mod prepare;
+pub mod raster;
+pub mod shade;
+pub mod sheet;
+
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use glam::Vec3;
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+
+use crate::bake::{bake, BakeOptions};
+use crate::error::{Error, Result};
+use crate::frames::FrameRange;
+use crate::usd_io::render_scene::{layer_timing, RenderScene};
+use crate::usd_io::stage::StageReader;
+
+/// Image size `WIDTHxHEIGHT`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ImageSize {
+    pub width: usize,
+    pub height: usize,
+}
+
+impl std::str::FromStr for ImageSize {
+    type Err = String;
+
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        let bad = || format!("{s:?} is not a size (expected WIDTHxHEIGHT, e.g. 1920x1080)");
+        let (w, h) = s.split_once(['x', 'X']).ok_or_else(bad)?;
+        let w: usize = w.trim().parse().map_err(|_| bad())?;
+        let h: usize = h.trim().parse().map_err(|_| bad())?;
+        if w == 0 || h == 0 || w > 16384 || h > 16384 {
+            return Err(format!("{s:?}: width and height must be between 1 and 16384"));
+        }
+        Ok(ImageSize { width: w, height: h })
+    }
+}
+
+/// A colour given as `#rrggbb` or `R,G,B` (display sRGB values in 0..1); held linear.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Rgb(pub Vec3);
+
+impl std::str::FromStr for Rgb {
+    type Err = String;
+
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        let bad = || format!("{s:?} is not a colour (expected #rrggbb or R,G,B with values in 0..1)");
+        let srgb: [f32; 3] = if let Some(hex) = s.strip_prefix('#') {
+            if hex.len() != 6 {
+                return Err(bad());
+            }
+            let byte = |i: usize| u8::from_str_radix(&hex[i..i + 2], 16).map_err(|_| bad());
+            [
+                byte(0)? as f32 / 255.0,
+                byte(2)? as f32 / 255.0,
+                byte(4)? as f32 / 255.0,
+            ]
+        } else {
+            let v: Vec<f32> = s
+                .split(',')
+                .map(|x| x.trim().parse::<f32>())
+                .collect::<std::result::Result<_, _>>()
+                .map_err(|_| bad())?;
+            match v.as_slice() {
+                [r, g, b] if [r, g, b].iter().all(|x| (0.0..=1.0).contains(*x)) => [*r, *g, *b],
+                _ => return Err(bad()),
+            }
+        };
+        Ok(Rgb(Vec3::from_array(srgb.map(image_io::srgb_decode))))
+    }
+}
+
+/// `painterly render` options.
+#[derive(Debug, Clone, clap::Args)]
+pub struct RenderArgs {
+    /// The scene (.usda, .usdc or .usdz).
+    pub input: PathBuf,
+    /// A layer written by `painterly bake` to compose over the input. Without
+    /// it the input is baked first (same frames and camera) into a temporary
+    /// folder.
+    #[arg(long, value_name = "LAYER")]
+    pub bake: Option<PathBuf>,
+    /// The UsdGeomCamera prim to render through.
+    #[arg(long, value_name = "PRIM")]
+    pub camera: String,
+    /// Time codes to render: A, A:B or A:B:STEP.
+    #[arg(long, value_name = "A:B[:STEP]")]
+    pub frames: FrameRange,
+    /// Output EXR path; a run of # is replaced by the zero-padded frame
+    /// number (out/name.####.exr). The folder must exist.
+    #[arg(short, long, value_name = "FILE.####.exr")]
+    pub output: PathBuf,
+    /// Also write an sRGB PNG preview beside each EXR.
+    #[arg(long)]
+    pub png: bool,
+    /// Image size.
+    #[arg(long, default_value = "1920x1080", value_name = "WxH")]
+    pub size: ImageSize,
+    /// Also write a contact sheet of all frames (NAME.sheet.png).
+    #[arg(long)]
+    pub sheet: bool,
+    /// Grayscale PNG footprint modulating stroke alpha (x across the
+    /// stroke's width, y along its length).
+    #[arg(long, value_name = "PNG")]
+    pub brush: Option<PathBuf>,
+    /// Background for PNG previews and the sheet (#rrggbb or R,G,B sRGB).
+    /// Without it PNG previews keep their alpha and the sheet uses a light
+    /// paper colour. EXR frames always keep their alpha.
+    #[arg(long, value_name = "COLOUR")]
+    pub background: Option<Rgb>,
+    /// Print nothing on success.
+    #[arg(short, long)]
+    pub quiet: bool,
+}
+
+/// Paper white (#f1ede4) for sheets without --background.
+const PAPER: [f32; 3] = [0.879, 0.846, 0.776];
+
+/// The output path of frame `t`: the first run of `#` becomes the frame
+/// number, zero-padded to the run's length (fractional frames keep up to
+/// three decimals: `0012.5`).
+pub fn frame_path(pattern: &Path, t: f64) -> PathBuf {
+    let name = pattern
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let Some(start) = name.find('#') else {
+        return pattern.to_path_buf();
+    };
+    let len = name[start..].chars().take_while(|&c| c == '#').count();
+    let whole = t.trunc();
+    let mut num = if whole < 0.0 {
+        format!("-{:0len$}", (-whole) as i64, len = len.saturating_sub(1))
+    } else {
+        format!("{:0len$}", whole as i64)
+    };
+    let frac = t - whole;
+    if frac.abs() > 1e-9 {
+        let f = format!("{:.3}", frac.abs());
+        num.push_str(f.trim_start_matches('0').trim_end_matches('0'));
+    }
+    let out = format!("{}{}{}", &name[..start], num, &name[start + len..]);
+    pattern.with_file_name(out)
+}
+
+/// The contact sheet's path: the pattern without its `#` run (and the
+/// separator before it), extension `.sheet.png`.
+pub fn sheet_path(pattern: &Path) -> PathBuf {
+    let stem = pattern
+        .file_stem()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let base: String = stem.replace('#', "");
+    let base = base
+        .trim_end_matches(['.', '_', '-'])
+        .trim_start_matches(['.', '_', '-']);
+    let base = if base.is_empty() { "frames" } else { base };
+    pattern.with_file_name(format!("{base}.sheet.png"))
+}
+
+/// Removes a temporary folder when dropped.
+struct TempDir(PathBuf);
+
+impl TempDir {
+    fn new() -> Result<TempDir> {
+        let nanos = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map(|d| d.as_nanos())
+            .unwrap_or(0);
+        let dir = std::env::temp_dir().join(format!("painterly-render-{}-{nanos}", std::process::id()));
+        std::fs::create_dir_all(&dir)
+            .map_err(|e| Error::msg(format!("cannot create a temporary folder: {e}")).in_file(&dir))?;
+        Ok(TempDir(dir))
+    }
+}
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+fn check_args(args: &RenderArgs) -> Result<Vec<f64>> {
+    let out = &args.output;
+    let ext_ok = out
+        .extension()
+        .is_some_and(|e| e.to_string_lossy().eq_ignore_ascii_case("exr"));
+    if !ext_ok {
+        return Err(
+            Error::msg("output must be an .exr path (PNG previews are written beside it with --png)").in_file(out),
+        );
+    }
+    let dir = match out.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    if !dir.is_dir() {
+        return Err(Error::msg(format!("output folder {} does not exist", dir.display())).in_file(out));
+    }
+    let times = args.frames.times();
+    let has_hash = out.file_name().is_some_and(|n| n.to_string_lossy().contains('#'));
+    if times.len() > 1 && !has_hash {
+        return Err(Error::msg(format!(
+            "{} frames would all write one file: put #### in the output name for the frame number",
+            times.len()
+        ))
+        .in_file(out));
+    }
+    if !args.input.is_file() {
+        return Err(Error::msg("cannot open input: no such file").in_file(&args.input));
+    }
+    if let Some(b) = &args.bake {
+        if !b.is_file() {
+            return Err(Error::msg("cannot open bake layer: no such file").in_file(b));
+        }
+    }
+    Ok(times)
+}
+
+/// Writes the root layer that sublayers the bake over the input.
+fn write_root(dir: &Path, input: &Path, bake_layer: &Path) -> Result<PathBuf> {
+    let abs = |p: &Path| -> Result<String> {
+        let a = p
+            .canonicalize()
+            .map_err(|e| Error::msg(format!("cannot resolve path: {e}")).in_file(p))?;
+        let s = a.to_string_lossy().into_owned();
+        if s.contains('@') {
+            return Err(Error::msg("paths containing '@' cannot be sublayered").in_file(p));
+        }
+        Ok(s)
+    };
+    let (tcps, fps, start, end) = layer_timing(input)?;
+    let mut meta = format!("    timeCodesPerSecond = {tcps}\n    framesPerSecond = {fps}\n");
+    if let (Some(s), Some(e)) = (start, end) {
+        meta.push_str(&format!("    startTimeCode = {s}\n    endTimeCode = {e}\n"));
+    }
+    let text = format!(
+        "#usda 1.0\n(\n{meta}    subLayers = [\n        @{}@,\n        @{}@\n    ]\n)\n",
+        abs(bake_layer)?,
+        abs(input)?
+    );
+    let root = dir.join("render_root.usda");
+    std::fs::write(&root, text).map_err(|e| Error::msg(format!("cannot write: {e}")).in_file(&root))?;
+    Ok(root)
+}
+
+/// Renders every frame; returns the summary line.
+pub fn run(args: &RenderArgs) -> Result<String> {
+    let started = Instant::now();
+    let times = check_args(args)?;
+    let brush = match &args.brush {
+        Some(p) => Some(image_io::read_brush(p)?),
+        None => None,
+    };
+    let tmp = TempDir::new()?;
+    let bake_layer = match &args.bake {
+        Some(b) => b.clone(),
+        None => {
+            let out = tmp.0.join("bake.usdc");
+            let opts = BakeOptions {
+                frames: Some(args.frames),
+                camera: Some(args.camera.clone()),
+                ..Default::default()
+            };
+            bake(&args.input, &out, &opts, &|_, _| {})?;
+            out
+        }
+    };
+    let root = write_root(&tmp.0, &args.input, &bake_layer)?;
+    let input = args.input.clone();
+    let name_input = |mut e: Error| {
+        if e.file.as_deref() == Some(root.as_path()) || e.file.is_none() {
+            e.file = Some(input.clone());
+        }
+        e
+    };
+    let r = StageReader::open(&root).map_err(name_input)?;
+    let scene = RenderScene::discover(&r, &args.camera).map_err(name_input)?;
+
+    let bar = ProgressBar::hidden();
+    if !args.quiet && std::io::stderr().is_terminal() {
+        bar.set_draw_target(ProgressDrawTarget::stderr());
+        bar.set_style(
+            ProgressStyle::with_template("{spinner} rendering {pos}/{len} frames [{bar:30}] {elapsed} (eta {eta})")
+                .unwrap_or_else(|_| ProgressStyle::default_bar()),
+        );
+    }
+    bar.set_length(times.len() as u64);
+
+    let (w, h) = (args.size.width, args.size.height);
+    let style = prepare::Style::default();
+    let sheet_bg = args.background.map(|c| c.0).unwrap_or(Vec3::from_array(PAPER));
+    let cols = sheet::columns(times.len(), w as f64 / h as f64);
+    let factor = sheet::reduction(w, cols);
+    let mut thumbs = Vec::new();
+    let mut seconds = Vec::with_capacity(times.len());
+    let (mut strokes, mut triangles) = (0usize, 0usize);
+    for &t in &times {
+        let frame_start = Instant::now();
+        let cam = scene.camera_at(&r, t).map_err(name_input)?;
+        let curves = scene.curves_at(&r, t).map_err(name_input)?;
+        let meshes = scene.meshes_at(&r, t).map_err(name_input)?;
+        let proj = camera::Projector::new(&cam, w, h);
+        let fs = prepare::build_scene(&proj, &curves, &meshes, &style);
+        strokes = strokes.max(fs.strokes.len());
+        triangles = triangles.max(fs.triangles.len());
+        let frame = composite::render(&fs, brush.as_ref());
+        let path = frame_path(&args.output, t);
+        image_io::write_exr(&path, &frame)?;
+        if args.png {
+            image_io::write_png(&path.with_extension("png"), &frame, args.background.map(|c| c.0))?;
+        }
+        if args.sheet {
+            let label = frame_path(Path::new("#"), t).to_string_lossy().into_owned();
+            thumbs.push(sheet::thumbnail(&frame, factor, sheet_bg, label));
+        }
+        seconds.push(frame_start.elapsed().as_secs_f64());
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    let mut sheet_note = String::new();
+    if args.sheet {
+        // Dark labels on light backgrounds, light ones on dark.
+        let luminance = sheet_bg.dot(Vec3::new(0.2126, 0.7152, 0.0722));
+        let ink = Vec3::splat(if luminance > 0.18 { 0.02 } else { 0.8 });
+        let (sw, sh, px) = sheet::compose(&thumbs, cols, sheet_bg, ink);
+        let sp = sheet_path(&args.output);
+        image_io::write_png8(&sp, sw, sh, 3, &px, true)?;
+        sheet_note = format!(", sheet {}", sp.display());
+    }
+    let mut sorted = seconds.clone();
+    sorted.sort_by(f64::total_cmp);
+    let median = sorted.get(sorted.len() / 2).copied().unwrap_or(0.0);
+    let (ncurves, nmeshes) = scene.counts();
+    Ok(format!(
+        "rendered {} frames at {w}x{h}: {ncurves} curves prims ({strokes} strokes), {nmeshes} meshes ({triangles} triangles) -> {}{sheet_note} in {:.2} s (median {:.3} s/frame)",
+        times.len(),
+        args.output.display(),
+        started.elapsed().as_secs_f64(),
+        median
+    ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn frame_and_sheet_paths() {
+        let p = Path::new("out/fish.####.exr");
+        assert_eq!(frame_path(p, 7.0), PathBuf::from("out/fish.0007.exr"));
+        assert_eq!(frame_path(p, 12.5), PathBuf::from("out/fish.0012.5.exr"));
+        assert_eq!(frame_path(p, -3.0), PathBuf::from("out/fish.-003.exr"));
+        assert_eq!(frame_path(Path::new("a.exr"), 3.0), PathBuf::from("a.exr"));
+        assert_eq!(sheet_path(p), PathBuf::from("out/fish.sheet.png"));
+        assert_eq!(sheet_path(Path::new("f_##.exr")), PathBuf::from("f.sheet.png"));
+        assert_eq!(sheet_path(Path::new("####.exr")), PathBuf::from("frames.sheet.png"));
+    }
+
+    #[test]
+    fn sizes_and_colours_parse() {
+        assert_eq!(
+            "640x360".parse::<ImageSize>().unwrap(),
+            ImageSize {
+                width: 640,
+                height: 360
+            }
+        );
+        for bad in ["640", "0x10", "ax3", "99999x2"] {
+            assert!(bad.parse::<ImageSize>().is_err(), "{bad}");
+        }
+        let c: Rgb = "#ffffff".parse().unwrap();
+        assert!((c.0 - Vec3::ONE).length() < 1e-6);
+        let c: Rgb = "0.5,0,1".parse().unwrap();
+        assert!((c.0.x - 0.214).abs() < 1e-3);
+        assert!("1,2,3".parse::<Rgb>().is_err() && "#12".parse::<Rgb>().is_err());
+    }
+}

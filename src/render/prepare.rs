@@ -1,0 +1,595 @@
+//! World-space curves and meshes → a pixel-space [`FrameScene`].
+//!
+//! **Strokes.** Every curve of every BasisCurves prim is one stroke. Its
+//! polyline is clipped to the camera's clipping range, projected, and drawn
+//! as a camera-facing ribbon: at each point the ribbon is `width` scene units
+//! wide perpendicular to the view direction, i.e. `width × pixels_per_unit(depth)`
+//! pixels on screen. Strokes are sorted back to front by the mean camera
+//! depth of their points (ties keep stage order: later prims and curves on
+//! top).
+//!
+//! **Meshes.** Faces are fan-triangulated from their first vertex; shading
+//! normals are the area-weighted sums of the triangle normals at each vertex
+//! for subdivision surfaces (`subdivisionScheme` ≠ `none`, smooth as a
+//! subdivided surface would look), the polygon's own normal for
+//! `subdivisionScheme = "none"` (faceted); authored `normals` are ignored; triangles crossing the near plane are
+//! clipped; back faces are culled unless `doubleSided`. A silhouette edge is
+//! an edge shared by a front-facing and a back-facing polygon (Rademacher
+//! §3.2.4 after Raskar & Cohen), facing judged from the polygon's Newell
+//! normal and the eye; silhouettes are drawn as dark round-capped lines.
+
+use std::collections::HashMap;
+
+use glam::{DVec3, Vec2, Vec3};
+use rayon::prelude::*;
+
+use super::camera::Projector;
+use super::composite::{FrameScene, StrokeRibbon};
+use super::curves::{CurvesData, Polyline, Primvar};
+use super::raster::{RibbonVertex, ScreenTriangle};
+use super::shade::WarmCool;
+
+/// One Mesh prim at one time, in world space.
+#[derive(Debug, Clone)]
+pub struct MeshData {
+    pub path: String,
+    pub face_counts: Vec<u32>,
+    pub face_indices: Vec<u32>,
+    /// World-space points.
+    pub points: Vec<DVec3>,
+    /// Linear display colour.
+    pub colors: Primvar<Vec3>,
+    /// Clockwise polygons face outwards (`orientation = "leftHanded"`, or a
+    /// mirroring transform).
+    pub left_handed: bool,
+    pub double_sided: bool,
+    /// Smooth vertex normals (`subdivisionScheme` other than `none`);
+    /// faceted otherwise.
+    pub smooth: bool,
+}
+
+impl MeshData {
+    /// Checks the colour primvar's length against the topology.
+    pub fn validate(&self) -> Result<(), (&'static str, String)> {
+        let want = match &self.colors {
+            Primvar::Constant(_) => return Ok(()),
+            Primvar::Uniform(_) => self.face_counts.len(),
+            Primvar::Vertex(_) | Primvar::Varying(_) => self.points.len(),
+            Primvar::FaceVarying(_) => self.face_indices.len(),
+        };
+        if self.colors.len() != want {
+            return Err((
+                "primvars:displayColor",
+                format!(
+                    "{} values with {} interpolation, expected {want}",
+                    self.colors.len(),
+                    self.colors.interpolation()
+                ),
+            ));
+        }
+        Ok(())
+    }
+
+    fn color(&self, face: usize, corner: usize, point: usize) -> Vec3 {
+        match &self.colors {
+            Primvar::Constant(c) => *c,
+            Primvar::Uniform(v) => v[face],
+            Primvar::Vertex(v) | Primvar::Varying(v) => v[point],
+            Primvar::FaceVarying(v) => v[corner],
+        }
+    }
+}
+
+/// Look of the preview.
+#[derive(Debug, Clone, Copy)]
+pub struct Style {
+    /// Silhouette line width in pixels.
+    pub line_width: f32,
+    /// Silhouette line colour (linear).
+    pub line_color: Vec3,
+    pub shading: WarmCool,
+}
+
+impl Default for Style {
+    fn default() -> Self {
+        Style {
+            line_width: 1.5,
+            line_color: Vec3::new(0.02, 0.02, 0.03),
+            shading: WarmCool::default(),
+        }
+    }
+}
+
+/// A point in camera space with the attributes that ride along.
+#[derive(Debug, Clone, Copy)]
+struct CamPoint {
+    p: DVec3,
+    width: f32,
+    color: Vec3,
+    opacity: f32,
+}
+
+impl CamPoint {
+    fn lerp(&self, o: &CamPoint, t: f64) -> CamPoint {
+        let tf = t as f32;
+        CamPoint {
+            p: self.p + (o.p - self.p) * t,
+            width: self.width + (o.width - self.width) * tf,
+            color: self.color + (o.color - self.color) * tf,
+            opacity: self.opacity + (o.opacity - self.opacity) * tf,
+        }
+    }
+}
+
+/// The parameter interval of segment depth `d0 → d1` inside `[near, far]`.
+fn clip_interval(d0: f64, d1: f64, near: f64, far: f64) -> Option<(f64, f64)> {
+    let (mut t0, mut t1) = (0.0f64, 1.0f64);
+    for (lo, hi) in [(near, f64::INFINITY), (f64::NEG_INFINITY, far)] {
+        // Keep lo ≤ d(t) ≤ hi, d(t) = d0 + t (d1 − d0).
+        let dd = d1 - d0;
+        if dd.abs() < 1e-300 {
+            if d0 < lo || d0 > hi {
+                return None;
+            }
+            continue;
+        }
+        let (a, b) = ((lo - d0) / dd, (hi - d0) / dd);
+        let (a, b) = if a < b { (a, b) } else { (b, a) };
+        t0 = t0.max(a);
+        t1 = t1.min(b);
+    }
+    (t0 <= t1).then_some((t0, t1))
+}
+
+/// Splits a camera-space polyline into the runs inside the clipping range.
+fn clip_polyline(pts: &[CamPoint], near: f64, far: f64) -> Vec<Vec<CamPoint>> {
+    let depth = |c: &CamPoint| -c.p.z;
+    let inside = |c: &CamPoint| depth(c) >= near && depth(c) <= far;
+    if pts.len() == 1 {
+        return if inside(&pts[0]) { vec![pts.to_vec()] } else { vec![] };
+    }
+    let mut pieces = Vec::new();
+    let mut cur: Vec<CamPoint> = Vec::new();
+    for w in pts.windows(2) {
+        let Some((t0, t1)) = clip_interval(depth(&w[0]), depth(&w[1]), near, far) else {
+            if !cur.is_empty() {
+                pieces.push(std::mem::take(&mut cur));
+            }
+            continue;
+        };
+        if cur.is_empty() || t0 > 0.0 {
+            if !cur.is_empty() {
+                pieces.push(std::mem::take(&mut cur));
+            }
+            cur.push(w[0].lerp(&w[1], t0));
+        }
+        cur.push(w[0].lerp(&w[1], t1));
+        if t1 < 1.0 {
+            pieces.push(std::mem::take(&mut cur));
+        }
+    }
+    if !cur.is_empty() {
+        pieces.push(cur);
+    }
+    pieces
+}
+
+/// A stroke ready to sort: its sort depth and its projected pieces.
+struct PreparedStroke {
+    depth: f64,
+    pieces: Vec<(Vec<RibbonVertex>, f32)>,
+}
+
+fn prepare_stroke(proj: &Projector, line: &Polyline) -> Option<PreparedStroke> {
+    if line.points.is_empty() {
+        return None;
+    }
+    let cam: Vec<CamPoint> = (0..line.points.len())
+        .map(|i| CamPoint {
+            p: proj.to_camera(line.points[i]),
+            width: line.widths[i],
+            color: line.colors[i],
+            opacity: line.opacities[i],
+        })
+        .collect();
+    let depth = cam.iter().map(|c| -c.p.z).sum::<f64>() / cam.len() as f64;
+    let pieces: Vec<(Vec<RibbonVertex>, f32)> = clip_polyline(&cam, proj.near, proj.far)
+        .into_iter()
+        .map(|piece| {
+            let mut arc = 0.0f32;
+            let mut prev: Option<Vec2> = None;
+            let verts: Vec<RibbonVertex> = piece
+                .iter()
+                .map(|c| {
+                    let d = -c.p.z;
+                    let pos = proj.camera_to_pixel(c.p).as_vec2();
+                    if let Some(q) = prev {
+                        arc += (pos - q).length();
+                    }
+                    prev = Some(pos);
+                    RibbonVertex {
+                        pos,
+                        radius: (0.5 * c.width as f64 * proj.pixels_per_unit(d)) as f32,
+                        depth: d as f32,
+                        color: c.color,
+                        opacity: c.opacity,
+                        arc,
+                    }
+                })
+                .collect();
+            (verts, arc)
+        })
+        .filter(|(v, _)| v.iter().all(|r| r.pos.is_finite() && r.radius.is_finite()))
+        .collect();
+    (!pieces.is_empty()).then_some(PreparedStroke { depth, pieces })
+}
+
+/// Newell normal of a polygon (length = twice its area).
+fn newell(points: &[DVec3], idx: &[u32]) -> DVec3 {
+    let mut n = DVec3::ZERO;
+    for k in 0..idx.len() {
+        let a = points[idx[k] as usize];
+        let b = points[idx[(k + 1) % idx.len()] as usize];
+        n += DVec3::new(
+            (a.y - b.y) * (a.z + b.z),
+            (a.z - b.z) * (a.x + b.x),
+            (a.x - b.x) * (a.y + b.y),
+        );
+    }
+    n
+}
+
+/// Whether a camera-space surface with normal `n` at `p` faces the eye.
+fn faces_eye(proj: &Projector, n: DVec3, p: DVec3) -> bool {
+    if proj.is_perspective() {
+        n.dot(-p) > 0.0
+    } else {
+        n.z > 0.0
+    }
+}
+
+/// A mesh vertex in camera space with its shading inputs.
+#[derive(Debug, Clone, Copy)]
+struct MeshVertex {
+    p: DVec3,
+    n: Vec3,
+    c: Vec3,
+}
+
+fn clip_triangle_near(tri: [MeshVertex; 3], near: f64) -> Vec<MeshVertex> {
+    let inside = |v: &MeshVertex| -v.p.z >= near;
+    let mut out = Vec::with_capacity(4);
+    for k in 0..3 {
+        let (a, b) = (tri[k], tri[(k + 1) % 3]);
+        if inside(&a) {
+            out.push(a);
+        }
+        if inside(&a) != inside(&b) {
+            let (da, db) = (-a.p.z, -b.p.z);
+            let t = (near - da) / (db - da);
+            let tf = t as f32;
+            out.push(MeshVertex {
+                p: a.p + (b.p - a.p) * t,
+                n: a.n + (b.n - a.n) * tf,
+                c: a.c + (b.c - a.c) * tf,
+            });
+        }
+    }
+    out
+}
+
+fn prepare_mesh(proj: &Projector, m: &MeshData, style: &Style) -> (Vec<ScreenTriangle>, Vec<[RibbonVertex; 2]>) {
+    let cam: Vec<DVec3> = m.points.iter().map(|&p| proj.to_camera(p)).collect();
+    let sign = if m.left_handed { -1.0 } else { 1.0 };
+    // Face offsets, facing, and smooth vertex normals.
+    let mut offsets = Vec::with_capacity(m.face_counts.len());
+    let mut o = 0usize;
+    for &c in &m.face_counts {
+        offsets.push(o);
+        o += c as usize;
+    }
+    let mut normals = vec![DVec3::ZERO; cam.len()];
+    let mut front = vec![false; m.face_counts.len()];
+    for (f, &c) in m.face_counts.iter().enumerate() {
+        let idx = &m.face_indices[offsets[f]..offsets[f] + c as usize];
+        if idx.len() < 3 {
+            continue;
+        }
+        let n = newell(&cam, idx) * sign;
+        let centroid = idx.iter().map(|&i| cam[i as usize]).sum::<DVec3>() / idx.len() as f64;
+        front[f] = faces_eye(proj, n, centroid);
+        for k in 1..idx.len() - 1 {
+            let (a, b, cc) = (cam[idx[0] as usize], cam[idx[k] as usize], cam[idx[k + 1] as usize]);
+            let tn = (b - a).cross(cc - a) * sign;
+            for &i in [idx[0], idx[k], idx[k + 1]].iter() {
+                normals[i as usize] += tn;
+            }
+        }
+    }
+    let normals: Vec<Vec3> = normals.iter().map(|n| n.normalize_or_zero().as_vec3()).collect();
+
+    let mut tris = Vec::new();
+    for (f, &c) in m.face_counts.iter().enumerate() {
+        let off = offsets[f];
+        let idx = &m.face_indices[off..off + c as usize];
+        if idx.len() < 3 {
+            continue;
+        }
+        let flat = (!m.smooth).then(|| (newell(&cam, idx) * sign).normalize_or_zero().as_vec3());
+        let vert = |k: usize| {
+            let i = idx[k] as usize;
+            MeshVertex {
+                p: cam[i],
+                n: flat.unwrap_or(normals[i]),
+                c: m.color(f, off + k, i),
+            }
+        };
+        for k in 1..idx.len() - 1 {
+            let tri = [vert(0), vert(k), vert(k + 1)];
+            let tn = (tri[1].p - tri[0].p).cross(tri[2].p - tri[0].p) * sign;
+            let centre = (tri[0].p + tri[1].p + tri[2].p) / 3.0;
+            if !m.double_sided && !faces_eye(proj, tn, centre) {
+                continue;
+            }
+            let depths = tri.map(|v| -v.p.z);
+            if depths.iter().all(|&d| d > proj.far) || depths.iter().all(|&d| d < proj.near) {
+                continue;
+            }
+            let poly = if depths.iter().all(|&d| d >= proj.near) {
+                tri.to_vec()
+            } else {
+                clip_triangle_near(tri, proj.near)
+            };
+            for j in 1..poly.len().saturating_sub(1) {
+                let t = [poly[0], poly[j], poly[j + 1]];
+                let st = ScreenTriangle {
+                    pos: t.map(|v| proj.camera_to_pixel(v.p).as_vec2()),
+                    depth: t.map(|v| (-v.p.z) as f32),
+                    normal: t.map(|v| v.n),
+                    color: t.map(|v| v.c),
+                };
+                if st.pos.iter().all(|p| p.is_finite()) {
+                    tris.push(st);
+                }
+            }
+        }
+    }
+
+    // Silhouettes: edges between a front- and a back-facing polygon.
+    let mut edges: HashMap<(u32, u32), (usize, Option<usize>)> = HashMap::new();
+    for (f, &c) in m.face_counts.iter().enumerate() {
+        if c < 3 {
+            continue;
+        }
+        let idx = &m.face_indices[offsets[f]..offsets[f] + c as usize];
+        for k in 0..idx.len() {
+            let (a, b) = (idx[k], idx[(k + 1) % idx.len()]);
+            let key = (a.min(b), a.max(b));
+            edges
+                .entry(key)
+                .and_modify(|e| {
+                    if e.1.is_none() && e.0 != f {
+                        e.1 = Some(f);
+                    }
+                })
+                .or_insert((f, None));
+        }
+    }
+    let mut lines = Vec::new();
+    let r = 0.5 * style.line_width;
+    for (&(a, b), &(f0, f1)) in &edges {
+        let Some(f1) = f1 else { continue };
+        if front[f0] == front[f1] {
+            continue;
+        }
+        let pa = CamPoint {
+            p: cam[a as usize],
+            width: 0.0,
+            color: style.line_color,
+            opacity: 1.0,
+        };
+        let pb = CamPoint {
+            p: cam[b as usize],
+            ..pa
+        };
+        for piece in clip_polyline(&[pa, pb], proj.near, proj.far) {
+            if piece.len() == 2 {
+                let v = |c: &CamPoint| RibbonVertex {
+                    pos: proj.camera_to_pixel(c.p).as_vec2(),
+                    radius: r,
+                    depth: (-c.p.z) as f32,
+                    color: style.line_color,
+                    opacity: 1.0,
+                    arc: 0.0,
+                };
+                let seg = [v(&piece[0]), v(&piece[1])];
+                if seg.iter().all(|s| s.pos.is_finite()) {
+                    lines.push(seg);
+                }
+            }
+        }
+    }
+    // HashMap order is random: sort for reproducible output.
+    lines.sort_by(|x, y| {
+        (x[0].pos.x, x[0].pos.y, x[1].pos.x, x[1].pos.y)
+            .partial_cmp(&(y[0].pos.x, y[0].pos.y, y[1].pos.x, y[1].pos.y))
+            .unwrap_or(std::cmp::Ordering::Equal)
+    });
+    (tris, lines)
+}
+
+/// Projects everything into a frame's pixel space.
+pub fn build_scene(proj: &Projector, curves: &[CurvesData], meshes: &[MeshData], style: &Style) -> FrameScene {
+    let lines: Vec<Polyline> = curves.par_iter().flat_map_iter(|c| c.polylines()).collect();
+    let mut strokes: Vec<(usize, PreparedStroke)> = lines
+        .par_iter()
+        .enumerate()
+        .filter_map(|(i, l)| prepare_stroke(proj, l).map(|s| (i, s)))
+        .collect();
+    // Back to front; equal depths keep stage order (later on top).
+    strokes.sort_by(|a, b| b.1.depth.total_cmp(&a.1.depth).then(a.0.cmp(&b.0)));
+
+    let mut scene = FrameScene {
+        width: proj.width,
+        height: proj.height,
+        perspective: proj.is_perspective(),
+        line_color: style.line_color,
+        shading: Some(style.shading),
+        ..Default::default()
+    };
+    for (_, s) in strokes {
+        for (verts, length) in s.pieces {
+            let start = scene.verts.len() as u32;
+            scene.verts.extend(verts);
+            scene.strokes.push(StrokeRibbon {
+                start,
+                end: scene.verts.len() as u32,
+                length,
+            });
+        }
+    }
+    let prepared: Vec<_> = meshes.par_iter().map(|m| prepare_mesh(proj, m, style)).collect();
+    for (t, l) in prepared {
+        scene.triangles.extend(t);
+        scene.lines.extend(l);
+    }
+    scene
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::render::camera::CameraParams;
+    use crate::render::composite::render;
+    use crate::render::curves::{Basis, CurveType, Wrap};
+    use glam::DMat4;
+
+    fn projector() -> Projector {
+        // 100 px wide window of 2 units at depth 10: 50 px per unit there.
+        let cam = CameraParams {
+            focal_length: 50.0,
+            horizontal_aperture: 10.0,
+            vertical_aperture: 10.0,
+            camera_to_world: DMat4::from_translation(DVec3::new(0.0, 0.0, 10.0)),
+            ..Default::default()
+        };
+        Projector::new(&cam, 100, 100)
+    }
+
+    fn stroke(z: f64, x0: f64, x1: f64, width: f32, color: Vec3) -> CurvesData {
+        CurvesData {
+            path: "/S".into(),
+            curve_type: CurveType::Linear,
+            basis: Basis::Bezier,
+            wrap: Wrap::Nonperiodic,
+            counts: vec![2],
+            points: vec![DVec3::new(x0, 0.0, z), DVec3::new(x1, 0.0, z)],
+            widths: Primvar::Constant(width),
+            colors: Primvar::Constant(color),
+            opacities: Primvar::Constant(0.5),
+        }
+    }
+
+    #[test]
+    fn ribbon_width_is_world_width_at_its_depth() {
+        let p = projector();
+        let s = build_scene(&p, &[stroke(0.0, -0.5, 0.5, 0.2, Vec3::ONE)], &[], &Style::default());
+        // 0.2 units at depth 10 → 10 px wide, 1 unit long → 50 px.
+        assert_eq!(s.strokes.len(), 1);
+        assert!((s.verts[0].radius - 5.0).abs() < 1e-4);
+        assert!((s.strokes[0].length - 50.0).abs() < 1e-3);
+        let f = render(&s, None);
+        let area: f32 = f.rgba.iter().map(|p| p[3]).sum::<f32>() / 0.5;
+        assert!((area - 500.0).abs() / 500.0 < 0.01, "{area}");
+    }
+
+    #[test]
+    fn strokes_sort_back_to_front_whatever_the_stage_order() {
+        let p = projector();
+        let red = Vec3::X;
+        let blue = Vec3::Z;
+        // Red is nearer (z = 1 is closer to the camera at z = 10).
+        for order in [[0, 1], [1, 0]] {
+            let c = [stroke(1.0, -0.5, 0.5, 0.2, red), stroke(-1.0, -0.5, 0.5, 0.2, blue)];
+            let cs: Vec<CurvesData> = order.iter().map(|&i| c[i].clone()).collect();
+            let f = render(&build_scene(&p, &cs, &[], &Style::default()), None);
+            let px = f.rgba[50 * 100 + 50];
+            // red·0.5 over blue·0.5: R = 0.5, B = 0.25.
+            assert!((px[0] - 0.5).abs() < 1e-4 && (px[2] - 0.25).abs() < 1e-4, "{px:?}");
+        }
+    }
+
+    #[test]
+    fn near_plane_clips_strokes_and_triangles() {
+        let p = projector();
+        // From depth 5 to depth 15 through the camera (at z = 10): depth 0..1
+        // is before the near plane (1).
+        let c = CurvesData {
+            points: vec![DVec3::new(0.0, 0.0, 5.0), DVec3::new(0.0, 0.0, 9.5)],
+            ..stroke(0.0, 0.0, 0.0, 0.1, Vec3::ONE)
+        };
+        let s = build_scene(&p, &[c], &[], &Style::default());
+        assert_eq!(s.strokes.len(), 1);
+        let last = s.verts[s.strokes[0].end as usize - 1];
+        assert!((last.depth - 1.0).abs() < 1e-5);
+        let (a, b) = clip_interval(0.5, 2.0, 1.0, 100.0).unwrap();
+        assert!((a - 1.0 / 3.0).abs() < 1e-12 && b == 1.0);
+        assert!(clip_interval(0.0, 0.5, 1.0, 100.0).is_none());
+    }
+
+    fn cube() -> MeshData {
+        let mut points = Vec::new();
+        for z in [-1.0, 1.0] {
+            for y in [-1.0, 1.0] {
+                for x in [-1.0, 1.0] {
+                    points.push(DVec3::new(x, y, z));
+                }
+            }
+        }
+        // Outward, counter-clockwise faces.
+        let faces = [
+            [0, 2, 3, 1],
+            [4, 5, 7, 6],
+            [0, 1, 5, 4],
+            [2, 6, 7, 3],
+            [0, 4, 6, 2],
+            [1, 3, 7, 5],
+        ];
+        MeshData {
+            path: "/Cube".into(),
+            face_counts: vec![4; 6],
+            face_indices: faces.iter().flatten().copied().collect(),
+            points,
+            colors: Primvar::Constant(Vec3::splat(0.5)),
+            left_handed: false,
+            double_sided: false,
+            smooth: false,
+        }
+    }
+
+    #[test]
+    fn cube_front_faces_and_silhouette() {
+        let p = projector();
+        let (tris, lines) = prepare_mesh(&p, &cube(), &Style::default());
+        // Seen straight on, only the +Z face faces the eye.
+        assert_eq!(tris.len(), 2);
+        // The 4 edges around it border side faces that face away.
+        assert_eq!(lines.len(), 4);
+        let f = render(&build_scene(&p, &[], &[cube()], &Style::default()), None);
+        // Centre: the +Z face, depth 9, lit by the warm light only.
+        let c = f.rgba[50 * 100 + 50];
+        let want = WarmCool::default().shade(Vec3::splat(0.5), Vec3::Z);
+        assert!((c[0] - want.x).abs() < 1e-4 && c[3] == 1.0);
+        assert!((f.z[50 * 100 + 50] - 9.0).abs() < 1e-4);
+        // The face spans ±1 unit at depth 9: x from 50 − 55.6 to 50 + 55.6,
+        // beyond the image; a smaller cube shows its silhouette as dark lines.
+        let small = MeshData {
+            points: cube().points.iter().map(|q| *q * 0.5).collect(),
+            ..cube()
+        };
+        let f = render(&build_scene(&p, &[], &[small], &Style::default()), None);
+        // The right edge at x = 0.5 at depth 9.5: pixel 50 + 0.5 / 9.5 · 500 = 76.3.
+        let edge = f.rgba[50 * 100 + 76];
+        assert!(edge[0] < 0.2 && edge[3] > 0.9, "{edge:?}");
+    }
+}

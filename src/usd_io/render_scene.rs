@@ -1,0 +1,591 @@
+//! Reading what `painterly render` draws: the camera, every BasisCurves and
+//! every renderable Mesh of a composed stage, per frame, as plain world-space
+//! data ([`CurvesData`], [`MeshData`], [`CameraParams`]).
+//!
+//! Selection follows UsdGeomImageable: prims whose computed `purpose` is
+//! `guide` or `proxy` are skipped (painterly's fixtures mark proxy meshes as
+//! guides), and so are prims whose computed `visibility` is `invisible` at
+//! the frame. Native instances are not expanded.
+//!
+//! Fallbacks: `widths` 1 (scene unit, object space, like Hydra's), colour
+//! (0.5, 0.5, 0.5), opacity 1. `primvars:widths` wins over `widths` when
+//! authored. A primvar holding exactly one value is read as constant whatever
+//! its interpolation. Widths are scaled by the cube root of the prim's
+//! local-to-world determinant (exact for uniform scale).
+
+use std::path::Path;
+
+use glam::{DMat4, DVec3, Vec3};
+use openusd::sdf::Value;
+use openusd::usd::{self, AttributeQuery, TimeCode};
+
+use super::scene::{read_mesh, Proxy};
+use super::skel::skeleton_binding;
+use super::stage::StageReader;
+use super::values;
+use crate::error::{Error, Result};
+use crate::render::camera::{CameraParams, Projection};
+use crate::render::curves::{Basis, CurveType, CurvesData, Primvar, Wrap};
+use crate::render::prepare::MeshData;
+
+/// Grey, Hydra's fallback display colour.
+pub const DEFAULT_COLOR: Vec3 = Vec3::new(0.5, 0.5, 0.5);
+/// Fallback curve width (object-space units).
+pub const DEFAULT_WIDTH: f32 = 1.0;
+
+/// A primvar's attribute, its interpolation and optional indices.
+struct PrimvarSource {
+    name: String,
+    query: AttributeQuery,
+    interpolation: String,
+    indices: Option<Vec<i64>>,
+}
+
+impl PrimvarSource {
+    /// None when the attribute has no authored value.
+    fn open(r: &StageReader, prim: &usd::Prim, name: &str, default_interp: &str) -> Result<Option<Self>> {
+        if !r.has_authored(prim, name)? {
+            return Ok(None);
+        }
+        let attr = prim.attribute(name);
+        let interpolation = attr
+            .get_metadata::<Value>("interpolation")
+            .map_err(|e| Error::attr(prim.path(), name, format!("cannot read interpolation: {e}")))?
+            .and_then(|v| values::token(&v))
+            .unwrap_or_else(|| default_interp.to_string());
+        let idx_name = format!("{name}:indices");
+        let indices = if r.has_authored(prim, &idx_name)? {
+            r.typed(prim, &idx_name, None, "int[]", values::int_array)?
+        } else {
+            None
+        };
+        Ok(Some(PrimvarSource {
+            name: name.to_string(),
+            query: attr.query(),
+            interpolation,
+            indices,
+        }))
+    }
+
+    fn value(&self, prim: &usd::Prim, t: f64) -> Result<Option<Value>> {
+        let v = self
+            .query
+            .get_at::<Value>(TimeCode::new(t))
+            .map_err(|e| Error::attr(prim.path(), &self.name, format!("cannot read: {e}")))?;
+        Ok(v.filter(|v| !matches!(v, Value::None | Value::ValueBlock)))
+    }
+
+    fn expand<T: Copy>(&self, prim: &usd::Prim, vals: Vec<T>) -> Result<Vec<T>> {
+        match &self.indices {
+            None => Ok(vals),
+            Some(idx) => idx
+                .iter()
+                .map(|&i| usize::try_from(i).ok().and_then(|i| vals.get(i).copied()))
+                .collect::<Option<Vec<T>>>()
+                .ok_or_else(|| {
+                    Error::attr(
+                        prim.path(),
+                        &format!("{}:indices", self.name),
+                        format!("an index is out of range ({} values)", vals.len()),
+                    )
+                }),
+        }
+    }
+
+    fn wrap<T: Copy>(&self, prim: &usd::Prim, vals: Vec<T>) -> Result<Option<Primvar<T>>> {
+        let vals = self.expand(prim, vals)?;
+        if vals.is_empty() {
+            return Ok(None);
+        }
+        if vals.len() == 1 {
+            return Ok(Some(Primvar::Constant(vals[0])));
+        }
+        Ok(Some(match self.interpolation.as_str() {
+            "constant" => Primvar::Constant(vals[0]),
+            "uniform" => Primvar::Uniform(vals),
+            "vertex" => Primvar::Vertex(vals),
+            "varying" => Primvar::Varying(vals),
+            "faceVarying" => Primvar::FaceVarying(vals),
+            other => {
+                return Err(Error::attr(
+                    prim.path(),
+                    &self.name,
+                    format!("unknown interpolation {other:?}"),
+                ))
+            }
+        }))
+    }
+
+    fn colors(&self, prim: &usd::Prim, t: f64) -> Result<Option<Primvar<Vec3>>> {
+        match self.value(prim, t)? {
+            None => Ok(None),
+            Some(v) => {
+                let vals = values::vec3_array(&v)
+                    .or_else(|| values::vec3(&v).map(|c| vec![Vec3::new(c[0] as f32, c[1] as f32, c[2] as f32)]))
+                    .ok_or_else(|| {
+                        Error::attr(
+                            prim.path(),
+                            &self.name,
+                            format!("expected color3f[], found {}", values::kind_name(&v)),
+                        )
+                    })?;
+                self.wrap(prim, vals)
+            }
+        }
+    }
+
+    fn floats(&self, prim: &usd::Prim, t: f64) -> Result<Option<Primvar<f32>>> {
+        match self.value(prim, t)? {
+            None => Ok(None),
+            Some(v) => {
+                let vals = values::f32_array(&v)
+                    .or_else(|| values::scalar(&v).map(|x| vec![x as f32]))
+                    .ok_or_else(|| {
+                        Error::attr(
+                            prim.path(),
+                            &self.name,
+                            format!("expected float[], found {}", values::kind_name(&v)),
+                        )
+                    })?;
+                self.wrap(prim, vals)
+            }
+        }
+    }
+}
+
+/// The prim itself and its ancestors that author `visibility`.
+fn visibility_chain(r: &StageReader, prim: &usd::Prim) -> Result<Vec<usd::Prim>> {
+    let mut out = Vec::new();
+    let mut p = Some(prim.clone());
+    while let Some(q) = p {
+        if q.path().as_str() == "/" {
+            break;
+        }
+        if r.has_authored(&q, "visibility")? {
+            out.push(q.clone());
+        }
+        p = q.parent();
+    }
+    Ok(out)
+}
+
+fn visible(r: &StageReader, chain: &[usd::Prim], t: f64) -> Result<bool> {
+    for p in chain {
+        if r.typed(p, "visibility", Some(t), "token", values::token)?.as_deref() == Some("invisible") {
+            return Ok(false);
+        }
+    }
+    Ok(true)
+}
+
+/// Computed purpose: the nearest authored `purpose` on the prim or an ancestor.
+fn computed_purpose(r: &StageReader, prim: &usd::Prim) -> Result<String> {
+    let mut p = Some(prim.clone());
+    while let Some(q) = p {
+        if q.path().as_str() == "/" {
+            break;
+        }
+        if r.has_authored(&q, "purpose")? {
+            return Ok(r
+                .typed(&q, "purpose", None, "token", values::token)?
+                .unwrap_or_else(|| "default".into()));
+        }
+        p = q.parent();
+    }
+    Ok("default".into())
+}
+
+fn width_scale(m: &DMat4) -> f32 {
+    (glam::DMat3::from_mat4(*m).determinant().abs().cbrt()) as f32
+}
+
+struct CurvesSource {
+    prim: usd::Prim,
+    path: String,
+    visibility: Vec<usd::Prim>,
+    curve_type: CurveType,
+    basis: Basis,
+    wrap: Wrap,
+    counts: AttributeQuery,
+    points: AttributeQuery,
+    widths: Option<PrimvarSource>,
+    colors: Option<PrimvarSource>,
+    opacities: Option<PrimvarSource>,
+}
+
+struct MeshSource {
+    prim: usd::Prim,
+    path: String,
+    visibility: Vec<usd::Prim>,
+    face_counts: Vec<u32>,
+    face_indices: Vec<u32>,
+    points: AttributeQuery,
+    skinned: Option<Proxy>,
+    colors: Option<PrimvarSource>,
+    left_handed: bool,
+    double_sided: bool,
+    smooth: bool,
+}
+
+/// The drawable content of a composed stage, with readers per frame.
+pub struct RenderScene {
+    camera: usd::Prim,
+    camera_path: String,
+    curves: Vec<CurvesSource>,
+    meshes: Vec<MeshSource>,
+}
+
+fn token_attr(r: &StageReader, prim: &usd::Prim, name: &str, fallback: &str) -> Result<String> {
+    Ok(r.typed(prim, name, None, "token", values::token)?
+        .unwrap_or_else(|| fallback.to_string()))
+}
+
+impl RenderScene {
+    /// Finds the camera (it must be a `Camera` prim) and everything drawable.
+    pub fn discover(r: &StageReader, camera: &str) -> Result<RenderScene> {
+        let cam = r
+            .prim(camera)?
+            .ok_or_else(|| Error::prim(camera, "camera prim does not exist (--camera)"))?;
+        let ty = r.type_name(&cam)?;
+        if ty != "Camera" {
+            let what = if ty.is_empty() {
+                "an untyped prim".to_string()
+            } else {
+                format!("a {ty} prim")
+            };
+            return Err(Error::prim(camera, format!("--camera names {what}, not a Camera")));
+        }
+        let mut scene = RenderScene {
+            camera: cam,
+            camera_path: camera.to_string(),
+            curves: Vec::new(),
+            meshes: Vec::new(),
+        };
+        for path in r.prim_paths()? {
+            let prim = r.require_prim(&path)?;
+            let ty = r.type_name(&prim)?;
+            if ty != "BasisCurves" && ty != "Mesh" {
+                continue;
+            }
+            let purpose = computed_purpose(r, &prim)?;
+            if purpose == "guide" || purpose == "proxy" {
+                continue;
+            }
+            let visibility = visibility_chain(r, &prim)?;
+            if ty == "BasisCurves" {
+                scene.curves.push(Self::curves_source(r, prim, path, visibility)?);
+            } else {
+                scene.meshes.push(Self::mesh_source(r, prim, path, visibility)?);
+            }
+        }
+        Ok(scene)
+    }
+
+    fn curves_source(
+        r: &StageReader,
+        prim: usd::Prim,
+        path: String,
+        visibility: Vec<usd::Prim>,
+    ) -> Result<CurvesSource> {
+        let curve_type = match token_attr(r, &prim, "type", "cubic")?.as_str() {
+            "linear" => CurveType::Linear,
+            "cubic" => CurveType::Cubic,
+            other => return Err(Error::attr(&path, "type", format!("unknown curve type {other:?}"))),
+        };
+        let basis = match token_attr(r, &prim, "basis", "bezier")?.as_str() {
+            "bezier" => Basis::Bezier,
+            "bspline" => Basis::Bspline,
+            "catmullRom" => Basis::CatmullRom,
+            other => return Err(Error::attr(&path, "basis", format!("unknown basis {other:?}"))),
+        };
+        let wrap = match token_attr(r, &prim, "wrap", "nonperiodic")?.as_str() {
+            "nonperiodic" => Wrap::Nonperiodic,
+            "periodic" => Wrap::Periodic,
+            "pinned" => Wrap::Pinned,
+            other => return Err(Error::attr(&path, "wrap", format!("unknown wrap {other:?}"))),
+        };
+        let widths = match PrimvarSource::open(r, &prim, "primvars:widths", "vertex")? {
+            Some(w) => Some(w),
+            None => PrimvarSource::open(r, &prim, "widths", "vertex")?,
+        };
+        Ok(CurvesSource {
+            counts: prim.attribute("curveVertexCounts").query(),
+            points: prim.attribute("points").query(),
+            widths,
+            colors: PrimvarSource::open(r, &prim, "primvars:displayColor", "constant")?,
+            opacities: PrimvarSource::open(r, &prim, "primvars:displayOpacity", "constant")?,
+            prim,
+            path,
+            visibility,
+            curve_type,
+            basis,
+            wrap,
+        })
+    }
+
+    fn mesh_source(r: &StageReader, prim: usd::Prim, path: String, visibility: Vec<usd::Prim>) -> Result<MeshSource> {
+        let counts = r
+            .typed(&prim, "faceVertexCounts", None, "int[]", values::int_array)?
+            .unwrap_or_default();
+        let indices = r
+            .typed(&prim, "faceVertexIndices", None, "int[]", values::int_array)?
+            .unwrap_or_default();
+        if counts.iter().any(|&c| c < 0) || counts.iter().sum::<i64>() != indices.len() as i64 {
+            return Err(Error::attr(
+                &path,
+                "faceVertexCounts",
+                format!(
+                    "counts sum to {}, but there are {} faceVertexIndices",
+                    counts.iter().sum::<i64>(),
+                    indices.len()
+                ),
+            ));
+        }
+        if let Some(bad) = indices.iter().find(|&&i| i < 0) {
+            return Err(Error::attr(&path, "faceVertexIndices", format!("negative index {bad}")));
+        }
+        let skinned = if skeleton_binding(r, &prim)?.is_some() {
+            Some(read_mesh(r, prim.clone(), None)?)
+        } else {
+            None
+        };
+        let orientation = token_attr(r, &prim, "orientation", "rightHanded")?;
+        let double_sided = r
+            .typed(&prim, "doubleSided", None, "bool", values::scalar)?
+            .is_some_and(|v| v != 0.0);
+        let smooth = token_attr(r, &prim, "subdivisionScheme", "catmullClark")? != "none";
+        Ok(MeshSource {
+            smooth,
+            face_counts: counts.iter().map(|&c| c as u32).collect(),
+            face_indices: indices.iter().map(|&i| i as u32).collect(),
+            points: prim.attribute("points").query(),
+            skinned,
+            colors: PrimvarSource::open(r, &prim, "primvars:displayColor", "constant")?,
+            left_handed: orientation == "leftHanded",
+            double_sided,
+            prim,
+            path,
+            visibility,
+        })
+    }
+
+    /// Number of (curves prims, meshes) found.
+    pub fn counts(&self) -> (usize, usize) {
+        (self.curves.len(), self.meshes.len())
+    }
+
+    /// The camera's parameters at `t` (validated).
+    pub fn camera_at(&self, r: &StageReader, t: f64) -> Result<CameraParams> {
+        let p = &self.camera;
+        let d = CameraParams::default();
+        let f = |name: &str, fallback: f64| -> Result<f64> {
+            Ok(r.typed(p, name, Some(t), "float", values::scalar)?.unwrap_or(fallback))
+        };
+        let clip = r
+            .typed(p, "clippingRange", Some(t), "float2", |v| match v {
+                Value::Vec2f(c) => Some((c.x as f64, c.y as f64)),
+                Value::Vec2d(c) => Some((c.x, c.y)),
+                Value::Vec2h(c) => Some((c.x.to_f64(), c.y.to_f64())),
+                _ => None,
+            })?
+            .unwrap_or((d.near, d.far));
+        let projection = match r
+            .typed(p, "projection", Some(t), "token", values::token)?
+            .as_deref()
+            .unwrap_or("perspective")
+        {
+            "perspective" => Projection::Perspective,
+            "orthographic" => Projection::Orthographic,
+            other => {
+                return Err(Error::attr(
+                    &self.camera_path,
+                    "projection",
+                    format!("unknown projection {other:?} (expected perspective or orthographic)"),
+                ))
+            }
+        };
+        let cam = CameraParams {
+            focal_length: f("focalLength", d.focal_length)?,
+            horizontal_aperture: f("horizontalAperture", d.horizontal_aperture)?,
+            vertical_aperture: f("verticalAperture", d.vertical_aperture)?,
+            horizontal_aperture_offset: f("horizontalApertureOffset", 0.0)?,
+            vertical_aperture_offset: f("verticalApertureOffset", 0.0)?,
+            near: clip.0,
+            far: clip.1,
+            projection,
+            camera_to_world: r.local_to_world(p, t)?,
+        };
+        cam.validate()
+            .map_err(|e| Error::attr(&self.camera_path, e.attribute, format!("at time {t}: {}", e.message)))?;
+        Ok(cam)
+    }
+
+    /// Every visible curves prim at `t`, in world space.
+    pub fn curves_at(&self, r: &StageReader, t: f64) -> Result<Vec<CurvesData>> {
+        let mut out = Vec::with_capacity(self.curves.len());
+        for c in &self.curves {
+            if !visible(r, &c.visibility, t)? {
+                continue;
+            }
+            let read = |q: &AttributeQuery, name: &str| -> Result<Option<Value>> {
+                let v = q
+                    .get_at::<Value>(TimeCode::new(t))
+                    .map_err(|e| Error::attr(&c.path, name, format!("cannot read: {e}")))?;
+                Ok(v.filter(|v| !matches!(v, Value::None | Value::ValueBlock)))
+            };
+            let Some(pv) = read(&c.points, "points")? else {
+                continue;
+            };
+            let local = values::vec3_array(&pv).ok_or_else(|| {
+                Error::attr(
+                    &c.path,
+                    "points",
+                    format!("expected point3f[], found {}", values::kind_name(&pv)),
+                )
+            })?;
+            let counts = match read(&c.counts, "curveVertexCounts")? {
+                Some(v) => values::int_array(&v).ok_or_else(|| {
+                    Error::attr(
+                        &c.path,
+                        "curveVertexCounts",
+                        format!("expected int[], found {}", values::kind_name(&v)),
+                    )
+                })?,
+                None => vec![local.len() as i64],
+            };
+            if let Some(bad) = counts.iter().find(|&&n| n < 0) {
+                return Err(Error::attr(
+                    &c.path,
+                    "curveVertexCounts",
+                    format!("negative count {bad}"),
+                ));
+            }
+            let m = r.local_to_world(&c.prim, t)?;
+            let ws = width_scale(&m);
+            let points: Vec<DVec3> = local.iter().map(|p| m.transform_point3(p.as_dvec3())).collect();
+            if let Some(i) = points.iter().position(|p| !p.is_finite()) {
+                return Err(Error::attr(
+                    &c.path,
+                    "points",
+                    format!("point {i} is not finite at time {t}"),
+                ));
+            }
+            let widths = match &c.widths {
+                Some(s) => s.floats(&c.prim, t)?,
+                None => None,
+            }
+            .unwrap_or(Primvar::Constant(DEFAULT_WIDTH))
+            .map(|w| if w.is_finite() { w.max(0.0) * ws } else { 0.0 });
+            let colors = match &c.colors {
+                Some(s) => s.colors(&c.prim, t)?,
+                None => None,
+            }
+            .unwrap_or(Primvar::Constant(DEFAULT_COLOR));
+            let opacities = match &c.opacities {
+                Some(s) => s.floats(&c.prim, t)?,
+                None => None,
+            }
+            .unwrap_or(Primvar::Constant(1.0))
+            .map(|o| if o.is_finite() { o.clamp(0.0, 1.0) } else { 0.0 });
+            let data = CurvesData {
+                path: c.path.clone(),
+                curve_type: c.curve_type,
+                basis: c.basis,
+                wrap: c.wrap,
+                counts: counts.iter().map(|&n| n as usize).collect(),
+                points,
+                widths,
+                colors,
+                opacities,
+            };
+            data.validate()
+                .map_err(|(attr, msg)| Error::attr(&c.path, attr, format!("at time {t}: {msg}")))?;
+            out.push(data);
+        }
+        Ok(out)
+    }
+
+    /// Every visible mesh at `t`, in world space.
+    pub fn meshes_at(&self, r: &StageReader, t: f64) -> Result<Vec<MeshData>> {
+        let mut out = Vec::with_capacity(self.meshes.len());
+        for m in &self.meshes {
+            if !visible(r, &m.visibility, t)? {
+                continue;
+            }
+            let local: Vec<DVec3> = match &m.skinned {
+                Some(proxy) => proxy.posed_points(r, t)?,
+                None => {
+                    let v = m
+                        .points
+                        .get_at::<Value>(TimeCode::new(t))
+                        .map_err(|e| Error::attr(&m.path, "points", format!("cannot read: {e}")))?
+                        .filter(|v| !matches!(v, Value::None | Value::ValueBlock));
+                    let Some(v) = v else { continue };
+                    values::vec3_array(&v)
+                        .ok_or_else(|| {
+                            Error::attr(
+                                &m.path,
+                                "points",
+                                format!("expected point3f[], found {}", values::kind_name(&v)),
+                            )
+                        })?
+                        .iter()
+                        .map(|p| p.as_dvec3())
+                        .collect()
+                }
+            };
+            if let Some(&bad) = m.face_indices.iter().find(|&&i| i as usize >= local.len()) {
+                return Err(Error::attr(
+                    &m.path,
+                    "faceVertexIndices",
+                    format!("index {bad} is out of range ({} points at time {t})", local.len()),
+                ));
+            }
+            let xf = r.local_to_world(&m.prim, t)?;
+            let points: Vec<DVec3> = local.iter().map(|p| xf.transform_point3(*p)).collect();
+            if let Some(i) = points.iter().position(|p| !p.is_finite()) {
+                return Err(Error::attr(
+                    &m.path,
+                    "points",
+                    format!("point {i} is not finite at time {t}"),
+                ));
+            }
+            let colors = match &m.colors {
+                Some(s) => s.colors(&m.prim, t)?,
+                None => None,
+            }
+            .unwrap_or(Primvar::Constant(DEFAULT_COLOR));
+            let data = MeshData {
+                path: m.path.clone(),
+                face_counts: m.face_counts.clone(),
+                face_indices: m.face_indices.clone(),
+                points,
+                colors,
+                // A negative-determinant transform flips the winding.
+                left_handed: m.left_handed != (glam::DMat3::from_mat4(xf).determinant() < 0.0),
+                double_sided: m.double_sided,
+                smooth: m.smooth,
+            };
+            data.validate()
+                .map_err(|(attr, msg)| Error::attr(&m.path, attr, format!("at time {t}: {msg}")))?;
+            out.push(data);
+        }
+        Ok(out)
+    }
+}
+
+/// Timing metadata of one layer file, for a root layer that sublayers it
+/// without rescaling time: (timeCodesPerSecond, framesPerSecond, start, end).
+pub fn layer_timing(path: &Path) -> Result<(f64, f64, Option<f64>, Option<f64>)> {
+    let s = path
+        .to_str()
+        .ok_or_else(|| Error::msg("path is not valid UTF-8").in_file(path))?;
+    let layer =
+        openusd::sdf::Layer::open(s).map_err(|e| Error::msg(format!("cannot read USD file: {e}")).in_file(path))?;
+    Ok((
+        layer.time_codes_per_second(),
+        layer.frames_per_second(),
+        layer.has_start_time_code().then(|| layer.start_time_code()),
+        layer.has_end_time_code().then(|| layer.end_time_code()),
+    ))
+}
