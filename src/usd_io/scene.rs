@@ -381,13 +381,8 @@ impl Proxy {
             .map_err(|e| Error::attr(&self.path, "points", format!("cannot read at time {t}: {e}")))?;
         let p = match v {
             None => Vec::new(),
-            Some(v) => values::into_vec3_array(v).map_err(|v| {
-                Error::attr(
-                    &self.path,
-                    "points",
-                    format!("expected point3f[], found {}", values::kind_name(&v)),
-                )
-            })?,
+            Some(v) => values::into_vec3_array(v)
+                .map_err(|kind| Error::attr(&self.path, "points", format!("expected point3f[], found {kind}")))?,
         };
         if p.len() != self.rest.len() {
             return Err(Error::attr(

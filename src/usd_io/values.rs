@@ -23,11 +23,12 @@ pub fn vec3_array(v: &Value) -> Option<Vec<Vec3>> {
 }
 
 /// Like [`vec3_array`], taking the value: float arrays are reinterpreted in
-/// place (no copy), which matters for per-frame reads of big meshes.
-pub fn into_vec3_array(v: Value) -> Result<Vec<Vec3>, Value> {
+/// place (no copy), which matters for per-frame reads of big meshes. The
+/// error is the value's kind name.
+pub fn into_vec3_array(v: Value) -> Result<Vec<Vec3>, String> {
     match v {
         Value::Vec3fVec(a) => Ok(bytemuck::allocation::cast_vec(a)),
-        other => vec3_array(&other).ok_or(other),
+        other => vec3_array(&other).ok_or_else(|| kind_name(&other)),
     }
 }
 
