@@ -47,12 +47,7 @@ impl PrimvarSource {
         if !r.has_authored(prim, name)? {
             return Ok(None);
         }
-        let attr = prim.attribute(name);
-        let interpolation = attr
-            .get_metadata::<Value>("interpolation")
-            .map_err(|e| Error::attr(prim.path(), name, format!("cannot read interpolation: {e}")))?
-            .and_then(|v| values::token(&v))
-            .unwrap_or_else(|| default_interp.to_string());
+        let interpolation = r.primvar_interpolation(prim, name, default_interp)?;
         let idx_name = format!("{name}:indices");
         let indices = if r.has_authored(prim, &idx_name)? {
             r.typed(prim, &idx_name, None, "int[]", values::int_array)?
@@ -61,7 +56,7 @@ impl PrimvarSource {
         };
         Ok(Some(PrimvarSource {
             name: name.to_string(),
-            query: attr.query(),
+            query: prim.attribute(name).query(),
             interpolation,
             indices,
         }))

@@ -80,15 +80,9 @@ fn read_primvar(r: &StageReader, prim: &usd::Prim, name: &str) -> Result<Option<
     let Some(v) = r.value(prim, name, None)? else {
         return Ok(None);
     };
-    let attr = prim.attribute(name);
-    let interp = attr
-        .get_metadata::<Value>("interpolation")
-        .map_err(|e| Error::attr(prim.path(), name, format!("cannot read interpolation: {e}")))?
-        .and_then(|v| values::token(&v))
-        .unwrap_or_else(|| "constant".to_string());
-    let element_size = attr
-        .get_metadata::<Value>("elementSize")
-        .map_err(|e| Error::attr(prim.path(), name, format!("cannot read elementSize: {e}")))?
+    let interp = r.primvar_interpolation(prim, name, "constant")?;
+    let element_size = r
+        .attr_metadata(prim, name, "elementSize")?
         .and_then(|v| values::scalar(&v))
         .unwrap_or(1.0);
     if element_size.is_nan() || element_size < 1.0 {

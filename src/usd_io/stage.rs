@@ -125,6 +125,22 @@ impl StageReader {
             .map_err(|e| Error::attr(prim.path(), name, format!("cannot read time samples: {e}")))
     }
 
+    /// An attribute's metadata field (e.g. a primvar's `interpolation` or
+    /// `elementSize`), undecoded; None when not authored.
+    pub fn attr_metadata(&self, prim: &usd::Prim, name: &str, key: &str) -> Result<Option<Value>> {
+        prim.attribute(name)
+            .get_metadata::<Value>(key)
+            .map_err(|e| Error::attr(prim.path(), name, format!("cannot read {key}: {e}")))
+    }
+
+    /// A primvar's `interpolation`, or `default` when not authored.
+    pub fn primvar_interpolation(&self, prim: &usd::Prim, name: &str, default: &str) -> Result<String> {
+        Ok(self
+            .attr_metadata(prim, name, "interpolation")?
+            .and_then(|v| values::token(&v))
+            .unwrap_or_else(|| default.to_string()))
+    }
+
     /// Relationship targets (forwarded targets are not followed).
     pub fn targets(&self, prim: &usd::Prim, name: &str) -> Result<Vec<String>> {
         prim.relationship(name)
