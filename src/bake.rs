@@ -16,8 +16,8 @@ use openusd::sdf::Value;
 use crate::bind::{Binding, ClosestPoint};
 use crate::error::{Error, Result};
 use crate::frames::FrameRange;
-use crate::keys::{blend_points, combine, Source};
-use crate::mesh::{bounds, bounds_f64, fan_triangulate, OneRings};
+use crate::keys::{combine, Source};
+use crate::mesh::{bounds, bounds_f64, fan_triangulate, weighted_sum, OneRings};
 use crate::skinning::{skin_points, to_f32, SkinningRest};
 use crate::usd_io::axes::AxisFrame;
 use crate::usd_io::layer::{Format, OverLayer};
@@ -206,7 +206,7 @@ pub fn keyed_state(k: &LayerKeys, rest: &[Vec3], axis_values: &[f64], t: f64) ->
             })
             .collect();
         let mut out = vec![Vec3::ZERO; rest.len()];
-        blend_points(&mut out, &arrays);
+        weighted_sum(&mut out, &arrays);
         Some(out)
     };
 

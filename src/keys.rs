@@ -308,22 +308,6 @@ mod tests {
     }
 }
 
-/// `out = Σ w_k · values_k` over whole point arrays (one weight vector blends
-/// a layer).
-pub fn blend_points(out: &mut [glam::Vec3], terms: &[(f64, &[glam::Vec3])]) {
-    use rayon::prelude::*;
-    out.par_chunks_mut(4096).enumerate().for_each(|(c, chunk)| {
-        let base = c * 4096;
-        for (i, o) in chunk.iter_mut().enumerate() {
-            let mut acc = glam::Vec3::ZERO;
-            for (w, v) in terms {
-                acc += v[base + i] * (*w as f32);
-            }
-            *o = acc;
-        }
-    });
-}
-
 /// Combines configuration-space weights (over pose keys, or `None` for "the
 /// layer's rest value") with temporal weights (over time keys): returns the
 /// final (weight, source) terms where a source is `Err(())` for the rest
@@ -375,16 +359,5 @@ mod combine_tests {
             ]
         );
         assert_eq!(combine(None, None), vec![(1.0, Source::Rest)]);
-    }
-
-    #[test]
-    fn blend_points_is_a_weighted_sum() {
-        let a = vec![glam::Vec3::X; 5000];
-        let b = vec![glam::Vec3::Y; 5000];
-        let mut out = vec![glam::Vec3::ZERO; 5000];
-        blend_points(&mut out, &[(0.25, &a), (0.75, &b)]);
-        assert!(out
-            .iter()
-            .all(|p| (*p - glam::Vec3::new(0.25, 0.75, 0.0)).length() < 1e-7));
     }
 }

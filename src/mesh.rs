@@ -100,6 +100,37 @@ pub fn bounds_f64(points: &[DVec3]) -> Option<[DVec3; 2]> {
     Some([lo, hi])
 }
 
+/// `out[p] = Σ_k w_k · arrays_k[p]` over whole point arrays, in f32 (the hot
+/// loop), parallel over points. Terms with weight 0 are not read, so their
+/// arrays may be empty.
+///
+/// One weight vector blends a whole layer or mesh: pose and time keys,
+/// view-dependent offsets and spline coefficients all come down to this.
+///
+/// # Panics
+/// If a weighted array's length differs from `out`'s.
+pub fn weighted_sum(out: &mut [Vec3], terms: &[(f64, &[Vec3])]) {
+    use rayon::prelude::*;
+    let terms: Vec<(f32, &[Vec3])> = terms
+        .iter()
+        .filter(|(w, _)| *w != 0.0)
+        .map(|&(w, a)| (w as f32, a))
+        .collect();
+    for (k, (_, a)) in terms.iter().enumerate() {
+        assert_eq!(a.len(), out.len(), "term {k}: length differs from output");
+    }
+    out.par_chunks_mut(4096).enumerate().for_each(|(c, chunk)| {
+        let start = c * 4096;
+        for (i, o) in chunk.iter_mut().enumerate() {
+            let mut acc = Vec3::ZERO;
+            for (w, a) in &terms {
+                acc += a[start + i] * *w;
+            }
+            *o = acc;
+        }
+    });
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -116,6 +147,16 @@ mod tests {
         let rings = OneRings::new(4, &[4], &[0, 1, 2, 3]);
         assert_eq!(rings.ring(0), &[0, 1, 3]);
         assert_eq!(rings.ring(2), &[1, 2, 3]);
+    }
+
+    #[test]
+    fn weighted_sum_blends_and_skips_zero_weights() {
+        let a = vec![Vec3::X; 5000];
+        let b = vec![Vec3::Y; 5000];
+        let mut out = vec![Vec3::ZERO; 5000];
+        // The zero-weight term's array is empty and must not be read.
+        weighted_sum(&mut out, &[(0.25, &a), (0.75, &b), (0.0, &[])]);
+        assert!(out.iter().all(|p| (*p - Vec3::new(0.25, 0.75, 0.0)).length() < 1e-7));
     }
 
     #[test]

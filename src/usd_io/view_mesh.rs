@@ -371,36 +371,21 @@ impl ViewBlend {
         // Fold each viewpoint's spline coefficients at t into its view
         // weight, so the output is one pass over at most 3 × (key times)
         // offset arrays: out = s·base + Σ_k w_k Σ_j c_kj(t) offset_kj.
-        let mut terms: Vec<(f32, &[Vec3])> = Vec::new();
+        let mut terms: Vec<(f64, &[Vec3])> = vec![(weights.base_scale(), base)];
         for &(k, w) in weights.keys() {
             let vp = &self.viewpoints[k];
             match &vp.spline {
-                None => terms.push((w as f32, &vp.offsets[0])),
-                Some(s) => {
-                    for (c, off) in s.weights(t).into_iter().zip(&vp.offsets) {
-                        if c != 0.0 {
-                            terms.push(((w * c) as f32, off));
-                        }
-                    }
-                }
+                None => terms.push((w, &vp.offsets[0])),
+                Some(s) => terms.extend(
+                    s.weights(t)
+                        .into_iter()
+                        .zip(&vp.offsets)
+                        .map(|(c, off)| (w * c, off.as_slice())),
+                ),
             }
         }
-        let scale = weights.base_scale() as f32;
         let mut out = vec![Vec3::ZERO; base.len()];
-        {
-            use rayon::prelude::*;
-            out.par_chunks_mut(8192).enumerate().for_each(|(c, chunk)| {
-                let start = c * 8192;
-                for (i, o) in chunk.iter_mut().enumerate() {
-                    let p = start + i;
-                    let mut v = base[p] * scale;
-                    for (w, off) in &terms {
-                        v += off[p] * *w;
-                    }
-                    *o = v;
-                }
-            });
-        }
+        crate::mesh::weighted_sum(&mut out, &terms);
         Ok(out)
     }
 }

@@ -370,22 +370,9 @@ impl ViewBlender {
 /// If `out` and `base` differ in length, or a weighted key's offsets do.
 pub fn blend_offsets(base: &[Vec3], offsets: &[&[Vec3]], weights: &ViewWeights, out: &mut [Vec3]) {
     assert_eq!(base.len(), out.len(), "base and output point counts differ");
-    let s = weights.base_scale() as f32;
-    if s == 1.0 {
-        out.copy_from_slice(base);
-    } else {
-        for (o, b) in out.iter_mut().zip(base) {
-            *o = *b * s;
-        }
-    }
-    for &(k, w) in weights.keys() {
-        let off = offsets[k];
-        assert_eq!(off.len(), out.len(), "key {k}: offset count differs from base");
-        let w = w as f32;
-        for (o, d) in out.iter_mut().zip(off) {
-            *o += *d * w;
-        }
-    }
+    let mut terms: Vec<(f64, &[Vec3])> = vec![(weights.base_scale(), base)];
+    terms.extend(weights.keys().iter().map(|&(k, w)| (w, offsets[k])));
+    crate::mesh::weighted_sum(out, &terms);
 }
 
 #[cfg(test)]

@@ -145,17 +145,8 @@ impl NaturalCubicSpline {
 /// from `out`'s.
 pub fn weighted_sum(weights: &[f64], arrays: &[&[Vec3]], out: &mut [Vec3]) {
     assert_eq!(weights.len(), arrays.len(), "one weight per array");
-    out.fill(Vec3::ZERO);
-    for (k, (&w, arr)) in weights.iter().zip(arrays).enumerate() {
-        if w == 0.0 {
-            continue;
-        }
-        assert_eq!(arr.len(), out.len(), "array {k}: length differs from output");
-        let w = w as f32;
-        for (o, v) in out.iter_mut().zip(arr.iter()) {
-            *o += *v * w;
-        }
-    }
+    let terms: Vec<(f64, &[Vec3])> = weights.iter().copied().zip(arrays.iter().copied()).collect();
+    crate::mesh::weighted_sum(out, &terms);
 }
 
 /// Solves a diagonally dominant tridiagonal system (Thomas algorithm).
