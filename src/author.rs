@@ -20,8 +20,8 @@ use glam::{DAffine3, DMat3, DMat4, DVec3, Vec3};
 use openusd::gf;
 use openusd::sdf::Value;
 
-use crate::bake::eval_axes;
 use crate::bind::{Binding, ClosestPoint};
+use crate::character::eval_axes;
 use crate::error::{Error, Result};
 use crate::mesh::{fan_triangulate, OneRings};
 use crate::skinning::SkinningRest;

@@ -16,7 +16,8 @@
 //! | [`keys`] | pose keys and temporal keys with sentinels |
 //! | [`view`] | view-dependent geometry (Rademacher 1999) |
 //! | [`usd_io`] | reading stages, writing layers |
-//! | [`bake`] | the `bake` command |
+//! | [`character`] | a character resolved for evaluation: rest data once, frames on demand |
+//! | [`bake`] | the `bake` command: frames streamed through reader → evaluator → writer |
 //! | [`inspect`] | the `inspect` command |
 //! | [`interp`] | configuration-space interpolation (smooth Voronoi, RBF, Shepard) |
 //! | [`render`] | the `render` command: preview EXR/PNG frames and contact sheets |
@@ -24,6 +25,7 @@
 pub mod author;
 pub mod bake;
 pub mod bind;
+pub mod character;
 pub mod cli;
 pub mod error;
 pub mod frames;

@@ -38,7 +38,7 @@ use std::time::Instant;
 use glam::Vec3;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
-use crate::bake::{bake, BakeOptions};
+use crate::bake::{bake_if_any, BakeOptions};
 use crate::error::{Error, Result};
 use crate::frames::FrameRange;
 use crate::usd_io::render_scene::{layer_timing, RenderScene};
@@ -247,8 +247,8 @@ fn check_args(args: &RenderArgs) -> Result<Vec<f64>> {
     Ok(times)
 }
 
-/// Writes the root layer that sublayers the bake over the input.
-fn write_root(dir: &Path, input: &Path, bake_layer: &Path) -> Result<PathBuf> {
+/// Writes the root layer that sublayers the bake (if any) over the input.
+fn write_root(dir: &Path, input: &Path, bake_layer: Option<&Path>) -> Result<PathBuf> {
     let abs = |p: &Path| -> Result<String> {
         let a = p
             .canonicalize()
@@ -264,10 +264,14 @@ fn write_root(dir: &Path, input: &Path, bake_layer: &Path) -> Result<PathBuf> {
     if let (Some(s), Some(e)) = (start, end) {
         meta.push_str(&format!("    startTimeCode = {s}\n    endTimeCode = {e}\n"));
     }
+    let mut layers = Vec::new();
+    if let Some(b) = bake_layer {
+        layers.push(format!("        @{}@", abs(b)?));
+    }
+    layers.push(format!("        @{}@", abs(input)?));
     let text = format!(
-        "#usda 1.0\n(\n{meta}    subLayers = [\n        @{}@,\n        @{}@\n    ]\n)\n",
-        abs(bake_layer)?,
-        abs(input)?
+        "#usda 1.0\n(\n{meta}    subLayers = [\n{}\n    ]\n)\n",
+        layers.join(",\n")
     );
     let root = dir.join("render_root.usda");
     std::fs::write(&root, text).map_err(|e| Error::msg(format!("cannot write: {e}")).in_file(&root))?;
@@ -284,7 +288,7 @@ pub fn run(args: &RenderArgs) -> Result<String> {
     };
     let tmp = TempDir::new()?;
     let bake_layer = match &args.bake {
-        Some(b) => b.clone(),
+        Some(b) => Some(b.clone()),
         None => {
             let out = tmp.0.join("bake.usdc");
             let opts = BakeOptions {
@@ -292,11 +296,11 @@ pub fn run(args: &RenderArgs) -> Result<String> {
                 camera: Some(args.camera.clone()),
                 ..Default::default()
             };
-            bake(&args.input, &out, &opts, &|_, _| {})?;
-            out
+            // A plain scene (no painted strokes) renders without a bake.
+            bake_if_any(&args.input, &out, &opts)?.map(|_| out)
         }
     };
-    let root = write_root(&tmp.0, &args.input, &bake_layer)?;
+    let root = write_root(&tmp.0, &args.input, bake_layer.as_deref())?;
     let input = args.input.clone();
     let name_input = |mut e: Error| {
         if e.file.as_deref() == Some(root.as_path()) || e.file.is_none() {

@@ -31,6 +31,7 @@ struct PrimOut {
 pub struct OverLayer {
     meta: StageMetadata,
     prims: BTreeMap<String, PrimOut>,
+    custom_layer_data: Vec<(String, Value)>,
 }
 
 /// Output formats, chosen by the file extension.
@@ -57,7 +58,18 @@ impl OverLayer {
         OverLayer {
             meta,
             prims: BTreeMap::new(),
+            custom_layer_data: Vec::new(),
         }
+    }
+
+    /// Records where a bake came from in `customLayerData["painterly"]`.
+    pub fn set_provenance(&mut self, p: &super::bake_layer::Provenance) {
+        let dict = [("input", &p.input), ("frames", &p.frames), ("version", &p.version)]
+            .into_iter()
+            .map(|(k, v)| (k.to_string(), Value::String(v.clone())))
+            .collect();
+        self.custom_layer_data
+            .push(("painterly".to_string(), Value::Dictionary(dict)));
     }
 
     /// Authors time samples of an attribute (replacing earlier ones).
@@ -136,6 +148,12 @@ impl OverLayer {
         }
         if let Some(v) = m.meters_per_unit {
             root.add("metersPerUnit", Value::Double(v));
+        }
+        if !self.custom_layer_data.is_empty() {
+            root.add(
+                "customLayerData",
+                Value::Dictionary(self.custom_layer_data.into_iter().collect()),
+            );
         }
         root.add(
             "documentation",
@@ -231,6 +249,15 @@ impl OverLayer {
 
 /// Writes `bytes` to a temporary sibling of `path` and renames it into place.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    write_atomic_with(path, |f| f.write_all(bytes))
+}
+
+/// Writes through `write` into a temporary sibling of `path` (buffered) and
+/// renames it into place; on any failure the temporary is removed.
+pub fn write_atomic_with(
+    path: &Path,
+    write: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> std::io::Result<()>,
+) -> Result<()> {
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
@@ -244,10 +271,12 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
         std::process::id()
     ));
     let result = (|| -> std::io::Result<()> {
-        let mut f = std::fs::File::create(&tmp)?;
+        let mut f = std::io::BufWriter::with_capacity(1 << 20, std::fs::File::create(&tmp)?);
         // No fsync: the rename makes the write atomic for readers and for a
         // failed bake; durability across power loss is the filesystem's.
-        f.write_all(bytes)?;
+        write(&mut f)?;
+        f.flush()?;
+        drop(f);
         std::fs::rename(&tmp, path)
     })();
     if let Err(e) = result {

@@ -4,6 +4,7 @@
 //! arrays, the math modules evaluate, and [`layer`] writes an override layer.
 
 pub mod axes;
+pub mod bake_layer;
 pub mod edit;
 pub mod layer;
 pub mod render_scene;

@@ -14,6 +14,9 @@ use openusd_schemas::geom::XformCache;
 use super::values;
 use crate::error::{Error, Result};
 
+/// A prim of an opened stage (a handle: cheap to clone, tied to its stage's thread).
+pub type Prim = usd::Prim;
+
 /// An opened, composed USD stage.
 pub struct StageReader {
     /// The composed stage (sublayers, references and payloads resolved).

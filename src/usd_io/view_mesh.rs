@@ -320,18 +320,7 @@ pub fn check_camera(r: &StageReader, path: &str, origin: &str) -> Result<()> {
 impl ViewMesh {
     /// `painterly:sharpness` at `t` (it may be animated), checked positive.
     pub fn sharpness_at(&self, r: &StageReader, t: f64) -> Result<f64> {
-        let prim = r.require_prim(&self.path)?;
-        let s = r
-            .typed(&prim, "painterly:sharpness", Some(t), "float", values::scalar)?
-            .unwrap_or(1.0);
-        if !(s.is_finite() && s > 0.0) {
-            return Err(Error::attr(
-                &self.path,
-                "painterly:sharpness",
-                format!("sharpness {s} at time {t} must be positive"),
-            ));
-        }
-        Ok(s)
+        sharpness_at(r, &self.path, t)
     }
 
     /// The camera for this mesh: the bake's `--camera`, else `painterly:camera`.
@@ -388,6 +377,22 @@ impl ViewBlend {
         crate::mesh::weighted_sum(&mut out, &terms);
         Ok(out)
     }
+}
+
+/// `painterly:sharpness` of the mesh at `path` at `t`, checked positive.
+pub fn sharpness_at(r: &StageReader, path: &str, t: f64) -> Result<f64> {
+    let prim = r.require_prim(path)?;
+    let s = r
+        .typed(&prim, "painterly:sharpness", Some(t), "float", values::scalar)?
+        .unwrap_or(1.0);
+    if !(s.is_finite() && s > 0.0) {
+        return Err(Error::attr(
+            path,
+            "painterly:sharpness",
+            format!("sharpness {s} at time {t} must be positive"),
+        ));
+    }
+    Ok(s)
 }
 
 /// Prim types that have no transform: a camera must not be one of these.

@@ -1,0 +1,421 @@
+//! Writes a bake as its frames arrive (SPEC §7): a layer of `over` specs
+//! whose attributes carry one time sample per baked frame.
+//!
+//! A bake declares its layout once (which attributes of which prims, which
+//! relationships to block, the layer metadata), then hands over each frame's
+//! arrays in time order. Writers keep only small per-sample bookkeeping, never
+//! the frames themselves, so memory stays flat however long the shot:
+//! `.usda` output spills each sample's text to a scratch file and assembles
+//! the layer at the end; `.usdc` output goes through [`super::layer::OverLayer`].
+//! Either way the output appears only when complete (temporary file, rename).
+
+use std::fmt::Write as _;
+use std::fs::File;
+use std::io::{BufWriter, Read, Seek, SeekFrom, Write};
+use std::path::{Path, PathBuf};
+
+use glam::Vec3;
+use openusd::sdf::Value;
+
+use super::layer::{Format, OverLayer};
+use super::stage::StageMetadata;
+use crate::error::{Error, Result};
+
+/// One attribute the bake writes, sampled at every frame.
+#[derive(Debug, Clone)]
+pub struct BakeAttr {
+    pub prim: String,
+    pub name: &'static str,
+    pub kind: SampleKind,
+    /// Primvar `interpolation` metadata to author, if any.
+    pub interpolation: Option<&'static str>,
+}
+
+/// The USD type of a baked attribute.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SampleKind {
+    /// `point3f[]`
+    Points,
+    /// `float3[]` (extents)
+    Extent,
+    /// `float[]`
+    Floats,
+}
+
+impl SampleKind {
+    fn type_name(self) -> &'static str {
+        match self {
+            SampleKind::Points => "point3f[]",
+            SampleKind::Extent => "float3[]",
+            SampleKind::Floats => "float[]",
+        }
+    }
+}
+
+/// One frame's value of one attribute.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Sample {
+    Vec3s(Vec<Vec3>),
+    Floats(Vec<f32>),
+}
+
+/// Where a bake came from, recorded in the layer's `customLayerData`
+/// (`painterly` dictionary) so a render or a farm can tell which input and
+/// frames it holds.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Provenance {
+    /// The input's absolute path.
+    pub input: String,
+    /// The baked frames as `A:B:STEP`.
+    pub frames: String,
+    /// painterly's version.
+    pub version: String,
+}
+
+/// Everything about a bake layer except its samples.
+#[derive(Debug, Clone)]
+pub struct BakeLayout {
+    pub meta: StageMetadata,
+    pub attrs: Vec<BakeAttr>,
+    /// Prims whose `skel:skeleton` is blocked (baked skinned meshes).
+    pub blocked_skeletons: Vec<String>,
+    pub provenance: Provenance,
+}
+
+/// Receives a bake's frames in time order.
+pub trait FrameSink: Send {
+    /// One frame: a sample per declared attribute, in declaration order.
+    fn write_frame(&mut self, time: f64, samples: Vec<Sample>) -> Result<()>;
+    /// Writes what remains and puts the layer in place.
+    fn finish(self: Box<Self>) -> Result<()>;
+}
+
+/// A sink writing `layout` to `path`, in the format its extension names.
+pub fn create(path: &Path, layout: BakeLayout) -> Result<Box<dyn FrameSink>> {
+    Ok(match Format::from_path(path)? {
+        Format::Usda => Box::new(UsdaSink::new(path, layout)?),
+        Format::Usdc => Box::new(MemorySink::new(path, layout)),
+    })
+}
+
+const DOC: &str = "Baked by painterly: over specs only; sublayer above the input.";
+
+fn check_sample(attr: &BakeAttr, s: &Sample) -> Result<()> {
+    let ok = matches!(
+        (attr.kind, s),
+        (SampleKind::Points | SampleKind::Extent, Sample::Vec3s(_)) | (SampleKind::Floats, Sample::Floats(_))
+    );
+    if ok {
+        Ok(())
+    } else {
+        Err(Error::attr(&attr.prim, attr.name, "internal: sample of the wrong kind"))
+    }
+}
+
+/// Collects every sample and writes the layer at the end.
+struct MemorySink {
+    path: PathBuf,
+    layout: BakeLayout,
+    samples: Vec<Vec<(f64, Value)>>,
+}
+
+impl MemorySink {
+    fn new(path: &Path, layout: BakeLayout) -> Self {
+        let n = layout.attrs.len();
+        MemorySink {
+            path: path.to_path_buf(),
+            layout,
+            samples: vec![Vec::new(); n],
+        }
+    }
+}
+
+impl FrameSink for MemorySink {
+    fn write_frame(&mut self, time: f64, samples: Vec<Sample>) -> Result<()> {
+        for ((attr, out), s) in self.layout.attrs.iter().zip(&mut self.samples).zip(samples) {
+            check_sample(attr, &s)?;
+            out.push((
+                time,
+                match s {
+                    Sample::Vec3s(v) => Value::Vec3fVec(bytemuck::allocation::cast_vec(v)),
+                    Sample::Floats(v) => Value::FloatVec(v),
+                },
+            ));
+        }
+        Ok(())
+    }
+
+    fn finish(self: Box<Self>) -> Result<()> {
+        let MemorySink { path, layout, samples } = *self;
+        let mut layer = OverLayer::new(layout.meta);
+        layer.set_provenance(&layout.provenance);
+        for (attr, s) in layout.attrs.iter().zip(samples) {
+            let metadata = match attr.interpolation {
+                Some(i) => vec![("interpolation", Value::Token(i.into()))],
+                None => vec![],
+            };
+            layer.set_samples(&attr.prim, attr.name, attr.kind.type_name(), s, metadata);
+        }
+        for prim in &layout.blocked_skeletons {
+            layer.block_relationship(prim, "skel:skeleton");
+        }
+        layer.write(&path)
+    }
+}
+
+/// Streams `.usda`: each sample's text goes to a scratch file as it arrives;
+/// `finish` writes the layer, copying each attribute's samples in order.
+struct UsdaSink {
+    path: PathBuf,
+    layout: BakeLayout,
+    scratch_path: PathBuf,
+    scratch: BufWriter<File>,
+    written: u64,
+    /// Per attribute: (offset, length) of each sample's text in the scratch file.
+    index: Vec<Vec<(u64, u64)>>,
+    text: String,
+}
+
+impl UsdaSink {
+    fn new(path: &Path, layout: BakeLayout) -> Result<Self> {
+        let dir = match path.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d,
+            _ => Path::new("."),
+        };
+        let name = path.file_name().map(|n| n.to_string_lossy()).unwrap_or_default();
+        let scratch_path = dir.join(format!(".{name}.painterly-{}.samples.tmp", std::process::id()));
+        let file = File::options()
+            .read(true)
+            .write(true)
+            .create(true)
+            .truncate(true)
+            .open(&scratch_path)
+            .map_err(|e| Error::msg(format!("cannot create scratch file: {e}")).in_file(path))?;
+        let n = layout.attrs.len();
+        Ok(UsdaSink {
+            path: path.to_path_buf(),
+            layout,
+            scratch_path,
+            scratch: BufWriter::with_capacity(1 << 20, file),
+            written: 0,
+            index: vec![Vec::new(); n],
+            text: String::new(),
+        })
+    }
+
+    fn io_error(&self, e: std::io::Error) -> Error {
+        Error::msg(format!("cannot write output: {e}")).in_file(&self.path)
+    }
+
+    /// The finished layer, assembled into `out`.
+    fn assemble(&mut self, out: &mut impl Write) -> std::io::Result<()> {
+        self.scratch.flush()?;
+        let file = self.scratch.get_mut();
+        let mut head = String::new();
+        write_header(&mut head, &self.layout);
+        out.write_all(head.as_bytes())?;
+
+        // Prims in namespace order with their attributes; ancestors as bare overs.
+        let tree = PrimTree::new(
+            self.layout
+                .attrs
+                .iter()
+                .map(|a| a.prim.as_str())
+                .chain(self.layout.blocked_skeletons.iter().map(String::as_str)),
+        );
+        let mut copy_buf = Vec::new();
+        let mut emit = |out: &mut dyn Write, prim: &str, depth: usize| -> std::io::Result<()> {
+            let pad = "    ".repeat(depth + 1);
+            for (i, attr) in self.layout.attrs.iter().enumerate().filter(|(_, a)| a.prim == prim) {
+                let ty = attr.kind.type_name();
+                if let Some(interp) = attr.interpolation {
+                    writeln!(
+                        out,
+                        "{pad}{ty} {} (\n{pad}    interpolation = \"{interp}\"\n{pad})",
+                        attr.name
+                    )?;
+                }
+                writeln!(out, "{pad}{ty} {}.timeSamples = {{", attr.name)?;
+                for &(offset, len) in &self.index[i] {
+                    copy_buf.resize(len as usize, 0);
+                    file.seek(SeekFrom::Start(offset))?;
+                    file.read_exact(&mut copy_buf)?;
+                    out.write_all(&copy_buf)?;
+                }
+                writeln!(out, "{pad}}}")?;
+            }
+            if self.layout.blocked_skeletons.iter().any(|p| p == prim) {
+                writeln!(out, "{pad}rel skel:skeleton = None")?;
+            }
+            Ok(())
+        };
+        tree.write(out, &mut emit)?;
+        file.seek(SeekFrom::End(0))?;
+        Ok(())
+    }
+}
+
+impl Drop for UsdaSink {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_file(&self.scratch_path);
+    }
+}
+
+impl FrameSink for UsdaSink {
+    fn write_frame(&mut self, time: f64, samples: Vec<Sample>) -> Result<()> {
+        for (i, s) in samples.iter().enumerate() {
+            let attr = &self.layout.attrs[i];
+            check_sample(attr, s)?;
+            // Sample lines sit two levels inside their prim's block.
+            let pad = "    ".repeat(attr.prim.matches('/').count() + 1);
+            self.text.clear();
+            let _ = write!(self.text, "{pad}{}: [", UsdaNumber(time));
+            match s {
+                Sample::Vec3s(v) => {
+                    for (k, p) in v.iter().enumerate() {
+                        let sep = if k == 0 { "" } else { ", " };
+                        let _ = write!(self.text, "{sep}({}, {}, {})", p.x, p.y, p.z);
+                    }
+                }
+                Sample::Floats(v) => {
+                    for (k, x) in v.iter().enumerate() {
+                        let sep = if k == 0 { "" } else { ", " };
+                        let _ = write!(self.text, "{sep}{x}");
+                    }
+                }
+            }
+            self.text.push_str("],\n");
+            let len = self.text.len() as u64;
+            if let Err(e) = self.scratch.write_all(self.text.as_bytes()) {
+                return Err(self.io_error(e));
+            }
+            self.index[i].push((self.written, len));
+            self.written += len;
+        }
+        Ok(())
+    }
+
+    fn finish(mut self: Box<Self>) -> Result<()> {
+        let path = self.path.clone();
+        crate::usd_io::layer::write_atomic_with(&path, |out| self.assemble(out))
+    }
+}
+
+/// An f64 as usda writes it: integers without a fraction, others shortest.
+struct UsdaNumber(f64);
+
+impl std::fmt::Display for UsdaNumber {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}", self.0)
+    }
+}
+
+/// A usda string literal.
+fn quoted(s: &str) -> String {
+    let mut out = String::with_capacity(s.len() + 2);
+    out.push('"');
+    for c in s.chars() {
+        match c {
+            '"' => out.push_str("\\\""),
+            '\\' => out.push_str("\\\\"),
+            '\n' => out.push_str("\\n"),
+            '\r' => out.push_str("\\r"),
+            '\t' => out.push_str("\\t"),
+            c => out.push(c),
+        }
+    }
+    out.push('"');
+    out
+}
+
+fn write_header(out: &mut String, layout: &BakeLayout) {
+    let m = &layout.meta;
+    out.push_str("#usda 1.0\n(\n");
+    let _ = writeln!(out, "    customLayerData = {{\n        dictionary painterly = {{");
+    let p = &layout.provenance;
+    let _ = writeln!(out, "            string frames = {}", quoted(&p.frames));
+    let _ = writeln!(out, "            string input = {}", quoted(&p.input));
+    let _ = writeln!(out, "            string version = {}", quoted(&p.version));
+    out.push_str("        }\n    }\n");
+    let _ = writeln!(out, "    doc = {}", quoted(DOC));
+    for (key, v) in [
+        ("endTimeCode", m.end_time_code),
+        ("framesPerSecond", m.frames_per_second),
+        ("metersPerUnit", m.meters_per_unit),
+        ("startTimeCode", m.start_time_code),
+        ("timeCodesPerSecond", m.time_codes_per_second),
+    ] {
+        if let Some(v) = v {
+            let _ = writeln!(out, "    {key} = {}", UsdaNumber(v));
+        }
+    }
+    if let Some(up) = &m.up_axis {
+        let _ = writeln!(out, "    upAxis = {}", quoted(up));
+    }
+    out.push_str(")\n");
+}
+
+/// Prim paths as a tree, for writing nested `over` blocks.
+struct PrimTree {
+    /// Path → children names, in the order they were first declared.
+    nodes: std::collections::HashMap<String, Vec<String>>,
+}
+
+impl PrimTree {
+    fn new<'a>(paths: impl Iterator<Item = &'a str>) -> Self {
+        let mut nodes: std::collections::HashMap<String, Vec<String>> = Default::default();
+        let mut seen = std::collections::HashSet::new();
+        for path in paths {
+            let mut cur = path.to_string();
+            while cur != "/" && seen.insert(cur.clone()) {
+                let (parent, name) = match cur.rsplit_once('/') {
+                    Some(("", name)) => ("/".to_string(), name.to_string()),
+                    Some((parent, name)) => (parent.to_string(), name.to_string()),
+                    None => break,
+                };
+                nodes.entry(parent.clone()).or_default().push(name);
+                cur = parent;
+            }
+        }
+        PrimTree { nodes }
+    }
+
+    fn write(
+        &self,
+        out: &mut dyn Write,
+        emit: &mut dyn FnMut(&mut dyn Write, &str, usize) -> std::io::Result<()>,
+    ) -> std::io::Result<()> {
+        for name in self.nodes.get("/").map(Vec::as_slice).unwrap_or_default() {
+            writeln!(out)?;
+            self.write_prim(out, &format!("/{name}"), 0, emit)?;
+        }
+        Ok(())
+    }
+
+    fn write_prim(
+        &self,
+        out: &mut dyn Write,
+        path: &str,
+        depth: usize,
+        emit: &mut dyn FnMut(&mut dyn Write, &str, usize) -> std::io::Result<()>,
+    ) -> std::io::Result<()> {
+        let pad = "    ".repeat(depth);
+        let name = path.rsplit('/').next().unwrap_or_default();
+        writeln!(out, "{pad}over \"{name}\"\n{pad}{{")?;
+        emit(out, path, depth)?;
+        for (i, child) in self
+            .nodes
+            .get(path)
+            .map(Vec::as_slice)
+            .unwrap_or_default()
+            .iter()
+            .enumerate()
+        {
+            if i > 0 {
+                writeln!(out)?;
+            }
+            self.write_prim(out, &format!("{path}/{child}"), depth + 1, emit)?;
+        }
+        writeln!(out, "{pad}}}")
+    }
+}
