@@ -20,6 +20,7 @@ use crate::error::{Error, Result};
 use crate::frames::FrameRange;
 use crate::mesh::bounds;
 use crate::usd_io::bake_layer::{self, BakeAttr, BakeLayout, FrameSink, Provenance, Sample, SampleKind};
+use crate::usd_io::clips::{self, ChunkedSink, ClipPlan};
 use crate::usd_io::layer::Format;
 use crate::usd_io::stage::StageReader;
 
@@ -32,6 +33,14 @@ pub struct BakeOptions {
     pub bake_proxy: bool,
     /// Camera prim for `viewDirection` axes without a source (and view-dependent meshes).
     pub camera: Option<String>,
+    /// Write value clips of this many frames per chunk layer (plus the
+    /// clip-set layer `output`) instead of one file.
+    pub chunk: Option<usize>,
+    /// With `chunk`: write only this chunk's layer (a farm task).
+    pub chunk_index: Option<usize>,
+    /// With `chunk`: write only the clip set, after checking that every
+    /// chunk layer is there and was baked from this input (a farm's last step).
+    pub assemble: bool,
 }
 
 /// What a bake did, for the summary line and `--json`.
@@ -46,6 +55,9 @@ pub struct BakeSummary {
     pub strokes: usize,
     pub points: usize,
     pub seconds: f64,
+    /// Chunk layers this run wrote (or, assembling, checked); empty for a
+    /// single-file bake.
+    pub chunks: Vec<PathBuf>,
 }
 
 /// Reports progress: (steps done, total steps); called from worker threads.
@@ -54,6 +66,11 @@ pub type Progress<'a> = &'a (dyn Fn(usize, usize) + Sync);
 /// Checks an output path before any work: format, directory, not the input.
 pub fn check_output(input: &Path, output: &Path) -> Result<Format> {
     let format = Format::from_path(output)?;
+    check_output_dir(input, output)?;
+    Ok(format)
+}
+
+fn check_output_dir(input: &Path, output: &Path) -> Result<()> {
     let dir = match output.parent() {
         Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
         _ => PathBuf::from("."),
@@ -66,7 +83,7 @@ pub fn check_output(input: &Path, output: &Path) -> Result<Format> {
             return Err(Error::msg("output would overwrite the input; inputs are never modified").in_file(output));
         }
     }
-    Ok(format)
+    Ok(())
 }
 
 /// The frames to bake: the option, checked against the stage's range, or
@@ -98,6 +115,12 @@ pub fn resolve_frames(r: &StageReader, frames: Option<FrameRange>) -> Result<Vec
 /// Bakes `input` into `output`. A stage with nothing to bake is an error.
 pub fn bake(input: &Path, output: &Path, opts: &BakeOptions, progress: Progress) -> Result<BakeSummary> {
     let started = Instant::now();
+    if opts.chunk.is_some() && Format::from_path(output)? != Format::Usda {
+        return Err(Error::msg("with --chunk the output is the clip-set layer: name it .usda").in_file(output));
+    }
+    if opts.chunk.is_none() && (opts.chunk_index.is_some() || opts.assemble) {
+        return Err(Error::msg("--chunk-index and --assemble need --chunk N"));
+    }
     check_output(input, output)?;
     let character = Character::open(input, opts.camera.as_deref())?;
     if is_empty(&character.model, opts) {
@@ -138,7 +161,7 @@ fn bake_character(
 ) -> Result<BakeSummary> {
     let model = &ch.model;
     let times = resolve_frames(&ch.reader, opts.frames)?;
-    let layout = BakeLayout {
+    let mut layout = BakeLayout {
         meta: ch.reader.metadata(),
         attrs: layout_attrs(model, opts.bake_proxy),
         blocked_skeletons: blocked_skeletons(model, opts.bake_proxy),
@@ -149,14 +172,64 @@ fn bake_character(
                 .into_owned(),
             frames: frames_text(&times, opts.frames),
             version: env!("CARGO_PKG_VERSION").to_string(),
+            ..Default::default()
         },
     };
-    let sink = bake_layer::create(output, layout)?;
-    stream(ch, &times, opts.bake_proxy, sink, progress)?;
+    let (baked, chunks) = match opts.chunk {
+        None => {
+            stream(
+                ch,
+                &times,
+                opts.bake_proxy,
+                bake_layer::create(output, layout)?,
+                progress,
+            )?;
+            (times.len(), Vec::new())
+        }
+        Some(size) => {
+            layout.provenance.input_hash = Some(clips::input_hash(&ch.reader)?);
+            let plan = ClipPlan::new(output, &times, size)?;
+            match (opts.chunk_index, opts.assemble) {
+                (Some(k), _) => {
+                    let chunk = plan.chunks.get(k).ok_or_else(|| {
+                        Error::msg(format!(
+                            "--chunk-index {k} is out of range: {} frames in chunks of {size} make {} chunks (0..{})",
+                            times.len(),
+                            plan.chunks.len(),
+                            plan.chunks.len()
+                        ))
+                    })?;
+                    plan.create_dir()?;
+                    let path = plan.chunk_path(chunk);
+                    let chunk_layout = clips::chunk_layout(&layout, &plan, chunk, &times, clips::frame_step(&times));
+                    let frames = &times[chunk.start..chunk.end];
+                    stream(
+                        ch,
+                        frames,
+                        opts.bake_proxy,
+                        bake_layer::create(&path, chunk_layout)?,
+                        progress,
+                    )?;
+                    (frames.len(), vec![path])
+                }
+                (None, true) => {
+                    let hash = layout.provenance.input_hash.clone().unwrap_or_default();
+                    clips::check_chunks(&plan, &hash, &times)?;
+                    clips::write_clip_set(&plan, &layout, &times)?;
+                    (0, plan.chunks.iter().map(|c| plan.chunk_path(c)).collect())
+                }
+                (None, false) => {
+                    let sink = Box::new(ChunkedSink::new(plan.clone(), layout, &times)?);
+                    stream(ch, &times, opts.bake_proxy, sink, progress)?;
+                    (times.len(), plan.chunks.iter().map(|c| plan.chunk_path(c)).collect())
+                }
+            }
+        }
+    };
     Ok(BakeSummary {
         input: ch.reader.file.clone(),
         output: output.to_path_buf(),
-        frames: times.len(),
+        frames: baked,
         rigs: model.rigs.len(),
         view_meshes: model.views.len(),
         layers: model.num_layers(),
@@ -168,6 +241,7 @@ fn bake_character(
             .sum(),
         points: model.rigs.iter().map(|r| r.num_points()).sum(),
         seconds: started.elapsed().as_secs_f64(),
+        chunks,
     })
 }
 

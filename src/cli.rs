@@ -67,6 +67,20 @@ pub enum Command {
         /// view-dependent mesh (overrides their painterly:camera).
         #[arg(long, value_name = "PRIM")]
         camera: Option<String>,
+        /// Write USD value clips: chunk layers of N frames in OUTPUT's
+        /// `<stem>.clips/` folder, and OUTPUT (.usda) as the clip set that
+        /// composes them. Memory and each file stay small whatever the range.
+        #[arg(long, value_name = "N", value_parser = positive_count)]
+        chunk: Option<usize>,
+        /// With --chunk: bake only chunk K (0-based) into its chunk layer;
+        /// one farm task per chunk.
+        #[arg(long, value_name = "K", requires = "chunk", conflicts_with = "assemble")]
+        chunk_index: Option<usize>,
+        /// With --chunk: only write the clip set, after checking that every
+        /// chunk layer exists and was baked from this input by this version
+        /// (a farm's last step).
+        #[arg(long, requires = "chunk")]
+        assemble: bool,
         /// Print nothing on success.
         #[arg(short, long)]
         quiet: bool,
@@ -261,6 +275,14 @@ pub enum FalloffArg {
     None,
 }
 
+/// A count of at least 1 (a usage error otherwise).
+fn positive_count(s: &str) -> Result<usize, String> {
+    match s.parse::<usize>() {
+        Ok(n) if n >= 1 => Ok(n),
+        _ => Err(format!("{s:?} is not a whole number of at least 1")),
+    }
+}
+
 fn parse_point(s: &str) -> Result<glam::DVec3, Error> {
     let v: Vec<f64> = s
         .split(',')
@@ -339,6 +361,9 @@ pub fn run(cli: Cli) -> i32 {
             frames,
             bake_proxy,
             camera,
+            chunk,
+            chunk_index,
+            assemble,
             quiet,
             json,
         } => {
@@ -361,6 +386,9 @@ pub fn run(cli: Cli) -> i32 {
                 frames,
                 bake_proxy,
                 camera,
+                chunk,
+                chunk_index,
+                assemble,
             };
             let result = bake(&input, &output, &opts, &progress);
             bar.finish_and_clear();

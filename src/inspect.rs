@@ -11,6 +11,7 @@ use std::path::{Path, PathBuf};
 use serde::Serialize;
 
 use crate::error::{Error, Result};
+use crate::usd_io::clips::{clip_set_status, ChunkState};
 use crate::usd_io::scene::{ProxyMotion, Scene};
 use crate::usd_io::stage::StageReader;
 use crate::usd_io::view_mesh::read_view_meshes_lenient;
@@ -25,7 +26,27 @@ pub struct Report {
     pub rigs: Vec<RigReport>,
     pub axes: Vec<AxisReport>,
     pub view_dependent_meshes: Vec<ViewMeshReport>,
+    /// For a clip-set layer written by `bake --chunk`: its chunks.
+    pub clip_set: Option<ClipSetReport>,
     pub problems: Vec<Problem>,
+}
+
+/// A clip-set bake's chunks.
+#[derive(Debug, Serialize)]
+pub struct ClipSetReport {
+    pub chunk_size: usize,
+    pub chunks: Vec<ChunkReport>,
+}
+
+/// One chunk layer of a clip-set bake.
+#[derive(Debug, Serialize)]
+pub struct ChunkReport {
+    /// Path of the chunk layer.
+    pub path: PathBuf,
+    /// "done", "missing" or "stale".
+    pub state: &'static str,
+    /// Why a chunk is stale.
+    pub detail: Option<String>,
 }
 
 #[derive(Debug, Serialize)]
@@ -210,6 +231,7 @@ pub fn inspect(path: &Path) -> Result<Report> {
             encloses: m.blend.blender.encloses(),
         });
     }
+    let clip_set = clip_set_report(path, &mut problems)?;
     Ok(Report {
         file: path.to_path_buf(),
         start_time_code: meta.start_time_code,
@@ -219,8 +241,50 @@ pub fn inspect(path: &Path) -> Result<Report> {
         rigs,
         axes,
         view_dependent_meshes: view_meshes,
+        clip_set,
         problems,
     })
+}
+
+/// The chunks of a clip-set bake; missing and stale chunks are problems.
+fn clip_set_report(path: &Path, problems: &mut Vec<Problem>) -> Result<Option<ClipSetReport>> {
+    let Some(status) = clip_set_status(path)? else {
+        return Ok(None);
+    };
+    let stem = path.file_stem().unwrap_or_default().to_string_lossy();
+    let dir = path.with_file_name(format!("{stem}.clips"));
+    let chunks = status
+        .chunks
+        .into_iter()
+        .map(|(name, state)| {
+            let chunk = dir.join(&name);
+            let (state, detail) = match state {
+                ChunkState::Done => ("done", None),
+                ChunkState::Missing => ("missing", None),
+                ChunkState::Stale(why) => ("stale", Some(why)),
+            };
+            if state != "done" {
+                problems.push(Problem {
+                    prim: None,
+                    attribute: None,
+                    message: format!(
+                        "chunk {} is {state}{}",
+                        chunk.display(),
+                        detail.as_deref().map(|d| format!(" ({d})")).unwrap_or_default()
+                    ),
+                });
+            }
+            ChunkReport {
+                path: chunk,
+                state,
+                detail,
+            }
+        })
+        .collect();
+    Ok(Some(ClipSetReport {
+        chunk_size: status.chunk_size,
+        chunks,
+    }))
 }
 
 impl Report {
@@ -301,6 +365,18 @@ impl Report {
                 let [x, y, z] = k.direction;
                 let _ = writeln!(s, "  ({x:.3}, {y:.3}, {z:.3}): {}", k.keys.join(", "));
             }
+        }
+        if let Some(c) = &self.clip_set {
+            let count = |state: &str| c.chunks.iter().filter(|k| k.state == state).count();
+            let _ = writeln!(
+                s,
+                "clip set: {} chunks of {} frames: {} done, {} missing, {} stale",
+                c.chunks.len(),
+                c.chunk_size,
+                count("done"),
+                count("missing"),
+                count("stale")
+            );
         }
         if self.problems.is_empty() {
             let _ = writeln!(s, "no problems found");

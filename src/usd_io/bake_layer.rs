@@ -43,7 +43,7 @@ pub enum SampleKind {
 }
 
 impl SampleKind {
-    fn type_name(self) -> &'static str {
+    pub fn type_name(self) -> &'static str {
         match self {
             SampleKind::Points => "point3f[]",
             SampleKind::Extent => "float3[]",
@@ -62,7 +62,7 @@ pub enum Sample {
 /// Where a bake came from, recorded in the layer's `customLayerData`
 /// (`painterly` dictionary) so a render or a farm can tell which input and
 /// frames it holds.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct Provenance {
     /// The input's absolute path.
     pub input: String,
@@ -70,6 +70,80 @@ pub struct Provenance {
     pub frames: String,
     /// painterly's version.
     pub version: String,
+    /// SHA-256 over the input's layers (chunked bakes: a chunk is reused only
+    /// for the same input).
+    pub input_hash: Option<String>,
+    /// Value-clip bakes: this chunk's index and the chunk count.
+    pub chunk: Option<(usize, usize)>,
+    /// Value-clip stages: frames per chunk and the chunk layers, in order.
+    pub chunks: Option<(usize, Vec<String>)>,
+}
+
+/// A `customLayerData` entry value.
+#[derive(Debug, Clone, PartialEq)]
+pub enum DataValue {
+    Str(String),
+    Int(i64),
+    Strs(Vec<String>),
+}
+
+impl Provenance {
+    /// The entries of the `painterly` dictionary, sorted by key.
+    pub fn fields(&self) -> Vec<(&'static str, DataValue)> {
+        let mut f = vec![
+            ("frames", DataValue::Str(self.frames.clone())),
+            ("input", DataValue::Str(self.input.clone())),
+            ("version", DataValue::Str(self.version.clone())),
+        ];
+        if let Some(h) = &self.input_hash {
+            f.push(("inputHash", DataValue::Str(h.clone())));
+        }
+        if let Some((index, count)) = self.chunk {
+            f.push(("chunkIndex", DataValue::Int(index as i64)));
+            f.push(("chunkCount", DataValue::Int(count as i64)));
+        }
+        if let Some((size, names)) = &self.chunks {
+            f.push(("chunkSize", DataValue::Int(*size as i64)));
+            f.push(("chunks", DataValue::Strs(names.clone())));
+        }
+        f.sort_by_key(|(k, _)| *k);
+        f
+    }
+}
+
+/// The layer-metadata block of a usda layer written by painterly: the
+/// provenance, a doc string and the input's stage metadata.
+pub fn usda_header(meta: &StageMetadata, provenance: &Provenance, doc: &str) -> String {
+    let mut out = String::from("#usda 1.0\n(\n    customLayerData = {\n        dictionary painterly = {\n");
+    for (key, v) in provenance.fields() {
+        let _ = match v {
+            DataValue::Str(s) => writeln!(out, "            string {key} = {}", quoted(&s)),
+            DataValue::Int(i) => writeln!(out, "            int {key} = {i}"),
+            DataValue::Strs(v) => writeln!(
+                out,
+                "            string[] {key} = [{}]",
+                v.iter().map(|s| quoted(s)).collect::<Vec<_>>().join(", ")
+            ),
+        };
+    }
+    out.push_str("        }\n    }\n");
+    let _ = writeln!(out, "    doc = {}", quoted(doc));
+    for (key, v) in [
+        ("endTimeCode", meta.end_time_code),
+        ("framesPerSecond", meta.frames_per_second),
+        ("metersPerUnit", meta.meters_per_unit),
+        ("startTimeCode", meta.start_time_code),
+        ("timeCodesPerSecond", meta.time_codes_per_second),
+    ] {
+        if let Some(v) = v {
+            let _ = writeln!(out, "    {key} = {}", UsdaNumber(v));
+        }
+    }
+    if let Some(up) = &meta.up_axis {
+        let _ = writeln!(out, "    upAxis = {}", quoted(up));
+    }
+    out.push_str(")\n");
+    out
 }
 
 /// Everything about a bake layer except its samples.
@@ -98,7 +172,7 @@ pub fn create(path: &Path, layout: BakeLayout) -> Result<Box<dyn FrameSink>> {
     })
 }
 
-const DOC: &str = "Baked by painterly: over specs only; sublayer above the input.";
+pub const DOC: &str = "Baked by painterly: over specs only; sublayer above the input.";
 
 fn check_sample(attr: &BakeAttr, s: &Sample) -> Result<()> {
     let ok = matches!(
@@ -211,8 +285,7 @@ impl UsdaSink {
     fn assemble(&mut self, out: &mut impl Write) -> std::io::Result<()> {
         self.scratch.flush()?;
         let file = self.scratch.get_mut();
-        let mut head = String::new();
-        write_header(&mut head, &self.layout);
+        let head = usda_header(&self.layout.meta, &self.layout.provenance, DOC);
         out.write_all(head.as_bytes())?;
 
         // Prims in namespace order with their attributes; ancestors as bare overs.
@@ -302,7 +375,7 @@ impl FrameSink for UsdaSink {
 }
 
 /// An f64 as usda writes it: integers without a fraction, others shortest.
-struct UsdaNumber(f64);
+pub struct UsdaNumber(pub f64);
 
 impl std::fmt::Display for UsdaNumber {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -311,7 +384,7 @@ impl std::fmt::Display for UsdaNumber {
 }
 
 /// A usda string literal.
-fn quoted(s: &str) -> String {
+pub fn quoted(s: &str) -> String {
     let mut out = String::with_capacity(s.len() + 2);
     out.push('"');
     for c in s.chars() {
@@ -328,41 +401,14 @@ fn quoted(s: &str) -> String {
     out
 }
 
-fn write_header(out: &mut String, layout: &BakeLayout) {
-    let m = &layout.meta;
-    out.push_str("#usda 1.0\n(\n");
-    let _ = writeln!(out, "    customLayerData = {{\n        dictionary painterly = {{");
-    let p = &layout.provenance;
-    let _ = writeln!(out, "            string frames = {}", quoted(&p.frames));
-    let _ = writeln!(out, "            string input = {}", quoted(&p.input));
-    let _ = writeln!(out, "            string version = {}", quoted(&p.version));
-    out.push_str("        }\n    }\n");
-    let _ = writeln!(out, "    doc = {}", quoted(DOC));
-    for (key, v) in [
-        ("endTimeCode", m.end_time_code),
-        ("framesPerSecond", m.frames_per_second),
-        ("metersPerUnit", m.meters_per_unit),
-        ("startTimeCode", m.start_time_code),
-        ("timeCodesPerSecond", m.time_codes_per_second),
-    ] {
-        if let Some(v) = v {
-            let _ = writeln!(out, "    {key} = {}", UsdaNumber(v));
-        }
-    }
-    if let Some(up) = &m.up_axis {
-        let _ = writeln!(out, "    upAxis = {}", quoted(up));
-    }
-    out.push_str(")\n");
-}
-
 /// Prim paths as a tree, for writing nested `over` blocks.
-struct PrimTree {
+pub struct PrimTree {
     /// Path → children names, in the order they were first declared.
     nodes: std::collections::HashMap<String, Vec<String>>,
 }
 
 impl PrimTree {
-    fn new<'a>(paths: impl Iterator<Item = &'a str>) -> Self {
+    pub fn new<'a>(paths: impl Iterator<Item = &'a str>) -> Self {
         let mut nodes: std::collections::HashMap<String, Vec<String>> = Default::default();
         let mut seen = std::collections::HashSet::new();
         for path in paths {
@@ -380,14 +426,26 @@ impl PrimTree {
         PrimTree { nodes }
     }
 
-    fn write(
+    /// Writes nested `over` blocks; `emit` writes each prim's contents.
+    pub fn write(
         &self,
         out: &mut dyn Write,
         emit: &mut dyn FnMut(&mut dyn Write, &str, usize) -> std::io::Result<()>,
     ) -> std::io::Result<()> {
+        self.write_with_meta(out, &mut |_| String::new(), emit)
+    }
+
+    /// Like [`PrimTree::write`]; `meta` gives each prim's metadata block
+    /// (written after its name, e.g. ` (\n    clips = {...}\n)`), or "".
+    pub fn write_with_meta(
+        &self,
+        out: &mut dyn Write,
+        meta: &mut dyn FnMut(&str) -> String,
+        emit: &mut dyn FnMut(&mut dyn Write, &str, usize) -> std::io::Result<()>,
+    ) -> std::io::Result<()> {
         for name in self.nodes.get("/").map(Vec::as_slice).unwrap_or_default() {
             writeln!(out)?;
-            self.write_prim(out, &format!("/{name}"), 0, emit)?;
+            self.write_prim(out, &format!("/{name}"), 0, meta, emit)?;
         }
         Ok(())
     }
@@ -397,11 +455,12 @@ impl PrimTree {
         out: &mut dyn Write,
         path: &str,
         depth: usize,
+        meta: &mut dyn FnMut(&str) -> String,
         emit: &mut dyn FnMut(&mut dyn Write, &str, usize) -> std::io::Result<()>,
     ) -> std::io::Result<()> {
         let pad = "    ".repeat(depth);
         let name = path.rsplit('/').next().unwrap_or_default();
-        writeln!(out, "{pad}over \"{name}\"\n{pad}{{")?;
+        writeln!(out, "{pad}over \"{name}\"{}\n{pad}{{", meta(path))?;
         emit(out, path, depth)?;
         for (i, child) in self
             .nodes
@@ -414,7 +473,7 @@ impl PrimTree {
             if i > 0 {
                 writeln!(out)?;
             }
-            self.write_prim(out, &format!("{path}/{child}"), depth + 1, emit)?;
+            self.write_prim(out, &format!("{path}/{child}"), depth + 1, meta, emit)?;
         }
         writeln!(out, "{pad}}}")
     }

@@ -64,9 +64,18 @@ impl OverLayer {
 
     /// Records where a bake came from in `customLayerData["painterly"]`.
     pub fn set_provenance(&mut self, p: &super::bake_layer::Provenance) {
-        let dict = [("input", &p.input), ("frames", &p.frames), ("version", &p.version)]
+        use super::bake_layer::DataValue;
+        let dict = p
+            .fields()
             .into_iter()
-            .map(|(k, v)| (k.to_string(), Value::String(v.clone())))
+            .map(|(k, v)| {
+                let v = match v {
+                    DataValue::Str(s) => Value::String(s),
+                    DataValue::Int(i) => Value::Int(i as i32),
+                    DataValue::Strs(v) => Value::StringVec(v),
+                };
+                (k.to_string(), v)
+            })
             .collect();
         self.custom_layer_data
             .push(("painterly".to_string(), Value::Dictionary(dict)));

@@ -5,6 +5,7 @@
 
 pub mod axes;
 pub mod bake_layer;
+pub mod clips;
 pub mod edit;
 pub mod layer;
 pub mod render_scene;
