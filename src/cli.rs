@@ -196,6 +196,31 @@ pub enum Command {
     ///
     /// Example: painterly render shot.usda --camera /World/Cam --frames 1:48 -o out/shot.####.exr --png --sheet
     Render(crate::render::RenderArgs),
+    /// Write a layer that shows a bake over its input in usdview.
+    ///
+    /// The layer sublayers BAKE over INPUT (relative paths when possible) and
+    /// carries the baked time range, timeCodesPerSecond, framesPerSecond,
+    /// upAxis, metersPerUnit and defaultPrim, so a viewer opens it at the
+    /// right frames and UsdValidation finds nothing to report. A bake made
+    /// from another input is refused.
+    ///
+    /// Example: painterly view fixtures/blowfish.usda --bake /tmp/fish_bake.usdc -o /tmp/fish_view.usda
+    View {
+        /// The input the bake was made from.
+        input: PathBuf,
+        /// The layer `painterly bake` wrote (a single file or a --chunk clip set).
+        #[arg(long, value_name = "LAYER")]
+        bake: PathBuf,
+        /// The view layer to write (.usda).
+        #[arg(short, long)]
+        output: PathBuf,
+        /// Print nothing on success.
+        #[arg(short, long)]
+        quiet: bool,
+        /// Print a JSON summary on stdout instead of the summary line.
+        #[arg(long)]
+        json: bool,
+    },
     /// Interpolation weights for keys and query points, JSON on stdin.
     ///
     /// Input: {"method": "smoothVoronoi"|"rbf"|"shepard", "radius": 1.0,
@@ -488,7 +513,44 @@ pub fn run(cli: Cli) -> i32 {
         Command::Render(args) => match crate::render::run(&args) {
             Ok(summary) => {
                 if !args.quiet {
-                    println!("{summary}");
+                    for w in &summary.warnings {
+                        eprintln!("warning: {w}");
+                    }
+                }
+                if args.json {
+                    println!("{}", serde_json::to_string(&summary).unwrap_or_default());
+                } else if !args.quiet {
+                    println!("{}", summary.line());
+                }
+                0
+            }
+            Err(e) => report(&e),
+        },
+        Command::View {
+            input,
+            bake,
+            output,
+            quiet,
+            json,
+        } => match crate::usd_io::assembly::write_view_layer(&input, &bake, &output) {
+            Ok(s) => {
+                if !quiet {
+                    for w in &s.warnings {
+                        eprintln!("warning: {w}");
+                    }
+                }
+                if json {
+                    println!("{}", serde_json::to_string(&s).unwrap_or_default());
+                } else if !quiet {
+                    println!(
+                        "wrote {}: {} over {}, frames {}:{}, defaultPrim {}",
+                        s.output.display(),
+                        s.bake.display(),
+                        s.input.display(),
+                        s.start_time_code,
+                        s.end_time_code,
+                        s.default_prim
+                    );
                 }
                 0
             }

@@ -41,6 +41,7 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use crate::bake::{bake_if_any, BakeOptions};
 use crate::error::{Error, Result};
 use crate::frames::FrameRange;
+use crate::usd_io::bake_layer::read_provenance;
 use crate::usd_io::render_scene::{layer_timing, RenderScene};
 use crate::usd_io::stage::StageReader;
 
@@ -141,6 +142,9 @@ pub struct RenderArgs {
     /// Print nothing on success.
     #[arg(short, long)]
     pub quiet: bool,
+    /// Print a JSON summary on stdout instead of the summary line.
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// Paper white (#f1ede4) for sheets without --background.
@@ -278,14 +282,119 @@ fn write_root(dir: &Path, input: &Path, bake_layer: Option<&Path>) -> Result<Pat
     Ok(root)
 }
 
-/// Renders every frame; returns the summary line.
-pub fn run(args: &RenderArgs) -> Result<String> {
+/// What a render did, for the summary line and `--json`.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct RenderSummary {
+    pub input: PathBuf,
+    /// The EXR path pattern.
+    pub output: PathBuf,
+    pub frames: usize,
+    pub width: usize,
+    pub height: usize,
+    /// BasisCurves prims and the most strokes drawn in one frame.
+    pub curves: usize,
+    pub strokes: usize,
+    /// Mesh prims and the most triangles drawn in one frame.
+    pub meshes: usize,
+    pub triangles: usize,
+    /// The contact sheet, when written.
+    pub sheet: Option<PathBuf>,
+    /// Frames with nothing in view (every pixel's alpha 0).
+    pub empty_frames: Vec<f64>,
+    /// Everything that looks wrong but did not stop the render.
+    pub warnings: Vec<String>,
+    pub seconds: f64,
+    pub median_frame_seconds: f64,
+}
+
+impl RenderSummary {
+    /// The summary line.
+    pub fn line(&self) -> String {
+        let sheet = self
+            .sheet
+            .as_ref()
+            .map(|p| format!(", sheet {}", p.display()))
+            .unwrap_or_default();
+        format!(
+            "rendered {} at {}x{}: {} ({}), {} ({}) -> {}{sheet} in {:.2} s (median {:.3} s/frame)",
+            plural(self.frames, "frame"),
+            self.width,
+            self.height,
+            plural(self.curves, "curves prim"),
+            plural(self.strokes, "stroke"),
+            plural(self.meshes, "mesh"),
+            plural(self.triangles, "triangle"),
+            self.output.display(),
+            self.seconds,
+            self.median_frame_seconds
+        )
+    }
+}
+
+/// "1 frame", "2 frames", "1 mesh", "2 meshes".
+pub fn plural(n: usize, word: &str) -> String {
+    let plural = if word.ends_with('h') || word.ends_with('s') {
+        format!("{word}es")
+    } else {
+        format!("{word}s")
+    };
+    format!("{n} {}", if n == 1 { word } else { &plural })
+}
+
+/// Checks a `--bake` layer against the render: a bake of another input is
+/// refused; frames outside the baked range are warned about (strokes show
+/// their authored points there).
+fn check_bake(input: &Path, bake: &Path, times: &[f64], warnings: &mut Vec<String>) -> Result<()> {
+    let Some(p) = read_provenance(bake)? else {
+        warnings.push(format!(
+            "{} has no painterly provenance (customLayerData[\"painterly\"]): cannot check it was baked from {}",
+            bake.display(),
+            input.display()
+        ));
+        return Ok(());
+    };
+    let same = match (std::fs::canonicalize(input), std::fs::canonicalize(&p.input)) {
+        (Ok(a), Ok(b)) => a == b,
+        _ => false,
+    };
+    if !same {
+        return Err(Error::msg(format!(
+            "this bake was made from {}, not from the input {}: bake the input first (painterly bake {} -o LAYER)",
+            p.input,
+            input.display(),
+            input.display()
+        ))
+        .in_file(bake));
+    }
+    if let Some((a, b, _)) = p.frame_range() {
+        let outside: Vec<String> = times
+            .iter()
+            .filter(|&&t| t < a - 1e-9 || t > b + 1e-9)
+            .map(|t| t.to_string())
+            .collect();
+        if !outside.is_empty() {
+            warnings.push(format!(
+                "{} outside the bake's frames {a}:{b} ({}): strokes there show their authored points",
+                plural(outside.len(), "frame"),
+                outside.join(", ")
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Renders every frame.
+pub fn run(args: &RenderArgs) -> Result<RenderSummary> {
     let started = Instant::now();
     let times = check_args(args)?;
     let brush = match &args.brush {
         Some(p) => Some(image_io::read_brush(p)?),
         None => None,
     };
+    let mut warnings = Vec::new();
+    if let Some(b) = &args.bake {
+        check_bake(&args.input, b, &times, &mut warnings)?;
+    }
     let tmp = TempDir::new()?;
     let bake_layer = match &args.bake {
         Some(b) => Some(b.clone()),
@@ -329,6 +438,7 @@ pub fn run(args: &RenderArgs) -> Result<String> {
     let mut thumbs = Vec::new();
     let mut seconds = Vec::with_capacity(times.len());
     let (mut strokes, mut triangles) = (0usize, 0usize);
+    let mut empty = Vec::new();
     for &t in &times {
         let frame_start = Instant::now();
         let cam = scene.camera_at(&r, t).map_err(name_input)?;
@@ -339,6 +449,9 @@ pub fn run(args: &RenderArgs) -> Result<String> {
         strokes = strokes.max(fs.strokes.len());
         triangles = triangles.max(fs.triangles.len());
         let frame = composite::render(&fs, brush.as_ref());
+        if frame.rgba.iter().all(|p| p[3] <= 0.0) {
+            empty.push(t);
+        }
         let path = frame_path(&args.output, t);
         image_io::write_exr(&path, &frame)?;
         if args.png {
@@ -352,7 +465,7 @@ pub fn run(args: &RenderArgs) -> Result<String> {
         bar.inc(1);
     }
     bar.finish_and_clear();
-    let mut sheet_note = String::new();
+    let mut sheet_path_out = None;
     if args.sheet {
         // Dark labels on light backgrounds, light ones on dark.
         let luminance = sheet_bg.dot(Vec3::new(0.2126, 0.7152, 0.0722));
@@ -360,19 +473,37 @@ pub fn run(args: &RenderArgs) -> Result<String> {
         let (sw, sh, px) = sheet::compose(&thumbs, cols, sheet_bg, ink);
         let sp = sheet_path(&args.output);
         image_io::write_png8(&sp, sw, sh, 3, &px, true)?;
-        sheet_note = format!(", sheet {}", sp.display());
+        sheet_path_out = Some(sp);
+    }
+    if !empty.is_empty() {
+        warnings.push(format!(
+            "{} of {} empty: nothing in front of {} at {}",
+            plural(empty.len(), "frame"),
+            times.len(),
+            args.camera,
+            empty.iter().map(|t| t.to_string()).collect::<Vec<_>>().join(", ")
+        ));
     }
     let mut sorted = seconds.clone();
     sorted.sort_by(f64::total_cmp);
     let median = sorted.get(sorted.len() / 2).copied().unwrap_or(0.0);
-    let (ncurves, nmeshes) = scene.counts();
-    Ok(format!(
-        "rendered {} frames at {w}x{h}: {ncurves} curves prims ({strokes} strokes), {nmeshes} meshes ({triangles} triangles) -> {}{sheet_note} in {:.2} s (median {:.3} s/frame)",
-        times.len(),
-        args.output.display(),
-        started.elapsed().as_secs_f64(),
-        median
-    ))
+    let (curves, meshes) = scene.counts();
+    Ok(RenderSummary {
+        input: args.input.clone(),
+        output: args.output.clone(),
+        frames: times.len(),
+        width: w,
+        height: h,
+        curves,
+        strokes,
+        meshes,
+        triangles,
+        sheet: sheet_path_out,
+        empty_frames: empty,
+        warnings,
+        seconds: started.elapsed().as_secs_f64(),
+        median_frame_seconds: median,
+    })
 }
 
 #[cfg(test)]

@@ -79,6 +79,60 @@ pub struct Provenance {
     pub chunks: Option<(usize, Vec<String>)>,
 }
 
+/// Reads the provenance painterly recorded in a layer's
+/// `customLayerData["painterly"]`; None when the layer has none (it was not
+/// written by painterly). Only the layer itself is read, not what it
+/// sublayers.
+pub fn read_provenance(path: &Path) -> Result<Option<Provenance>> {
+    use openusd::sdf;
+    let p = path
+        .to_str()
+        .ok_or_else(|| Error::msg("path is not valid UTF-8").in_file(path))?;
+    let layer = sdf::Layer::open(p).map_err(|e| Error::msg(format!("cannot read layer: {e}")).in_file(path))?;
+    let data = layer
+        .data()
+        .get_field(&sdf::Path::abs_root(), "customLayerData")
+        .ok()
+        .map(|v| v.into_owned());
+    let Some(Value::Dictionary(d)) = data else {
+        return Ok(None);
+    };
+    let Some(Value::Dictionary(info)) = d.get("painterly") else {
+        return Ok(None);
+    };
+    let text = |k: &str| match info.get(k) {
+        Some(Value::String(s)) => Some(s.clone()),
+        _ => None,
+    };
+    let int = |k: &str| match info.get(k) {
+        Some(Value::Int(n)) => usize::try_from(*n).ok(),
+        Some(Value::Int64(n)) => usize::try_from(*n).ok(),
+        _ => None,
+    };
+    Ok(Some(Provenance {
+        input: text("input").unwrap_or_default(),
+        frames: text("frames").unwrap_or_default(),
+        version: text("version").unwrap_or_default(),
+        input_hash: text("inputHash"),
+        chunk: int("chunkIndex").zip(int("chunkCount")),
+        chunks: match (int("chunkSize"), info.get("chunks")) {
+            (Some(size), Some(Value::StringVec(names))) => Some((size, names.clone())),
+            _ => None,
+        },
+    }))
+}
+
+impl Provenance {
+    /// The baked frames as (first, last, step), when recorded.
+    pub fn frame_range(&self) -> Option<(f64, f64, f64)> {
+        let mut it = self.frames.split(':').map(|x| x.parse::<f64>());
+        match (it.next(), it.next(), it.next()) {
+            (Some(Ok(a)), Some(Ok(b)), Some(Ok(s))) => Some((a, b, s)),
+            _ => None,
+        }
+    }
+}
+
 /// A `customLayerData` entry value.
 #[derive(Debug, Clone, PartialEq)]
 pub enum DataValue {

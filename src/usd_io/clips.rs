@@ -22,9 +22,9 @@ use std::fmt::Write as _;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
-use openusd::sdf::{self, Value};
-
-use super::bake_layer::{self, quoted, usda_header, BakeLayout, FrameSink, PrimTree, Provenance, Sample, UsdaNumber};
+use super::bake_layer::{
+    self, quoted, read_provenance, usda_header, BakeLayout, FrameSink, PrimTree, Provenance, Sample, UsdaNumber,
+};
 use super::layer::write_atomic_with;
 use super::stage::StageReader;
 use crate::error::{Error, Result};
@@ -281,41 +281,12 @@ fn declare_attrs(
     Ok(())
 }
 
-/// What a chunk layer on disk says about itself (`customLayerData`).
-#[derive(Debug, Clone, PartialEq, Default)]
-pub struct ChunkStamp {
-    pub input_hash: Option<String>,
-    pub version: Option<String>,
-    pub frames: Option<String>,
-}
-
-/// Reads a chunk layer's stamp; None when the file does not exist.
-pub fn read_chunk_stamp(path: &Path) -> Result<Option<ChunkStamp>> {
+/// A chunk layer's provenance; None when the file does not exist.
+fn read_stamp(path: &Path) -> Result<Option<Provenance>> {
     if !path.is_file() {
         return Ok(None);
     }
-    let p = path
-        .to_str()
-        .ok_or_else(|| Error::msg("path is not valid UTF-8").in_file(path))?;
-    let layer = sdf::Layer::open(p).map_err(|e| Error::msg(format!("cannot read chunk: {e}")).in_file(path))?;
-    let data = layer
-        .data()
-        .get_field(&sdf::Path::abs_root(), "customLayerData")
-        .ok()
-        .map(|v| v.into_owned());
-    let mut stamp = ChunkStamp::default();
-    if let Some(Value::Dictionary(d)) = data {
-        if let Some(Value::Dictionary(p)) = d.get("painterly") {
-            let s = |k: &str| match p.get(k) {
-                Some(Value::String(s)) => Some(s.clone()),
-                _ => None,
-            };
-            stamp.input_hash = s("inputHash");
-            stamp.version = s("version");
-            stamp.frames = s("frames");
-        }
-    }
-    Ok(Some(stamp))
+    Ok(Some(read_provenance(path)?.unwrap_or_default()))
 }
 
 /// SHA-256 over every layer file the stage used (sorted by path: name, then
@@ -394,22 +365,16 @@ pub fn chunk_states(plan: &ClipPlan, hash: &str, times: &[f64]) -> Result<Vec<Ch
     plan.chunks
         .iter()
         .map(|c| {
-            let Some(stamp) = read_chunk_stamp(&plan.chunk_path(c))? else {
+            let Some(stamp) = read_stamp(&plan.chunk_path(c))? else {
                 return Ok(ChunkState::Missing);
             };
             let frames = format!("{}:{}:{}", times[c.start], times[c.end - 1], step);
             Ok(if stamp.input_hash.as_deref() != Some(hash) {
                 ChunkState::Stale("baked from a different input".into())
-            } else if stamp.version.as_deref() != Some(env!("CARGO_PKG_VERSION")) {
-                ChunkState::Stale(format!(
-                    "baked by painterly {}",
-                    stamp.version.as_deref().unwrap_or("(unknown)")
-                ))
-            } else if stamp.frames.as_deref() != Some(frames.as_str()) {
-                ChunkState::Stale(format!(
-                    "holds frames {}, expected {frames}",
-                    stamp.frames.as_deref().unwrap_or("(unknown)")
-                ))
+            } else if stamp.version != env!("CARGO_PKG_VERSION") {
+                ChunkState::Stale(format!("baked by painterly {}", stamp.version))
+            } else if stamp.frames != frames {
+                ChunkState::Stale(format!("holds frames {}, expected {frames}", stamp.frames))
             } else {
                 ChunkState::Done
             })
@@ -429,51 +394,30 @@ pub struct ClipSetStatus {
 /// state of each of its chunks: on disk and stamped with the clip set's input
 /// hash and painterly version, missing, or stale.
 pub fn clip_set_status(path: &Path) -> Result<Option<ClipSetStatus>> {
-    let Some(p) = path.to_str() else { return Ok(None) };
-    let Ok(layer) = sdf::Layer::open(p) else {
+    let Ok(Some(clip_set)) = read_provenance(path) else {
         return Ok(None);
     };
-    let data = layer
-        .data()
-        .get_field(&sdf::Path::abs_root(), "customLayerData")
-        .ok()
-        .map(|v| v.into_owned());
-    let Some(Value::Dictionary(d)) = data else {
+    let Some((size, names)) = &clip_set.chunks else {
         return Ok(None);
     };
-    let Some(Value::Dictionary(info)) = d.get("painterly") else {
-        return Ok(None);
-    };
-    let (Some(Value::StringVec(names)), Some(size)) = (info.get("chunks"), info.get("chunkSize")) else {
-        return Ok(None);
-    };
-    let size = match size {
-        Value::Int(n) => *n as usize,
-        Value::Int64(n) => *n as usize,
-        _ => 0,
-    };
-    let text = |k: &str| match info.get(k) {
-        Some(Value::String(s)) => Some(s.clone()),
-        _ => None,
-    };
-    let (hash, version) = (text("inputHash"), text("version"));
     let stem = path.file_stem().unwrap_or_default().to_string_lossy();
     let dir = path.with_file_name(format!("{stem}.clips"));
     let mut chunks = Vec::with_capacity(names.len());
     for name in names {
-        let state = match read_chunk_stamp(&dir.join(name))? {
+        let state = match read_stamp(&dir.join(name))? {
             None => ChunkState::Missing,
-            Some(stamp) if stamp.input_hash != hash => ChunkState::Stale("baked from a different input".into()),
-            Some(stamp) if stamp.version != version => ChunkState::Stale(format!(
-                "baked by painterly {}",
-                stamp.version.as_deref().unwrap_or("(unknown)")
-            )),
+            Some(stamp) if stamp.input_hash != clip_set.input_hash => {
+                ChunkState::Stale("baked from a different input".into())
+            }
+            Some(stamp) if stamp.version != clip_set.version => {
+                ChunkState::Stale(format!("baked by painterly {}", stamp.version))
+            }
             Some(_) => ChunkState::Done,
         };
         chunks.push((name.clone(), state));
     }
     Ok(Some(ClipSetStatus {
-        chunk_size: size,
+        chunk_size: *size,
         chunks,
     }))
 }

@@ -3,6 +3,7 @@
 //! Data flows one way: [`stage`] and [`scene`] read a composed stage into plain
 //! arrays, the math modules evaluate, and [`layer`] writes an override layer.
 
+pub mod assembly;
 pub mod axes;
 pub mod bake_layer;
 pub mod clips;
