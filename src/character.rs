@@ -90,6 +90,9 @@ struct ViewBase {
     path: String,
 }
 
+/// Axis values by axis prim path, in axis units (SPEC §4).
+pub type Configuration = std::collections::BTreeMap<String, f64>;
+
 /// One rig at one frame, as read from the stage.
 pub struct RigFrame {
     /// Posed proxy points, proxy-local.
@@ -236,6 +239,42 @@ impl Character {
     /// Reads and evaluates frame `t` (see [`Model::evaluate`]).
     pub fn evaluate(&self, t: f64, with_proxies: bool) -> Result<FrameOutput> {
         self.model.evaluate(self.read_frame(t)?, with_proxies)
+    }
+
+    /// The configuration at `t`: every axis of every rig, by prim path, in
+    /// axis units (what the stage says; see SPEC §4).
+    pub fn configuration(&self, t: f64) -> Result<Configuration> {
+        let input = self.read_frame_all_axes(t)?;
+        let mut c = Configuration::new();
+        for (rig, rf) in self.model.rigs.iter().zip(&input.rigs) {
+            for (path, &v) in rig.axes.iter().zip(&rf.axis_values) {
+                c.insert(path.clone(), v);
+            }
+        }
+        Ok(c)
+    }
+
+    /// Reads frame `t` with some axes set to given values instead of what
+    /// the stage says (a what-if pose). Every overridden path must be an
+    /// axis of some rig.
+    pub fn read_frame_with(&self, t: f64, overrides: &Configuration) -> Result<FrameInput> {
+        let mut input = self.read_frame(t)?;
+        for (path, &value) in overrides {
+            if !value.is_finite() {
+                return Err(Error::prim(path, format!("axis value {value} is not finite")));
+            }
+            let mut found = false;
+            for (rig, rf) in self.model.rigs.iter().zip(&mut input.rigs) {
+                if let Some(i) = rig.axes.iter().position(|a| a == path) {
+                    rf.axis_values[i] = value;
+                    found = true;
+                }
+            }
+            if !found {
+                return Err(Error::prim(path, "is not an axis of any rig in this character"));
+            }
+        }
+        Ok(input)
     }
 }
 
@@ -390,18 +429,27 @@ pub fn eval_axes(
     Ok(values)
 }
 
-/// A layer's keyed rest points (None: its own `rest` points) and keyed opacity at `t`.
-pub fn keyed_state(k: &LayerKeys, rest: &[Vec3], axis_values: &[f64], t: f64) -> (Option<Vec<Vec3>>, f32) {
+/// The blend terms of a layer's two channels at one configuration and time:
+/// (position terms, opacity terms), each (weight, source).
+fn key_terms(k: &LayerKeys, axis_values: &[f64], t: f64) -> (Vec<(f64, Source)>, Vec<(f64, Source)>) {
     let x: Vec<f64> = k.axes.iter().map(|&a| axis_values[a]).collect();
     let x = if x.is_empty() { vec![0.0] } else { x };
-
     let pose_w = k.pose_points.as_ref().map(|c| c.interp.weights(&x));
     let time_w = k.time_points.as_ref().map(|c| c.interp.weights(t));
-    let terms = combine(pose_w.as_ref(), time_w.as_ref());
-    let points = if terms == [(1.0, Source::Rest)] {
+    let points = combine(pose_w.as_ref(), time_w.as_ref());
+    let pose_w = k.pose_opacity.as_ref().map(|c| c.interp.weights(&x));
+    let time_w = k.time_opacity.as_ref().map(|c| c.interp.weights(t));
+    let opacity = combine(pose_w.as_ref(), time_w.as_ref());
+    (points, opacity)
+}
+
+/// A layer's keyed rest points (None: its own `rest` points) and keyed opacity at `t`.
+pub fn keyed_state(k: &LayerKeys, rest: &[Vec3], axis_values: &[f64], t: f64) -> (Option<Vec<Vec3>>, f32) {
+    let (point_terms, opacity_terms) = key_terms(k, axis_values, t);
+    let points = if point_terms == [(1.0, Source::Rest)] {
         None
     } else {
-        let arrays: Vec<(f64, &[Vec3])> = terms
+        let arrays: Vec<(f64, &[Vec3])> = point_terms
             .iter()
             .map(|&(w, s)| {
                 let v: &[Vec3] = match s {
@@ -416,10 +464,7 @@ pub fn keyed_state(k: &LayerKeys, rest: &[Vec3], axis_values: &[f64], t: f64) ->
         weighted_sum(&mut out, &arrays);
         Some(out)
     };
-
-    let pose_w = k.pose_opacity.as_ref().map(|c| c.interp.weights(&x));
-    let time_w = k.time_opacity.as_ref().map(|c| c.interp.weights(t));
-    let opacity: f64 = combine(pose_w.as_ref(), time_w.as_ref())
+    let opacity: f64 = opacity_terms
         .iter()
         .map(|&(w, s)| {
             w * match s {
@@ -430,4 +475,49 @@ pub fn keyed_state(k: &LayerKeys, rest: &[Vec3], axis_values: &[f64], t: f64) ->
         })
         .sum();
     (points, opacity as f32)
+}
+
+/// How much each key weighs in a layer's blend right now (Bassett Fig. 9's
+/// basis functions at the current configuration), per channel: key prim path
+/// (or `None` for the layer's own rest value) and weight. Weights of a
+/// channel sum to 1.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct KeyWeights {
+    pub position: Vec<(Option<String>, f64)>,
+    pub opacity: Vec<(Option<String>, f64)>,
+}
+
+/// The key weights of a layer at a configuration (`axis_values` in the
+/// rig's axis order) and time.
+pub fn key_weights(k: &LayerKeys, axis_values: &[f64], t: f64) -> KeyWeights {
+    let (points, opacity) = key_terms(k, axis_values, t);
+    let name = |s: Source, pose: Option<&Vec<String>>, time: Option<&Vec<String>>| match s {
+        Source::Rest => None,
+        Source::Pose(i) => pose.map(|p| p[i].clone()),
+        Source::Time(i) => time.map(|p| p[i].clone()),
+    };
+    KeyWeights {
+        position: points
+            .into_iter()
+            .map(|(w, s)| {
+                let n = name(
+                    s,
+                    k.pose_points.as_ref().map(|c| &c.paths),
+                    k.time_points.as_ref().map(|c| &c.paths),
+                );
+                (n, w)
+            })
+            .collect(),
+        opacity: opacity
+            .into_iter()
+            .map(|(w, s)| {
+                let n = name(
+                    s,
+                    k.pose_opacity.as_ref().map(|c| &c.paths),
+                    k.time_opacity.as_ref().map(|c| &c.paths),
+                );
+                (n, w)
+            })
+            .collect(),
+    }
 }
