@@ -429,9 +429,12 @@ pub fn eval_axes(
     Ok(values)
 }
 
+/// One channel's blend: (weight, source) terms.
+type Terms = Vec<(f64, Source)>;
+
 /// The blend terms of a layer's two channels at one configuration and time:
-/// (position terms, opacity terms), each (weight, source).
-fn key_terms(k: &LayerKeys, axis_values: &[f64], t: f64) -> (Vec<(f64, Source)>, Vec<(f64, Source)>) {
+/// (position terms, opacity terms).
+fn key_terms(k: &LayerKeys, axis_values: &[f64], t: f64) -> (Terms, Terms) {
     let x: Vec<f64> = k.axes.iter().map(|&a| axis_values[a]).collect();
     let x = if x.is_empty() { vec![0.0] } else { x };
     let pose_w = k.pose_points.as_ref().map(|c| c.interp.weights(&x));
