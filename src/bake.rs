@@ -369,14 +369,21 @@ fn stream(
     let total = times.len();
     let mask = baked_proxy_mask(model);
     let mask = &mask;
-    std::thread::scope(|s| {
-        let writer = s.spawn(move || -> Result<()> {
+    // Time spent in each stage, for --verbose (evaluation summed over threads).
+    let evaluating = std::sync::atomic::AtomicU64::new(0);
+    let evaluating = &evaluating;
+    let started = Instant::now();
+    let result = std::thread::scope(|s| {
+        let writer = s.spawn(move || -> Result<f64> {
             let mut pending = BTreeMap::new();
             let mut next = 0;
+            let mut writing = 0.0;
             for (i, frame) in done_rx {
                 pending.insert(i, frame);
                 while let Some(frame) = pending.remove(&next) {
+                    let t0 = Instant::now();
                     sink.write_frame(times[next], frame?)?;
+                    writing += t0.elapsed().as_secs_f64();
                     next += 1;
                     progress(next, total);
                     let _ = permit_tx.send(());
@@ -386,17 +393,25 @@ fn stream(
                 // The reader stopped early; its error is the one to report.
                 return Err(Error::msg("bake stopped before the last frame"));
             }
-            sink.finish()
+            let t0 = Instant::now();
+            sink.finish()?;
+            Ok(writing + t0.elapsed().as_secs_f64())
         });
+        let mut reading = 0.0;
         let read = rayon::in_place_scope(|scope| -> Result<()> {
             for (i, &t) in times.iter().enumerate() {
                 if permit_rx.recv().is_err() {
                     break; // the writer failed; it reports why
                 }
+                let t0 = Instant::now();
                 let input = ch.read_frame(t)?;
+                reading += t0.elapsed().as_secs_f64();
                 let tx = done_tx.clone();
                 scope.spawn(move |_| {
+                    let t0 = Instant::now();
                     let out = model.evaluate(input, with_proxies).map(|o| frame_samples(o, mask));
+                    let ns = t0.elapsed().as_nanos() as u64;
+                    evaluating.fetch_add(ns, std::sync::atomic::Ordering::Relaxed);
                     let _ = tx.send((i, out));
                 });
             }
@@ -406,6 +421,14 @@ fn stream(
         let written = writer
             .join()
             .unwrap_or_else(|_| Err(Error::msg("internal error: the layer writer panicked")));
-        read.and(written)
-    })
+        read.and(written).map(|writing| (reading, writing))
+    });
+    let (reading, writing) = result?;
+    crate::vlog!(
+        "{}: read {reading:.3} s, evaluate {:.3} s (summed over threads), write {writing:.3} s; {:.3} s wall",
+        crate::words::plural(total, "frame"),
+        evaluating.load(std::sync::atomic::Ordering::Relaxed) as f64 * 1e-9,
+        started.elapsed().as_secs_f64()
+    );
+    Ok(())
 }

@@ -24,6 +24,7 @@ use crate::usd_io::axes::AxisFrame;
 use crate::usd_io::scene::{LayerKeys, Proxy, Rig, Scene};
 use crate::usd_io::stage::{Prim, StageReader};
 use crate::usd_io::view_mesh::{check_camera, read_view_meshes, sharpness_at, ViewBlend, ViewMesh};
+use crate::words::plural;
 
 /// One stroke layer's pure data: what evaluation needs, nothing of the stage.
 pub struct LayerModel {
@@ -141,7 +142,14 @@ pub struct FrameOutput {
 impl Character {
     /// Opens `path` and resolves everything that does not change per frame.
     pub fn open(path: &Path, camera: Option<&str>) -> Result<Character> {
+        let started = std::time::Instant::now();
         let reader = StageReader::open(path)?;
+        crate::vlog!(
+            "opened {} ({}) in {:.3} s",
+            path.display(),
+            plural(reader.stage.layer_identifiers().len(), "layer"),
+            started.elapsed().as_secs_f64()
+        );
         Character::from_reader(reader, camera).map_err(|e| e.in_file(path))
     }
 
@@ -149,6 +157,7 @@ impl Character {
     /// rig, layer, key and view-dependent mesh, resolves cameras, and
     /// computes the rest data (one-rings, centroids, bindings).
     pub fn from_reader(reader: StageReader, camera: Option<&str>) -> Result<Character> {
+        let started = std::time::Instant::now();
         let scene = Scene::read(&reader)?;
         let view_meshes = read_view_meshes(&reader, &reader.prim_paths()?)?;
         if let Some(c) = camera {
@@ -171,8 +180,22 @@ impl Character {
             });
             views.push((ViewBase { mesh, path }, camera_prim));
         }
+        crate::vlog!(
+            "read {}, {}, {} in {:.3} s",
+            plural(scene.rigs.len(), "rig"),
+            plural(scene.rigs.iter().map(|r| r.layers.len()).sum(), "stroke layer"),
+            plural(views.len(), "view-dependent mesh"),
+            started.elapsed().as_secs_f64()
+        );
+        let started = std::time::Instant::now();
         let mut rigs = scene.rigs;
-        let rig_models = rigs.iter_mut().map(RigModel::take_from).collect();
+        let rig_models: Vec<RigModel> = rigs.iter_mut().map(RigModel::take_from).collect();
+        crate::vlog!(
+            "bound {} (rest data of {}) in {:.3} s",
+            plural(rig_models.iter().map(|r| r.num_points()).sum(), "stroke point"),
+            plural(rig_models.iter().map(|r| r.skin.len()).sum(), "proxy vertex"),
+            started.elapsed().as_secs_f64()
+        );
         Ok(Character {
             reader,
             model: Model {

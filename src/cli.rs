@@ -17,6 +17,7 @@ use crate::frames::FrameRange;
 use crate::inspect::inspect;
 use crate::tools::Falloff;
 use crate::usd_io::edit::{EditSession, EditTarget};
+use crate::words::plural;
 
 /// Painted strokes that follow rigged characters, baked into USD layers.
 ///
@@ -33,6 +34,10 @@ use crate::usd_io::edit::{EditSession, EditTarget};
     after_help = "Exit codes: 0 success; 1 bad input or a failed write (the message names the file, prim and attribute); 2 bad command-line usage; 3 internal error (a bug).\nDocs: README.md, docs/choices.md, schemas/painterly/schema.usda."
 )]
 pub struct Cli {
+    /// Log what was read and the time of each phase (read, bind, evaluate,
+    /// write) to stderr.
+    #[arg(short, long, global = true)]
+    pub verbose: bool,
     #[command(subcommand)]
     pub command: Command,
 }
@@ -226,7 +231,6 @@ pub enum Command {
     /// Input: {"method": "smoothVoronoi"|"rbf"|"shepard", "radius": 1.0,
     /// "keys": [[...], ...], "points": [[...], ...]}. Output:
     /// {"weights": [[w_0, ..., w_n-1] per point]}. For tests and plots.
-    #[command(hide = true)]
     Interpolate,
 }
 
@@ -360,9 +364,25 @@ fn run_brush(edit: &EditArgs, b: &BrushArgs, which: Brush) -> Result<String, Err
         strokes,
     };
     let moved = author::brush(&session, which, &opts)?;
+    if moved == 0 {
+        // Nothing changed: say so and leave every file as it was.
+        return Err(Error::prim(
+            &b.layer,
+            format!(
+                "no point lies within --radius {} of the tool path (in the pose at {}): nothing changed, nothing written",
+                b.radius,
+                b.time.map_or("rest".to_string(), |t| format!("time {t}"))
+            ),
+        ));
+    }
     let target = session.target().to_path_buf();
     session.save()?;
-    Ok(format!("moved {moved} points of {} -> {}", b.layer, target.display()))
+    Ok(format!(
+        "moved {} of {} -> {}",
+        plural(moved, "point"),
+        b.layer,
+        target.display()
+    ))
 }
 
 fn finish(result: Result<String, Error>, quiet: bool, input: &std::path::Path) -> i32 {
@@ -379,6 +399,7 @@ fn finish(result: Result<String, Error>, quiet: bool, input: &std::path::Path) -
 
 /// Runs a parsed command; returns the process exit code.
 pub fn run(cli: Cli) -> i32 {
+    crate::log::set_verbose(cli.verbose);
     match cli.command {
         Command::Bake {
             input,
@@ -397,10 +418,8 @@ pub fn run(cli: Cli) -> i32 {
             if show_bar {
                 bar.set_draw_target(indicatif::ProgressDrawTarget::stderr());
                 bar.set_style(
-                    ProgressStyle::with_template(
-                        "{spinner} baking {pos}/{len} frames [{bar:30}] {elapsed} (eta {eta})",
-                    )
-                    .unwrap_or_else(|_| ProgressStyle::default_bar()),
+                    ProgressStyle::with_template("{spinner} baking frame {pos}/{len} [{bar:30}] {elapsed} (eta {eta})")
+                        .unwrap_or_else(|_| ProgressStyle::default_bar()),
                 );
             }
             let progress = |done: usize, total: usize| {
@@ -422,13 +441,18 @@ pub fn run(cli: Cli) -> i32 {
                     if json {
                         println!("{}", serde_json::to_string(&s).unwrap_or_default());
                     } else if !quiet {
+                        let chunks = if s.chunks.is_empty() {
+                            String::new()
+                        } else {
+                            format!(" ({})", plural(s.chunks.len(), "chunk layer"))
+                        };
                         println!(
-                            "baked {} frames: {} layers, {} strokes, {} points, {} view-dependent meshes -> {} in {:.2} s",
-                            s.frames,
-                            s.layers,
-                            s.strokes,
-                            s.points,
-                            s.view_meshes,
+                            "baked {}: {}, {}, {}, {} -> {}{chunks} in {:.2} s",
+                            plural(s.frames, "frame"),
+                            plural(s.layers, "layer"),
+                            plural(s.strokes, "stroke"),
+                            plural(s.points, "point"),
+                            plural(s.view_meshes, "view-dependent mesh"),
                             s.output.display(),
                             s.seconds
                         );
@@ -461,8 +485,9 @@ pub fn run(cli: Cli) -> i32 {
                 session.save()?;
                 let n: usize = report.iter().map(|r| r.1).sum();
                 Ok(format!(
-                    "bound {n} points in {} layers -> {}",
-                    report.len(),
+                    "bound {} in {} -> {}",
+                    plural(n, "point"),
+                    plural(report.len(), "layer"),
                     target.display()
                 ))
             })();

@@ -294,12 +294,15 @@ impl Report {
         let mut s = String::new();
         let opt = |v: Option<f64>| v.map_or("-".to_string(), |v| v.to_string());
         let _ = writeln!(s, "{}", self.file.display());
+        let rate = match self.time_codes_per_second {
+            Some(r) => format!("{r} per second"),
+            None => "24 per second (timeCodesPerSecond not authored: USD's default)".to_string(),
+        };
         let _ = writeln!(
             s,
-            "  time codes {}..{} at {} per second, up axis {}",
+            "  time codes {}..{} at {rate}, up axis {}",
             opt(self.start_time_code),
             opt(self.end_time_code),
-            opt(self.time_codes_per_second),
             self.up_axis.as_deref().unwrap_or("-")
         );
         for rig in &self.rigs {

@@ -32,6 +32,7 @@ pub mod frames;
 pub mod inspect;
 pub mod interp;
 pub mod keys;
+pub mod log;
 pub mod mesh;
 pub mod render;
 pub mod skel_deform;
@@ -39,5 +40,6 @@ pub mod skinning;
 pub mod tools;
 pub mod usd_io;
 pub mod view;
+pub mod words;
 
 pub use error::{Error, Result};

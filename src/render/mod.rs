@@ -44,6 +44,7 @@ use crate::frames::FrameRange;
 use crate::usd_io::bake_layer::read_provenance;
 use crate::usd_io::render_scene::{layer_timing, RenderScene};
 use crate::usd_io::stage::StageReader;
+use crate::words::plural;
 
 /// Image size `WIDTHxHEIGHT`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -329,16 +330,6 @@ impl RenderSummary {
             self.median_frame_seconds
         )
     }
-}
-
-/// "1 frame", "2 frames", "1 mesh", "2 meshes".
-pub fn plural(n: usize, word: &str) -> String {
-    let plural = if word.ends_with('h') || word.ends_with('s') {
-        format!("{word}es")
-    } else {
-        format!("{word}s")
-    };
-    format!("{n} {}", if n == 1 { word } else { &plural })
 }
 
 /// Checks a `--bake` layer against the render: a bake of another input is
