@@ -1,9 +1,9 @@
 //! Writes a bake: a layer of `over` specs with time samples (SPEC §7).
 //!
-//! Specs are collected in memory, serialised into a buffer, written to a
-//! temporary file beside the target and renamed, so a failed bake never leaves
-//! a partial file (and `.usdc` writes are not slowed by unbuffered I/O; see
-//! `../shared/notes/openusd.md`).
+//! Specs are collected in memory and written to a temporary file beside the
+//! target, which is then renamed, so a failed bake never leaves a partial
+//! file. `.usdc` goes through painterly's own crate writer ([`super::usdc`]),
+//! buffered.
 
 use std::collections::BTreeMap;
 use std::io::{Cursor, Write};
@@ -235,12 +235,7 @@ impl OverLayer {
     pub fn into_bytes(self, format: Format) -> Result<Vec<u8>> {
         let data = self.into_data()?;
         match format {
-            Format::Usdc => {
-                let mut buf = Cursor::new(Vec::new());
-                openusd::usdc::CrateWriter::write(&data, &mut buf)
-                    .map_err(|e| Error::msg(format!("cannot serialise layer: {e}")))?;
-                Ok(buf.into_inner())
-            }
+            Format::Usdc => Ok(super::usdc::write_layer(&data, Cursor::new(Vec::new()))?.into_inner()),
             Format::Usda => {
                 let s = openusd::usda::TextWriter::write_to_string(&data)
                     .map_err(|e| Error::msg(format!("cannot serialise layer: {e}")))?;
@@ -250,9 +245,12 @@ impl OverLayer {
     }
 
     /// Writes atomically: a temporary file beside `path`, then a rename.
+    /// `.usdc` is streamed to the file rather than built in memory first.
     pub fn write(self, path: &Path) -> Result<()> {
-        let bytes = self.into_bytes(Format::from_path(path)?)?;
-        write_atomic(path, &bytes)
+        match Format::from_path(path)? {
+            Format::Usdc => super::usdc::write_layer_file(path, &self.into_data()?),
+            Format::Usda => write_atomic(path, &self.into_bytes(Format::Usda)?),
+        }
     }
 }
 

@@ -13,5 +13,6 @@ pub mod render_scene;
 pub mod scene;
 pub mod skel;
 pub mod stage;
+pub mod usdc;
 pub mod values;
 pub mod view_mesh;

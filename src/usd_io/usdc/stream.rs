@@ -1,0 +1,219 @@
+//! [`CrateStream`]: writes a crate file front to back with flat memory.
+//!
+//! Values go into the file as they are handed over (`write_value`, and the
+//! fields of each `add_spec`); only the small tables stay in memory (tokens,
+//! strings, paths, fields, field sets, specs, and the dedup fingerprints).
+//! `finish` writes the six structural sections, the table of contents, and
+//! last the bootstrap header at offset 0, whose placeholder `new` wrote.
+
+use std::io::{Seek, SeekFrom, Write};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use openusd::sdf::{self, SpecType, Value};
+
+use super::encode::{Buf, Encoder};
+use super::tables::Specs;
+use crate::error::{Error, Result};
+
+/// Size of the bootstrap header: magic, version, TOC offset, 8 reserved words.
+const BOOTSTRAP_LEN: usize = 88;
+
+/// Distinguishes streams, so a handle from one is refused by another.
+static NEXT_STREAM: AtomicU64 = AtomicU64::new(1);
+
+/// A value already in the file: what a time sample refers to. Small and
+/// `Copy`; valid only for the stream that returned it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ValueHandle {
+    rep: u64,
+    stream: u64,
+}
+
+/// One field of a spec.
+#[derive(Debug, Clone, Copy)]
+pub enum Field<'a> {
+    /// Any value, time samples included (`Value::TimeSamples`).
+    Value(&'a Value),
+    /// Time samples whose values were written with
+    /// [`CrateStream::write_value`], in increasing time order.
+    TimeSamples(&'a [(f64, ValueHandle)]),
+}
+
+/// A crate file being written. See the module docs of [`super`].
+pub struct CrateStream<W: Write + Seek> {
+    out: W,
+    /// Bytes written so far (the file offset of the next byte).
+    pos: u64,
+    enc: Encoder,
+    specs: Specs,
+    id: u64,
+    /// Reused encoding buffer.
+    scratch: Vec<u8>,
+}
+
+impl<W: Write + Seek> CrateStream<W> {
+    /// Starts a crate file at the beginning of `out`, which must be at
+    /// position 0 (crate offsets are from the start of the file).
+    pub fn new(mut out: W) -> Result<Self> {
+        let at = out.stream_position().map_err(io_error)?;
+        if at != 0 {
+            return Err(Error::msg(format!(
+                "a crate file must start at offset 0 of its output (this one is at {at})"
+            )));
+        }
+        out.write_all(&[0u8; BOOTSTRAP_LEN]).map_err(io_error)?;
+        Ok(CrateStream {
+            out,
+            pos: BOOTSTRAP_LEN as u64,
+            enc: Encoder::new(),
+            specs: Specs::default(),
+            id: NEXT_STREAM.fetch_add(1, Ordering::Relaxed),
+            scratch: Vec::new(),
+        })
+    }
+
+    /// Writes `v` into the file now (unless an identical value already is)
+    /// and returns its handle, for [`Field::TimeSamples`]. Small scalars are
+    /// held in the handle and write nothing.
+    pub fn write_value(&mut self, v: &Value) -> Result<ValueHandle> {
+        let mut buf = self.buf();
+        let rep = self.enc.value(&mut buf, v);
+        self.flush(buf)?;
+        let rep = rep.map_err(|e| Error::msg(format!("cannot write a {} value: {e}", kind(v))))?;
+        Ok(ValueHandle { rep, stream: self.id })
+    }
+
+    /// Declares the spec at `path` with its fields (in order). Field values
+    /// are written now; the spec itself is kept (a few words) for
+    /// [`finish`](Self::finish). `propertyChildren` is stored under the
+    /// crate's name for it, `properties`.
+    pub fn add_spec(&mut self, path: &sdf::Path, ty: SpecType, fields: &[(&str, Field<'_>)]) -> Result<()> {
+        if ty == SpecType::Unknown {
+            return Err(Error::prim(path, "a spec of unknown type cannot be written"));
+        }
+        let slot = self
+            .enc
+            .paths
+            .intern(path.as_str(), &mut self.enc.tokens)
+            .map_err(|e| Error::prim(path, format!("cannot write spec: {e}")))?;
+        let mut field_indexes = Vec::with_capacity(fields.len());
+        let mut buf = self.buf();
+        let mut failure = None;
+        for (name, field) in fields {
+            let rep = match field {
+                Field::Value(v) => self.enc.field(&mut buf, name, v),
+                Field::TimeSamples(samples) => self.handle_samples(&mut buf, samples),
+            };
+            match rep {
+                Ok(rep) => {
+                    let stored_name = if *name == sdf::ChildrenKey::PropertyChildren.as_str() {
+                        "properties"
+                    } else {
+                        name
+                    };
+                    let token = self.enc.tokens.intern(stored_name);
+                    field_indexes.push(self.specs.field(token, rep));
+                }
+                Err(e) => {
+                    failure = Some(Error::prim(path, format!("cannot write field `{name}`: {e}")));
+                    break;
+                }
+            }
+        }
+        self.flush(buf)?;
+        if let Some(e) = failure {
+            return Err(e);
+        }
+        if !self.specs.spec(slot, ty as u32, field_indexes) {
+            return Err(Error::prim(path, "two specs at one path"));
+        }
+        Ok(())
+    }
+
+    fn handle_samples(&mut self, buf: &mut Buf, samples: &[(f64, ValueHandle)]) -> std::result::Result<u64, String> {
+        let mut times = Vec::with_capacity(samples.len());
+        let mut reps = Vec::with_capacity(samples.len());
+        for (t, h) in samples {
+            if h.stream != self.id {
+                return Err("a value handle from another crate stream".into());
+            }
+            if let Some(&last) = times.last() {
+                if sdf::compare_sample_times(last, *t).is_ge() {
+                    return Err(format!("sample times out of order or repeated ({last} then {t})"));
+                }
+            }
+            times.push(*t);
+            reps.push(h.rep);
+        }
+        self.enc.time_samples(buf, &times, &reps)
+    }
+
+    /// Writes the structural sections, the table of contents and the
+    /// bootstrap header (with the lowest crate version the content needs),
+    /// and returns the output, flushed.
+    pub fn finish(mut self) -> Result<W> {
+        let mut sections: Vec<(&str, u64, u64)> = Vec::new();
+        let mut body = Vec::new();
+        let mut section = |name: &'static str, body: &mut Vec<u8>, write: &mut dyn FnMut(&mut Vec<u8>)| {
+            let start = body.len();
+            write(body);
+            sections.push((name, start as u64, (body.len() - start) as u64));
+        };
+        let enc = &mut self.enc;
+        section("TOKENS", &mut body, &mut |b| enc.tokens.write_section(b));
+        section("STRINGS", &mut body, &mut |b| enc.strings.write_section(b));
+        section("FIELDS", &mut body, &mut |b| self.specs.write_fields(b));
+        section("FIELDSETS", &mut body, &mut |b| self.specs.write_fieldsets(b));
+        section("PATHS", &mut body, &mut |b| enc.paths.write_section(b));
+        section("SPECS", &mut body, &mut |b| self.specs.write_specs(b));
+        let toc_offset = self.pos + body.len() as u64;
+        body.extend_from_slice(&(sections.len() as u64).to_le_bytes());
+        for (name, start, size) in &sections {
+            let mut n = [0u8; 16];
+            n[..name.len()].copy_from_slice(name.as_bytes());
+            body.extend_from_slice(&n);
+            body.extend_from_slice(&(self.pos + start).to_le_bytes());
+            body.extend_from_slice(&size.to_le_bytes());
+        }
+        self.out.write_all(&body).map_err(io_error)?;
+        let mut boot = [0u8; BOOTSTRAP_LEN];
+        boot[..8].copy_from_slice(b"PXR-USDC");
+        boot[8..11].copy_from_slice(&[0, self.enc.minor, 0]);
+        boot[16..24].copy_from_slice(&toc_offset.to_le_bytes());
+        self.out.seek(SeekFrom::Start(0)).map_err(io_error)?;
+        self.out.write_all(&boot).map_err(io_error)?;
+        self.out.seek(SeekFrom::End(0)).map_err(io_error)?;
+        self.out.flush().map_err(io_error)?;
+        Ok(self.out)
+    }
+
+    /// The crate version the content written so far needs, as
+    /// `(major, minor, patch)`.
+    pub fn version(&self) -> (u8, u8, u8) {
+        (0, self.enc.minor, 0)
+    }
+
+    fn buf(&mut self) -> Buf {
+        let mut bytes = std::mem::take(&mut self.scratch);
+        bytes.clear();
+        Buf { base: self.pos, bytes }
+    }
+
+    /// Writes what `buf` holds; keeps its allocation unless it grew large.
+    fn flush(&mut self, buf: Buf) -> Result<()> {
+        self.out.write_all(&buf.bytes).map_err(io_error)?;
+        self.pos += buf.bytes.len() as u64;
+        if buf.bytes.capacity() <= 1 << 24 {
+            self.scratch = buf.bytes;
+        }
+        Ok(())
+    }
+}
+
+fn io_error(e: std::io::Error) -> Error {
+    Error::msg(format!("cannot write output: {e}"))
+}
+
+fn kind(v: &Value) -> &'static str {
+    v.into()
+}
