@@ -62,7 +62,10 @@ fn synthetic(layers: usize, points: usize, frames: usize) -> sdf::Data {
                 })
                 .collect();
             pts.push((t, Value::Vec3fVec(p)));
-            ext.push((t, Value::Vec3fVec(vec![gf::vec3f(-1.0, -1.0, 0.0), gf::vec3f(1.0, 2.0, 1.0)])));
+            ext.push((
+                t,
+                Value::Vec3fVec(vec![gf::vec3f(-1.0, -1.0, 0.0), gf::vec3f(1.0, 2.0, 1.0)]),
+            ));
             opa.push((t, Value::FloatVec(vec![1.0; per_layer / 16])));
         }
         for (attr, ty, samples) in [
@@ -136,7 +139,11 @@ fn main() {
     let size = |p: &PathBuf| std::fs::metadata(p).map(|m| m.len()).unwrap_or(0);
     println!(
         "layer: {}",
-        layer.map(String::as_str).unwrap_or(if quick { "synthetic (smoke)" } else { "synthetic Dog-size bake" })
+        layer.map(String::as_str).unwrap_or(if quick {
+            "synthetic (smoke)"
+        } else {
+            "synthetic Dog-size bake"
+        })
     );
     println!(
         "openusd CrateWriter  {:>12} bytes  median {:8.3} s over {runs} runs",

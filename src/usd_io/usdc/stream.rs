@@ -99,7 +99,11 @@ impl<W: Write + Seek> CrateStream<W> {
         let mut field_indexes = Vec::with_capacity(fields.len());
         let mut buf = self.buf();
         let mut failure = None;
-        for (name, field) in fields {
+        for (i, (name, field)) in fields.iter().enumerate() {
+            if fields[..i].iter().any(|(other, _)| other == name) {
+                failure = Some(Error::prim(path, format!("field `{name}` given twice")));
+                break;
+            }
             let rep = match field {
                 Field::Value(v) => self.enc.field(&mut buf, name, v),
                 Field::TimeSamples(samples) => self.handle_samples(&mut buf, samples),

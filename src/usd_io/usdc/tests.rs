@@ -679,6 +679,16 @@ fn stream_errors_name_the_spec_and_field() {
         "{err}"
     );
 
+    let one = Value::Int(1);
+    let err = a
+        .add_spec(
+            &path("/P.e"),
+            SpecType::Attribute,
+            &[("default", Field::Value(&one)), ("default", Field::Value(&one))],
+        )
+        .unwrap_err();
+    assert!(err.message.contains("given twice"), "{err}");
+
     a.add_spec(&path("/P"), SpecType::Prim, &[]).unwrap();
     assert!(a
         .add_spec(&path("/P"), SpecType::Prim, &[])
