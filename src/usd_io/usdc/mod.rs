@@ -66,9 +66,13 @@ use std::fs::File;
 use std::io::{BufWriter, Seek, Write};
 use std::path::Path;
 
-use openusd::sdf::AbstractData;
+use openusd::sdf::{self, AbstractData};
 
 pub use stream::{CrateStream, Field, ValueHandle};
+
+/// Time samples whose values a [`CrateStream`] stored: `(time, handle)` in
+/// increasing time order.
+pub type Samples = [(f64, ValueHandle)];
 
 use crate::error::{Error, Result};
 
@@ -76,6 +80,18 @@ use crate::error::{Error, Result};
 /// layer's order. Values openusd read lazily are decoded one spec at a time.
 pub fn write_layer<W: Write + Seek>(data: &dyn AbstractData, out: W) -> Result<W> {
     let mut stream = CrateStream::new(out)?;
+    add_layer_specs(&mut stream, data, &|_| None)?;
+    stream.finish()
+}
+
+/// Adds every spec of `data` to `stream`; an attribute for which `stored`
+/// gives samples (written earlier with [`CrateStream::write_value`]) gets
+/// them as its `timeSamples`, after its other fields.
+pub fn add_layer_specs<'s, W: Write + Seek>(
+    stream: &mut CrateStream<W>,
+    data: &dyn AbstractData,
+    stored: &dyn Fn(&sdf::Path) -> Option<&'s Samples>,
+) -> Result<()> {
     for path in data.spec_paths() {
         let ty = data
             .spec_type(&path)
@@ -90,10 +106,13 @@ pub fn write_layer<W: Write + Seek>(data: &dyn AbstractData, out: W) -> Result<W
                 values.push((name.as_str(), v));
             }
         }
-        let fields: Vec<(&str, Field<'_>)> = values.iter().map(|(n, v)| (*n, Field::Value(v.as_ref()))).collect();
+        let mut fields: Vec<(&str, Field<'_>)> = values.iter().map(|(n, v)| (*n, Field::Value(v.as_ref()))).collect();
+        if let Some(samples) = stored(&path) {
+            fields.push(("timeSamples", Field::TimeSamples(samples)));
+        }
         stream.add_spec(&path, ty, &fields)?;
     }
-    stream.finish()
+    Ok(())
 }
 
 /// [`write_layer`] into `path`, atomically (a buffered temporary file beside
