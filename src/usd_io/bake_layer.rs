@@ -20,7 +20,7 @@ use openusd::sdf::Value;
 
 use super::layer::{Format, OverLayer};
 use super::stage::StageMetadata;
-use super::usdc::{CrateStream, ValueHandle};
+use super::usdc::{CrateStream, Stored, ValueHandle};
 use crate::error::{Error, Result};
 
 /// One attribute the bake writes, sampled at every frame.
@@ -250,8 +250,10 @@ struct UsdcSink {
     tmp: PathBuf,
     layout: BakeLayout,
     stream: Option<CrateStream<BufWriter<File>>>,
-    /// Per attribute, in declaration order: (time, stored value).
-    samples: Vec<Vec<(f64, ValueHandle)>>,
+    /// The frames written so far, shared by every attribute.
+    times: Vec<f64>,
+    /// Per attribute, in declaration order: a stored value per frame.
+    samples: Vec<Vec<ValueHandle>>,
 }
 
 impl UsdcSink {
@@ -276,6 +278,7 @@ impl UsdcSink {
             tmp,
             layout,
             stream: None,
+            times: Vec::new(),
             samples: vec![Vec::new(); n],
         };
         sink.stream = Some(CrateStream::new(BufWriter::with_capacity(1 << 20, file)).map_err(|e| e.in_file(path))?);
@@ -305,8 +308,14 @@ impl FrameSink for UsdcSink {
             let handle = stream
                 .write_value(&value)
                 .map_err(|e| Error::attr(&attr.prim, attr.name, e.message).in_file(&self.path))?;
-            out.push((time, handle));
+            // Grown by whole blocks, not doubled: these are the only per-frame
+            // memory a long bake keeps.
+            if out.len() == out.capacity() {
+                out.reserve_exact(1024);
+            }
+            out.push(handle);
         }
+        self.times.push(time);
         Ok(())
     }
 
@@ -318,7 +327,12 @@ impl FrameSink for UsdcSink {
             .ok_or_else(|| Error::msg("internal: bake already finished"))?;
         let mut layer = OverLayer::new(self.layout.meta.clone());
         layer.set_provenance(&self.layout.provenance);
-        for (attr, s) in self.layout.attrs.iter().zip(std::mem::take(&mut self.samples)) {
+        let times: std::sync::Arc<[f64]> = std::mem::take(&mut self.times).into();
+        for (attr, values) in self.layout.attrs.iter().zip(std::mem::take(&mut self.samples)) {
+            let s = Stored {
+                times: times.clone(),
+                values,
+            };
             let metadata = match attr.interpolation {
                 Some(i) => vec![("interpolation", Value::Token(i.into()))],
                 None => vec![],

@@ -12,7 +12,7 @@ use std::path::Path;
 use openusd::sdf::{self, ChildrenKey, FieldKey, SpecType, Specifier, Value, Variability};
 
 use super::stage::StageMetadata;
-use super::usdc::{self, CrateStream, ValueHandle};
+use super::usdc::{self, CrateStream, Stored};
 use crate::error::{Error, Result};
 
 /// One attribute to author.
@@ -26,11 +26,11 @@ struct AttrOut {
 /// already wrote (a streamed bake keeps only their handles).
 enum Samples {
     Values(Vec<(f64, Value)>),
-    Stored(Vec<(f64, ValueHandle)>),
+    Stored(Stored),
 }
 
 /// Stored samples by attribute path, for [`usdc::add_layer_specs`].
-type StoredSamples = std::collections::HashMap<String, Vec<(f64, ValueHandle)>>;
+type StoredSamples = std::collections::HashMap<String, Stored>;
 
 #[derive(Default)]
 struct PrimOut {
@@ -118,7 +118,7 @@ impl OverLayer {
         prim: &str,
         attr: &str,
         type_name: &'static str,
-        samples: Vec<(f64, ValueHandle)>,
+        samples: Stored,
         metadata: Vec<(&'static str, Value)>,
     ) {
         self.prims.entry(prim.to_string()).or_default().attrs.insert(
@@ -155,7 +155,7 @@ impl OverLayer {
     /// the caller finishes the stream.
     pub fn write_to_stream<W: std::io::Write + std::io::Seek>(self, stream: &mut CrateStream<W>) -> Result<()> {
         let (data, stored) = self.into_parts()?;
-        usdc::add_layer_specs(stream, &data, &|p| stored.get(p.as_str()).map(Vec::as_slice))
+        usdc::add_layer_specs(stream, &data, &|p| stored.get(p.as_str()))
     }
 
     /// The Sdf data, and the stored samples it leaves out (by attribute path).

@@ -13,8 +13,10 @@
 
 use std::collections::HashMap;
 
-/// Entries kept before the table is cleared (about 12 MB).
-const MAX_ENTRIES: usize = 1 << 18;
+/// Entries kept before the table is cleared (about 3 MB): a bake stores a
+/// few hundred values per frame, and the values worth sharing (constant
+/// ones) recur every frame, so they are found again right after a reset.
+const MAX_ENTRIES: usize = 1 << 16;
 
 /// The key of one stored value: its rep's type and flag bits, its length and
 /// its fingerprint.

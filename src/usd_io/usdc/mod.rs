@@ -70,9 +70,13 @@ use openusd::sdf::{self, AbstractData};
 
 pub use stream::{CrateStream, Field, ValueHandle};
 
-/// Time samples whose values a [`CrateStream`] stored: `(time, handle)` in
-/// increasing time order.
-pub type Samples = [(f64, ValueHandle)];
+/// Time samples whose values a [`CrateStream`] stored: the times (shareable
+/// between attributes) and a handle per time.
+#[derive(Debug, Clone)]
+pub struct Stored {
+    pub times: std::sync::Arc<[f64]>,
+    pub values: Vec<ValueHandle>,
+}
 
 use crate::error::{Error, Result};
 
@@ -90,7 +94,7 @@ pub fn write_layer<W: Write + Seek>(data: &dyn AbstractData, out: W) -> Result<W
 pub fn add_layer_specs<'s, W: Write + Seek>(
     stream: &mut CrateStream<W>,
     data: &dyn AbstractData,
-    stored: &dyn Fn(&sdf::Path) -> Option<&'s Samples>,
+    stored: &dyn Fn(&sdf::Path) -> Option<&'s Stored>,
 ) -> Result<()> {
     for path in data.spec_paths() {
         let ty = data
@@ -107,8 +111,14 @@ pub fn add_layer_specs<'s, W: Write + Seek>(
             }
         }
         let mut fields: Vec<(&str, Field<'_>)> = values.iter().map(|(n, v)| (*n, Field::Value(v.as_ref()))).collect();
-        if let Some(samples) = stored(&path) {
-            fields.push(("timeSamples", Field::TimeSamples(samples)));
+        if let Some(s) = stored(&path) {
+            fields.push((
+                "timeSamples",
+                Field::TimeSamples {
+                    times: &s.times,
+                    values: &s.values,
+                },
+            ));
         }
         stream.add_spec(&path, ty, &fields)?;
     }

@@ -18,16 +18,20 @@ use crate::error::{Error, Result};
 /// Size of the bootstrap header: magic, version, TOC offset, 8 reserved words.
 const BOOTSTRAP_LEN: usize = 88;
 
-/// Distinguishes streams, so a handle from one is refused by another.
-static NEXT_STREAM: AtomicU64 = AtomicU64::new(1);
+/// Numbers streams, so a handle from one is (almost always) refused by
+/// another.
+static NEXT_STREAM: AtomicU64 = AtomicU64::new(0);
 
-/// A value already in the file: what a time sample refers to. Small and
-/// `Copy`; valid only for the stream that returned it.
+/// Bits 56..59 of a rep, which the crate format leaves unused: a handle
+/// carries its stream's tag there (1..=15), cleared before it is stored.
+const TAG_SHIFT: u32 = 56;
+const TAG_MASK: u64 = 0xF << TAG_SHIFT;
+
+/// A value already in the file: what a time sample refers to. Eight bytes,
+/// `Copy`; valid only for the stream that returned it (a handle from another
+/// stream is refused unless the two streams' 4-bit tags collide, 1 in 15).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct ValueHandle {
-    rep: u64,
-    stream: u64,
-}
+pub struct ValueHandle(u64);
 
 /// One field of a spec.
 #[derive(Debug, Clone, Copy)]
@@ -35,8 +39,12 @@ pub enum Field<'a> {
     /// Any value, time samples included (`Value::TimeSamples`).
     Value(&'a Value),
     /// Time samples whose values were written with
-    /// [`CrateStream::write_value`], in increasing time order.
-    TimeSamples(&'a [(f64, ValueHandle)]),
+    /// [`CrateStream::write_value`]: `values[i]` at `times[i]`, times
+    /// increasing. Attributes sampled at the same times can share one slice.
+    TimeSamples {
+        times: &'a [f64],
+        values: &'a [ValueHandle],
+    },
 }
 
 /// A crate file being written. See the module docs of [`super`].
@@ -46,7 +54,8 @@ pub struct CrateStream<W: Write + Seek> {
     pos: u64,
     enc: Encoder,
     specs: Specs,
-    id: u64,
+    /// This stream's handle tag (1..=15).
+    tag: u64,
     /// Reused encoding buffer.
     scratch: Vec<u8>,
 }
@@ -67,7 +76,7 @@ impl<W: Write + Seek> CrateStream<W> {
             pos: BOOTSTRAP_LEN as u64,
             enc: Encoder::new(),
             specs: Specs::default(),
-            id: NEXT_STREAM.fetch_add(1, Ordering::Relaxed),
+            tag: NEXT_STREAM.fetch_add(1, Ordering::Relaxed) % 15 + 1,
             scratch: Vec::new(),
         })
     }
@@ -80,7 +89,7 @@ impl<W: Write + Seek> CrateStream<W> {
         let rep = self.enc.value(&mut buf, v);
         self.flush(buf)?;
         let rep = rep.map_err(|e| Error::msg(format!("cannot write a {} value: {e}", kind(v))))?;
-        Ok(ValueHandle { rep, stream: self.id })
+        Ok(ValueHandle(rep | self.tag << TAG_SHIFT))
     }
 
     /// Declares the spec at `path` with its fields (in order). Field values
@@ -106,7 +115,7 @@ impl<W: Write + Seek> CrateStream<W> {
             }
             let rep = match field {
                 Field::Value(v) => self.enc.field(&mut buf, name, v),
-                Field::TimeSamples(samples) => self.handle_samples(&mut buf, samples),
+                Field::TimeSamples { times, values } => self.handle_samples(&mut buf, times, values),
             };
             match rep {
                 Ok(rep) => {
@@ -134,22 +143,29 @@ impl<W: Write + Seek> CrateStream<W> {
         Ok(())
     }
 
-    fn handle_samples(&mut self, buf: &mut Buf, samples: &[(f64, ValueHandle)]) -> std::result::Result<u64, String> {
-        let mut times = Vec::with_capacity(samples.len());
-        let mut reps = Vec::with_capacity(samples.len());
-        for (t, h) in samples {
-            if h.stream != self.id {
+    fn handle_samples(
+        &mut self,
+        buf: &mut Buf,
+        times: &[f64],
+        values: &[ValueHandle],
+    ) -> std::result::Result<u64, String> {
+        if times.len() != values.len() {
+            return Err(format!("{} sample times for {} values", times.len(), values.len()));
+        }
+        if let Some(w) = times.windows(2).find(|w| sdf::compare_sample_times(w[0], w[1]).is_ge()) {
+            return Err(format!(
+                "sample times out of order or repeated ({} then {})",
+                w[0], w[1]
+            ));
+        }
+        let mut reps = Vec::with_capacity(values.len());
+        for h in values {
+            if h.0 & TAG_MASK != self.tag << TAG_SHIFT {
                 return Err("a value handle from another crate stream".into());
             }
-            if let Some(&last) = times.last() {
-                if sdf::compare_sample_times(last, *t).is_ge() {
-                    return Err(format!("sample times out of order or repeated ({last} then {t})"));
-                }
-            }
-            times.push(*t);
-            reps.push(h.rep);
+            reps.push(h.0 & !TAG_MASK);
         }
-        self.enc.time_samples(buf, &times, &reps)
+        self.enc.time_samples(buf, times, &reps)
     }
 
     /// Writes the structural sections, the table of contents and the
@@ -195,6 +211,11 @@ impl<W: Write + Seek> CrateStream<W> {
     /// `(major, minor, patch)`.
     pub fn version(&self) -> (u8, u8, u8) {
         (0, self.enc.minor, 0)
+    }
+
+    #[cfg(test)]
+    pub(super) fn tag(&self) -> u64 {
+        self.tag
     }
 
     fn buf(&mut self) -> Buf {

@@ -572,15 +572,17 @@ fn streaming_frames_then_specs() {
     let frames = 20;
     let mut stream = CrateStream::new(Cursor::new(Vec::new())).unwrap();
     let constant = Value::Vec3fVec(vec![gf::vec3f(0.25, 0.5, 1.0); 10_000]);
-    let (mut moving, mut still) = (Vec::new(), Vec::new());
+    let (mut times, mut moving, mut still) = (Vec::new(), Vec::new(), Vec::new());
     let mut expected_moving = Vec::new();
     for f in 0..frames {
         let t = 1.0 + f as f64 * 0.5;
         let pts = Value::Vec3fVec(vec![gf::vec3f(f as f32, 1.0, 2.0); 100]);
-        moving.push((t, stream.write_value(&pts).unwrap()));
+        moving.push(stream.write_value(&pts).unwrap());
         expected_moving.push((t, pts));
-        still.push((t, stream.write_value(&constant).unwrap()));
+        still.push(stream.write_value(&constant).unwrap());
+        times.push(t);
     }
+    assert_eq!(std::mem::size_of::<ValueHandle>(), 8);
     let root_kids = Value::TokenVec(vec!["Mesh".into()]);
     let props = Value::TokenVec(vec!["points".into(), "extent".into()]);
     let over = Value::Specifier(sdf::Specifier::Over);
@@ -608,7 +610,13 @@ fn streaming_frames_then_specs() {
             SpecType::Attribute,
             &[
                 ("typeName", Field::Value(&ty)),
-                ("timeSamples", Field::TimeSamples(&moving)),
+                (
+                    "timeSamples",
+                    Field::TimeSamples {
+                        times: &times,
+                        values: &moving,
+                    },
+                ),
             ],
         )
         .unwrap();
@@ -616,7 +624,13 @@ fn streaming_frames_then_specs() {
         .add_spec(
             &path("/Mesh.extent"),
             SpecType::Attribute,
-            &[("timeSamples", Field::TimeSamples(&still))],
+            &[(
+                "timeSamples",
+                Field::TimeSamples {
+                    times: &times,
+                    values: &still,
+                },
+            )],
         )
         .unwrap();
     assert_eq!(stream.version(), (0, 8, 0));
@@ -643,14 +657,24 @@ fn streaming_frames_then_specs() {
 
 #[test]
 fn stream_errors_name_the_spec_and_field() {
-    let mut a = CrateStream::new(Cursor::new(Vec::new())).unwrap();
     let mut b = CrateStream::new(Cursor::new(Vec::new())).unwrap();
+    // Streams created by concurrent tests may take the tags in between.
+    let mut a = CrateStream::new(Cursor::new(Vec::new())).unwrap();
+    while a.tag() == b.tag() {
+        a = CrateStream::new(Cursor::new(Vec::new())).unwrap();
+    }
     let h = b.write_value(&Value::FloatVec(vec![1.0])).unwrap();
     let err = a
         .add_spec(
             &path("/P.a"),
             SpecType::Attribute,
-            &[("timeSamples", Field::TimeSamples(&[(1.0, h)]))],
+            &[(
+                "timeSamples",
+                Field::TimeSamples {
+                    times: &[1.0],
+                    values: &[h],
+                },
+            )],
         )
         .unwrap_err();
     assert_eq!(err.prim.as_deref(), Some("/P.a"));
@@ -664,7 +688,13 @@ fn stream_errors_name_the_spec_and_field() {
         .add_spec(
             &path("/P.b"),
             SpecType::Attribute,
-            &[("timeSamples", Field::TimeSamples(&[(2.0, h1), (1.0, h1)]))],
+            &[(
+                "timeSamples",
+                Field::TimeSamples {
+                    times: &[2.0, 1.0],
+                    values: &[h1, h1],
+                },
+            )],
         )
         .unwrap_err();
     assert!(err.message.contains("out of order"), "{err}");
