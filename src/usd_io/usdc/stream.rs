@@ -58,6 +58,8 @@ pub struct CrateStream<W: Write + Seek> {
     tag: u64,
     /// Reused encoding buffer.
     scratch: Vec<u8>,
+    /// Set by a failed write: the file's offsets can no longer be trusted.
+    broken: bool,
 }
 
 impl<W: Write + Seek> CrateStream<W> {
@@ -78,6 +80,7 @@ impl<W: Write + Seek> CrateStream<W> {
             specs: Specs::default(),
             tag: NEXT_STREAM.fetch_add(1, Ordering::Relaxed) % 15 + 1,
             scratch: Vec::new(),
+            broken: false,
         })
     }
 
@@ -85,6 +88,7 @@ impl<W: Write + Seek> CrateStream<W> {
     /// and returns its handle, for [`Field::TimeSamples`]. Small scalars are
     /// held in the handle and write nothing.
     pub fn write_value(&mut self, v: &Value) -> Result<ValueHandle> {
+        self.check()?;
         let mut buf = self.buf();
         let rep = self.enc.value(&mut buf, v);
         self.flush(buf)?;
@@ -97,8 +101,12 @@ impl<W: Write + Seek> CrateStream<W> {
     /// [`finish`](Self::finish). `propertyChildren` is stored under the
     /// crate's name for it, `properties`.
     pub fn add_spec(&mut self, path: &sdf::Path, ty: SpecType, fields: &[(&str, Field<'_>)]) -> Result<()> {
+        self.check()?;
         if ty == SpecType::Unknown {
             return Err(Error::prim(path, "a spec of unknown type cannot be written"));
+        }
+        if path.is_empty() {
+            return Err(Error::msg("a spec needs a path (the empty path was given)"));
         }
         let slot = self
             .enc
@@ -172,6 +180,7 @@ impl<W: Write + Seek> CrateStream<W> {
     /// bootstrap header (with the lowest crate version the content needs),
     /// and returns the output, flushed.
     pub fn finish(mut self) -> Result<W> {
+        self.check()?;
         let mut sections: Vec<(&str, u64, u64)> = Vec::new();
         let mut body = Vec::new();
         let mut section = |name: &'static str, body: &mut Vec<u8>, write: &mut dyn FnMut(&mut Vec<u8>)| {
@@ -224,9 +233,21 @@ impl<W: Write + Seek> CrateStream<W> {
         Buf { base: self.pos, bytes }
     }
 
+    fn check(&self) -> Result<()> {
+        if self.broken {
+            return Err(Error::msg(
+                "cannot write output: an earlier write to this crate file failed",
+            ));
+        }
+        Ok(())
+    }
+
     /// Writes what `buf` holds; keeps its allocation unless it grew large.
     fn flush(&mut self, buf: Buf) -> Result<()> {
-        self.out.write_all(&buf.bytes).map_err(io_error)?;
+        if let Err(e) = self.out.write_all(&buf.bytes) {
+            self.broken = true;
+            return Err(io_error(e));
+        }
         self.pos += buf.bytes.len() as u64;
         if buf.bytes.capacity() <= 1 << 24 {
             self.scratch = buf.bytes;

@@ -744,6 +744,46 @@ fn stream_errors_name_the_spec_and_field() {
     assert!(read(&bytes).has_spec(&path("/P")));
 }
 
+/// A writer that fails after `room` bytes (a full disk).
+struct Full {
+    inner: Cursor<Vec<u8>>,
+    room: usize,
+}
+
+impl std::io::Write for Full {
+    fn write(&mut self, b: &[u8]) -> std::io::Result<usize> {
+        if self.inner.get_ref().len() + b.len() > self.room {
+            return Err(std::io::Error::other("no space left"));
+        }
+        self.inner.write(b)
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+}
+
+impl std::io::Seek for Full {
+    fn seek(&mut self, to: std::io::SeekFrom) -> std::io::Result<u64> {
+        self.inner.seek(to)
+    }
+}
+
+#[test]
+fn a_failed_write_breaks_the_stream() {
+    let mut s = CrateStream::new(Full {
+        inner: Cursor::new(Vec::new()),
+        room: 1000,
+    })
+    .unwrap();
+    let big = Value::Vec3fVec((0..1000).map(|i| gf::vec3f(i as f32, 0.5, 1.0)).collect());
+    let err = s.write_value(&big).unwrap_err();
+    assert!(err.message.contains("no space left"), "{err}");
+    // Offsets after the failure would be wrong: every later call is refused.
+    assert!(s.write_value(&Value::Int(1)).is_err());
+    assert!(s.add_spec(&sdf::Path::abs_root(), SpecType::PseudoRoot, &[]).is_err());
+    assert!(s.finish().is_err());
+}
+
 #[test]
 fn stream_must_start_at_offset_zero() {
     let mut out = Cursor::new(vec![0u8; 4]);
