@@ -4,19 +4,22 @@
 //!
 //! The writer keeps no copy of what it wrote (bakes stream hundreds of MB),
 //! so values are matched by type, length and a 128-bit fingerprint of their
-//! bytes. Two different values of one type and length share a fingerprint
-//! with probability about 2^-128 per pair: for a million stored values,
-//! about 10^-27.
+//! bytes ([`fingerprint`]: two independent 64-bit multiply-mix lanes, fast
+//! and well mixed but not cryptographic). For values that are not crafted to
+//! collide, two different ones of a type and length share a fingerprint with
+//! probability near 2^-128: with the at most 16,384 values kept, about 10^-34
+//! per value written.
 //!
-//! The table is bounded: past [`MAX_ENTRIES`] it starts over, which only
-//! costs a second copy of a value seen before the reset.
+//! The table is bounded: it keeps two generations of [`GENERATION`] entries
+//! each; when the newer one fills, the older is dropped. A value found in the
+//! older generation moves to the newer one, so a value that recurs (a
+//! constant sampled every frame) is never forgotten, and memory stays flat
+//! however many values a bake writes.
 
 use std::collections::HashMap;
 
-/// Entries kept before the table is cleared (about 3 MB): a bake stores a
-/// few hundred values per frame, and the values worth sharing (constant
-/// ones) recur every frame, so they are found again right after a reset.
-const MAX_ENTRIES: usize = 1 << 16;
+/// Entries per generation (two generations: about 1.3 MB in all).
+const GENERATION: usize = 1 << 13;
 
 /// The key of one stored value: its rep's type and flag bits, its length and
 /// its fingerprint.
@@ -29,31 +32,44 @@ struct Key {
 
 #[derive(Default)]
 pub struct Dedup {
-    table: HashMap<Key, u64>,
+    newer: HashMap<Key, u64>,
+    older: HashMap<Key, u64>,
 }
 
 impl Dedup {
-    /// The rep stored for these bytes, if any.
-    pub fn find(&self, kind: u16, bytes: &[u8]) -> (Option<u64>, (u64, u64)) {
+    /// The rep stored for these bytes, if any, and their fingerprint.
+    pub fn find(&mut self, kind: u16, bytes: &[u8]) -> (Option<u64>, (u64, u64)) {
         let fingerprint = fingerprint(bytes);
         let key = Key {
             kind,
             len: bytes.len() as u64,
             fingerprint,
         };
-        (self.table.get(&key).copied(), fingerprint)
+        if let Some(&rep) = self.newer.get(&key) {
+            return (Some(rep), fingerprint);
+        }
+        let old = self.older.get(&key).copied();
+        if let Some(rep) = old {
+            self.put(key, rep);
+        }
+        (old, fingerprint)
     }
 
     pub fn insert(&mut self, kind: u16, len: usize, fingerprint: (u64, u64), rep: u64) {
-        if self.table.len() >= MAX_ENTRIES {
-            self.table.clear();
-        }
         let key = Key {
             kind,
             len: len as u64,
             fingerprint,
         };
-        self.table.insert(key, rep);
+        self.put(key, rep);
+    }
+
+    fn put(&mut self, key: Key, rep: u64) {
+        if self.newer.len() >= GENERATION {
+            self.older = std::mem::take(&mut self.newer);
+            self.newer.reserve(GENERATION);
+        }
+        self.newer.insert(key, rep);
     }
 }
 
@@ -99,6 +115,26 @@ pub fn fingerprint(bytes: &[u8]) -> (u64, u64) {
 mod tests {
     use super::*;
     use std::collections::HashSet;
+
+    #[test]
+    fn a_recurring_value_survives_generations() {
+        let mut d = Dedup::default();
+        let constant = [7u8; 64];
+        let (found, fp) = d.find(1, &constant);
+        assert_eq!(found, None);
+        d.insert(1, constant.len(), fp, 42);
+        // Many frames of distinct values, the constant seen once per frame.
+        for frame in 0..(4 * GENERATION as u64 / 10) {
+            for k in 0..10u64 {
+                let v = (frame * 10 + k).to_le_bytes();
+                let (found, fp) = d.find(2, &v);
+                assert_eq!(found, None);
+                d.insert(2, v.len(), fp, frame);
+            }
+            assert_eq!(d.find(1, &constant).0, Some(42), "frame {frame}");
+        }
+        assert!(d.newer.len() + d.older.len() <= 2 * GENERATION);
+    }
 
     #[test]
     fn fingerprints_differ_for_nearby_and_reordered_inputs() {
