@@ -22,27 +22,32 @@ pub enum SkinningMethod {
 /// One blend shape target: sparse or dense offsets plus inbetweens.
 #[derive(Debug, Clone, PartialEq)]
 pub struct BlendShape {
-    /// Offsets at weight 1.
+    /// Offsets at weight 1; empty when the shape has no `offsets` (only
+    /// `normalOffsets`): it then moves no point.
     pub offsets: Vec<DVec3>,
     /// Point each offset applies to; None = dense (offset i → point i).
     pub point_indices: Option<Vec<u32>>,
-    /// Inbetween shapes: (weight, offsets), any order.
+    /// Inbetween shapes: (weight, offsets), any order; empty offsets move
+    /// no point.
     pub inbetweens: Vec<(f64, Vec<DVec3>)>,
 }
 
+/// usd-core's tolerance for inbetween weights and interpolation parameters.
+const SHAPE_EPS: f64 = 1e-6;
+
 impl BlendShape {
-    /// Adds `weight` of this shape to `points`.
+    /// Adds `weight` of this shape to `points`, as UsdSkelBlendShapeQuery
+    /// resolves it.
     ///
-    /// Inbetweens are piecewise-linear breakpoints along the weight axis with
-    /// the rest (weight 0, zero offsets) and the primary shape (weight 1);
-    /// outside the outermost breakpoints the outermost segment extrapolates,
-    /// as UsdSkel does for weights beyond [0, 1].
+    /// Without inbetweens the primary shape scales linearly with the weight
+    /// (also below 0 and above 1). With inbetweens, the sub-shapes (rest at
+    /// weight 0, the primary at 1, each inbetween at its weight; inbetweens
+    /// within 1e-6 of 0 or 1 are ignored) are piecewise-linear breakpoints
+    /// along the weight axis, and outside the outermost breakpoints the
+    /// outermost segment extrapolates.
     pub fn apply(&self, weight: f64, points: &mut [DVec3]) {
-        if weight == 0.0 {
-            return;
-        }
         let add = |points: &mut [DVec3], offsets: &[DVec3], scale: f64| {
-            if scale == 0.0 {
+            if scale.abs() < SHAPE_EPS || offsets.is_empty() {
                 return;
             }
             match &self.point_indices {
@@ -54,26 +59,42 @@ impl BlendShape {
                 }
             }
         };
-        if self.inbetweens.is_empty() {
+        let inbetweens: Vec<(f64, &[DVec3])> = self
+            .inbetweens
+            .iter()
+            .filter(|(w, _)| (w - 0.0).abs() > SHAPE_EPS && (w - 1.0).abs() > SHAPE_EPS)
+            .map(|(w, o)| (*w, o.as_slice()))
+            .collect();
+        if inbetweens.is_empty() {
             add(points, &self.offsets, weight);
             return;
         }
-        // Breakpoints sorted by weight: rest, inbetweens, primary.
-        let mut bps: Vec<(f64, Option<&[DVec3]>)> = vec![(0.0, None), (1.0, Some(&self.offsets))];
-        bps.extend(self.inbetweens.iter().map(|(w, o)| (*w, Some(o.as_slice()))));
-        bps.sort_by(|a, b| a.0.total_cmp(&b.0));
-        let seg = (0..bps.len() - 1)
-            .find(|&k| weight <= bps[k + 1].0)
-            .unwrap_or(bps.len() - 2);
-        let (w0, o0) = bps[seg];
-        let (w1, o1) = bps[seg + 1];
+        // Sub-shapes sorted by weight: primary, rest (None), inbetweens.
+        let mut subs: Vec<(f64, Option<&[DVec3]>)> = vec![(1.0, Some(&self.offsets)), (0.0, None)];
+        subs.extend(inbetweens.iter().map(|&(w, o)| (w, Some(o))));
+        subs.sort_by(|a, b| a.0.total_cmp(&b.0));
+        // The first sub-shape above the weight bounds the segment from above.
+        let upper = subs.iter().position(|s| s.0 > weight).unwrap_or(subs.len());
+        let (lo, hi) = match upper {
+            0 => (0, 1),
+            u if u == subs.len() => (u - 2, u - 1),
+            u => (u - 1, u),
+        };
+        let ((w0, o0), (w1, o1)) = (subs[lo], subs[hi]);
         let span = w1 - w0;
-        let t = if span > 0.0 { (weight - w0) / span } else { 1.0 };
+        if span <= SHAPE_EPS {
+            return;
+        }
+        let alpha = (weight - w0) / span;
         if let Some(o0) = o0 {
-            add(points, o0, 1.0 - t);
+            if (alpha - 1.0).abs() > SHAPE_EPS {
+                add(points, o0, 1.0 - alpha);
+            }
         }
         if let Some(o1) = o1 {
-            add(points, o1, t);
+            if alpha.abs() > SHAPE_EPS {
+                add(points, o1, alpha);
+            }
         }
     }
 }
@@ -96,32 +117,40 @@ pub struct SkelDeformer {
     pub rest_points: Vec<DVec3>,
     /// `primvars:skel:geomBindTransform` (column form).
     pub geom_bind: DMat4,
-    pub influences: Influences,
+    /// Joint influences; None when the mesh has none (blend shapes only).
+    pub influences: Option<Influences>,
     pub method: SkinningMethod,
     /// Blend shapes in the mesh's `skel:blendShapes` order.
     pub blend_shapes: Vec<BlendShape>,
 }
 
 impl SkelDeformer {
-    /// Skel-space points for joint skinning transforms (mesh joint order,
-    /// column form: inverse bind then posed joint) and blend-shape weights
-    /// (mesh order).
-    pub fn deform(&self, skinning: &[DMat4], shape_weights: &[f64]) -> Vec<DVec3> {
+    /// Deformed points for blend-shape weights (mesh order) and, when the
+    /// mesh is skinned by joints, their skinning transforms (mesh joint
+    /// order, column form: inverse bind then posed joint).
+    ///
+    /// With joint skinning the result is in skeleton space; without, the
+    /// blend-shaped points stay in the mesh's own space (BakeSkinning
+    /// applies no geomBindTransform then).
+    pub fn deform(&self, skinning: Option<&[DMat4]>, shape_weights: &[f64]) -> Vec<DVec3> {
         let mut pts = self.rest_points.clone();
         for (shape, &w) in self.blend_shapes.iter().zip(shape_weights) {
             shape.apply(w, &mut pts);
         }
-        let n = self.influences.per_point;
-        let dq: Vec<(DualQuat, DMat3)> = match self.method {
-            SkinningMethod::ClassicLinear => Vec::new(),
-            SkinningMethod::DualQuaternion => skinning.iter().map(DualQuat::from_skinning).collect(),
+        let (Some(skinning), Some(infl)) = (skinning, &self.influences) else {
+            return pts;
+        };
+        let n = infl.per_point;
+        let dq = match self.method {
+            SkinningMethod::ClassicLinear => None,
+            SkinningMethod::DualQuaternion => Some(DqJoints::new(skinning)),
         };
         for (i, p) in pts.iter_mut().enumerate() {
             let bound = self.geom_bind.transform_point3(*p);
-            let joints = &self.influences.joints[i * n..i * n + n];
-            let weights = &self.influences.weights[i * n..i * n + n];
-            *p = match self.method {
-                SkinningMethod::ClassicLinear => {
+            let joints = &infl.joints[i * n..i * n + n];
+            let weights = &infl.weights[i * n..i * n + n];
+            *p = match &dq {
+                None => {
                     let mut acc = DVec3::ZERO;
                     for (&j, &w) in joints.iter().zip(weights) {
                         if w != 0.0 {
@@ -130,7 +159,7 @@ impl SkelDeformer {
                     }
                     acc
                 }
-                SkinningMethod::DualQuaternion => dq_skin(bound, joints, weights, &dq),
+                Some(dq) => dq.skin(bound, joints, weights),
             };
         }
         pts
@@ -144,52 +173,86 @@ struct DualQuat {
     dual: DQuat,
 }
 
-impl DualQuat {
-    /// Splits a skinning transform into scale/shear (applied first, blended
-    /// linearly) and a rigid part (blended as a dual quaternion).
-    fn from_skinning(m: &DMat4) -> (DualQuat, DMat3) {
-        let linear = DMat3::from_mat4(*m);
-        let t = m.w_axis.truncate();
-        // Polar decomposition linear = R · S with R a rotation.
-        let (r, s) = polar(linear);
-        let real = DQuat::from_mat3(&r).normalize();
-        let tq = DQuat::from_xyzw(t.x, t.y, t.z, 0.0);
-        let dual = (tq * real) * 0.5;
-        (DualQuat { real, dual }, s)
-    }
+/// Every joint's skinning transform split as UsdSkel's DQS does: a rigid
+/// part (blended as dual quaternions) after a scale/shear part (blended
+/// linearly, and only when some joint has one).
+struct DqJoints {
+    rigid: Vec<DualQuat>,
+    stretch: Vec<DMat3>,
+    /// Whether any stretch differs from identity (by more than 1e-6 in an
+    /// entry); when none does, points are not multiplied by the weight sum.
+    has_stretch: bool,
 }
 
-fn dq_skin(p: DVec3, joints: &[u32], weights: &[f64], dq: &[(DualQuat, DMat3)]) -> DVec3 {
-    let mut real = DQuat::from_xyzw(0.0, 0.0, 0.0, 0.0);
-    let mut dual = DQuat::from_xyzw(0.0, 0.0, 0.0, 0.0);
-    let mut scale = DMat3::ZERO;
-    let mut pivot: Option<DQuat> = None;
-    for (&j, &w) in joints.iter().zip(weights) {
-        if w == 0.0 {
-            continue;
-        }
-        let (q, s) = &dq[j as usize];
-        // Keep every rotation on the pivot's hemisphere (shortest path).
-        let sign = match pivot {
-            None => {
-                pivot = Some(q.real);
-                1.0
+impl DqJoints {
+    fn new(skinning: &[DMat4]) -> Self {
+        let mut rigid = Vec::with_capacity(skinning.len());
+        let mut stretch = Vec::with_capacity(skinning.len());
+        for m in skinning {
+            let linear = DMat3::from_mat4(*m);
+            if linear.determinant().abs() < 1e-10 {
+                // UsdSkel cannot factor it: it contributes nothing.
+                let zero = DQuat::from_xyzw(0.0, 0.0, 0.0, 0.0);
+                rigid.push(DualQuat { real: zero, dual: zero });
+                stretch.push(DMat3::IDENTITY);
+                continue;
             }
-            Some(pv) if pv.dot(q.real) < 0.0 => -1.0,
-            Some(_) => 1.0,
-        };
-        real = real + q.real * (w * sign);
-        dual = dual + q.dual * (w * sign);
-        scale += *s * w;
+            let t = m.w_axis.truncate();
+            // Polar decomposition linear = R · S with R a rotation.
+            let (r, s) = polar(linear);
+            let real = DQuat::from_mat3(&r).normalize();
+            let tq = DQuat::from_xyzw(t.x, t.y, t.z, 0.0);
+            let dual = (tq * real) * 0.5;
+            rigid.push(DualQuat { real, dual });
+            stretch.push(s);
+        }
+        let has_stretch = stretch
+            .iter()
+            .any(|s| (*s - DMat3::IDENTITY).to_cols_array().iter().any(|d| d.abs() > 1e-6));
+        DqJoints {
+            rigid,
+            stretch,
+            has_stretch,
+        }
     }
-    let len = real.length();
-    if len <= f64::MIN_POSITIVE {
-        return p;
+
+    /// One point. The pivot (the rotation every other joint's is brought
+    /// onto the hemisphere of) is the joint with the largest weight, the
+    /// first one on ties. Zero weights everywhere give NaN, as in UsdSkel.
+    fn skin(&self, p: DVec3, joints: &[u32], weights: &[f64]) -> DVec3 {
+        let mut pivot: Option<(usize, f64)> = None;
+        for (&j, &w) in joints.iter().zip(weights) {
+            if pivot.is_none_or(|(_, best)| best < w) {
+                pivot = Some((j as usize, w));
+            }
+        }
+        let pivot = pivot.map_or(DQuat::from_xyzw(0.0, 0.0, 0.0, 0.0), |(j, _)| self.rigid[j].real);
+        let mut real = DQuat::from_xyzw(0.0, 0.0, 0.0, 0.0);
+        let mut dual = DQuat::from_xyzw(0.0, 0.0, 0.0, 0.0);
+        let mut scaled = DVec3::ZERO;
+        for (&j, &w) in joints.iter().zip(weights) {
+            if w == 0.0 {
+                continue;
+            }
+            let q = &self.rigid[j as usize];
+            if self.has_stretch {
+                scaled += self.stretch[j as usize] * p * w;
+            }
+            let w = if q.real.dot(pivot) < 0.0 { -w } else { w };
+            real = real + q.real * w;
+            dual = dual + q.dual * w;
+        }
+        if !self.has_stretch {
+            scaled = p;
+        }
+        let len = real.length();
+        if len < 1e-10 {
+            return DVec3::NAN;
+        }
+        let (real, dual) = (real * (1.0 / len), dual * (1.0 / len));
+        let t = (dual * real.conjugate()) * 2.0;
+        real * scaled + DVec3::new(t.x, t.y, t.z)
     }
-    let (real, dual) = (real * (1.0 / len), dual * (1.0 / len));
-    let scaled = scale * p;
-    let t = (dual * real.conjugate()) * 2.0;
-    real * scaled + DVec3::new(t.x, t.y, t.z)
 }
 
 /// Polar decomposition M = R · S (R proper rotation, S symmetric) by SVD.
@@ -210,7 +273,8 @@ fn polar(m: DMat3) -> (DMat3, DMat3) {
     (rg, rg.transpose() * m)
 }
 
-/// Joint local transforms (skeleton order) to skeleton space, parents first.
+/// Joint local transforms (skeleton order) to skeleton space. Parents come
+/// before their children (a valid UsdSkel topology; checked when read).
 pub fn local_to_skel(local: &[DMat4], parents: &[Option<usize>]) -> Vec<DMat4> {
     let mut out: Vec<DMat4> = Vec::with_capacity(local.len());
     for (j, l) in local.iter().enumerate() {
@@ -252,6 +316,44 @@ mod tests {
     }
 
     #[test]
+    fn inbetweens_extrapolate_below_and_ignore_weights_at_0_and_1() {
+        let s = BlendShape {
+            offsets: vec![DVec3::X],
+            point_indices: None,
+            // The ones at ~0 and ~1 are ignored (usd-core: within 1e-6).
+            inbetweens: vec![
+                (-0.5, vec![DVec3::Y]),
+                (1.0 - 1e-7, vec![DVec3::Z * 100.0]),
+                (1e-7, vec![DVec3::Z * 100.0]),
+            ],
+        };
+        let at = |w| {
+            let mut p = vec![DVec3::ZERO];
+            s.apply(w, &mut p);
+            p[0]
+        };
+        assert!((at(-0.5) - DVec3::Y).length() < 1e-12);
+        // Below the lowest breakpoint the (-0.5, 0) segment extrapolates.
+        assert!((at(-1.0) - DVec3::Y * 2.0).length() < 1e-12);
+        assert!((at(-0.25) - DVec3::Y * 0.5).length() < 1e-12);
+        assert!((at(2.0) - DVec3::X * 2.0).length() < 1e-12);
+    }
+
+    #[test]
+    fn shapes_without_offsets_move_nothing() {
+        let s = BlendShape {
+            offsets: vec![],
+            point_indices: None,
+            inbetweens: vec![(0.5, vec![DVec3::Y])],
+        };
+        let mut p = vec![DVec3::ZERO];
+        s.apply(1.0, &mut p);
+        assert_eq!(p[0], DVec3::ZERO);
+        s.apply(0.25, &mut p);
+        assert!((p[0] - DVec3::Y * 0.5).length() < 1e-12);
+    }
+
+    #[test]
     fn sparse_offsets_touch_only_their_points() {
         let s = BlendShape {
             offsets: vec![DVec3::X],
@@ -267,11 +369,11 @@ mod tests {
         SkelDeformer {
             rest_points: vec![DVec3::new(1.0, 0.0, 0.0), DVec3::new(0.0, 2.0, 0.0)],
             geom_bind: DMat4::IDENTITY,
-            influences: Influences {
+            influences: Some(Influences {
                 per_point: 2,
                 joints: vec![0, 1, 0, 1],
                 weights: vec![0.5, 0.5, 1.0, 0.0],
-            },
+            }),
             method,
             blend_shapes: vec![],
         }
@@ -281,7 +383,7 @@ mod tests {
     fn lbs_averages_joint_transforms() {
         let d = deformer(SkinningMethod::ClassicLinear);
         let xf = [DMat4::IDENTITY, DMat4::from_translation(DVec3::new(0.0, 0.0, 2.0))];
-        let p = d.deform(&xf, &[]);
+        let p = d.deform(Some(&xf), &[]);
         assert!((p[0] - DVec3::new(1.0, 0.0, 1.0)).length() < 1e-12);
         assert!((p[1] - DVec3::new(0.0, 2.0, 0.0)).length() < 1e-12);
     }
@@ -294,8 +396,8 @@ mod tests {
             DMat4::from_rotation_z(std::f64::consts::FRAC_PI_2),
             DMat4::from_rotation_z(-std::f64::consts::FRAC_PI_2),
         ];
-        let lbs = deformer(SkinningMethod::ClassicLinear).deform(&xf, &[]);
-        let dqs = deformer(SkinningMethod::DualQuaternion).deform(&xf, &[]);
+        let lbs = deformer(SkinningMethod::ClassicLinear).deform(Some(&xf), &[]);
+        let dqs = deformer(SkinningMethod::DualQuaternion).deform(Some(&xf), &[]);
         assert!(lbs[0].length() < 1e-12);
         assert!((dqs[0] - DVec3::new(1.0, 0.0, 0.0)).length() < 1e-12);
         // Single influence: DQS equals the rigid transform itself.
@@ -306,9 +408,49 @@ mod tests {
     fn dqs_of_translation_and_rotation_single_joint() {
         let m = DMat4::from_translation(DVec3::new(1.0, 2.0, 3.0)) * DMat4::from_rotation_y(0.7);
         let mut d = deformer(SkinningMethod::DualQuaternion);
-        d.influences.weights = vec![1.0, 0.0, 1.0, 0.0];
-        let p = d.deform(&[m, DMat4::IDENTITY], &[]);
+        d.influences.as_mut().unwrap().weights = vec![1.0, 0.0, 1.0, 0.0];
+        let p = d.deform(Some(&[m, DMat4::IDENTITY]), &[]);
         assert!((p[0] - m.transform_point3(DVec3::X)).length() < 1e-12);
+    }
+
+    #[test]
+    fn dqs_pivot_is_the_largest_weight() {
+        // Rotations of 0°, +120° and -120° about z: +120° and -120° are on
+        // opposite quaternion hemispheres. With the +120° joint as pivot (the
+        // largest weight), the -120° one is flipped; a pivot at the first
+        // joint would flip nothing and give another point.
+        let xf = [
+            DMat4::IDENTITY,
+            DMat4::from_rotation_z(120f64.to_radians()),
+            DMat4::from_rotation_z(-120f64.to_radians()),
+        ];
+        let w = [0.2, 0.5, 0.3];
+        let mut d = deformer(SkinningMethod::DualQuaternion);
+        d.rest_points = vec![DVec3::X];
+        d.influences = Some(Influences {
+            per_point: 3,
+            joints: vec![0, 1, 2],
+            weights: w.to_vec(),
+        });
+        let p = d.deform(Some(&xf), &[])[0];
+        let q = |deg: f64| DQuat::from_rotation_z(deg.to_radians());
+        let blend = (q(0.0) * w[0] + q(120.0) * w[1] - q(-120.0) * w[2]).normalize();
+        assert!((p - blend * DVec3::X).length() < 1e-12, "{p}");
+    }
+
+    #[test]
+    fn dqs_without_joint_scale_ignores_the_weight_sum() {
+        let xf = [DMat4::from_rotation_z(0.3), DMat4::from_rotation_z(-0.2)];
+        let mut d = deformer(SkinningMethod::DualQuaternion);
+        d.influences.as_mut().unwrap().weights = vec![0.4, 0.4, 0.9, 0.0];
+        let p = d.deform(Some(&xf), &[]);
+        // Unnormalised weights: the rigid blend is normalised, the point is not scaled.
+        assert!((p[0].length() - 1.0).abs() < 1e-12);
+        assert!((p[1].length() - 2.0).abs() < 1e-12);
+        // With a scaled joint the stretch part is the weighted sum.
+        let xf = [DMat4::from_scale(DVec3::splat(2.0)), DMat4::IDENTITY];
+        let p = d.deform(Some(&xf), &[]);
+        assert!((p[0] - DVec3::X * (0.4 * 2.0 + 0.4)).length() < 1e-12);
     }
 
     #[test]

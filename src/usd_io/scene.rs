@@ -337,11 +337,15 @@ impl Proxy {
                 p.iter().map(|p| p.as_dvec3()).collect::<Vec<_>>()
             }
             ProxyMotion::Skel(s) => {
-                let (skinning, weights) = s.pose(t)?;
-                let skel_pts = s.deformer.deform(&skinning, &weights);
-                let skel_prim = r.require_prim(&s.skeleton)?;
-                let to_local = self.local_to_world(r, t)?.inverse() * r.local_to_world(&skel_prim, t)?;
-                skel_pts.iter().map(|p| to_local.transform_point3(*p)).collect()
+                let pts = s.deform(t)?;
+                if s.skins_joints() {
+                    // Skeleton space → mesh space, as BakeSkinning writes them.
+                    let skel_prim = r.require_prim(&s.skeleton)?;
+                    let to_local = self.local_to_world(r, t)?.inverse() * r.local_to_world(&skel_prim, t)?;
+                    pts.iter().map(|p| to_local.transform_point3(*p)).collect()
+                } else {
+                    pts
+                }
             }
         };
         if let Some(i) = pts.iter().position(|p| !p.is_finite()) {
