@@ -218,7 +218,8 @@ impl DqJoints {
 
     /// One point. The pivot (the rotation every other joint's is brought
     /// onto the hemisphere of) is the joint with the largest weight, the
-    /// first one on ties. Zero weights everywhere give NaN, as in UsdSkel.
+    /// first one on ties. A point whose weights are all zero stays where it
+    /// is (UsdSkel normalises the zero dual quaternion to the identity).
     fn skin(&self, p: DVec3, joints: &[u32], weights: &[f64]) -> DVec3 {
         let mut pivot: Option<(usize, f64)> = None;
         for (&j, &w) in joints.iter().zip(weights) {
@@ -247,7 +248,7 @@ impl DqJoints {
         }
         let len = real.length();
         if len < 1e-10 {
-            return DVec3::NAN;
+            return scaled;
         }
         let (real, dual) = (real * (1.0 / len), dual * (1.0 / len));
         let t = (dual * real.conjugate()) * 2.0;

@@ -392,16 +392,6 @@ impl SkelProxy {
                     joints: infl.joints.iter().map(|&j| j as u32).collect(),
                     weights: infl.weights,
                 };
-                if method == SkinningMethod::DualQuaternion {
-                    let n = infl.per_point;
-                    if let Some(i) = (0..npts).find(|i| infl.weights[i * n..i * n + n].iter().all(|&w| w == 0.0)) {
-                        return Err(Error::attr(
-                            &mesh_path,
-                            "primvars:skel:jointWeights",
-                            format!("point {i} has only zero weights: usd-core's dualQuaternion skinning makes it NaN"),
-                        ));
-                    }
-                }
                 (Some(infl), Some(pose))
             }
         };

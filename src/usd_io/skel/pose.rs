@@ -37,6 +37,8 @@ pub(super) struct AnimJoints {
     translations: AttributeQuery,
     rotations: AttributeQuery,
     scales: AttributeQuery,
+    /// Authored times of `scales`, for interpolating half-precision scales.
+    scale_times: Vec<f64>,
 }
 
 const TRS: [&str; 3] = ["translations", "rotations", "scales"];
@@ -59,10 +61,13 @@ impl AnimJoints {
             get(&self.scales, TRS[2])?,
         ];
         let n = self.joints;
-        let [Some(tr), Some(rot), Some(sc)] = raw else {
+        let [Some(tr), Some(rot), Some(mut sc)] = raw else {
             let i = raw.iter().position(|v| v.is_none()).unwrap_or(0);
             return Ok(Err((TRS[i], format!("{} is not authored", TRS[i]))));
         };
+        if let Some(h) = self.half_scales_between_samples(t)? {
+            sc = Value::Vec3hVec(h);
+        }
         let kinds = [values::kind_name(&tr), values::kind_name(&rot), values::kind_name(&sc)];
         let cast = (
             tr.cast::<Vec<gf::Vec3f>>().ok(),
@@ -91,6 +96,46 @@ impl AnimJoints {
             .zip(&sc)
             .map(|((t, r), s)| values::usd_matrix(&gf::Matrix4d::from_trs(*t, *r, *s)))
             .collect()))
+    }
+}
+
+impl AnimJoints {
+    /// `half3[]` scales between two samples as usd-core interpolates them:
+    /// `(1 − α)·a + α·b` in GfVec3h arithmetic, each product and the sum
+    /// rounded to half (openusd rounds once; they differ by up to ~1e-4 of
+    /// the character). None where that does not apply.
+    fn half_scales_between_samples(&self, t: f64) -> Result<Option<Vec<gf::Vec3h>>> {
+        let Some(i) = self.scale_times.windows(2).position(|w| w[0] < t && t < w[1]) else {
+            return Ok(None);
+        };
+        let (t0, t1) = (self.scale_times[i], self.scale_times[i + 1]);
+        let sample = |at: f64| {
+            self.scales
+                .get_at::<Value>(TimeCode::new(at))
+                .map_err(|e| Error::attr(&self.path, "scales", format!("cannot read at time {at}: {e}")))
+        };
+        let (Some(Value::Vec3hVec(a)), Some(Value::Vec3hVec(b))) = (sample(t0)?, sample(t1)?) else {
+            return Ok(None);
+        };
+        if a.len() != b.len() {
+            return Ok(None);
+        }
+        let alpha = (t - t0) / (t1 - t0);
+        let half = |x: f64| gf::f16::from_f32(x as f32);
+        let lerp = |a: gf::f16, b: gf::f16| {
+            let (pa, pb) = (half(a.to_f64() * (1.0 - alpha)), half(b.to_f64() * alpha));
+            gf::f16::from_f32(pa.to_f32() + pb.to_f32())
+        };
+        Ok(Some(
+            a.iter()
+                .zip(&b)
+                .map(|(a, b)| gf::Vec3h {
+                    x: lerp(a.x, b.x),
+                    y: lerp(a.y, b.y),
+                    z: lerp(a.z, b.z),
+                })
+                .collect(),
+        ))
     }
 }
 
@@ -211,6 +256,7 @@ pub(super) fn read_joint_pose(
                 translations: AttributeQuery::new(&prim.attribute("translations")),
                 rotations: AttributeQuery::new(&prim.attribute("rotations")),
                 scales: AttributeQuery::new(&prim.attribute("scales")),
+                scale_times: r.sample_times(prim, "scales")?,
             };
             if map.sparse && rest.is_none() {
                 let driven = map.sources(anim_joints.len()).iter().filter(|s| s.is_some()).count();
