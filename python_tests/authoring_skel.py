@@ -337,6 +337,43 @@ def usd_core_reference(rig, frames):
     return Au.usdcore_world_points(rig.path, [rig.mesh], frames)[rig.mesh]
 
 
+def world_normals(stage, path, t):
+    """A mesh's `normals` at t as world-space unit directions (inverse
+    transpose of its local-to-world), or None when it has none."""
+    prim = stage.GetPrimAtPath(path)
+    n = UsdGeom.PointBased(prim).GetNormalsAttr().Get(t)
+    if n is None:
+        return None
+    m = Au.gf_to_np(UsdGeom.Xformable(prim).ComputeLocalToWorldTransform(t))[:3, :3]
+    w = np.asarray(n, dtype=np.float64) @ np.linalg.inv(m).T
+    return w / np.linalg.norm(w, axis=1, keepdims=True)
+
+
+def check_normals_match_usd_core(painterly, rig, tmp_path, frames_arg=None, frames=None, tol=1e-5):
+    """The bake's normals (composed over the input) point where usd-core's
+    BakeSkinning puts them, in world space, at every frame; returns the
+    worst difference of unit vectors."""
+    frames = frames or rig.frames
+    out, _ = bake_proxy(painterly, rig, tmp_path, frames_arg)
+    stage = Usd.Stage.Open(str(rig.path))
+    k = Au._multiplier(frames)
+    sl = stage.GetSessionLayer()
+    if k != 1:
+        sl.timeCodesPerSecond = stage.GetTimeCodesPerSecond() * k
+        sl.framesPerSecond = stage.GetFramesPerSecond() * k
+    sl.startTimeCode, sl.endTimeCode = min(frames) * k, max(frames) * k
+    stage.SetEditTarget(sl)
+    UsdSkel.BakeSkinning(stage.Traverse(), Gf.Interval(min(frames) * k, max(frames) * k))
+    comp = Au.compose(rig.path, out)
+    worst = 0.0
+    for t in frames:
+        ref, ours = world_normals(stage, rig.mesh, k * t), world_normals(comp, rig.mesh, t)
+        assert ref is not None and ours is not None and ours.shape == ref.shape
+        worst = max(worst, float(np.abs(ours - ref).max()))
+    assert worst <= tol, f"{rig.mesh}: normals differ from usd-core's by {worst:.3g} (tolerance {tol:g})"
+    return worst
+
+
 def usd_core_skins_every_frame(rig):
     """Whether usd-core's BakeSkinning writes finite points for the mesh at
     every frame of the stage (False: it warned and left the mesh, or some

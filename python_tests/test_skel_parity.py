@@ -87,6 +87,53 @@ def test_proxy_matches_usd_core(painterly, tmp_path, case, times):
         S.check_matches_usd_core(painterly, rig, tmp_path, *QUARTERS, tol=TOL)
 
 
+# ---------------------------------------------------------------------------
+# authored normals: BakeSkinning rewrites vertex, varying and faceVarying
+# normals; the bake must too, or the composed proxy keeps rest-pose normals
+
+SCALED_BIND = GEOM_BIND * Gf.Matrix4d().SetScale(Gf.Vec3d(1, 1.3, 0.8))
+NORMAL_SHAPES = [dict(name="n0", normal_offsets=True, inbetweens=[(0.5, True)], weight=lambda u: 1.6 * u - 0.3),
+                 dict(name="s1", normal_offsets=True, offsets="sparse")]
+NORMAL_CASES = {
+    "lbs_vertex": dict(normals="vertex", geom_bind=SCALED_BIND, influences=3, **XF),
+    "lbs_vertex_joint_scale": dict(normals="vertex", influences=3, pose=S.scale_pose),
+    "lbs_face_varying": dict(normals="faceVarying", geom_bind=SCALED_BIND, influences=3, **XF),
+    "dqs_vertex": dict(normals="vertex", geom_bind=SCALED_BIND, influences=3, method="dualQuaternion",
+                       pose=S.twist_pose, **XF),
+    "dqs_vertex_joint_scale": dict(normals="vertex", influences=3, method="dualQuaternion", pose=S.scale_pose),
+    "dqs_face_varying": dict(normals="faceVarying", influences=3, method="dualQuaternion", pose=S.twist_pose,
+                             **XF),
+    "rigid": dict(normals="vertex", interpolation="constant", geom_bind=SCALED_BIND, **XF),
+    "rigid_dqs": dict(normals="vertex", interpolation="constant", method="dualQuaternion", pose=S.twist_pose,
+                      **XF),
+    "normal_offsets_skinned": dict(normals="vertex", shapes=NORMAL_SHAPES, **XF),
+    "normal_offsets_without_joints": dict(normals="vertex", joints=[], shapes=NORMAL_SHAPES, **XF),
+    "face_varying_with_normal_offsets": dict(normals="faceVarying", shapes=NORMAL_SHAPES, **XF),
+}
+
+
+@pytest.mark.parametrize("times", ["integer", "quarter"])
+@pytest.mark.parametrize("case", list(NORMAL_CASES))
+def test_normals_match_usd_core(painterly, tmp_path, case, times):
+    rig = S.skel_rig(tmp_path / "rig.usda", **NORMAL_CASES[case])
+    if times == "integer":
+        S.check_normals_match_usd_core(painterly, rig, tmp_path, tol=TOL)
+    else:
+        S.check_normals_match_usd_core(painterly, rig, tmp_path, *QUARTERS, tol=TOL)
+    # ...and the normals do turn: a bake leaving rest normals would fail.
+    src = Usd.Stage.Open(str(rig.path))
+    turned = max(float(np.abs(S.world_normals(src, rig.mesh, t) - S.world_normals(
+        Au.compose(rig.path, tmp_path / "proxy_bake.usdc"), rig.mesh, t)).max()) for t in rig.frames)
+    assert turned > 0.01, f"normals barely change ({turned:.3g}): the case tests nothing"
+
+
+def test_no_normals_written_for_meshes_without_them(painterly, tmp_path):
+    rig = S.skel_rig(tmp_path / "rig.usda", shapes=INBETWEENS)
+    out, _ = S.bake_proxy(painterly, rig, tmp_path)
+    layer = Sdf.Layer.FindOrOpen(str(out))
+    assert layer.GetAttributeAtPath(Sdf.Path(rig.mesh).AppendProperty("normals")) is None
+
+
 def _dq_vs_lbs(tmp_path, case):
     rig = S.skel_rig(tmp_path / "rig.usda", **CASES[case])
     frames = rig.frames

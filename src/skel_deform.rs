@@ -20,24 +20,40 @@ pub enum SkinningMethod {
 }
 
 /// One blend shape target: sparse or dense offsets plus inbetweens.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct BlendShape {
     /// Offsets at weight 1; empty when the shape has no `offsets` (only
     /// `normalOffsets`): it then moves no point.
     pub offsets: Vec<DVec3>,
+    /// Normal offsets at weight 1 (empty: none).
+    pub normal_offsets: Vec<DVec3>,
     /// Point each offset applies to; None = dense (offset i → point i).
     pub point_indices: Option<Vec<u32>>,
-    /// Inbetween shapes: (weight, offsets), any order; empty offsets move
-    /// no point.
-    pub inbetweens: Vec<(f64, Vec<DVec3>)>,
+    /// Inbetween shapes, any order.
+    pub inbetweens: Vec<Inbetween>,
+}
+
+/// An inbetween shape; empty offsets move nothing.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Inbetween {
+    pub weight: f64,
+    pub offsets: Vec<DVec3>,
+    pub normal_offsets: Vec<DVec3>,
 }
 
 /// usd-core's tolerance for inbetween weights and interpolation parameters.
 const SHAPE_EPS: f64 = 1e-6;
 
+/// A sub-shape of a blend shape: the primary or an inbetween.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum SubShape {
+    Primary,
+    Inbetween(usize),
+}
+
 impl BlendShape {
-    /// Adds `weight` of this shape to `points`, as UsdSkelBlendShapeQuery
-    /// resolves it.
+    /// The sub-shapes `weight` blends and their factors, as
+    /// UsdSkelBlendShapeQuery resolves them.
     ///
     /// Without inbetweens the primary shape scales linearly with the weight
     /// (also below 0 and above 1). With inbetweens, the sub-shapes (rest at
@@ -45,33 +61,19 @@ impl BlendShape {
     /// within 1e-6 of 0 or 1 are ignored) are piecewise-linear breakpoints
     /// along the weight axis, and outside the outermost breakpoints the
     /// outermost segment extrapolates.
-    pub fn apply(&self, weight: f64, points: &mut [DVec3]) {
-        let add = |points: &mut [DVec3], offsets: &[DVec3], scale: f64| {
-            if scale.abs() < SHAPE_EPS || offsets.is_empty() {
-                return;
-            }
-            match &self.point_indices {
-                None => points.iter_mut().zip(offsets).for_each(|(p, o)| *p += *o * scale),
-                Some(idx) => {
-                    for (&i, o) in idx.iter().zip(offsets) {
-                        points[i as usize] += *o * scale;
-                    }
-                }
-            }
-        };
-        let inbetweens: Vec<(f64, &[DVec3])> = self
-            .inbetweens
-            .iter()
-            .filter(|(w, _)| (w - 0.0).abs() > SHAPE_EPS && (w - 1.0).abs() > SHAPE_EPS)
-            .map(|(w, o)| (*w, o.as_slice()))
-            .collect();
-        if inbetweens.is_empty() {
-            add(points, &self.offsets, weight);
-            return;
-        }
+    fn sub_shapes(&self, weight: f64) -> Vec<(SubShape, f64)> {
         // Sub-shapes sorted by weight: primary, rest (None), inbetweens.
-        let mut subs: Vec<(f64, Option<&[DVec3]>)> = vec![(1.0, Some(&self.offsets)), (0.0, None)];
-        subs.extend(inbetweens.iter().map(|&(w, o)| (w, Some(o))));
+        let mut subs: Vec<(f64, Option<SubShape>)> = vec![(1.0, Some(SubShape::Primary)), (0.0, None)];
+        subs.extend(
+            self.inbetweens
+                .iter()
+                .enumerate()
+                .filter(|(_, ib)| (ib.weight - 0.0).abs() > SHAPE_EPS && (ib.weight - 1.0).abs() > SHAPE_EPS)
+                .map(|(k, ib)| (ib.weight, Some(SubShape::Inbetween(k)))),
+        );
+        if subs.len() == 2 {
+            return vec![(SubShape::Primary, weight)];
+        }
         subs.sort_by(|a, b| a.0.total_cmp(&b.0));
         // The first sub-shape above the weight bounds the segment from above.
         let upper = subs.iter().position(|s| s.0 > weight).unwrap_or(subs.len());
@@ -80,22 +82,68 @@ impl BlendShape {
             u if u == subs.len() => (u - 2, u - 1),
             u => (u - 1, u),
         };
-        let ((w0, o0), (w1, o1)) = (subs[lo], subs[hi]);
+        let ((w0, s0), (w1, s1)) = (subs[lo], subs[hi]);
         let span = w1 - w0;
         if span <= SHAPE_EPS {
-            return;
+            return Vec::new();
         }
         let alpha = (weight - w0) / span;
-        if let Some(o0) = o0 {
+        let mut out = Vec::new();
+        if let Some(s0) = s0 {
             if (alpha - 1.0).abs() > SHAPE_EPS {
-                add(points, o0, 1.0 - alpha);
+                out.push((s0, 1.0 - alpha));
             }
         }
-        if let Some(o1) = o1 {
+        if let Some(s1) = s1 {
             if alpha.abs() > SHAPE_EPS {
-                add(points, o1, alpha);
+                out.push((s1, alpha));
             }
         }
+        out
+    }
+
+    fn add(&self, target: &mut [DVec3], offsets: &[DVec3], scale: f64) {
+        if scale.abs() < SHAPE_EPS || offsets.is_empty() {
+            return;
+        }
+        match &self.point_indices {
+            None => target.iter_mut().zip(offsets).for_each(|(p, o)| *p += *o * scale),
+            Some(idx) => {
+                for (&i, o) in idx.iter().zip(offsets) {
+                    if let Some(p) = target.get_mut(i as usize) {
+                        *p += *o * scale;
+                    }
+                }
+            }
+        }
+    }
+
+    /// Adds `weight` of this shape to `points`.
+    pub fn apply(&self, weight: f64, points: &mut [DVec3]) {
+        for (sub, f) in self.sub_shapes(weight) {
+            let offsets = match sub {
+                SubShape::Primary => &self.offsets,
+                SubShape::Inbetween(k) => &self.inbetweens[k].offsets,
+            };
+            self.add(points, offsets, f);
+        }
+    }
+
+    /// Adds `weight` of this shape's normal offsets to per-point `normals`
+    /// (not renormalised: see [`SkelDeformer::deform_normals`]).
+    pub fn apply_normals(&self, weight: f64, normals: &mut [DVec3]) {
+        for (sub, f) in self.sub_shapes(weight) {
+            let offsets = match sub {
+                SubShape::Primary => &self.normal_offsets,
+                SubShape::Inbetween(k) => &self.inbetweens[k].normal_offsets,
+            };
+            self.add(normals, offsets, f);
+        }
+    }
+
+    /// Whether any sub-shape has normal offsets.
+    pub fn has_normal_offsets(&self) -> bool {
+        !self.normal_offsets.is_empty() || self.inbetweens.iter().any(|ib| !ib.normal_offsets.is_empty())
     }
 }
 
@@ -108,6 +156,9 @@ pub struct Influences {
     pub joints: Vec<u32>,
     /// Weight of each influence.
     pub weights: Vec<f64>,
+    /// `constant` interpolation: one set of influences for the whole mesh
+    /// (usd-core then moves the mesh's transform, not its points).
+    pub rigid: bool,
 }
 
 /// Everything needed to deform one skinned mesh, read once.
@@ -140,30 +191,119 @@ impl SkelDeformer {
         let (Some(skinning), Some(infl)) = (skinning, &self.influences) else {
             return pts;
         };
-        let n = infl.per_point;
         let dq = match self.method {
             SkinningMethod::ClassicLinear => None,
             SkinningMethod::DualQuaternion => Some(DqJoints::new(skinning)),
         };
         for (i, p) in pts.iter_mut().enumerate() {
-            let bound = self.geom_bind.transform_point3(*p);
-            let joints = &infl.joints[i * n..i * n + n];
-            let weights = &infl.weights[i * n..i * n + n];
-            *p = match &dq {
-                None => {
-                    let mut acc = DVec3::ZERO;
-                    for (&j, &w) in joints.iter().zip(weights) {
-                        if w != 0.0 {
-                            acc += skinning[j as usize].transform_point3(bound) * w;
-                        }
-                    }
-                    acc
-                }
-                Some(dq) => dq.skin(bound, joints, weights),
-            };
+            *p = skin_point(self.geom_bind.transform_point3(*p), infl, i, skinning, dq.as_ref());
         }
         pts
     }
+
+    /// Authored normals deformed as BakeSkinning deforms them: blend-shape
+    /// normal offsets (then renormalised), then, when joints skin the mesh,
+    /// the inverse transposes of the geomBindTransform and of each joint's
+    /// skinning transform, blended like the points (LBS: weighted sum; DQS:
+    /// blended rotation after the blended stretch) and renormalised. Rigid
+    /// bindings (usd-core moves the mesh's transform instead) get the
+    /// inverse transpose of the blended transform. `point_of` gives each
+    /// normal's point for `faceVarying` normals (None: one per point). Same
+    /// space as [`Self::deform`].
+    pub fn deform_normals(
+        &self,
+        normals: &[DVec3],
+        point_of: Option<&[u32]>,
+        skinning: Option<&[DMat4]>,
+        shape_weights: &[f64],
+    ) -> Vec<DVec3> {
+        let mut out = normals.to_vec();
+        if point_of.is_none() && self.blend_shapes.iter().any(BlendShape::has_normal_offsets) {
+            for (shape, &w) in self.blend_shapes.iter().zip(shape_weights) {
+                shape.apply_normals(w, &mut out);
+            }
+            out.iter_mut().for_each(|n| *n = normalized(*n));
+        }
+        let (Some(skinning), Some(infl)) = (skinning, &self.influences) else {
+            return out;
+        };
+        let point = |ni: usize| point_of.map_or(ni, |p| p[ni] as usize);
+        if infl.rigid {
+            // The linear part of p ↦ skin(geomBind · p), the same for every point.
+            let dq = match self.method {
+                SkinningMethod::ClassicLinear => None,
+                SkinningMethod::DualQuaternion => Some(DqJoints::new(skinning)),
+            };
+            let f = |p: DVec3| skin_point(self.geom_bind.transform_point3(p), infl, 0, skinning, dq.as_ref());
+            let o = f(DVec3::ZERO);
+            let linear = DMat3::from_cols(f(DVec3::X) - o, f(DVec3::Y) - o, f(DVec3::Z) - o);
+            let m = inverse_transpose(linear);
+            return out.iter().map(|n| m * *n).collect();
+        }
+        let bind = inverse_transpose(DMat3::from_mat4(self.geom_bind));
+        let joint: Vec<DMat3> = skinning
+            .iter()
+            .map(|s| inverse_transpose(DMat3::from_mat4(*s)))
+            .collect();
+        let dq = match self.method {
+            SkinningMethod::ClassicLinear => None,
+            SkinningMethod::DualQuaternion => Some(DqJoints::normal_rotations(&joint)),
+        };
+        let n_per = infl.per_point;
+        for (ni, n) in out.iter_mut().enumerate() {
+            let n0 = bind * *n;
+            let pi = point(ni);
+            let (joints, weights) = (
+                &infl.joints[pi * n_per..pi * n_per + n_per],
+                &infl.weights[pi * n_per..pi * n_per + n_per],
+            );
+            *n = normalized(match &dq {
+                None => joints
+                    .iter()
+                    .zip(weights)
+                    .filter(|(_, &w)| w != 0.0)
+                    .map(|(&j, &w)| joint[j as usize] * n0 * w)
+                    .sum(),
+                Some(dq) => dq.skin(n0, joints, weights),
+            });
+        }
+        out
+    }
+}
+
+/// One point (already through the geomBindTransform), skinned with point
+/// `i`'s influences.
+fn skin_point(bound: DVec3, infl: &Influences, i: usize, skinning: &[DMat4], dq: Option<&DqJoints>) -> DVec3 {
+    let n = infl.per_point;
+    let joints = &infl.joints[i * n..i * n + n];
+    let weights = &infl.weights[i * n..i * n + n];
+    match dq {
+        None => {
+            let mut acc = DVec3::ZERO;
+            for (&j, &w) in joints.iter().zip(weights) {
+                if w != 0.0 {
+                    acc += skinning[j as usize].transform_point3(bound) * w;
+                }
+            }
+            acc
+        }
+        Some(dq) => dq.skin(bound, joints, weights),
+    }
+}
+
+/// Inverse transpose of a 3x3 (identity when singular, as a normal matrix
+/// has nothing better to offer).
+fn inverse_transpose(m: DMat3) -> DMat3 {
+    if m.determinant().abs() > 0.0 {
+        m.inverse().transpose()
+    } else {
+        DMat3::IDENTITY
+    }
+}
+
+/// Gf's GetNormalized: divided by its length, or by 1e-10 when shorter.
+fn normalized(v: DVec3) -> DVec3 {
+    v / v.length().max(1e-10)
 }
 
 /// A unit dual quaternion (rotation `real`, translation in `dual`).
@@ -216,6 +356,37 @@ impl DqJoints {
         }
     }
 
+    /// For normals: each joint's normal matrix (inverse transpose) split as
+    /// UsdSkel does, a rotation from Gf's iterative orthonormalisation of
+    /// its rows and the stretch left over (not a polar decomposition: they
+    /// differ when joints scale non-uniformly).
+    fn normal_rotations(mats: &[DMat3]) -> Self {
+        let mut rigid = Vec::with_capacity(mats.len());
+        let mut stretch = Vec::with_capacity(mats.len());
+        for m in mats {
+            let r = orthonormalized(*m);
+            let zero = DQuat::from_xyzw(0.0, 0.0, 0.0, 0.0);
+            rigid.push(DualQuat {
+                real: DQuat::from_mat3(&r).normalize(),
+                dual: zero,
+            });
+            let s = if r.determinant().abs() > 0.0 {
+                r.inverse() * *m
+            } else {
+                DMat3::IDENTITY
+            };
+            stretch.push(s);
+        }
+        let has_stretch = stretch
+            .iter()
+            .any(|s| (*s - DMat3::IDENTITY).to_cols_array().iter().any(|d| d.abs() > 1e-6));
+        DqJoints {
+            rigid,
+            stretch,
+            has_stretch,
+        }
+    }
+
     /// One point. The pivot (the rotation every other joint's is brought
     /// onto the hemisphere of) is the joint with the largest weight, the
     /// first one on ties. A point whose weights are all zero stays where it
@@ -256,6 +427,41 @@ impl DqJoints {
     }
 }
 
+/// Gf's `GetOrthonormalized` of a matrix (column form: its columns are the
+/// rows Gf works on): the three vectors normalised, then up to 20 rounds of
+/// averaging each with itself minus its projections on the other two,
+/// renormalised, until they move less than 1e-6.
+fn orthonormalized(m: DMat3) -> DMat3 {
+    let mut t = [
+        m.x_axis.normalize_or_zero(),
+        m.y_axis.normalize_or_zero(),
+        m.z_axis.normalize_or_zero(),
+    ];
+    let close = |a: DVec3, b: DVec3| (a - b).abs().max_element() <= 1e-6;
+    if close(t[0], t[1]) || close(t[0], t[2]) || close(t[1], t[2]) {
+        return DMat3::from_cols(t[0], t[1], t[2]);
+    }
+    for _ in 0..20 {
+        let a = t;
+        let mut c = t;
+        for i in 0..3 {
+            let mut b = t[i];
+            for (j, aj) in a.iter().enumerate() {
+                if j != i {
+                    b -= aj.dot(b) * *aj;
+                }
+            }
+            c[i] = ((t[i] + b) * 0.5).normalize_or_zero();
+        }
+        let error: f64 = (0..3).map(|i| (t[i] - c[i]).length_squared()).sum();
+        if error < 1e-12 {
+            break;
+        }
+        t = c;
+    }
+    DMat3::from_cols(t[0], t[1], t[2])
+}
+
 /// Polar decomposition M = R · S (R proper rotation, S symmetric) by SVD.
 fn polar(m: DMat3) -> (DMat3, DMat3) {
     let a = nalgebra::Matrix3::from_column_slice(&m.to_cols_array());
@@ -292,11 +498,19 @@ pub fn local_to_skel(local: &[DMat4], parents: &[Option<usize>]) -> Vec<DMat4> {
 mod tests {
     use super::*;
 
+    fn ib(weight: f64, offsets: Vec<DVec3>) -> Inbetween {
+        Inbetween {
+            weight,
+            offsets,
+            normal_offsets: vec![],
+        }
+    }
+
     fn shape_with_inbetween() -> BlendShape {
         BlendShape {
             offsets: vec![DVec3::new(2.0, 0.0, 0.0)],
-            point_indices: None,
-            inbetweens: vec![(0.5, vec![DVec3::new(0.0, 1.0, 0.0)])],
+            inbetweens: vec![ib(0.5, vec![DVec3::new(0.0, 1.0, 0.0)])],
+            ..Default::default()
         }
     }
 
@@ -320,13 +534,13 @@ mod tests {
     fn inbetweens_extrapolate_below_and_ignore_weights_at_0_and_1() {
         let s = BlendShape {
             offsets: vec![DVec3::X],
-            point_indices: None,
             // The ones at ~0 and ~1 are ignored (usd-core: within 1e-6).
             inbetweens: vec![
-                (-0.5, vec![DVec3::Y]),
-                (1.0 - 1e-7, vec![DVec3::Z * 100.0]),
-                (1e-7, vec![DVec3::Z * 100.0]),
+                ib(-0.5, vec![DVec3::Y]),
+                ib(1.0 - 1e-7, vec![DVec3::Z * 100.0]),
+                ib(1e-7, vec![DVec3::Z * 100.0]),
             ],
+            ..Default::default()
         };
         let at = |w| {
             let mut p = vec![DVec3::ZERO];
@@ -343,9 +557,8 @@ mod tests {
     #[test]
     fn shapes_without_offsets_move_nothing() {
         let s = BlendShape {
-            offsets: vec![],
-            point_indices: None,
-            inbetweens: vec![(0.5, vec![DVec3::Y])],
+            inbetweens: vec![ib(0.5, vec![DVec3::Y])],
+            ..Default::default()
         };
         let mut p = vec![DVec3::ZERO];
         s.apply(1.0, &mut p);
@@ -359,7 +572,7 @@ mod tests {
         let s = BlendShape {
             offsets: vec![DVec3::X],
             point_indices: Some(vec![1]),
-            inbetweens: vec![],
+            ..Default::default()
         };
         let mut p = vec![DVec3::ZERO; 3];
         s.apply(0.5, &mut p);
@@ -374,6 +587,7 @@ mod tests {
                 per_point: 2,
                 joints: vec![0, 1, 0, 1],
                 weights: vec![0.5, 0.5, 1.0, 0.0],
+                rigid: false,
             }),
             method,
             blend_shapes: vec![],
@@ -432,6 +646,7 @@ mod tests {
             per_point: 3,
             joints: vec![0, 1, 2],
             weights: w.to_vec(),
+            rigid: false,
         });
         let p = d.deform(Some(&xf), &[])[0];
         let q = |deg: f64| DQuat::from_rotation_z(deg.to_radians());
@@ -452,6 +667,38 @@ mod tests {
         let xf = [DMat4::from_scale(DVec3::splat(2.0)), DMat4::IDENTITY];
         let p = d.deform(Some(&xf), &[]);
         assert!((p[0] - DVec3::X * (0.4 * 2.0 + 0.4)).length() < 1e-12);
+    }
+
+    #[test]
+    fn normals_follow_the_inverse_transpose() {
+        // A joint squashing y by 2 tilts a 45° normal towards y.
+        let mut d = deformer(SkinningMethod::ClassicLinear);
+        d.influences.as_mut().unwrap().weights = vec![1.0, 0.0, 1.0, 0.0];
+        let s = DMat4::from_scale(DVec3::new(1.0, 0.5, 1.0));
+        let n = DVec3::new(1.0, 1.0, 0.0).normalize();
+        let out = d.deform_normals(&[n, n], None, Some(&[s, DMat4::IDENTITY]), &[]);
+        let want = DVec3::new(1.0, 2.0, 0.0).normalize();
+        assert!((out[0] - want).length() < 1e-12, "{}", out[0]);
+        // faceVarying: each normal takes its point's influences.
+        let out = d.deform_normals(&[n], Some(&[1]), Some(&[s, DMat4::IDENTITY]), &[]);
+        assert!((out[0] - want).length() < 1e-12);
+    }
+
+    #[test]
+    fn orthonormalized_keeps_rotations_and_orthogonalises() {
+        let r = DMat3::from_rotation_y(0.7) * DMat3::from_rotation_x(-0.3);
+        assert!((orthonormalized(r) - r).to_cols_array().iter().all(|d| d.abs() < 1e-12));
+        let m = DMat3::from_cols(
+            DVec3::new(1.0, 0.2, 0.0),
+            DVec3::new(0.1, 2.0, 0.3),
+            DVec3::new(0.0, 0.0, 0.5),
+        );
+        let o = orthonormalized(m);
+        let g = o.transpose() * o;
+        assert!(
+            (g - DMat3::IDENTITY).to_cols_array().iter().all(|d| d.abs() < 1e-5),
+            "{g}"
+        );
     }
 
     #[test]

@@ -161,6 +161,7 @@ struct RawInfluences {
     per_point: usize,
     joints: Vec<i64>,
     weights: Vec<f64>,
+    rigid: bool,
 }
 
 /// Joint influences as usd-core validates them: indices and weights (each
@@ -251,6 +252,7 @@ fn read_influences(
         per_point: n,
         joints: joint_idx,
         weights: weights.iter().map(|&w| w as f64).collect(),
+        rigid: interp == "constant",
     }))
 }
 
@@ -391,6 +393,7 @@ impl SkelProxy {
                     per_point: infl.per_point,
                     joints: infl.joints.iter().map(|&j| j as u32).collect(),
                     weights: infl.weights,
+                    rigid: infl.rigid,
                 };
                 (Some(infl), Some(pose))
             }
@@ -426,14 +429,37 @@ impl SkelProxy {
         self.joints.is_some()
     }
 
-    /// Deformed points at `t`: in skeleton space when [`Self::skins_joints`],
-    /// else in the mesh's own space.
-    pub fn deform(&self, t: f64) -> Result<Vec<DVec3>> {
+    /// Skinning transforms (when joints skin the mesh) and blend-shape
+    /// weights at `t`.
+    fn pose(&self, t: f64) -> Result<(Option<Vec<DMat4>>, Vec<f64>)> {
         let skinning = self.joints.as_ref().map(|j| j.skinning(t)).transpose()?;
         let weights = match &self.shapes {
             Some(s) => s.at(t)?,
             None => Vec::new(),
         };
+        Ok((skinning, weights))
+    }
+
+    /// Deformed points at `t`: in skeleton space when [`Self::skins_joints`],
+    /// else in the mesh's own space.
+    pub fn deform(&self, t: f64) -> Result<Vec<DVec3>> {
+        let (skinning, weights) = self.pose(t)?;
         Ok(self.deformer.deform(skinning.as_deref(), &weights))
+    }
+
+    /// Whether BakeSkinning rewrites authored normals: joints skin the mesh,
+    /// or animated blend shapes have normal offsets.
+    pub fn deforms_normals(&self) -> bool {
+        self.joints.is_some()
+            || (self.shapes.is_some() && self.deformer.blend_shapes.iter().any(|s| s.has_normal_offsets()))
+    }
+
+    /// Authored normals deformed at `t` (see [`SkelDeformer::deform_normals`]),
+    /// in the same space as [`Self::deform`].
+    pub fn deform_normals(&self, t: f64, normals: &[DVec3], point_of: Option<&[u32]>) -> Result<Vec<DVec3>> {
+        let (skinning, weights) = self.pose(t)?;
+        Ok(self
+            .deformer
+            .deform_normals(normals, point_of, skinning.as_deref(), &weights))
     }
 }

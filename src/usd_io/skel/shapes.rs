@@ -9,7 +9,7 @@ use openusd_schemas::skel::BlendShape as UsdBlendShape;
 
 use super::mapper::OrderMap;
 use crate::error::{Error, Result};
-use crate::skel_deform::BlendShape;
+use crate::skel_deform::{BlendShape, Inbetween};
 use crate::usd_io::stage::StageReader;
 use crate::usd_io::values;
 
@@ -36,7 +36,7 @@ impl ShapeWeights {
 
 /// The mesh's blend shapes and their animated weights, when usd-core
 /// applies them: the animation has `blendShapeWeights`, the mesh names its
-/// shapes, and some shape moves points.
+/// shapes, and some shape has point or normal offsets.
 pub(super) fn read_shapes(
     r: &StageReader,
     mesh: &usd::Prim,
@@ -70,10 +70,9 @@ pub(super) fn read_shapes(
         .iter()
         .map(|p| read_blend_shape(r, p, npts, notes))
         .collect::<Result<Vec<_>>>()?;
-    if !shapes
-        .iter()
-        .any(|s| !s.offsets.is_empty() || s.inbetweens.iter().any(|(_, o)| !o.is_empty()))
-    {
+    if !shapes.iter().any(|s| {
+        !s.offsets.is_empty() || s.inbetweens.iter().any(|ib| !ib.offsets.is_empty()) || s.has_normal_offsets()
+    }) {
         return Ok((Vec::new(), None));
     }
     let anim_shapes = r
@@ -166,11 +165,52 @@ fn read_blend_shape(r: &StageReader, path: &str, npts: usize, notes: &mut Vec<St
                 ),
             ));
         }
-        inbetweens.push((w, offsets));
+        let normal_offsets = checked_normal_offsets(
+            path,
+            &attr,
+            ib.normal_offsets
+                .iter()
+                .map(|o| DVec3::new(o.x as f64, o.y as f64, o.z as f64))
+                .collect(),
+            expected,
+            notes,
+        );
+        inbetweens.push(Inbetween {
+            weight: w,
+            offsets,
+            normal_offsets,
+        });
     }
+    let normal_offsets = r
+        .typed(&prim, "normalOffsets", None, "vector3f[]", values::vec3_array)?
+        .unwrap_or_default()
+        .into_iter()
+        .map(|p| p.as_dvec3())
+        .collect();
+    let normal_offsets = checked_normal_offsets(path, "normalOffsets", normal_offsets, expected, notes);
     Ok(BlendShape {
         offsets,
+        normal_offsets,
         point_indices,
         inbetweens,
     })
+}
+
+/// Normal offsets, unless their count does not fit the shape: usd-core then
+/// cannot apply them (only meshes with authored normals care, so a note).
+fn checked_normal_offsets(
+    path: &str,
+    attr: &str,
+    offsets: Vec<DVec3>,
+    expected: usize,
+    notes: &mut Vec<String>,
+) -> Vec<DVec3> {
+    if offsets.is_empty() || offsets.len() == expected {
+        return offsets;
+    }
+    notes.push(format!(
+        "{path}.{attr} has {} normal offsets, expected {expected}: usd-core applies none of this shape's normal offsets",
+        offsets.len()
+    ));
+    Vec::new()
 }
