@@ -74,7 +74,8 @@ fn read_rest_normals(
     npts: usize,
     face_indices: &[i64],
 ) -> Result<Option<RestNormals>> {
-    let Some(n) = r.typed(prim, "normals", None, "normal3f[]", values::vec3_array)? else {
+    // Not a 3-vector array: usd-core cannot read it as normals either.
+    let Some(n) = r.value(prim, "normals", None)?.as_ref().and_then(values::vec3_array) else {
         return Ok(None);
     };
     let values: Vec<DVec3> = n.iter().map(|v| v.as_dvec3()).collect();
