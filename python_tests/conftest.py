@@ -12,7 +12,8 @@ import subprocess
 REPO = pathlib.Path(__file__).resolve().parent.parent
 SCHEMA_DIR = REPO / "schemas" / "painterly"
 SHARED = REPO.parent / "shared"
-REAL_ASSETS = SHARED / "real_assets"
+# A worktree outside the usual layout can point at the assets directly.
+REAL_ASSETS = pathlib.Path(os.environ.get("PAINTERLY_REAL_ASSETS", SHARED / "real_assets"))
 
 os.environ["PXR_PLUGINPATH_NAME"] = str(SCHEMA_DIR)
 

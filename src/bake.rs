@@ -122,7 +122,8 @@ pub fn bake(input: &Path, output: &Path, opts: &BakeOptions, progress: Progress)
         return Err(Error::msg("--chunk-index and --assemble need --chunk N"));
     }
     check_output(input, output)?;
-    let character = Character::open(input, opts.camera.as_deref())?;
+    let mut character = Character::open(input, opts.camera.as_deref())?;
+    character.proxy_normals = opts.bake_proxy;
     if is_empty(&character.model, opts) {
         return Err(Error::msg(
             "nothing to bake: no stroke layer (PainterlyStrokeLayerAPI under a prim with PainterlyRigAPI) and no view-dependent mesh (PainterlyViewDependentAPI)",
@@ -137,7 +138,8 @@ pub fn bake(input: &Path, output: &Path, opts: &BakeOptions, progress: Progress)
 pub fn bake_if_any(input: &Path, output: &Path, opts: &BakeOptions) -> Result<Option<BakeSummary>> {
     let started = Instant::now();
     check_output(input, output)?;
-    let character = Character::open(input, opts.camera.as_deref())?;
+    let mut character = Character::open(input, opts.camera.as_deref())?;
+    character.proxy_normals = opts.bake_proxy;
     if is_empty(&character.model, opts) {
         return Ok(None);
     }
@@ -283,6 +285,9 @@ fn layout_attrs(model: &Model, bake_proxy: bool) -> Vec<BakeAttr> {
         for rig in baked_proxies(model) {
             attrs.push(attr(&rig.proxy_path, "points", SampleKind::Points, None));
             attrs.push(attr(&rig.proxy_path, "extent", SampleKind::Extent, None));
+            if rig.proxy_normals {
+                attrs.push(attr(&rig.proxy_path, "normals", SampleKind::Normals, None));
+            }
         }
     }
     for v in &model.views {
@@ -334,11 +339,15 @@ fn frame_samples(out: FrameOutput, baked_proxy: &[bool]) -> Vec<Sample> {
         s.push(e);
         s.push(Sample::Floats(l.opacity));
     }
-    for (p, _) in out.proxies.into_iter().zip(baked_proxy).filter(|(_, &keep)| keep) {
+    let proxies = out.proxies.into_iter().zip(out.proxy_normals);
+    for ((p, n), _) in proxies.zip(baked_proxy).filter(|(_, &keep)| keep) {
         let Some(p) = p else { continue };
         let e = extent(&p);
         s.push(Sample::Vec3s(p));
         s.push(e);
+        if let Some(n) = n {
+            s.push(Sample::Vec3s(n));
+        }
     }
     for v in out.views {
         let e = extent(&v);

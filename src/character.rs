@@ -46,6 +46,9 @@ pub struct RigModel {
     pub proxy_path: String,
     /// Whether the proxy is skinned (a bake that writes it blocks `skel:skeleton`).
     pub proxy_skinned: bool,
+    /// Whether the proxy has authored normals UsdSkel rewrites (a bake that
+    /// writes the proxy writes them too).
+    pub proxy_normals: bool,
     pub skin: SkinningRest,
     pub layers: Vec<LayerModel>,
     /// Axis prim paths, in the order of [`RigFrame::axis_values`].
@@ -78,6 +81,9 @@ pub struct Character {
     pub model: Model,
     /// The camera for `viewDirection` axes without a source (`--camera`).
     pub camera: Option<String>,
+    /// Read the deformed normals of proxies that have them with each frame
+    /// (what `--bake-proxy` writes); off by default.
+    pub proxy_normals: bool,
     /// Stage side of each rig: proxy, layer prims and axes. Its layers'
     /// rest points, keys and bindings have moved into `model`.
     rigs: Vec<Rig>,
@@ -98,6 +104,9 @@ pub type Configuration = std::collections::BTreeMap<String, f64>;
 pub struct RigFrame {
     /// Posed proxy points, proxy-local.
     pub posed: Vec<DVec3>,
+    /// The proxy's deformed normals, proxy-local, when read
+    /// ([`Character::proxy_normals`]) and it has some.
+    pub normals: Option<Vec<Vec3>>,
     /// Every axis of the rig (indices as `Rig::axes`); 0 for axes no keyed
     /// layer needs, unless read with [`Character::configuration`].
     pub axis_values: Vec<f64>,
@@ -135,6 +144,8 @@ pub struct FrameOutput {
     pub layers: Vec<LayerFrame>,
     /// Per rig: the posed proxy points (mesh-local), when asked for.
     pub proxies: Vec<Option<Vec<Vec3>>>,
+    /// Per rig: the proxy's deformed normals, when asked for and read.
+    pub proxy_normals: Vec<Option<Vec<Vec3>>>,
     /// Per view-dependent mesh: its points.
     pub views: Vec<Vec<Vec3>>,
 }
@@ -203,6 +214,7 @@ impl Character {
                 views: view_models,
             },
             camera: camera.map(str::to_string),
+            proxy_normals: false,
             rigs,
             views,
         })
@@ -241,6 +253,11 @@ impl Character {
             }
             rigs.push(RigFrame {
                 posed,
+                normals: if self.proxy_normals {
+                    proxy.posed_normals(r, t)?
+                } else {
+                    None
+                },
                 axis_values,
                 layers,
             });
@@ -314,6 +331,7 @@ impl Model {
         let t = input.time;
         let mut layers = Vec::with_capacity(self.num_layers());
         let mut proxies = Vec::with_capacity(self.rigs.len());
+        let mut proxy_normals = Vec::with_capacity(self.rigs.len());
         for (rig, rf) in self.rigs.iter().zip(input.rigs) {
             let motions = to_f32(&rig.skin.vertex_motions(&rf.posed));
             for (layer, (frame, opacity)) in rig.layers.iter().zip(rf.layers) {
@@ -340,6 +358,7 @@ impl Model {
                 });
             }
             proxies.push(with_proxies.then(|| rf.posed.iter().map(|p| p.as_vec3()).collect()));
+            proxy_normals.push(rf.normals.filter(|_| with_proxies));
         }
         let mut views = Vec::with_capacity(self.views.len());
         for (view, vf) in self.views.iter().zip(input.views) {
@@ -356,6 +375,7 @@ impl Model {
             time: t,
             layers,
             proxies,
+            proxy_normals,
             views,
         })
     }
@@ -399,6 +419,7 @@ impl RigModel {
             path: rig.path.clone(),
             proxy_path: rig.proxy.path.clone(),
             proxy_skinned: rig.proxy.is_skinned(),
+            proxy_normals: rig.proxy.has_deformed_normals(),
             skin,
             layers,
             axes: rig.axes.iter().map(|a| a.path.clone()).collect(),

@@ -59,6 +59,9 @@ pub struct RigReport {
     pub skeleton: Option<String>,
     pub animation_source: Option<String>,
     pub layers: Vec<LayerReport>,
+    /// How usd-core's UsdSkel rules treat this proxy where that may surprise
+    /// (e.g. a blend shape without offsets moves no point); not problems.
+    pub notes: Vec<String>,
 }
 
 /// One row of Bassett's Table I.
@@ -155,9 +158,9 @@ pub fn inspect(path: &Path) -> Result<Report> {
     let meta = r.metadata();
     let mut rigs = Vec::new();
     for rig in &scene.rigs {
-        let (skeleton, animation_source) = match &rig.proxy.motion {
-            ProxyMotion::Skel(s) => (Some(s.skeleton.clone()), s.animation.clone()),
-            _ => (None, None),
+        let (skeleton, animation_source, notes) = match &rig.proxy.motion {
+            ProxyMotion::Skel(s) => (Some(s.skeleton.clone()), s.animation.clone(), s.notes.clone()),
+            _ => (None, None, Vec::new()),
         };
         let mut layers = Vec::new();
         for l in &rig.layers {
@@ -193,6 +196,7 @@ pub fn inspect(path: &Path) -> Result<Report> {
             skeleton,
             animation_source,
             layers,
+            notes,
         });
     }
     let mut axes = Vec::new();
@@ -319,6 +323,9 @@ impl Report {
                     sk,
                     rig.animation_source.as_deref().unwrap_or("(none: rest pose)")
                 );
+            }
+            for n in &rig.notes {
+                let _ = writeln!(s, "  note: {n}");
             }
             let _ = writeln!(
                 s,

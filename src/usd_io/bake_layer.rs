@@ -42,6 +42,8 @@ pub enum SampleKind {
     Extent,
     /// `float[]`
     Floats,
+    /// `normal3f[]`
+    Normals,
 }
 
 impl SampleKind {
@@ -50,6 +52,7 @@ impl SampleKind {
             SampleKind::Points => "point3f[]",
             SampleKind::Extent => "float3[]",
             SampleKind::Floats => "float[]",
+            SampleKind::Normals => "normal3f[]",
         }
     }
 }
@@ -233,7 +236,10 @@ pub const DOC: &str = "Baked by painterly: over specs only; sublayer above the i
 fn check_sample(attr: &BakeAttr, s: &Sample) -> Result<()> {
     let ok = matches!(
         (attr.kind, s),
-        (SampleKind::Points | SampleKind::Extent, Sample::Vec3s(_)) | (SampleKind::Floats, Sample::Floats(_))
+        (
+            SampleKind::Points | SampleKind::Extent | SampleKind::Normals,
+            Sample::Vec3s(_)
+        ) | (SampleKind::Floats, Sample::Floats(_))
     );
     if ok {
         Ok(())

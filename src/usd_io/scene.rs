@@ -51,10 +51,40 @@ pub struct Proxy {
     /// Rest pose, mesh-local (SPEC §2).
     pub rest: Vec<DVec3>,
     pub motion: ProxyMotion,
+    /// Authored `normals` of a UsdSkel proxy, when BakeSkinning rewrites them.
+    normals: Option<RestNormals>,
     prim: usd::Prim,
     /// A cached query on `points`: per-frame reads through a plain attribute
     /// decode every time sample of a crate file each time.
     points_query: usd::AttributeQuery,
+}
+
+/// A skinned proxy's authored `normals`: per point (`vertex`, `varying`)
+/// or per face vertex (`faceVarying`, with the point of each).
+struct RestNormals {
+    values: Vec<DVec3>,
+    point_of: Option<Vec<u32>>,
+}
+
+/// The `normals` BakeSkinning deforms (`vertex`, `varying`, `faceVarying`,
+/// sized for the mesh); others it leaves alone, and so do we.
+fn read_rest_normals(
+    r: &StageReader,
+    prim: &usd::Prim,
+    npts: usize,
+    face_indices: &[i64],
+) -> Result<Option<RestNormals>> {
+    // Not a 3-vector array: usd-core cannot read it as normals either.
+    let Some(n) = r.value(prim, "normals", None)?.as_ref().and_then(values::vec3_array) else {
+        return Ok(None);
+    };
+    let values: Vec<DVec3> = n.iter().map(|v| v.as_dvec3()).collect();
+    let point_of = match r.primvar_interpolation(prim, "normals", "vertex")?.as_str() {
+        "vertex" | "varying" if values.len() == npts => None,
+        "faceVarying" if values.len() == face_indices.len() => Some(face_indices.iter().map(|&i| i as u32).collect()),
+        _ => return Ok(None),
+    };
+    Ok(Some(RestNormals { values, point_of }))
 }
 
 /// One stroke layer (a BasisCurves prim).
@@ -316,12 +346,17 @@ pub fn read_mesh(r: &StageReader, prim: usd::Prim, rest_time: Option<f64>) -> Re
         None if has_samples => ProxyMotion::Sampled,
         None => ProxyMotion::Static,
     };
+    let normals = match &motion {
+        ProxyMotion::Skel(s) if s.deforms_normals() => read_rest_normals(r, &prim, n, &indices)?,
+        _ => None,
+    };
     Ok(Proxy {
         path: proxy_path,
         face_counts: counts.iter().map(|&c| c as u32).collect(),
         face_indices: indices.iter().map(|&i| i as u32).collect(),
         rest,
         motion,
+        normals,
         points_query: usd::AttributeQuery::new(&prim.attribute("points")),
         prim,
     })
@@ -337,11 +372,15 @@ impl Proxy {
                 p.iter().map(|p| p.as_dvec3()).collect::<Vec<_>>()
             }
             ProxyMotion::Skel(s) => {
-                let (skinning, weights) = s.pose(t)?;
-                let skel_pts = s.deformer.deform(&skinning, &weights);
-                let skel_prim = r.require_prim(&s.skeleton)?;
-                let to_local = self.local_to_world(r, t)?.inverse() * r.local_to_world(&skel_prim, t)?;
-                skel_pts.iter().map(|p| to_local.transform_point3(*p)).collect()
+                let pts = s.deform(t)?;
+                if s.skins_joints() {
+                    // Skeleton space → mesh space, as BakeSkinning writes them.
+                    let skel_prim = r.require_prim(&s.skeleton)?;
+                    let to_local = self.local_to_world(r, t)?.inverse() * r.local_to_world(&skel_prim, t)?;
+                    pts.iter().map(|p| to_local.transform_point3(*p)).collect()
+                } else {
+                    pts
+                }
             }
         };
         if let Some(i) = pts.iter().position(|p| !p.is_finite()) {
@@ -352,6 +391,36 @@ impl Proxy {
             ));
         }
         Ok(pts)
+    }
+
+    /// Whether the proxy has authored normals that BakeSkinning rewrites
+    /// (a UsdSkel proxy's `vertex`, `varying` or `faceVarying` normals).
+    pub fn has_deformed_normals(&self) -> bool {
+        self.normals.is_some()
+    }
+
+    /// The proxy's authored normals at `t`, deformed as BakeSkinning
+    /// rewrites them (mesh-local); None when it leaves them alone.
+    pub fn posed_normals(&self, r: &StageReader, t: f64) -> Result<Option<Vec<Vec3>>> {
+        let (ProxyMotion::Skel(s), Some(rest)) = (&self.motion, &self.normals) else {
+            return Ok(None);
+        };
+        let mut n = s.deform_normals(t, &rest.values, rest.point_of.as_deref())?;
+        if s.skins_joints() {
+            // Skeleton space → mesh space, not renormalised (as BakeSkinning).
+            let skel_prim = r.require_prim(&s.skeleton)?;
+            let to_local = self.local_to_world(r, t)?.inverse() * r.local_to_world(&skel_prim, t)?;
+            let m = glam::DMat3::from_mat4(to_local).inverse().transpose();
+            n.iter_mut().for_each(|v| *v = m * *v);
+        }
+        if let Some(i) = n.iter().position(|v| !v.is_finite()) {
+            return Err(Error::attr(
+                &self.path,
+                "normals",
+                format!("deformed normal {i} is not finite at time {t}"),
+            ));
+        }
+        Ok(Some(n.iter().map(|v| v.as_vec3()).collect()))
     }
 
     /// Posed points in f32 (what view-dependent blending and output use);
