@@ -392,7 +392,11 @@ pub fn submit(args: &SubmitArgs) -> Result<SubmitSummary> {
         skipped: (0..job.clips.chunks.len()).filter(|k| !todo.contains(k)).collect(),
         submitted: todo,
         job: sub.job,
-        tasks: sub.tasks.into_iter().map(|(chunk, task)| TaskRef { chunk, task }).collect(),
+        tasks: sub
+            .tasks
+            .into_iter()
+            .map(|(chunk, task)| TaskRef { chunk, task })
+            .collect(),
         assemble_job: sub.assemble_job,
         files: sub.files,
         next: sub.next,
@@ -519,9 +523,10 @@ fn report(e: &Error) -> i32 {
 pub fn find_on_path(program: &str) -> Option<PathBuf> {
     use std::os::unix::fs::PermissionsExt;
     let path = std::env::var_os("PATH")?;
-    std::env::split_paths(&path)
-        .map(|d| d.join(program))
-        .find(|p| p.metadata().is_ok_and(|m| m.is_file() && m.permissions().mode() & 0o111 != 0))
+    std::env::split_paths(&path).map(|d| d.join(program)).find(|p| {
+        p.metadata()
+            .is_ok_and(|m| m.is_file() && m.permissions().mode() & 0o111 != 0)
+    })
 }
 
 /// A finished tool run.
@@ -535,7 +540,9 @@ pub struct ToolOutput {
 /// Runs a scheduler tool (`argv[0]` from PATH) with a time limit, so a
 /// scheduler that does not answer cannot hang painterly.
 pub fn run_tool(argv: &[String], limit: Duration) -> Result<ToolOutput> {
-    let (program, args) = argv.split_first().ok_or_else(|| Error::msg("internal: empty command"))?;
+    let (program, args) = argv
+        .split_first()
+        .ok_or_else(|| Error::msg("internal: empty command"))?;
     let mut child = Command::new(program)
         .args(args)
         .stdin(Stdio::null())
@@ -585,10 +592,7 @@ pub fn shell_line(argv: &[String]) -> String {
 
 /// One word quoted for POSIX shells (left bare when it is plainly safe).
 pub fn shell_quote(s: &str) -> String {
-    let safe = !s.is_empty()
-        && s
-            .chars()
-            .all(|c| c.is_ascii_alphanumeric() || "-_./=:,+@%".contains(c));
+    let safe = !s.is_empty() && s.chars().all(|c| c.is_ascii_alphanumeric() || "-_./=:,+@%".contains(c));
     if safe {
         s.to_string()
     } else {
@@ -602,7 +606,16 @@ mod tests {
 
     #[test]
     fn shell_quoting_round_trips_through_sh() {
-        let words = ["plain", "with space", "it's", "$HOME", "a\"b", "", "--frames=1:48:0.5", "*"];
+        let words = [
+            "plain",
+            "with space",
+            "it's",
+            "$HOME",
+            "a\"b",
+            "",
+            "--frames=1:48:0.5",
+            "*",
+        ];
         let argv: Vec<String> = words.iter().map(|s| s.to_string()).collect();
         let line = format!("printf '%s\\n' {}", shell_line(&argv));
         let out = Command::new("sh").arg("-c").arg(&line).output().unwrap();
@@ -615,8 +628,15 @@ mod tests {
         let sleep = ["sleep".to_string(), "5".to_string()];
         let e = run_tool(&sleep, Duration::from_millis(200)).unwrap_err();
         assert!(e.message.contains("did not answer within"), "{e}");
-        let fail = ["sh".to_string(), "-c".to_string(), "echo out; echo err >&2; exit 3".to_string()];
+        let fail = [
+            "sh".to_string(),
+            "-c".to_string(),
+            "echo out; echo err >&2; exit 3".to_string(),
+        ];
         let o = run_tool(&fail, Duration::from_secs(5)).unwrap();
-        assert_eq!((o.code, o.stdout.as_str(), o.stderr.as_str()), (Some(3), "out\n", "err\n"));
+        assert_eq!(
+            (o.code, o.stdout.as_str(), o.stderr.as_str()),
+            (Some(3), "out\n", "err\n")
+        );
     }
 }

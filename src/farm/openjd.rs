@@ -49,7 +49,10 @@ pub fn range_expression(indices: &[usize]) -> String {
 /// The job template for the chunks in `todo` (sorted).
 pub fn template(job: &FarmJob, todo: &[usize]) -> Value {
     let action = |args: Vec<String>| {
-        let (program, args) = args.split_first().map(|(p, a)| (p.clone(), a.to_vec())).unwrap_or_default();
+        let (program, args) = args
+            .split_first()
+            .map(|(p, a)| (p.clone(), a.to_vec()))
+            .unwrap_or_default();
         json!({ "actions": { "onRun": { "command": program, "args": args } } })
     };
     let words = |last: &[&str]| job.command("{{Param.Painterly}}", "{{Param.Input}}", "{{Param.Output}}", last);

@@ -65,7 +65,15 @@ impl Slurm {
             )));
         }
         // --parsable prints "ID" or "ID;CLUSTER".
-        let id = out.stdout.lines().next().unwrap_or("").split(';').next().unwrap_or("").trim();
+        let id = out
+            .stdout
+            .lines()
+            .next()
+            .unwrap_or("")
+            .split(';')
+            .next()
+            .unwrap_or("")
+            .trim();
         if id.is_empty() || !id.bytes().all(|b| b.is_ascii_digit()) {
             return Err(Error::msg(format!(
                 "sbatch printed no job id for the {what} (stdout {:?})",
@@ -97,7 +105,12 @@ impl Scheduler for Slurm {
     fn submit(&self, job: &FarmJob, todo: &[usize]) -> Result<Submission> {
         let dir = job.farm_dir();
         let logs = dir.join("logs");
-        let stem = job.output.file_stem().unwrap_or_default().to_string_lossy().into_owned();
+        let stem = job
+            .output
+            .file_stem()
+            .unwrap_or_default()
+            .to_string_lossy()
+            .into_owned();
         let mut sub = Submission::default();
         if !todo.is_empty() {
             let chunks: Vec<String> = todo.iter().map(|k| k.to_string()).collect();
@@ -124,7 +137,11 @@ impl Scheduler for Slurm {
                 format!("--output={}", logs.join("bake.%A_%a.log").display()),
             ]);
             let (id, argv) = self.sbatch(argv, &path, "chunk tasks")?;
-            sub.tasks = todo.iter().enumerate().map(|(i, &k)| (k, format!("{id}_{i}"))).collect();
+            sub.tasks = todo
+                .iter()
+                .enumerate()
+                .map(|(i, &k)| (k, format!("{id}_{i}")))
+                .collect();
             sub.job = Some(id);
             sub.commands.push(argv);
         }
@@ -221,7 +238,9 @@ impl Scheduler for Slurm {
 fn parse_into(text: &str, known: &mut HashMap<String, TaskInfo>) {
     for line in text.lines() {
         let mut f = line.split('|');
-        let (Some(id), Some(raw)) = (f.next(), f.next()) else { continue };
+        let (Some(id), Some(raw)) = (f.next(), f.next()) else {
+            continue;
+        };
         // sacct says "CANCELLED by 0".
         let raw = raw.split_whitespace().next().unwrap_or("").to_string();
         let reason = f
@@ -264,6 +283,7 @@ mod tests {
         assert_eq!(s("14"), TaskState::Failed);
         // sacct's "CANCELLED by 0", and a later squeue line wins.
         parse_into("12_1|CANCELLED by 0|None\n", &mut known);
-        assert_eq!((s("12_1"), known["12_1"].raw.as_str()), (TaskState::Failed, "CANCELLED"));
+        assert_eq!(known["12_1"].state, TaskState::Failed);
+        assert_eq!(known["12_1"].raw, "CANCELLED");
     }
 }

@@ -99,8 +99,8 @@ pub fn status(output: &Path) -> Result<FarmStatus> {
         .map_err(|e| Error::msg(format!("frame_range {:?}: {e}", plan.frame_range)).in_file(&plan_path))?;
     let times = range.times();
     let clips = ClipPlan::new(&output, &times, plan.chunk_size)?;
-    let names_match = clips.chunks.len() == plan.chunks.len()
-        && clips.chunks.iter().zip(&plan.chunks).all(|(a, b)| a.name == b.name);
+    let names_match =
+        clips.chunks.len() == plan.chunks.len() && clips.chunks.iter().zip(&plan.chunks).all(|(a, b)| a.name == b.name);
     if !names_match {
         return Err(Error::msg("the plan's chunks do not match its frames and chunk size").in_file(&plan_path));
     }
@@ -146,11 +146,20 @@ pub fn status(output: &Path) -> Result<FarmStatus> {
     let assembled = clip_set.as_ref().is_some_and(|s| {
         s.input_hash.as_deref() == Some(hash.as_str())
             && s.chunks.len() == plan.chunks.len()
-            && s.chunks.iter().zip(&plan.chunks).all(|((name, st), c)| name == &c.name && *st == ChunkState::Done)
+            && s.chunks
+                .iter()
+                .zip(&plan.chunks)
+                .all(|((name, st), c)| name == &c.name && *st == ChunkState::Done)
     });
     let all_done = counts.done == chunks.len();
     let asm = info(&plan.assemble_job);
-    let assembly = assembly_state(assembled, clip_set.is_some(), plan.assemble_job.clone(), asm, known.is_some());
+    let assembly = assembly_state(
+        assembled,
+        clip_set.is_some(),
+        plan.assemble_job.clone(),
+        asm,
+        known.is_some(),
+    );
     Ok(FarmStatus {
         output,
         plan: plan_path,
@@ -332,7 +341,10 @@ mod tests {
         assert_eq!(chunk_state(&m, Some("1_0"), Some(&pending), true).0, "pending");
         assert_eq!(chunk_state(&m, Some("1_0"), Some(&running), true).0, "running");
         let (s, d) = chunk_state(&m, Some("1_0"), Some(&cancelled), true);
-        assert_eq!((s, d.unwrap().as_str()), ("failed", "task 1_0 ended CANCELLED and the chunk is missing"));
+        assert_eq!(
+            (s, d.unwrap().as_str()),
+            ("failed", "task 1_0 ended CANCELLED and the chunk is missing")
+        );
         // A task that succeeded without leaving a current chunk failed too.
         assert_eq!(chunk_state(&m, Some("1_0"), Some(&completed), true).0, "failed");
         assert_eq!(chunk_state(&m, Some("1_0"), None, true).0, "failed");
