@@ -15,6 +15,7 @@ use super::plan::{plan_path_for_output, state_word, FarmPlan};
 use super::{absolute, SchedulerKind, TaskInfo, TaskState};
 use crate::error::{Error, Result};
 use crate::frames::FrameRange;
+use crate::usd_io::bake_layer::read_provenance;
 use crate::usd_io::clips::{self, clip_set_status, ChunkState, ClipPlan};
 use crate::usd_io::stage::StageReader;
 
@@ -142,20 +143,25 @@ pub fn status(output: &Path) -> Result<FarmStatus> {
         })
         .collect();
 
-    let clip_set = clip_set_status(&output)?;
-    let assembled = clip_set.as_ref().is_some_and(|s| {
-        s.input_hash.as_deref() == Some(hash.as_str())
-            && s.chunks.len() == plan.chunks.len()
-            && s.chunks
-                .iter()
-                .zip(&plan.chunks)
-                .all(|((name, st), c)| name == &c.name && *st == ChunkState::Done)
-    });
+    // Assembled: the clip set on disk was written for this input and lists
+    // exactly the plan's chunks, and every one of them is done.
+    let provenance = if output.is_file() {
+        read_provenance(&output).ok().flatten()
+    } else {
+        None
+    };
+    let assembled = provenance.as_ref().is_some_and(|p| {
+        p.input_hash.as_deref() == Some(hash.as_str())
+            && p.chunks.as_ref().is_some_and(|(size, names)| {
+                *size == plan.chunk_size && names.iter().eq(plan.chunks.iter().map(|c| &c.name))
+            })
+    }) && clip_set_status(&output)?
+        .is_some_and(|s| s.chunks.iter().all(|(_, st)| *st == ChunkState::Done));
     let all_done = counts.done == chunks.len();
     let asm = info(&plan.assemble_job);
     let assembly = assembly_state(
         assembled,
-        clip_set.is_some(),
+        provenance.is_some(),
         plan.assemble_job.clone(),
         asm,
         known.is_some(),

@@ -388,8 +388,6 @@ pub struct ClipSetStatus {
     pub chunk_size: usize,
     /// Chunk file names (in the clips folder) and their state.
     pub chunks: Vec<(String, ChunkState)>,
-    /// The input hash the clip set was assembled for.
-    pub input_hash: Option<String>,
 }
 
 /// When `path` is a clip-set layer written by `painterly bake --chunk`, the
@@ -421,6 +419,5 @@ pub fn clip_set_status(path: &Path) -> Result<Option<ClipSetStatus>> {
     Ok(Some(ClipSetStatus {
         chunk_size: *size,
         chunks,
-        input_hash: hash,
     }))
 }
