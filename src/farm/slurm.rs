@@ -21,6 +21,12 @@ use crate::usd_io::layer::write_atomic;
 /// How long sbatch/squeue/scancel may take before painterly gives up.
 const TOOL_LIMIT: Duration = Duration::from_secs(60);
 
+/// A task uses as many threads as CPUs Slurm gave it (rayon reads
+/// RAYON_NUM_THREADS; 0 means all), unless the submitter set the variable:
+/// without CPU binding on the node, every task would otherwise start a
+/// thread per core.
+const THREADS: &str = "export RAYON_NUM_THREADS=\"${RAYON_NUM_THREADS:-${SLURM_CPUS_ON_NODE:-0}}\"";
+
 /// The Slurm scheduler, with the options given to `farm submit`.
 pub struct Slurm {
     pub partition: Option<String>,
@@ -123,6 +129,7 @@ impl Scheduler for Slurm {
                 ),
                 "# Array index i bakes chunk CHUNKS[i]: only chunks not already done were submitted.".into(),
                 "set -euo pipefail".into(),
+                THREADS.into(),
                 format!("CHUNKS=({})", chunks.join(" ")),
                 "K=${CHUNKS[$SLURM_ARRAY_TASK_ID]}".into(),
                 "echo \"painterly farm: chunk $K (array task $SLURM_ARRAY_TASK_ID of job $SLURM_ARRAY_JOB_ID)\"".into(),
@@ -153,6 +160,7 @@ impl Scheduler for Slurm {
                 job.output.display()
             ),
             "set -euo pipefail".into(),
+            THREADS.into(),
             format!("exec {}", shell_line(&job.assemble_command())),
         ]);
         write_atomic(&path, body.as_bytes())?;
