@@ -115,6 +115,14 @@ pub fn resolve_frames(r: &StageReader, frames: Option<FrameRange>) -> Result<Vec
 /// Bakes `input` into `output`. A stage with nothing to bake is an error.
 pub fn bake(input: &Path, output: &Path, opts: &BakeOptions, progress: Progress) -> Result<BakeSummary> {
     let started = Instant::now();
+    let character = open_for_bake(input, output, opts)?;
+    bake_character(&character, output, opts, progress, started).map_err(|e| e.in_file(input))
+}
+
+/// Every check [`bake`] makes before it bakes a frame (options, output
+/// path, the character, something to bake), and the opened character; a
+/// farm submission makes them too, before it queues any task.
+pub fn open_for_bake(input: &Path, output: &Path, opts: &BakeOptions) -> Result<Character> {
     if opts.chunk.is_some() && Format::from_path(output)? != Format::Usda {
         return Err(Error::msg("with --chunk the output is the clip-set layer: name it .usda").in_file(output));
     }
@@ -130,7 +138,7 @@ pub fn bake(input: &Path, output: &Path, opts: &BakeOptions, progress: Progress)
         )
         .in_file(input));
     }
-    bake_character(&character, output, opts, progress, started).map_err(|e| e.in_file(input))
+    Ok(character)
 }
 
 /// Like [`bake`], but a stage with nothing to bake writes nothing and

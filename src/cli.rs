@@ -226,6 +226,17 @@ pub enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Bake a sequence on a farm: a task per chunk, then a dependent assembly.
+    ///
+    /// The same chunks as `bake --chunk N`, one scheduler task each
+    /// (`bake --chunk N --chunk-index K`), and a task that runs after all of
+    /// them (`bake --chunk N --assemble`). Slurm jobs are submitted with
+    /// sbatch; Open Job Description templates are written for `openjd run`
+    /// or a farm that takes them. `farm status` tells where a bake is.
+    ///
+    /// Example: painterly farm submit shot.usda -o bake/shot.usda --chunk 24 --scheduler slurm
+    #[command(subcommand)]
+    Farm(crate::farm::FarmCommand),
     /// Interpolation weights for keys and query points, JSON on stdin.
     ///
     /// Input: {"method": "smoothVoronoi"|"rbf"|"shepard", "radius": 1.0,
@@ -305,7 +316,7 @@ pub enum FalloffArg {
 }
 
 /// A count of at least 1 (a usage error otherwise).
-fn positive_count(s: &str) -> Result<usize, String> {
+pub(crate) fn positive_count(s: &str) -> Result<usize, String> {
     match s.parse::<usize>() {
         Ok(n) if n >= 1 => Ok(n),
         _ => Err(format!("{s:?} is not a whole number of at least 1")),
@@ -581,6 +592,7 @@ pub fn run(cli: Cli) -> i32 {
             }
             Err(e) => report(&e),
         },
+        Command::Farm(cmd) => crate::farm::run(cmd),
         Command::Interpolate => {
             let mut input = String::new();
             if let Err(e) = std::io::Read::read_to_string(&mut std::io::stdin(), &mut input) {

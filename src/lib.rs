@@ -19,6 +19,7 @@
 //! | [`character`] | a character resolved for evaluation: rest data once, frames on demand |
 //! | [`bake`] | the `bake` command: frames streamed through reader → evaluator → writer |
 //! | [`inspect`] | the `inspect` command |
+//! | [`farm`] | the `farm` command: chunked bakes as scheduler jobs (Slurm, Open Job Description) |
 //! | [`interp`] | configuration-space interpolation (smooth Voronoi, RBF, Shepard) |
 //! | [`render`] | the `render` command: preview EXR/PNG frames and contact sheets |
 
@@ -28,6 +29,7 @@ pub mod bind;
 pub mod character;
 pub mod cli;
 pub mod error;
+pub mod farm;
 pub mod frames;
 pub mod inspect;
 pub mod interp;
