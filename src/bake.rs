@@ -114,6 +114,18 @@ pub fn resolve_frames(r: &StageReader, frames: Option<FrameRange>) -> Result<Vec
 
 /// Bakes `input` into `output`. A stage with nothing to bake is an error.
 pub fn bake(input: &Path, output: &Path, opts: &BakeOptions, progress: Progress) -> Result<BakeSummary> {
+    bake_with(input, output, opts, progress, || StageReader::open(input))
+}
+
+/// Like [`bake`], for the stage `open` returns (a layer handed over in
+/// memory, see [`crate::usd_io::memory`]); `input` is the path it stands for.
+pub fn bake_with(
+    input: &Path,
+    output: &Path,
+    opts: &BakeOptions,
+    progress: Progress,
+    open: impl FnOnce() -> Result<StageReader>,
+) -> Result<BakeSummary> {
     let started = Instant::now();
     if opts.chunk.is_some() && Format::from_path(output)? != Format::Usda {
         return Err(Error::msg("with --chunk the output is the clip-set layer: name it .usda").in_file(output));
@@ -122,7 +134,7 @@ pub fn bake(input: &Path, output: &Path, opts: &BakeOptions, progress: Progress)
         return Err(Error::msg("--chunk-index and --assemble need --chunk N"));
     }
     check_output(input, output)?;
-    let character = Character::open(input, opts.camera.as_deref())?;
+    let character = Character::from_reader(open()?, opts.camera.as_deref()).map_err(|e| e.in_file(input))?;
     if is_empty(&character.model, opts) {
         return Err(Error::msg(
             "nothing to bake: no stroke layer (PainterlyStrokeLayerAPI under a prim with PainterlyRigAPI) and no view-dependent mesh (PainterlyViewDependentAPI)",

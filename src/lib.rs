@@ -19,6 +19,7 @@
 //! | [`character`] | a character resolved for evaluation: rest data once, frames on demand |
 //! | [`bake`] | the `bake` command: frames streamed through reader → evaluator → writer |
 //! | [`inspect`] | the `inspect` command |
+//! | [`rule`] | the schema rules `inspect` checks, with stable ids |
 //! | [`interp`] | configuration-space interpolation (smooth Voronoi, RBF, Shepard) |
 //! | [`render`] | the `render` command: preview EXR/PNG frames and contact sheets |
 
@@ -35,6 +36,7 @@ pub mod keys;
 pub mod log;
 pub mod mesh;
 pub mod render;
+pub mod rule;
 pub mod skel_deform;
 pub mod skinning;
 pub mod tools;
