@@ -635,10 +635,7 @@ def Xform "World" {
         let ch = knob();
         assert_eq!(ch.axes(), ["/World/Paint/knob"]);
         // USD's linear interpolation of the knob's samples: (6 - 1) / 10.
-        assert_eq!(
-            ch.configuration(6.0).unwrap(),
-            Configuration::new().with("/World/Paint/knob", 0.5)
-        );
+        assert_eq!(ch.configuration(6.0).unwrap(), cfg(&[("/World/Paint/knob", 0.5)]));
         assert_eq!(ch.configuration(11.0).unwrap().get("/World/Paint/knob"), Some(&1.0));
     }
 
