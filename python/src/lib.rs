@@ -326,9 +326,7 @@ fn points_array<'py>(py: Python<'py>, points: &[Vec3]) -> PyResult<Bound<'py, Py
 
 impl Character {
     fn overrides(configuration: Option<BTreeMap<String, f64>>) -> Configuration {
-        Configuration {
-            values: configuration.unwrap_or_default(),
-        }
+        configuration.unwrap_or_default()
     }
 
     fn frame(
@@ -388,7 +386,7 @@ impl Character {
 
     /// Every axis's value at `t` (axis path → value, in axis units).
     fn configuration(&self, py: Python<'_>, t: f64) -> PyResult<BTreeMap<String, f64>> {
-        self.inner.configuration(t).map(|c| c.values).map_err(|e| to_py(py, e))
+        self.inner.configuration(t).map_err(|e| to_py(py, e))
     }
 
     /// Points at `t` (prim path → float32 (N, 3)): every stroke layer in its
