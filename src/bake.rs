@@ -114,8 +114,20 @@ pub fn resolve_frames(r: &StageReader, frames: Option<FrameRange>) -> Result<Vec
 
 /// Bakes `input` into `output`. A stage with nothing to bake is an error.
 pub fn bake(input: &Path, output: &Path, opts: &BakeOptions, progress: Progress) -> Result<BakeSummary> {
+    bake_with(input, output, opts, progress, || StageReader::open(input))
+}
+
+/// Like [`bake`], for the stage `open` returns (a layer handed over in
+/// memory, see [`crate::usd_io::memory`]); `input` is the path it stands for.
+pub fn bake_with(
+    input: &Path,
+    output: &Path,
+    opts: &BakeOptions,
+    progress: Progress,
+    open: impl FnOnce() -> Result<StageReader>,
+) -> Result<BakeSummary> {
     let started = Instant::now();
-    let character = open_for_bake(input, output, opts)?;
+    let character = open_for_bake_with(input, output, opts, open)?;
     bake_character(&character, output, opts, progress, started).map_err(|e| e.in_file(input))
 }
 
@@ -123,6 +135,16 @@ pub fn bake(input: &Path, output: &Path, opts: &BakeOptions, progress: Progress)
 /// path, the character, something to bake), and the opened character; a
 /// farm submission makes them too, before it queues any task.
 pub fn open_for_bake(input: &Path, output: &Path, opts: &BakeOptions) -> Result<Character> {
+    open_for_bake_with(input, output, opts, || StageReader::open(input))
+}
+
+/// [`open_for_bake`] for the stage `open` returns.
+fn open_for_bake_with(
+    input: &Path,
+    output: &Path,
+    opts: &BakeOptions,
+    open: impl FnOnce() -> Result<StageReader>,
+) -> Result<Character> {
     if opts.chunk.is_some() && Format::from_path(output)? != Format::Usda {
         return Err(Error::msg("with --chunk the output is the clip-set layer: name it .usda").in_file(output));
     }
@@ -130,7 +152,7 @@ pub fn open_for_bake(input: &Path, output: &Path, opts: &BakeOptions) -> Result<
         return Err(Error::msg("--chunk-index and --assemble need --chunk N"));
     }
     check_output(input, output)?;
-    let mut character = Character::open(input, opts.camera.as_deref())?;
+    let mut character = Character::from_reader(open()?, opts.camera.as_deref()).map_err(|e| e.in_file(input))?;
     character.proxy_normals = opts.bake_proxy;
     if is_empty(&character.model, opts) {
         return Err(Error::msg(

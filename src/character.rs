@@ -316,6 +316,25 @@ impl Character {
         }
         Ok(input)
     }
+
+    /// Every axis prim path of every rig, each once, in rig then axis order
+    /// (the keys of [`Character::configuration`]).
+    pub fn axes(&self) -> Vec<String> {
+        let mut out: Vec<String> = Vec::new();
+        for a in self.model.rigs.iter().flat_map(|r| &r.axes) {
+            if !out.contains(a) {
+                out.push(a.clone());
+            }
+        }
+        out
+    }
+
+    /// Evaluates frame `t` with axis values overridden (a what-if pose, see
+    /// [`Character::read_frame_with`]); with no overrides, exactly
+    /// [`Character::evaluate`].
+    pub fn evaluate_with(&self, t: f64, overrides: &Configuration, with_proxies: bool) -> Result<FrameOutput> {
+        self.model.evaluate(self.read_frame_with(t, overrides)?, with_proxies)
+    }
 }
 
 impl Model {
@@ -566,5 +585,121 @@ pub fn key_weights(k: &LayerKeys, axis_values: &[f64], t: f64) -> KeyWeights {
                 (n, w)
             })
             .collect(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::usd_io::memory::open_bytes;
+
+    /// A static quad proxy, one stroke keyed to a knob animated 0 → 1 over
+    /// frames 1..11: pose keys at knob 0 ("low") and knob 1 ("high").
+    const KNOB: &str = r#"#usda 1.0
+(
+    startTimeCode = 1
+    endTimeCode = 11
+)
+def Xform "World" {
+    def Scope "Controls" {
+        double knob.timeSamples = { 1: 0, 11: 1 }
+    }
+    def Mesh "Proxy" {
+        int[] faceVertexCounts = [4]
+        int[] faceVertexIndices = [0, 1, 2, 3]
+        point3f[] points = [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)]
+    }
+    def Xform "Paint" (prepend apiSchemas = ["PainterlyRigAPI"]) {
+        rel painterly:proxy = </World/Proxy>
+        def PainterlyAxis "knob" {
+            uniform token kind = "attribute"
+            rel source = </World/Controls.knob>
+        }
+        def BasisCurves "Hair" (prepend apiSchemas = ["PainterlyStrokeLayerAPI"]) {
+            int[] curveVertexCounts = [3]
+            point3f[] points = [(0.25, 0.25, 0), (0.5, 0.5, 0), (0.75, 0.5, 0)]
+            def PainterlyPoseKey "low" {
+                float[] coordinates = [0]
+                point3f[] points = [(0.25, 0.25, 0), (0.5, 0.5, 0), (0.75, 0.5, 0)]
+            }
+            def PainterlyPoseKey "high" {
+                float[] coordinates = [1]
+                point3f[] points = [(0.25, 0.75, 0), (0.5, 0.75, 0.5), (0.75, 0.75, 0)]
+            }
+        }
+    }
+}
+"#;
+
+    fn cfg(pairs: &[(&str, f64)]) -> Configuration {
+        pairs.iter().map(|&(a, v)| (a.to_string(), v)).collect()
+    }
+
+    fn knob() -> Character {
+        let path = std::env::temp_dir().join("painterly_configuration_test.usda");
+        let r = open_bytes(KNOB.as_bytes().to_vec(), &path).unwrap();
+        Character::from_reader(r, None).unwrap()
+    }
+
+    fn close(a: &[Vec3], b: &[[f32; 3]]) -> bool {
+        a.len() == b.len()
+            && a.iter()
+                .zip(b)
+                .all(|(p, q)| (*p - Vec3::from(*q)).abs().max_element() < 1e-6)
+    }
+
+    const LOW: [[f32; 3]; 3] = [[0.25, 0.25, 0.0], [0.5, 0.5, 0.0], [0.75, 0.5, 0.0]];
+    const HIGH: [[f32; 3]; 3] = [[0.25, 0.75, 0.0], [0.5, 0.75, 0.5], [0.75, 0.75, 0.0]];
+
+    #[test]
+    fn configuration_reads_every_axis_from_the_stage() {
+        let ch = knob();
+        assert_eq!(ch.axes(), ["/World/Paint/knob"]);
+        // USD's linear interpolation of the knob's samples: (6 - 1) / 10.
+        assert_eq!(ch.configuration(6.0).unwrap(), cfg(&[("/World/Paint/knob", 0.5)]));
+        assert_eq!(ch.configuration(11.0).unwrap().get("/World/Paint/knob"), Some(&1.0));
+    }
+
+    #[test]
+    fn overrides_replace_the_stage_value_and_nothing_else() {
+        let ch = knob();
+        // Without overrides: the same bits as a bake's evaluation.
+        let plain = ch.evaluate(6.0, false).unwrap();
+        let same = ch.evaluate_with(6.0, &Configuration::new(), false).unwrap();
+        assert_eq!(plain.layers[0].points, same.layers[0].points);
+        // The stage's own value as an override changes nothing.
+        let echo = ch.evaluate_with(6.0, &ch.configuration(6.0).unwrap(), false).unwrap();
+        assert_eq!(plain.layers[0].points, echo.layers[0].points);
+        // At frame 1 the knob is 0 (the "low" key); overridden to 1 the
+        // stroke takes the "high" key's shape (smooth Voronoi interpolates
+        // its keys; the static proxy does not move it), and back.
+        assert!(close(&ch.evaluate(1.0, false).unwrap().layers[0].points, &LOW));
+        let high = cfg(&[("/World/Paint/knob", 1.0)]);
+        assert!(close(
+            &ch.evaluate_with(1.0, &high, false).unwrap().layers[0].points,
+            &HIGH
+        ));
+        let low = cfg(&[("/World/Paint/knob", 0.0)]);
+        assert!(close(
+            &ch.evaluate_with(11.0, &low, false).unwrap().layers[0].points,
+            &LOW
+        ));
+        assert!(close(&ch.evaluate(11.0, false).unwrap().layers[0].points, &HIGH));
+    }
+
+    #[test]
+    fn overrides_of_unknown_axes_or_non_finite_values_are_errors() {
+        let ch = knob();
+        let e = ch
+            .evaluate_with(1.0, &cfg(&[("/World/Paint/nope", 1.0)]), false)
+            .err()
+            .unwrap();
+        assert_eq!(e.prim.as_deref(), Some("/World/Paint/nope"));
+        assert!(e.message.contains("not an axis"), "{e}");
+        let e = ch
+            .evaluate_with(1.0, &cfg(&[("/World/Paint/knob", f64::NAN)]), false)
+            .err()
+            .unwrap();
+        assert!(e.message.contains("not finite"), "{e}");
     }
 }

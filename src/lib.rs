@@ -20,6 +20,7 @@
 //! | [`bake`] | the `bake` command: frames streamed through reader → evaluator → writer |
 //! | [`inspect`] | the `inspect` command |
 //! | [`farm`] | the `farm` command: chunked bakes as scheduler jobs (Slurm, Open Job Description) |
+//! | [`rule`] | the schema rules `inspect` checks, with stable ids |
 //! | [`interp`] | configuration-space interpolation (smooth Voronoi, RBF, Shepard) |
 //! | [`render`] | the `render` command: preview EXR/PNG frames and contact sheets |
 
@@ -37,6 +38,7 @@ pub mod keys;
 pub mod log;
 pub mod mesh;
 pub mod render;
+pub mod rule;
 pub mod skel_deform;
 pub mod skinning;
 pub mod tools;

@@ -9,6 +9,7 @@ pub mod bake_layer;
 pub mod clips;
 pub mod edit;
 pub mod layer;
+pub mod memory;
 pub mod render_scene;
 pub mod scene;
 pub mod skel;

@@ -17,6 +17,7 @@ use crate::bind::Binding;
 use crate::error::{Error, Result};
 use crate::interp::{InterpError, Method};
 use crate::keys::{PoseChannel, TimeChannel, TimeKeyError};
+use crate::rule::Rule;
 
 pub const RIG_API: &str = "PainterlyRigAPI";
 pub const STROKE_LAYER_API: &str = "PainterlyStrokeLayerAPI";
@@ -190,7 +191,7 @@ impl Scene {
                     layers: Vec::new(),
                     axes: Vec::new(),
                 }),
-                Err(e) => problems.push(e),
+                Err(e) => problems.push(e.or_rule(Rule::Unreadable)),
             }
         }
         for lp in &layer_paths {
@@ -201,10 +202,13 @@ impl Scene {
                 .max_by_key(|rig| rig.path.len());
             let Some(owner) = owner else {
                 if !rig_paths.iter().any(|rp| is_descendant(lp, rp)) {
-                    problems.push(Error::prim(
-                        lp,
-                        format!("stroke layer ({STROKE_LAYER_API}) is not under a prim with {RIG_API}"),
-                    ));
+                    problems.push(
+                        Error::prim(
+                            lp,
+                            format!("stroke layer ({STROKE_LAYER_API}) is not under a prim with {RIG_API}"),
+                        )
+                        .rule(Rule::LayerOutsideRig),
+                    );
                 }
                 continue;
             };
@@ -214,7 +218,7 @@ impl Scene {
             });
             match layer {
                 Ok(layer) => owner.layers.push(layer),
-                Err(e) => problems.push(e),
+                Err(e) => problems.push(e.or_rule(Rule::Unreadable)),
             }
         }
         Ok((Scene { rigs }, problems))
@@ -230,11 +234,9 @@ fn is_descendant(path: &str, ancestor: &str) -> bool {
 fn check_finite(points: &[Vec3], prim: &str, attr: &str) -> Result<()> {
     match points.iter().position(|p| !p.is_finite()) {
         None => Ok(()),
-        Some(i) => Err(Error::attr(
-            prim,
-            attr,
-            format!("point {i} is not finite ({})", points[i]),
-        )),
+        Some(i) => {
+            Err(Error::attr(prim, attr, format!("point {i} is not finite ({})", points[i])).rule(Rule::NonFinite))
+        }
     }
 }
 
@@ -247,7 +249,8 @@ fn read_proxy(r: &StageReader, rig: &usd::Prim) -> Result<Proxy> {
                 rig_path,
                 "painterly:proxy",
                 "not authored: a rig must name its proxy Mesh with `rel painterly:proxy`",
-            ))
+            )
+            .rule(Rule::MissingProxy))
         }
         [p] => p.clone(),
         many => {
@@ -255,7 +258,8 @@ fn read_proxy(r: &StageReader, rig: &usd::Prim) -> Result<Proxy> {
                 rig_path,
                 "painterly:proxy",
                 format!("has {} targets, expected exactly one Mesh", many.len()),
-            ))
+            )
+            .rule(Rule::MissingProxy))
         }
     };
     let prim = r.prim(&proxy_path)?.ok_or_else(|| {
@@ -264,6 +268,7 @@ fn read_proxy(r: &StageReader, rig: &usd::Prim) -> Result<Proxy> {
             "painterly:proxy",
             format!("targets {proxy_path}, which does not exist"),
         )
+        .rule(Rule::MissingProxy)
     })?;
     let ty = r.type_name(&prim)?;
     if ty != "Mesh" {
@@ -271,7 +276,8 @@ fn read_proxy(r: &StageReader, rig: &usd::Prim) -> Result<Proxy> {
             rig_path,
             "painterly:proxy",
             format!("targets {proxy_path}, a {:?} prim, expected a Mesh", ty),
-        ));
+        )
+        .rule(Rule::MissingProxy));
     }
     let rest_time = r.typed(rig, "painterly:restTime", None, "double", values::scalar)?;
     read_mesh(r, prim, rest_time)
@@ -285,10 +291,10 @@ pub fn read_mesh(r: &StageReader, prim: usd::Prim, rest_time: Option<f64>) -> Re
     let proxy_path = prim.path().as_str().to_string();
     let counts = r
         .typed(&prim, "faceVertexCounts", None, "int[]", values::int_array)?
-        .ok_or_else(|| Error::attr(&proxy_path, "faceVertexCounts", "proxy mesh has no faces"))?;
+        .ok_or_else(|| Error::attr(&proxy_path, "faceVertexCounts", "proxy mesh has no faces").rule(Rule::Mesh))?;
     let indices = r
         .typed(&prim, "faceVertexIndices", None, "int[]", values::int_array)?
-        .ok_or_else(|| Error::attr(&proxy_path, "faceVertexIndices", "proxy mesh has no faces"))?;
+        .ok_or_else(|| Error::attr(&proxy_path, "faceVertexIndices", "proxy mesh has no faces").rule(Rule::Mesh))?;
     if counts.iter().any(|&c| c < 0) || counts.iter().sum::<i64>() != indices.len() as i64 {
         return Err(Error::attr(
             &proxy_path,
@@ -298,18 +304,20 @@ pub fn read_mesh(r: &StageReader, prim: usd::Prim, rest_time: Option<f64>) -> Re
                 counts.iter().sum::<i64>(),
                 indices.len()
             ),
-        ));
+        )
+        .rule(Rule::Mesh));
     }
     if !counts.iter().any(|&c| c >= 3) {
         return Err(Error::attr(
             &proxy_path,
             "faceVertexCounts",
             "proxy mesh has no polygon with 3 or more vertices",
-        ));
+        )
+        .rule(Rule::Mesh));
     }
 
     // Rest pose and motion kind (SPEC §2).
-    let skeleton = skeleton_binding(r, &prim)?;
+    let skeleton = skeleton_binding(r, &prim).map_err(|e| e.or_rule(Rule::Skinning))?;
     let has_samples = !r.sample_times(&prim, "points")?.is_empty();
     let rest_pts = if skeleton.is_some() {
         r.typed(&prim, "points", None, "point3f[]", values::vec3_array)?
@@ -328,7 +336,7 @@ pub fn read_mesh(r: &StageReader, prim: usd::Prim, rest_time: Option<f64>) -> Re
             } else {
                 "proxy mesh has no points"
             };
-            return Err(Error::attr(&proxy_path, "points", why));
+            return Err(Error::attr(&proxy_path, "points", why).rule(Rule::Mesh));
         }
     };
     check_finite(&rest_pts, &proxy_path, "points")?;
@@ -338,11 +346,14 @@ pub fn read_mesh(r: &StageReader, prim: usd::Prim, rest_time: Option<f64>) -> Re
             &proxy_path,
             "faceVertexIndices",
             format!("index {bad} is out of range ({n} points)"),
-        ));
+        )
+        .rule(Rule::Mesh));
     }
     let rest: Vec<DVec3> = rest_pts.iter().map(|p| p.as_dvec3()).collect();
     let motion = match skeleton {
-        Some(s) => ProxyMotion::Skel(Box::new(SkelProxy::read(r, &prim, &s, &rest)?)),
+        Some(s) => ProxyMotion::Skel(Box::new(
+            SkelProxy::read(r, &prim, &s, &rest).map_err(|e| e.or_rule(Rule::Skinning))?,
+        )),
         None if has_samples => ProxyMotion::Sampled,
         None => ProxyMotion::Static,
     };
@@ -485,13 +496,14 @@ fn read_layer(r: &StageReader, path: &str, proxy_points: usize) -> Result<Stroke
         return Err(Error::prim(
             path,
             format!("{STROKE_LAYER_API} is applied to a {ty:?} prim; stroke layers must be BasisCurves"),
-        ));
+        )
+        .rule(Rule::LayerNotCurves));
     }
     let counts = r
         .typed(&prim, "curveVertexCounts", None, "int[]", values::int_array)?
         .unwrap_or_default();
     if let Some(bad) = counts.iter().find(|&&c| c < 0) {
-        return Err(Error::attr(path, "curveVertexCounts", format!("negative count {bad}")));
+        return Err(Error::attr(path, "curveVertexCounts", format!("negative count {bad}")).rule(Rule::PointCounts));
     }
     let total: i64 = counts.iter().sum();
     let points = r.typed(&prim, "points", None, "point3f[]", values::vec3_array)?;
@@ -503,7 +515,8 @@ fn read_layer(r: &StageReader, path: &str, proxy_points: usize) -> Result<Stroke
                 path,
                 "curveVertexCounts",
                 format!("counts sum to {total}, but the layer has {} points", p.len()),
-            ));
+            )
+            .rule(Rule::PointCounts));
         }
     }
     let authored_points = points.clone();
@@ -516,7 +529,8 @@ fn read_layer(r: &StageReader, path: &str, proxy_points: usize) -> Result<Stroke
                         path,
                         "painterly:restPoints",
                         format!("{} rest points, but the layer has {} points", rest.len(), p.len()),
-                    ));
+                    )
+                    .rule(Rule::PointCounts));
                 }
             }
             if rest.len() as i64 != total {
@@ -524,7 +538,8 @@ fn read_layer(r: &StageReader, path: &str, proxy_points: usize) -> Result<Stroke
                     path,
                     "painterly:restPoints",
                     format!("{} rest points, but curveVertexCounts sum to {total}", rest.len()),
-                ));
+                )
+                .rule(Rule::PointCounts));
             }
             rest
         }
@@ -534,18 +549,20 @@ fn read_layer(r: &StageReader, path: &str, proxy_points: usize) -> Result<Stroke
                 path,
                 "points",
                 "stroke layer has neither painterly:restPoints nor a default value of points",
-            ))
+            )
+            .rule(Rule::MissingRestPoints))
         }
     };
 
-    let cached_binding = read_cached_binding(r, &prim, path, rest_points.len(), proxy_points)?;
+    let cached_binding =
+        read_cached_binding(r, &prim, path, rest_points.len(), proxy_points).map_err(|e| e.or_rule(Rule::Binding))?;
     let opacity = r
         .typed(&prim, "painterly:opacity", None, "float", values::scalar)?
         .unwrap_or(1.0) as f32;
     if !opacity.is_finite() {
-        return Err(Error::attr(path, "painterly:opacity", "opacity is not finite"));
+        return Err(Error::attr(path, "painterly:opacity", "opacity is not finite").rule(Rule::NonFinite));
     }
-    let display_opacity = read_display_opacity(r, &prim, path, &counts)?;
+    let display_opacity = read_display_opacity(r, &prim, path, &counts).map_err(|e| e.or_rule(Rule::DisplayOpacity))?;
     Ok(StrokeLayer {
         path: path.to_string(),
         curve_counts: counts.iter().map(|&c| c as u32).collect(),
@@ -564,7 +581,7 @@ fn axis_index(r: &StageReader, rig: &mut Rig, path: &str) -> Result<usize> {
     if let Some(i) = rig.axes.iter().position(|a| a.path == path) {
         return Ok(i);
     }
-    rig.axes.push(Axis::read(r, path)?);
+    rig.axes.push(Axis::read(r, path).map_err(|e| e.or_rule(Rule::Axis))?);
     Ok(rig.axes.len() - 1)
 }
 
@@ -577,9 +594,14 @@ fn duplicate_error(paths: &[String], e: InterpError, channel: &str) -> Error {
                 "{} has the same coordinates: two {channel} keys at one configuration",
                 paths[second]
             ),
-        ),
-        InterpError::NonFinite { key } => Error::attr(&paths[key], "coordinates", "coordinates are not finite"),
-        other => Error::prim(&paths[0], format!("cannot interpolate {channel} keys: {other}")),
+        )
+        .rule(Rule::CoincidentKeys),
+        InterpError::NonFinite { key } => {
+            Error::attr(&paths[key], "coordinates", "coordinates are not finite").rule(Rule::NonFinite)
+        }
+        other => {
+            Error::prim(&paths[0], format!("cannot interpolate {channel} keys: {other}")).rule(Rule::Interpolation)
+        }
     }
 }
 
@@ -628,8 +650,9 @@ fn time_channel<V>(keys: Vec<(String, f64, V)>, sentinels: &[f64]) -> Result<Opt
                 "{} has the same time: two time keys of one channel at one time",
                 paths[second]
             ),
-        ),
-        TimeKeyError::NonFinite { key } => Error::attr(&paths[key], "time", "time is not finite"),
+        )
+        .rule(Rule::CoincidentKeys),
+        TimeKeyError::NonFinite { key } => Error::attr(&paths[key], "time", "time is not finite").rule(Rule::NonFinite),
     })?;
     Ok(Some(Channel {
         interp,
@@ -661,11 +684,9 @@ pub fn layer_axes(r: &StageReader, all_paths: &[String], rig: &mut Rig, layer: &
     let mut axes = Vec::new();
     for ap in &axis_paths {
         if r.prim(ap)?.is_none() {
-            return Err(Error::attr(
-                path,
-                "painterly:axes",
-                format!("targets {ap}, which does not exist"),
-            ));
+            return Err(
+                Error::attr(path, "painterly:axes", format!("targets {ap}, which does not exist")).rule(Rule::Axis),
+            );
         }
         axes.push(axis_index(r, rig, ap)?);
     }
@@ -694,7 +715,8 @@ fn read_keys(r: &StageReader, all_paths: &[String], rig: &mut Rig, layer: &Strok
                 cp,
                 "points",
                 format!("{} points, but the layer {path} has {npoints}", p.len()),
-            ));
+            )
+            .rule(Rule::KeyPointCounts));
         }
         check_finite(&p, cp, "points")?;
         Ok(Some(p))
@@ -703,7 +725,7 @@ fn read_keys(r: &StageReader, all_paths: &[String], rig: &mut Rig, layer: &Strok
         let o = r.typed(c, "opacity", None, "float", values::scalar)?;
         if let Some(o) = o {
             if !o.is_finite() {
-                return Err(Error::attr(cp, "opacity", "opacity is not finite"));
+                return Err(Error::attr(cp, "opacity", "opacity is not finite").rule(Rule::NonFinite));
             }
         }
         Ok(o.map(|o| o as f32))
@@ -716,7 +738,10 @@ fn read_keys(r: &StageReader, all_paths: &[String], rig: &mut Rig, layer: &Strok
                 has_pose_keys = true;
                 let coords = r
                     .typed(c, "coordinates", None, "float[]", values::f32_array)?
-                    .ok_or_else(|| Error::attr(&cp, "coordinates", "a pose key needs `float[] coordinates`"))?;
+                    .ok_or_else(|| {
+                        Error::attr(&cp, "coordinates", "a pose key needs `float[] coordinates`")
+                            .rule(Rule::KeyCoordinates)
+                    })?;
                 let coords: Vec<f64> = coords.iter().map(|&x| x as f64).collect();
                 if let Some(p) = read_points(c, &cp)? {
                     pose_pts.push((cp.clone(), coords.clone(), p));
@@ -728,9 +753,9 @@ fn read_keys(r: &StageReader, all_paths: &[String], rig: &mut Rig, layer: &Strok
             "PainterlyTimeKey" => {
                 let time = r
                     .typed(c, "time", None, "double", values::scalar)?
-                    .ok_or_else(|| Error::attr(&cp, "time", "a time key needs `double time`"))?;
+                    .ok_or_else(|| Error::attr(&cp, "time", "a time key needs `double time`").rule(Rule::KeyTime))?;
                 if !time.is_finite() {
-                    return Err(Error::attr(&cp, "time", "time is not finite"));
+                    return Err(Error::attr(&cp, "time", "time is not finite").rule(Rule::NonFinite));
                 }
                 let sentinel = r.typed(c, "sentinel", None, "bool", values::scalar)?.unwrap_or(0.0) != 0.0;
                 if sentinel {
@@ -765,7 +790,8 @@ fn read_keys(r: &StageReader, all_paths: &[String], rig: &mut Rig, layer: &Strok
                 cp,
                 "coordinates",
                 format!("{} coordinates, but the layer {path} has {dim} axes", coords.len()),
-            ));
+            )
+            .rule(Rule::KeyCoordinates));
         }
     }
     let token = r
@@ -780,14 +806,14 @@ fn read_keys(r: &StageReader, all_paths: &[String], rig: &mut Rig, layer: &Strok
             "painterly:interpolation",
             format!("unknown interpolation {token:?} (expected smoothVoronoi, rbf or shepard)"),
         )
+        .rule(Rule::Interpolation)
     })?;
     if let Method::Rbf { radius } = method {
         if !(radius.is_finite() && radius > 0.0) {
-            return Err(Error::attr(
-                path,
-                "painterly:rbfRadius",
-                format!("radius {radius} must be positive"),
-            ));
+            return Err(
+                Error::attr(path, "painterly:rbfRadius", format!("radius {radius} must be positive"))
+                    .rule(Rule::Interpolation),
+            );
         }
     }
     Ok(LayerKeys {
@@ -913,7 +939,7 @@ fn read_display_opacity(r: &StageReader, prim: &usd::Prim, path: &str, counts: &
         ));
     };
     if out.iter().any(|x| !x.is_finite()) {
-        return Err(Error::attr(path, NAME, "opacity is not finite"));
+        return Err(Error::attr(path, NAME, "opacity is not finite").rule(Rule::NonFinite));
     }
     Ok(out)
 }
