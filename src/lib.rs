@@ -21,6 +21,7 @@
 //! | [`inspect`] | the `inspect` command |
 //! | [`interp`] | configuration-space interpolation (smooth Voronoi, RBF, Shepard) |
 //! | [`render`] | the `render` command: preview EXR/PNG frames and contact sheets |
+//! | [`preview`] | the `preview` command: a live view in the browser (loopback server, WebGL2 page) |
 
 pub mod author;
 pub mod bake;
@@ -33,6 +34,7 @@ pub mod inspect;
 pub mod interp;
 pub mod keys;
 pub mod mesh;
+pub mod preview;
 pub mod render;
 pub mod skel_deform;
 pub mod skinning;
