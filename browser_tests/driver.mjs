@@ -76,9 +76,15 @@ const commands = {
   async eval({ js }) {
     return { value: await page.evaluate(js) };
   },
+  // Polls with page.evaluate: waitForFunction evaluates strings with eval(),
+  // which the page's Content-Security-Policy (rightly) forbids.
   async wait({ js, timeout }) {
-    await page.waitForFunction(js, null, { timeout: timeout ?? 20000, polling: 20 });
-    return {};
+    const deadline = Date.now() + (timeout ?? 20000);
+    for (;;) {
+      if (await page.evaluate(js)) return {};
+      if (Date.now() > deadline) throw new Error(`timed out waiting for ${js}`);
+      await new Promise((r) => setTimeout(r, 20));
+    }
   },
   async drag({ selector, dx, dy, steps, shift }) {
     const box = await page.locator(selector).boundingBox();

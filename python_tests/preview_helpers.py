@@ -136,7 +136,7 @@ class Browser:
         return reply
 
     def eval(self, js):
-        return self.call("eval", js=js)["value"]
+        return self.call("eval", js=js).get("value")
 
     def wait(self, js, timeout=30000):
         self.call("wait", js=js, timeout=timeout)

@@ -85,11 +85,12 @@ def test_moving_a_slider_changes_pixels_and_serves_the_bakes_points(browser, tmp
     # independent stage, read back by usd-core): the eyelids' opacity keys.
     t = 5
     copy = tmp_path / "blink.usda"
-    stage = Usd.Stage.Open(str(FISH))
+    shutil.copy(FISH, copy)
+    stage = Usd.Stage.Open(str(copy))
     attr = stage.GetPrimAtPath("/Blowfish").GetAttribute("blink")
     attr.Clear()
     attr.Set(0.8)
-    stage.Export(str(copy))
+    stage.Save()
     baked = bake(tmp_path, copy, t)
     with PreviewServer(FISH) as s:
         open_page(browser, s)

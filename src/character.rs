@@ -453,7 +453,13 @@ pub fn eval_axes(
 
 /// Values of the rig's axes listed in `needed` (0 for the others),
 /// measured against `frame`, whose `proxy_centre` is set from `posed`.
-pub fn measure_axes(r: &StageReader, rig: &Rig, needed: &[usize], posed: &[DVec3], frame: AxisFrame) -> Result<Vec<f64>> {
+pub fn measure_axes(
+    r: &StageReader,
+    rig: &Rig,
+    needed: &[usize],
+    posed: &[DVec3],
+    frame: AxisFrame,
+) -> Result<Vec<f64>> {
     let mut values = vec![0.0; rig.axes.len()];
     if needed.is_empty() {
         return Ok(values);

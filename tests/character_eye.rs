@@ -45,7 +45,10 @@ fn an_eye_where_the_camera_is_gives_that_frame() {
     let got = ch.model.evaluate(input, false).unwrap();
     same(&got, &want);
     // And the frame without an eye is frame A itself, which differs.
-    let plain = ch.model.evaluate(ch.read_frame_seen_from(a, &none, None).unwrap(), false).unwrap();
+    let plain = ch
+        .model
+        .evaluate(ch.read_frame_seen_from(a, &none, None).unwrap(), false)
+        .unwrap();
     same(&plain, &ch.evaluate(a, false).unwrap());
     assert_ne!(plain.views[0], got.views[0], "the head's shape follows the eye");
 }
@@ -55,9 +58,15 @@ fn overrides_win_over_the_eye_and_bad_eyes_are_refused() {
     let ch = Character::open(Path::new(HEAD), None).unwrap();
     let c = Configuration::from([("/Head/Paint/viewX".to_string(), 0.25)]);
     let input = ch.read_frame_seen_from(1.0, &c, Some(camera_at(30.0))).unwrap();
-    let i = ch.model.rigs[0].axes.iter().position(|a| a == "/Head/Paint/viewX").unwrap();
+    let i = ch.model.rigs[0]
+        .axes
+        .iter()
+        .position(|a| a == "/Head/Paint/viewX")
+        .unwrap();
     assert_eq!(input.rigs[0].axis_values[i], 0.25);
-    assert!(ch.read_frame_seen_from(1.0, &Configuration::new(), Some(DVec3::NAN)).is_err());
+    assert!(ch
+        .read_frame_seen_from(1.0, &Configuration::new(), Some(DVec3::NAN))
+        .is_err());
     let bad = Configuration::from([("/Head/Nope".to_string(), 0.0)]);
     assert!(ch.read_frame_seen_from(1.0, &bad, None).is_err());
 }

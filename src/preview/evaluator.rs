@@ -276,10 +276,7 @@ impl State {
                     points: layer.rest_points.len(),
                     pose_position_keys: k.pose_points.as_ref().map_or(0, |c| c.paths.len()),
                     pose_opacity_keys: k.pose_opacity.as_ref().map_or(0, |c| c.paths.len()),
-                    time_keys: time_keys
-                        .iter()
-                        .find(|(p, _)| *p == layer.path)
-                        .map_or(0, |(_, n)| *n),
+                    time_keys: time_keys.iter().find(|(p, _)| *p == layer.path).map_or(0, |(_, n)| *n),
                     sentinels: k.sentinels,
                     curve_counts: layer.curve_counts.clone(),
                     axes: k.axes.iter().map(|&a| rig.axes[a].clone()).collect(),
@@ -408,7 +405,10 @@ impl State {
         let t2 = Instant::now();
         let mut b = Buffer::default();
         for (i, (layer, path)) in out.layers.iter().zip(&self.layers).enumerate() {
-            b.push(format!("layer/{i}/points"), layer.points.iter().flat_map(|p| p.to_array()));
+            b.push(
+                format!("layer/{i}/points"),
+                layer.points.iter().flat_map(|p| p.to_array()),
+            );
             b.push(format!("layer/{i}/opacity"), layer.opacity.iter().copied());
             b.push(format!("layer/{i}/xform"), mat(&self.l2w(path, t)?));
         }
@@ -459,7 +459,10 @@ impl State {
         let l2w = |path: &str| -> Result<DMat4> { r.local_to_world(&r.require_prim(path)?, t) };
         let mut b = Buffer::default();
         for (i, path) in self.layers.iter().enumerate() {
-            b.push(format!("layer/{i}/points"), read(path, "points", "point3f[]")?.unwrap_or_default());
+            b.push(
+                format!("layer/{i}/points"),
+                read(path, "points", "point3f[]")?.unwrap_or_default(),
+            );
             b.push(
                 format!("layer/{i}/opacity"),
                 read(path, "primvars:displayOpacity", "float[]")?.unwrap_or_default(),
@@ -467,7 +470,10 @@ impl State {
             b.push(format!("layer/{i}/xform"), mat(&l2w(path)?));
         }
         for (i, path) in self.views.iter().enumerate() {
-            b.push(format!("view/{i}/points"), read(path, "points", "point3f[]")?.unwrap_or_default());
+            b.push(
+                format!("view/{i}/points"),
+                read(path, "points", "point3f[]")?.unwrap_or_default(),
+            );
             b.push(format!("view/{i}/xform"), mat(&l2w(path)?));
         }
         Ok(b.finish(serde_json::json!({
@@ -511,7 +517,10 @@ impl State {
     fn render(&self, req: &RenderRequest) -> Result<Vec<u8>> {
         let f = &req.frame;
         let t = f.time;
-        let out = self.evaluate(&FrameRequest { proxy: false, ..f.clone() })?;
+        let out = self.evaluate(&FrameRequest {
+            proxy: false,
+            ..f.clone()
+        })?;
         let r = &self.ch.reader;
         let mut curves = self.drawables.curves_at(r, t)?;
         let mut meshes = self.drawables.meshes_at(r, t)?;
@@ -653,7 +662,9 @@ fn start_view(cam: Option<&CameraParams>, camera: Option<String>, bounds: &[DVec
 pub fn camera_params(v: &ViewCamera, width: usize, height: usize) -> CameraParams {
     let eye = DVec3::from_array(v.position);
     let z = (eye - DVec3::from_array(v.target)).normalize_or(DVec3::Z);
-    let x = DVec3::from_array(v.up).cross(z).normalize_or(z.any_orthonormal_vector());
+    let x = DVec3::from_array(v.up)
+        .cross(z)
+        .normalize_or(z.any_orthonormal_vector());
     let y = z.cross(x);
     let focal = 50.0;
     let vertical = 2.0 * focal * (0.5 * v.fov_y.to_radians()).tan();

@@ -109,7 +109,10 @@ impl RenderRequest {
         finite("camera.up", &c.up)?;
         finite("camera fov_y, near and far", &[c.fov_y, c.near, c.far])?;
         if !(c.fov_y > 0.1 && c.fov_y < 179.0) {
-            return Err(BadRequest(format!("camera.fov_y {} is not in (0.1, 179) degrees", c.fov_y)));
+            return Err(BadRequest(format!(
+                "camera.fov_y {} is not in (0.1, 179) degrees",
+                c.fov_y
+            )));
         }
         if !(c.near > 0.0 && c.far > c.near) {
             return Err(BadRequest(format!(
@@ -170,7 +173,11 @@ impl Buffer {
 
 /// Reads a reply back (tests and tools): the header and the payload.
 pub fn decode(bytes: &[u8]) -> Option<(serde_json::Value, Vec<f32>)> {
-    let word = |i: usize| bytes.get(i..i + 4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]));
+    let word = |i: usize| {
+        bytes
+            .get(i..i + 4)
+            .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+    };
     if word(0)? != MAGIC {
         return None;
     }

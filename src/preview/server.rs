@@ -76,10 +76,7 @@ pub fn router(state: Arc<AppState>) -> Router {
     Router::new()
         .route("/", get(|| async { page(INDEX, "text/html; charset=utf-8") }))
         .route("/index.html", get(|| async { page(INDEX, "text/html; charset=utf-8") }))
-        .route(
-            "/app.js",
-            get(|| async { page(APP, "text/javascript; charset=utf-8") }),
-        )
+        .route("/app.js", get(|| async { page(APP, "text/javascript; charset=utf-8") }))
         .route("/style.css", get(|| async { page(STYLE, "text/css; charset=utf-8") }))
         .route("/api/scene", get(scene))
         .route("/api/strokes", get(strokes))
@@ -98,7 +95,7 @@ fn page(body: &'static str, content_type: &'static str) -> Response {
             (
                 header::CONTENT_SECURITY_POLICY,
                 HeaderValue::from_static(
-                    "default-src 'self'; img-src 'self' blob:; connect-src 'self'; object-src 'none'; base-uri 'none'",
+                    "default-src 'self'; img-src 'self' blob: data:; connect-src 'self'; object-src 'none'; base-uri 'none'",
                 ),
             ),
             (header::X_CONTENT_TYPE_OPTIONS, HeaderValue::from_static("nosniff")),

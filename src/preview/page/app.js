@@ -595,8 +595,8 @@
     box.textContent = '';
     if (!scene.axes.length) box.append(el('p', { className: 'hint', textContent: 'This character has no axes.' }));
     for (const a of scene.axes) {
-      const step = (a.max - a.min) / 1000;
-      const input = el('input', { type: 'range', min: a.min, max: a.max, step, value: a.min });
+      // step=any: a pinned value is exactly what the slider says (no grid).
+      const input = el('input', { type: 'range', min: a.min, max: a.max, step: 'any', value: a.min });
       input.setAttribute('aria-label', a.path);
       input.dataset.axis = a.path;
       const out = el('output');
