@@ -222,16 +222,30 @@ impl Character {
 
     /// Reads what frame `t` needs (serial: the stage is single-threaded).
     pub fn read_frame(&self, t: f64) -> Result<FrameInput> {
-        self.read_frame_axes(t, false)
+        self.read_frame_axes(t, false, None)
     }
 
     /// Like [`Character::read_frame`], but measures every axis, not only
     /// those a keyed layer needs (for reports and what-if overrides).
     pub fn read_frame_all_axes(&self, t: f64) -> Result<FrameInput> {
-        self.read_frame_axes(t, true)
+        self.read_frame_axes(t, true, None)
     }
 
-    fn read_frame_axes(&self, t: f64, all_axes: bool) -> Result<FrameInput> {
+    /// Reads frame `t` as seen from a world-space `eye` instead of the
+    /// cameras: every viewDirection axis (even one with its own `source`)
+    /// and every view-dependent mesh is measured from `eye` (a live
+    /// preview's orbit camera; `None` keeps the cameras). Measures every
+    /// axis, then applies `overrides` as [`Character::read_frame_with`] does.
+    pub fn read_frame_seen_from(&self, t: f64, overrides: &Configuration, eye: Option<DVec3>) -> Result<FrameInput> {
+        if let Some(e) = eye.filter(|e| !e.is_finite()) {
+            return Err(Error::msg(format!("eye position {e} is not finite")));
+        }
+        let mut input = self.read_frame_axes(t, true, eye)?;
+        self.apply_overrides(&mut input, overrides)?;
+        Ok(input)
+    }
+
+    fn read_frame_axes(&self, t: f64, all_axes: bool, eye: Option<DVec3>) -> Result<FrameInput> {
         let r = &self.reader;
         let mut rigs = Vec::with_capacity(self.rigs.len());
         for (rig, model) in self.rigs.iter().zip(&self.model.rigs) {
@@ -245,7 +259,14 @@ impl Character {
             } else {
                 &model.needed_axes
             };
-            let axis_values = eval_axes(r, rig, axes, t, proxy_l2w, &posed, self.camera.as_deref())?;
+            let frame = AxisFrame {
+                time: t,
+                proxy_to_world: proxy_l2w,
+                proxy_centre: DVec3::ZERO,
+                camera: self.camera.as_deref(),
+                eye,
+            };
+            let axis_values = measure_axes(r, rig, axes, &posed, frame)?;
             let mut layers = Vec::with_capacity(rig.layers.len());
             for layer in &rig.layers {
                 let frame = Affine3A::from_mat4((layer.local_to_world(r, t)?.inverse() * proxy_l2w).as_mat4());
@@ -265,7 +286,10 @@ impl Character {
         let mut views = Vec::with_capacity(self.views.len());
         for (base, camera) in &self.views {
             let points = base.mesh.posed_points_f32(r, t)?;
-            let cam_world = r.local_to_world(camera, t)?.transform_point3(DVec3::ZERO);
+            let cam_world = match eye {
+                Some(e) => e,
+                None => r.local_to_world(camera, t)?.transform_point3(DVec3::ZERO),
+            };
             let camera_local = base.mesh.local_to_world(r, t)?.inverse().transform_point3(cam_world);
             views.push(ViewFrame {
                 base: points,
@@ -299,6 +323,11 @@ impl Character {
     /// axis of some rig.
     pub fn read_frame_with(&self, t: f64, overrides: &Configuration) -> Result<FrameInput> {
         let mut input = self.read_frame(t)?;
+        self.apply_overrides(&mut input, overrides)?;
+        Ok(input)
+    }
+
+    fn apply_overrides(&self, input: &mut FrameInput, overrides: &Configuration) -> Result<()> {
         for (path, &value) in overrides {
             if !value.is_finite() {
                 return Err(Error::prim(path, format!("axis value {value} is not finite")));
@@ -314,7 +343,7 @@ impl Character {
                 return Err(Error::prim(path, "is not an axis of any rig in this character"));
             }
         }
-        Ok(input)
+        Ok(())
     }
 
     /// Every axis prim path of every rig, each once, in rig then axis order
@@ -475,16 +504,33 @@ pub fn eval_axes(
     posed: &[DVec3],
     camera: Option<&str>,
 ) -> Result<Vec<f64>> {
+    let frame = AxisFrame {
+        time: t,
+        proxy_to_world,
+        proxy_centre: DVec3::ZERO,
+        camera,
+        eye: None,
+    };
+    measure_axes(r, rig, needed, posed, frame)
+}
+
+/// Values of the rig's axes listed in `needed` (0 for the others),
+/// measured against `frame`, whose `proxy_centre` is set from `posed`.
+pub fn measure_axes(
+    r: &StageReader,
+    rig: &Rig,
+    needed: &[usize],
+    posed: &[DVec3],
+    frame: AxisFrame,
+) -> Result<Vec<f64>> {
     let mut values = vec![0.0; rig.axes.len()];
     if needed.is_empty() {
         return Ok(values);
     }
     let [lo, hi] = bounds_f64(posed).unwrap_or([DVec3::ZERO; 2]);
     let frame = AxisFrame {
-        time: t,
-        proxy_to_world,
         proxy_centre: (lo + hi) * 0.5,
-        camera,
+        ..frame
     };
     for &a in needed {
         values[a] = rig.axes[a].value(r, &frame)?;

@@ -201,6 +201,20 @@ pub enum Command {
     ///
     /// Example: painterly render shot.usda --camera /World/Cam --frames 1:48 -o out/shot.####.exr --png --sheet
     Render(crate::render::RenderArgs),
+    /// Live preview in the browser: drag the configuration, scrub the
+    /// timeline, orbit the camera and see the paint move.
+    ///
+    /// Serves one page (plain WebGL2, embedded in the binary, no network
+    /// needed) on 127.0.0.1 and prints its URL. Every frame the page shows is
+    /// evaluated on demand by the same code as bake (one frame, nothing
+    /// written): the timeline plays and scrubs, one slider per axis pins that
+    /// axis to a value (pose mode) and shows its keys and their weights,
+    /// "view drives" makes the orbit camera the eye of viewDirection axes and
+    /// view-dependent meshes, and "render" shows `painterly render`'s frame of
+    /// the current view. The input is never written.
+    ///
+    /// Example: painterly preview fixtures/blowfish.usda --port 0
+    Preview(crate::preview::PreviewArgs),
     /// Write a layer that shows a bake over its input in usdview.
     ///
     /// The layer sublayers BAKE over INPUT (relative paths when possible) and
@@ -560,6 +574,10 @@ pub fn run(cli: Cli) -> i32 {
                 }
                 0
             }
+            Err(e) => report(&e),
+        },
+        Command::Preview(args) => match crate::preview::run(&args) {
+            Ok(()) => 0,
             Err(e) => report(&e),
         },
         Command::View {

@@ -23,6 +23,7 @@
 //! | [`rule`] | the schema rules `inspect` checks, with stable ids |
 //! | [`interp`] | configuration-space interpolation (smooth Voronoi, RBF, Shepard) |
 //! | [`render`] | the `render` command: preview EXR/PNG frames and contact sheets |
+//! | [`preview`] | the `preview` command: a live view in the browser (loopback server, WebGL2 page) |
 
 pub mod author;
 pub mod bake;
@@ -37,6 +38,7 @@ pub mod interp;
 pub mod keys;
 pub mod log;
 pub mod mesh;
+pub mod preview;
 pub mod render;
 pub mod rule;
 pub mod skel_deform;
