@@ -152,7 +152,10 @@ fn open_for_bake_with(
         return Err(Error::msg("--chunk-index and --assemble need --chunk N"));
     }
     check_output(input, output)?;
-    let mut character = Character::from_reader(open()?, opts.camera.as_deref()).map_err(|e| e.in_file(input))?;
+    let opening = Instant::now();
+    let reader = open()?;
+    crate::character::log_opened(input, &reader, opening);
+    let mut character = Character::from_reader(reader, opts.camera.as_deref()).map_err(|e| e.in_file(input))?;
     character.proxy_normals = opts.bake_proxy;
     if is_empty(&character.model, opts) {
         return Err(Error::msg(

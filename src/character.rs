@@ -150,17 +150,22 @@ pub struct FrameOutput {
     pub views: Vec<Vec<Vec3>>,
 }
 
+/// The `-v` line for a stage opened from `path` since `started`.
+pub(crate) fn log_opened(path: &Path, reader: &StageReader, started: std::time::Instant) {
+    crate::vlog!(
+        "opened {} ({}) in {:.3} s",
+        path.display(),
+        plural(reader.stage.layer_identifiers().len(), "layer"),
+        started.elapsed().as_secs_f64()
+    );
+}
+
 impl Character {
     /// Opens `path` and resolves everything that does not change per frame.
     pub fn open(path: &Path, camera: Option<&str>) -> Result<Character> {
         let started = std::time::Instant::now();
         let reader = StageReader::open(path)?;
-        crate::vlog!(
-            "opened {} ({}) in {:.3} s",
-            path.display(),
-            plural(reader.stage.layer_identifiers().len(), "layer"),
-            started.elapsed().as_secs_f64()
-        );
+        log_opened(path, &reader, started);
         Character::from_reader(reader, camera).map_err(|e| e.in_file(path))
     }
 
