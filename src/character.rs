@@ -458,8 +458,7 @@ type Terms = Vec<(f64, Source)>;
 /// The blend terms of a layer's two channels at one configuration and time:
 /// (position terms, opacity terms).
 fn key_terms(k: &LayerKeys, axis_values: &[f64], t: f64) -> (Terms, Terms) {
-    let x: Vec<f64> = k.axes.iter().map(|&a| axis_values[a]).collect();
-    let x = if x.is_empty() { vec![0.0] } else { x };
+    let x = k.configuration(axis_values);
     let pose_w = k.pose_points.as_ref().map(|c| c.interp.weights(&x));
     let time_w = k.time_points.as_ref().map(|c| c.interp.weights(t));
     let points = combine(pose_w.as_ref(), time_w.as_ref());

@@ -89,6 +89,10 @@ pub struct Channel<C, V> {
 pub struct LayerKeys {
     /// The layer's axes, as indices into [`Rig::axes`], in coordinate order.
     pub axes: Vec<usize>,
+    /// Each of those axes' `scale`. Key coordinates are authored in axis
+    /// units; the pose channels interpolate over scaled coordinates (SPEC
+    /// 1.1 §4), see [`LayerKeys::configuration`].
+    pub scales: Vec<f64>,
     /// Interpolation method (`painterly:interpolation`).
     pub method: Option<Method>,
     pub pose_points: Option<Channel<PoseChannel, Vec<Vec3>>>,
@@ -103,6 +107,22 @@ impl LayerKeys {
     /// Whether any pose key needs axis values.
     pub fn uses_axes(&self) -> bool {
         self.pose_points.is_some() || self.pose_opacity.is_some()
+    }
+
+    /// The point in configuration space where the pose channels are
+    /// evaluated: this layer's axis values (in axis units, indexed by rig
+    /// axis) each multiplied by its axis's `scale`, as the keys'
+    /// coordinates were. A layer without axes sits at the origin of a 1-D
+    /// space.
+    pub fn configuration(&self, axis_values: &[f64]) -> Vec<f64> {
+        if self.axes.is_empty() {
+            return vec![0.0];
+        }
+        self.axes
+            .iter()
+            .zip(&self.scales)
+            .map(|(&a, &s)| axis_values[a] * s)
+            .collect()
     }
 }
 
@@ -514,17 +534,36 @@ fn duplicate_error(paths: &[String], e: InterpError, channel: &str) -> Error {
     }
 }
 
+/// A pose channel over keys whose coordinates are in axis units: the
+/// interpolant is built on the coordinates times `scales` (SPEC 1.1 §4).
 fn pose_channel<V>(
     method: Method,
-    dim: usize,
+    scales: &[f64],
     keys: Vec<(String, Vec<f64>, V)>,
     channel: &str,
 ) -> Result<Option<Channel<PoseChannel, V>>> {
     if keys.is_empty() {
         return Ok(None);
     }
+    let dim = scales.len();
     let paths: Vec<String> = keys.iter().map(|k| k.0.clone()).collect();
-    let coords: Vec<f64> = keys.iter().flat_map(|k| k.1.iter().copied()).collect();
+    let coords: Vec<f64> = keys
+        .iter()
+        .flat_map(|k| k.1.iter().zip(scales).map(|(c, s)| c * s))
+        .collect();
+    // Keys apart in axis units can meet once scaled (an axis with scale 0).
+    let scaled_together = |e: InterpError| match e {
+        InterpError::DuplicateKeys { first, second } if keys[first].1 != keys[second].1 => Error::attr(
+            &paths[first],
+            "coordinates",
+            format!(
+                "{} has the same coordinates once each axis is multiplied by its scale \
+                 (an axis with scale 0?): two {channel} keys at one configuration",
+                paths[second]
+            ),
+        ),
+        e => duplicate_error(&paths, e, channel),
+    };
     let interp = if dim == 0 {
         // No axes: one key is a constant; two would sit at the same point.
         if keys.len() > 1 {
@@ -536,7 +575,7 @@ fn pose_channel<V>(
         }
         PoseChannel::new(method, 1, &[0.0]).map_err(|e| duplicate_error(&paths, e, channel))?
     } else {
-        PoseChannel::new(method, dim, &coords).map_err(|e| duplicate_error(&paths, e, channel))?
+        PoseChannel::new(method, dim, &coords).map_err(scaled_together)?
     };
     Ok(Some(Channel {
         interp,
@@ -721,11 +760,13 @@ fn read_keys(r: &StageReader, all_paths: &[String], rig: &mut Rig, layer: &Strok
             ));
         }
     }
+    let scales: Vec<f64> = axes.iter().map(|&a| rig.axes[a].scale).collect();
     Ok(LayerKeys {
         axes,
         method: Some(method),
-        pose_points: pose_channel(method, dim, pose_pts, "position")?,
-        pose_opacity: pose_channel(method, dim, pose_opa, "opacity")?,
+        pose_points: pose_channel(method, &scales, pose_pts, "position")?,
+        pose_opacity: pose_channel(method, &scales, pose_opa, "opacity")?,
+        scales,
         time_points: time_channel(time_pts, &sentinels)?,
         time_opacity: time_channel(time_opa, &sentinels)?,
         sentinels: sentinels.len(),
