@@ -444,6 +444,50 @@ def test_rest_time_picks_the_rest_pose(painterly, tmp_path):
     assert diff > 0.05 * Au.bbox_diag(vs.rest)
 
 
+def point_cache(rest, frames):
+    """A usd-core point cache: time samples at every frame, no default."""
+    return {t: wobble_points(rest, np.sin(0.4 * t)) + 0.05 * t for t in frames}
+
+
+def test_point_cache_with_timed_keys(painterly, tmp_path):
+    """issue 9 section 4: a base with only time-sampled points (no default,
+    no restTime: an Alembic-converted cache) needs no rest pose when every
+    key has a time (SPEC section 6: offsets from the base at each key's
+    time). It bakes, and matches the reference at every frame."""
+    rest, _, _ = RV.ball_mesh()
+    rest = RV.f32(rest)
+    frames = list(range(1, 17))
+    cache = point_cache(rest, frames)
+    rng = np.random.default_rng(11)
+    keys = [(d, sampled_base(cache, t) + RV.smooth_offsets(rest, rng, 0.3), t, None)
+            for d in OCTAHEDRON for t in (4.0, 12.0)]
+    vs = RV.build_view_stage(tmp_path / "v.usda", keys=keys, eyes=RV.orbit_eyes(16, wobble=0.5),
+                             sampled=cache, default_points=False)
+    st = Usd.Stage.Open(str(vs.path))
+    assert UsdGeom.Mesh(st.GetPrimAtPath(vs.mesh)).GetPointsAttr().Get(Usd.TimeCode.Default()) is None
+    got = assert_matches_reference(vs, bake(painterly, vs, tmp_path))
+    assert sorted(got) == [float(t) for t in frames]
+
+
+def test_point_cache_untimed_key_is_named(painterly, tmp_path):
+    """A key without `time` on a point cache would be an offset from a rest
+    pose the mesh does not have: an error naming that key (not a proxy or a
+    rig the user never made)."""
+    rest, _, _ = RV.ball_mesh()
+    rest = RV.f32(rest)
+    cache = point_cache(rest, range(1, 9))
+    keys = [(d, None, 5.0, None) for d in OCTAHEDRON]
+    keys[3] = (OCTAHEDRON[3], None, None, None)
+    vs = RV.build_view_stage(tmp_path / "v.usda", keys=keys, eyes=RV.orbit_eyes(8),
+                             sampled=cache, default_points=False)
+    out = tmp_path / "bake.usda"
+    proc = painterly("bake", vs.path, "-o", out, "--quiet", check=False)
+    assert proc.returncode == 1, proc.stderr
+    assert f"{vs.mesh}/Key3.time" in proc.stderr, proc.stderr
+    assert "point cache" in proc.stderr and "proxy" not in proc.stderr and "on the rig" not in proc.stderr
+    assert not out.exists()
+
+
 @pytest.mark.parametrize("n_times", [1, 2, 3])
 def test_timed_keys_natural_spline(painterly, tmp_path, n_times):
     """Camera fixed on viewpoint A's direction: result = base(t) + offset_A(t)
