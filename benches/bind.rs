@@ -68,7 +68,10 @@ fn timed<T>(f: impl FnOnce() -> T) -> (T, [Duration; 2]) {
 }
 
 fn median2(v: &[[Duration; 2]]) -> [Duration; 2] {
-    [median(v.iter().map(|x| x[0]).collect()), median(v.iter().map(|x| x[1]).collect())]
+    [
+        median(v.iter().map(|x| x[0]).collect()),
+        median(v.iter().map(|x| x[1]).collect()),
+    ]
 }
 
 struct Case {

@@ -245,7 +245,11 @@ impl ClosestPoint {
                 let da = box_distance2(&self.nodes[a as usize], p);
                 let db = box_distance2(&self.nodes[b as usize], p);
                 // Nearer child on top of the stack.
-                let ((n0, d0), (n1, d1)) = if da <= db { ((b, db), (a, da)) } else { ((a, da), (b, db)) };
+                let ((n0, d0), (n1, d1)) = if da <= db {
+                    ((b, db), (a, da))
+                } else {
+                    ((a, da), (b, db))
+                };
                 if d0 <= limit2 {
                     s.stack.push((n0, d0));
                 }
@@ -341,10 +345,7 @@ struct Scratch {
 }
 
 fn union(l0: [f32; 3], h0: [f32; 3], l1: [f32; 3], h1: [f32; 3]) -> ([f32; 3], [f32; 3]) {
-    (
-        [0, 1, 2].map(|k| l0[k].min(l1[k])),
-        [0, 1, 2].map(|k| h0[k].max(h1[k])),
-    )
+    ([0, 1, 2].map(|k| l0[k].min(l1[k])), [0, 1, 2].map(|k| h0[k].max(h1[k])))
 }
 
 /// Squared distance (f64) from `p` to a node's box.
@@ -405,7 +406,11 @@ fn split(items: &mut [([f32; 3], u32)], start: usize) -> Vec<Node> {
     let (nl, nr) = (left.len(), right.len());
     let mut nodes = Vec::with_capacity(1 + nl + nr);
     let remap = |n: &Node, first_base: usize| Node {
-        first: if n.count == 0 { (n.first as usize + first_base) as u32 } else { n.first },
+        first: if n.count == 0 {
+            (n.first as usize + first_base) as u32
+        } else {
+            n.first
+        },
         ..*n
     };
     let mut root = leaf(0, 0);
@@ -421,9 +426,11 @@ fn split(items: &mut [([f32; 3], u32)], start: usize) -> Vec<Node> {
 /// Partitions `items` at their median along the longest axis of their
 /// centroids' box; returns the split index.
 fn median_split(items: &mut [([f32; 3], u32)]) -> usize {
-    let (lo, hi) = items.iter().fold(([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]), |(lo, hi), (c, _)| {
-        ([0, 1, 2].map(|k| lo[k].min(c[k])), [0, 1, 2].map(|k| hi[k].max(c[k])))
-    });
+    let (lo, hi) = items
+        .iter()
+        .fold(([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]), |(lo, hi), (c, _)| {
+            ([0, 1, 2].map(|k| lo[k].min(c[k])), [0, 1, 2].map(|k| hi[k].max(c[k])))
+        });
     let size = [0, 1, 2].map(|k| hi[k] - lo[k]);
     let axis = if size[0] >= size[1] && size[0] >= size[2] {
         0
@@ -651,14 +658,20 @@ mod tests {
         assert_eq!(cp.query(DVec3::new(1.0, -0.5, 0.1)).0, 0);
         let b = cp.bind(&[Vec3::new(1.0, 0.5, 0.0), Vec3::new(0.2, 0.7, -1.0)]);
         assert_eq!(b.vertices, vec![[5, 7, 6], [0, 2, 3]]);
-        assert_eq!(b, bind_brute_force(&pts, &tris, &[Vec3::new(1.0, 0.5, 0.0), Vec3::new(0.2, 0.7, -1.0)]));
+        assert_eq!(
+            b,
+            bind_brute_force(&pts, &tris, &[Vec3::new(1.0, 0.5, 0.0), Vec3::new(0.2, 0.7, -1.0)])
+        );
     }
 
     /// Tiny LCG: reproducible meshes without a rand crate.
     struct Lcg(u64);
     impl Lcg {
         fn unit(&mut self) -> f64 {
-            self.0 = self.0.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1_442_695_040_888_963_407);
+            self.0 = self
+                .0
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
             (self.0 >> 11) as f64 / (1u64 << 53) as f64
         }
         fn vec(&mut self) -> DVec3 {
