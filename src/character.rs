@@ -101,8 +101,9 @@ pub struct RigFrame {
     /// Every axis of the rig (indices as `Rig::axes`); 0 for axes no keyed
     /// layer needs, unless read with [`Character::configuration`].
     pub axis_values: Vec<f64>,
-    /// Per layer: proxy-local → stroke-local transform and `painterly:opacity`.
-    pub layers: Vec<(Affine3A, f32)>,
+    /// Per layer: proxy-local → stroke-local transform, `painterly:opacity`
+    /// and the largest `widths` value (for the extent).
+    pub layers: Vec<(Affine3A, f32, f32)>,
 }
 
 /// One view-dependent mesh at one frame, as read from the stage.
@@ -126,6 +127,9 @@ pub struct LayerFrame {
     pub points: Vec<Vec3>,
     /// Per curve: authored displayOpacity × layer opacity × keyed opacity.
     pub opacity: Vec<f32>,
+    /// The largest `widths` value at this time: the extent's padding
+    /// ([`crate::extent::curves_extent`]).
+    pub max_width: f32,
 }
 
 /// One frame's results.
@@ -237,7 +241,7 @@ impl Character {
             let mut layers = Vec::with_capacity(rig.layers.len());
             for layer in &rig.layers {
                 let frame = Affine3A::from_mat4((layer.local_to_world(r, t)?.inverse() * proxy_l2w).as_mat4());
-                layers.push((frame, layer.opacity_at(r, t)?));
+                layers.push((frame, layer.opacity_at(r, t)?, layer.max_width_at(t)));
             }
             rigs.push(RigFrame {
                 posed,
@@ -316,7 +320,7 @@ impl Model {
         let mut proxies = Vec::with_capacity(self.rigs.len());
         for (rig, rf) in self.rigs.iter().zip(input.rigs) {
             let motions = to_f32(&rig.skin.vertex_motions(&rf.posed));
-            for (layer, (frame, opacity)) in rig.layers.iter().zip(rf.layers) {
+            for (layer, (frame, opacity, max_width)) in rig.layers.iter().zip(rf.layers) {
                 let rest = &layer.rest_points;
                 let (keyed, keyed_opacity) = keyed_state(&layer.keys, rest, &rf.axis_values, t);
                 let mut points = vec![Vec3::ZERO; rest.len()];
@@ -337,6 +341,7 @@ impl Model {
                 layers.push(LayerFrame {
                     points,
                     opacity: layer.display_opacity.iter().map(|d| d * o).collect(),
+                    max_width,
                 });
             }
             proxies.push(with_proxies.then(|| rf.posed.iter().map(|p| p.as_vec3()).collect()));
