@@ -148,3 +148,37 @@ def test_non_finite_width_is_an_error(painterly, tmp_path):
     assert proc.returncode == 1, proc.stderr
     assert f"{rig.layers[0]}.widths" in proc.stderr and "width 3 is not finite" in proc.stderr, proc.stderr
     assert not out.exists()
+
+
+@pytest.mark.parametrize("name", ["tube", "walk", "wave", "apple", "building", "static", "fig4"])
+def test_fixture_extents_match_usd_core(painterly, tmp_path, repo_root, name):
+    """Every extent sample of a --bake-proxy bake of each committed fixture
+    (stroke layers, proxies, view-dependent meshes, whatever it holds)."""
+    src = repo_root / "fixtures" / f"{name}.usda"
+    out = tmp_path / f"{name}_bake.usdc"
+    painterly("bake", src, "-o", out, "--bake-proxy", "--quiet")
+    layer = Sdf.Layer.FindOrOpen(str(out))
+    prims = []
+    layer.Traverse(Sdf.Path.absoluteRootPath,
+                   lambda p: prims.append(str(p.GetPrimPath())) if p.IsPropertyPath() and p.name == "extent" else None)
+    assert prims, f"{name}: the bake wrote no extent"
+    assert_usd_core_extents(src, out, sorted(set(prims)))  # every sample of every prim
+
+
+def test_point_cache_view_mesh_extents_match_usd_core(painterly, tmp_path):
+    """A usd-core view-dependent mesh whose base is a point cache (only time
+    samples): its baked extent follows the blended points at every frame."""
+    import reference_view as RV
+    from test_view_dependent import OCTAHEDRON, point_cache, sampled_base
+
+    rest = RV.f32(RV.ball_mesh()[0])
+    frames = list(range(1, 13))
+    cache = point_cache(rest, frames)
+    rng = np.random.default_rng(3)
+    keys = [(d, sampled_base(cache, t) + RV.smooth_offsets(rest, rng, 0.3), t, None)
+            for d in OCTAHEDRON for t in (3.0, 9.0)]
+    vs = RV.build_view_stage(tmp_path / "v.usda", keys=keys, eyes=RV.orbit_eyes(12, wobble=0.5),
+                             sampled=cache, default_points=False)
+    out = tmp_path / "bake.usdc"
+    painterly("bake", vs.path, "-o", out, "--quiet")
+    assert assert_usd_core_extents(vs.path, out, [vs.mesh]) == len(frames)
