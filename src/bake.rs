@@ -114,7 +114,37 @@ pub fn resolve_frames(r: &StageReader, frames: Option<FrameRange>) -> Result<Vec
 
 /// Bakes `input` into `output`. A stage with nothing to bake is an error.
 pub fn bake(input: &Path, output: &Path, opts: &BakeOptions, progress: Progress) -> Result<BakeSummary> {
+    bake_with(input, output, opts, progress, || StageReader::open(input))
+}
+
+/// Like [`bake`], for the stage `open` returns (a layer handed over in
+/// memory, see [`crate::usd_io::memory`]); `input` is the path it stands for.
+pub fn bake_with(
+    input: &Path,
+    output: &Path,
+    opts: &BakeOptions,
+    progress: Progress,
+    open: impl FnOnce() -> Result<StageReader>,
+) -> Result<BakeSummary> {
     let started = Instant::now();
+    let character = open_for_bake_with(input, output, opts, open)?;
+    bake_character(&character, output, opts, progress, started).map_err(|e| e.in_file(input))
+}
+
+/// Every check [`bake`] makes before it bakes a frame (options, output
+/// path, the character, something to bake), and the opened character; a
+/// farm submission makes them too, before it queues any task.
+pub fn open_for_bake(input: &Path, output: &Path, opts: &BakeOptions) -> Result<Character> {
+    open_for_bake_with(input, output, opts, || StageReader::open(input))
+}
+
+/// [`open_for_bake`] for the stage `open` returns.
+fn open_for_bake_with(
+    input: &Path,
+    output: &Path,
+    opts: &BakeOptions,
+    open: impl FnOnce() -> Result<StageReader>,
+) -> Result<Character> {
     if opts.chunk.is_some() && Format::from_path(output)? != Format::Usda {
         return Err(Error::msg("with --chunk the output is the clip-set layer: name it .usda").in_file(output));
     }
@@ -122,14 +152,15 @@ pub fn bake(input: &Path, output: &Path, opts: &BakeOptions, progress: Progress)
         return Err(Error::msg("--chunk-index and --assemble need --chunk N"));
     }
     check_output(input, output)?;
-    let character = Character::open(input, opts.camera.as_deref())?;
+    let mut character = Character::from_reader(open()?, opts.camera.as_deref()).map_err(|e| e.in_file(input))?;
+    character.proxy_normals = opts.bake_proxy;
     if is_empty(&character.model, opts) {
         return Err(Error::msg(
             "nothing to bake: no stroke layer (PainterlyStrokeLayerAPI under a prim with PainterlyRigAPI) and no view-dependent mesh (PainterlyViewDependentAPI)",
         )
         .in_file(input));
     }
-    bake_character(&character, output, opts, progress, started).map_err(|e| e.in_file(input))
+    Ok(character)
 }
 
 /// Like [`bake`], but a stage with nothing to bake writes nothing and
@@ -137,7 +168,8 @@ pub fn bake(input: &Path, output: &Path, opts: &BakeOptions, progress: Progress)
 pub fn bake_if_any(input: &Path, output: &Path, opts: &BakeOptions) -> Result<Option<BakeSummary>> {
     let started = Instant::now();
     check_output(input, output)?;
-    let character = Character::open(input, opts.camera.as_deref())?;
+    let mut character = Character::open(input, opts.camera.as_deref())?;
+    character.proxy_normals = opts.bake_proxy;
     if is_empty(&character.model, opts) {
         return Ok(None);
     }
@@ -283,6 +315,9 @@ fn layout_attrs(model: &Model, bake_proxy: bool) -> Vec<BakeAttr> {
         for rig in baked_proxies(model) {
             attrs.push(attr(&rig.proxy_path, "points", SampleKind::Points, None));
             attrs.push(attr(&rig.proxy_path, "extent", SampleKind::Extent, None));
+            if rig.proxy_normals {
+                attrs.push(attr(&rig.proxy_path, "normals", SampleKind::Normals, None));
+            }
         }
     }
     for v in &model.views {
@@ -334,11 +369,15 @@ fn frame_samples(out: FrameOutput, baked_proxy: &[bool]) -> Vec<Sample> {
         s.push(e);
         s.push(Sample::Floats(l.opacity));
     }
-    for (p, _) in out.proxies.into_iter().zip(baked_proxy).filter(|(_, &keep)| keep) {
+    let proxies = out.proxies.into_iter().zip(out.proxy_normals);
+    for ((p, n), _) in proxies.zip(baked_proxy).filter(|(_, &keep)| keep) {
         let Some(p) = p else { continue };
         let e = extent(&p);
         s.push(Sample::Vec3s(p));
         s.push(e);
+        if let Some(n) = n {
+            s.push(Sample::Vec3s(n));
+        }
     }
     for v in out.views {
         let e = extent(&v);

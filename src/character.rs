@@ -46,6 +46,9 @@ pub struct RigModel {
     pub proxy_path: String,
     /// Whether the proxy is skinned (a bake that writes it blocks `skel:skeleton`).
     pub proxy_skinned: bool,
+    /// Whether the proxy has authored normals UsdSkel rewrites (a bake that
+    /// writes the proxy writes them too).
+    pub proxy_normals: bool,
     pub skin: SkinningRest,
     pub layers: Vec<LayerModel>,
     /// Axis prim paths, in the order of [`RigFrame::axis_values`].
@@ -78,6 +81,9 @@ pub struct Character {
     pub model: Model,
     /// The camera for `viewDirection` axes without a source (`--camera`).
     pub camera: Option<String>,
+    /// Read the deformed normals of proxies that have them with each frame
+    /// (what `--bake-proxy` writes); off by default.
+    pub proxy_normals: bool,
     /// Stage side of each rig: proxy, layer prims and axes. Its layers'
     /// rest points, keys and bindings have moved into `model`.
     rigs: Vec<Rig>,
@@ -98,6 +104,9 @@ pub type Configuration = std::collections::BTreeMap<String, f64>;
 pub struct RigFrame {
     /// Posed proxy points, proxy-local.
     pub posed: Vec<DVec3>,
+    /// The proxy's deformed normals, proxy-local, when read
+    /// ([`Character::proxy_normals`]) and it has some.
+    pub normals: Option<Vec<Vec3>>,
     /// Every axis of the rig (indices as `Rig::axes`); 0 for axes no keyed
     /// layer needs, unless read with [`Character::configuration`].
     pub axis_values: Vec<f64>,
@@ -139,6 +148,8 @@ pub struct FrameOutput {
     pub layers: Vec<LayerFrame>,
     /// Per rig: the posed proxy points (mesh-local), when asked for.
     pub proxies: Vec<Option<Vec<Vec3>>>,
+    /// Per rig: the proxy's deformed normals, when asked for and read.
+    pub proxy_normals: Vec<Option<Vec<Vec3>>>,
     /// Per view-dependent mesh: its points.
     pub views: Vec<Vec<Vec3>>,
 }
@@ -207,6 +218,7 @@ impl Character {
                 views: view_models,
             },
             camera: camera.map(str::to_string),
+            proxy_normals: false,
             rigs,
             views,
         })
@@ -214,16 +226,30 @@ impl Character {
 
     /// Reads what frame `t` needs (serial: the stage is single-threaded).
     pub fn read_frame(&self, t: f64) -> Result<FrameInput> {
-        self.read_frame_axes(t, false)
+        self.read_frame_axes(t, false, None)
     }
 
     /// Like [`Character::read_frame`], but measures every axis, not only
     /// those a keyed layer needs (for reports and what-if overrides).
     pub fn read_frame_all_axes(&self, t: f64) -> Result<FrameInput> {
-        self.read_frame_axes(t, true)
+        self.read_frame_axes(t, true, None)
     }
 
-    fn read_frame_axes(&self, t: f64, all_axes: bool) -> Result<FrameInput> {
+    /// Reads frame `t` as seen from a world-space `eye` instead of the
+    /// cameras: every viewDirection axis (even one with its own `source`)
+    /// and every view-dependent mesh is measured from `eye` (a live
+    /// preview's orbit camera; `None` keeps the cameras). Measures every
+    /// axis, then applies `overrides` as [`Character::read_frame_with`] does.
+    pub fn read_frame_seen_from(&self, t: f64, overrides: &Configuration, eye: Option<DVec3>) -> Result<FrameInput> {
+        if let Some(e) = eye.filter(|e| !e.is_finite()) {
+            return Err(Error::msg(format!("eye position {e} is not finite")));
+        }
+        let mut input = self.read_frame_axes(t, true, eye)?;
+        self.apply_overrides(&mut input, overrides)?;
+        Ok(input)
+    }
+
+    fn read_frame_axes(&self, t: f64, all_axes: bool, eye: Option<DVec3>) -> Result<FrameInput> {
         let r = &self.reader;
         let mut rigs = Vec::with_capacity(self.rigs.len());
         for (rig, model) in self.rigs.iter().zip(&self.model.rigs) {
@@ -237,7 +263,14 @@ impl Character {
             } else {
                 &model.needed_axes
             };
-            let axis_values = eval_axes(r, rig, axes, t, proxy_l2w, &posed, self.camera.as_deref())?;
+            let frame = AxisFrame {
+                time: t,
+                proxy_to_world: proxy_l2w,
+                proxy_centre: DVec3::ZERO,
+                camera: self.camera.as_deref(),
+                eye,
+            };
+            let axis_values = measure_axes(r, rig, axes, &posed, frame)?;
             let mut layers = Vec::with_capacity(rig.layers.len());
             for layer in &rig.layers {
                 let frame = Affine3A::from_mat4((layer.local_to_world(r, t)?.inverse() * proxy_l2w).as_mat4());
@@ -245,6 +278,11 @@ impl Character {
             }
             rigs.push(RigFrame {
                 posed,
+                normals: if self.proxy_normals {
+                    proxy.posed_normals(r, t)?
+                } else {
+                    None
+                },
                 axis_values,
                 layers,
             });
@@ -252,7 +290,10 @@ impl Character {
         let mut views = Vec::with_capacity(self.views.len());
         for (base, camera) in &self.views {
             let points = base.mesh.posed_points_f32(r, t)?;
-            let cam_world = r.local_to_world(camera, t)?.transform_point3(DVec3::ZERO);
+            let cam_world = match eye {
+                Some(e) => e,
+                None => r.local_to_world(camera, t)?.transform_point3(DVec3::ZERO),
+            };
             let camera_local = base.mesh.local_to_world(r, t)?.inverse().transform_point3(cam_world);
             views.push(ViewFrame {
                 base: points,
@@ -286,6 +327,11 @@ impl Character {
     /// axis of some rig.
     pub fn read_frame_with(&self, t: f64, overrides: &Configuration) -> Result<FrameInput> {
         let mut input = self.read_frame(t)?;
+        self.apply_overrides(&mut input, overrides)?;
+        Ok(input)
+    }
+
+    fn apply_overrides(&self, input: &mut FrameInput, overrides: &Configuration) -> Result<()> {
         for (path, &value) in overrides {
             if !value.is_finite() {
                 return Err(Error::prim(path, format!("axis value {value} is not finite")));
@@ -301,7 +347,26 @@ impl Character {
                 return Err(Error::prim(path, "is not an axis of any rig in this character"));
             }
         }
-        Ok(input)
+        Ok(())
+    }
+
+    /// Every axis prim path of every rig, each once, in rig then axis order
+    /// (the keys of [`Character::configuration`]).
+    pub fn axes(&self) -> Vec<String> {
+        let mut out: Vec<String> = Vec::new();
+        for a in self.model.rigs.iter().flat_map(|r| &r.axes) {
+            if !out.contains(a) {
+                out.push(a.clone());
+            }
+        }
+        out
+    }
+
+    /// Evaluates frame `t` with axis values overridden (a what-if pose, see
+    /// [`Character::read_frame_with`]); with no overrides, exactly
+    /// [`Character::evaluate`].
+    pub fn evaluate_with(&self, t: f64, overrides: &Configuration, with_proxies: bool) -> Result<FrameOutput> {
+        self.model.evaluate(self.read_frame_with(t, overrides)?, with_proxies)
     }
 }
 
@@ -318,6 +383,7 @@ impl Model {
         let t = input.time;
         let mut layers = Vec::with_capacity(self.num_layers());
         let mut proxies = Vec::with_capacity(self.rigs.len());
+        let mut proxy_normals = Vec::with_capacity(self.rigs.len());
         for (rig, rf) in self.rigs.iter().zip(input.rigs) {
             let motions = to_f32(&rig.skin.vertex_motions(&rf.posed));
             for (layer, (frame, opacity, max_width)) in rig.layers.iter().zip(rf.layers) {
@@ -345,6 +411,7 @@ impl Model {
                 });
             }
             proxies.push(with_proxies.then(|| rf.posed.iter().map(|p| p.as_vec3()).collect()));
+            proxy_normals.push(rf.normals.filter(|_| with_proxies));
         }
         let mut views = Vec::with_capacity(self.views.len());
         for (view, vf) in self.views.iter().zip(input.views) {
@@ -361,6 +428,7 @@ impl Model {
             time: t,
             layers,
             proxies,
+            proxy_normals,
             views,
         })
     }
@@ -404,6 +472,7 @@ impl RigModel {
             path: rig.path.clone(),
             proxy_path: rig.proxy.path.clone(),
             proxy_skinned: rig.proxy.is_skinned(),
+            proxy_normals: rig.proxy.has_deformed_normals(),
             skin,
             layers,
             axes: rig.axes.iter().map(|a| a.path.clone()).collect(),
@@ -440,16 +509,33 @@ pub fn eval_axes(
     posed: &[DVec3],
     camera: Option<&str>,
 ) -> Result<Vec<f64>> {
+    let frame = AxisFrame {
+        time: t,
+        proxy_to_world,
+        proxy_centre: DVec3::ZERO,
+        camera,
+        eye: None,
+    };
+    measure_axes(r, rig, needed, posed, frame)
+}
+
+/// Values of the rig's axes listed in `needed` (0 for the others),
+/// measured against `frame`, whose `proxy_centre` is set from `posed`.
+pub fn measure_axes(
+    r: &StageReader,
+    rig: &Rig,
+    needed: &[usize],
+    posed: &[DVec3],
+    frame: AxisFrame,
+) -> Result<Vec<f64>> {
     let mut values = vec![0.0; rig.axes.len()];
     if needed.is_empty() {
         return Ok(values);
     }
     let [lo, hi] = bounds_f64(posed).unwrap_or([DVec3::ZERO; 2]);
     let frame = AxisFrame {
-        time: t,
-        proxy_to_world,
         proxy_centre: (lo + hi) * 0.5,
-        camera,
+        ..frame
     };
     for &a in needed {
         values[a] = rig.axes[a].value(r, &frame)?;
@@ -549,5 +635,121 @@ pub fn key_weights(k: &LayerKeys, axis_values: &[f64], t: f64) -> KeyWeights {
                 (n, w)
             })
             .collect(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::usd_io::memory::open_bytes;
+
+    /// A static quad proxy, one stroke keyed to a knob animated 0 → 1 over
+    /// frames 1..11: pose keys at knob 0 ("low") and knob 1 ("high").
+    const KNOB: &str = r#"#usda 1.0
+(
+    startTimeCode = 1
+    endTimeCode = 11
+)
+def Xform "World" {
+    def Scope "Controls" {
+        double knob.timeSamples = { 1: 0, 11: 1 }
+    }
+    def Mesh "Proxy" {
+        int[] faceVertexCounts = [4]
+        int[] faceVertexIndices = [0, 1, 2, 3]
+        point3f[] points = [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)]
+    }
+    def Xform "Paint" (prepend apiSchemas = ["PainterlyRigAPI"]) {
+        rel painterly:proxy = </World/Proxy>
+        def PainterlyAxis "knob" {
+            uniform token kind = "attribute"
+            rel source = </World/Controls.knob>
+        }
+        def BasisCurves "Hair" (prepend apiSchemas = ["PainterlyStrokeLayerAPI"]) {
+            int[] curveVertexCounts = [3]
+            point3f[] points = [(0.25, 0.25, 0), (0.5, 0.5, 0), (0.75, 0.5, 0)]
+            def PainterlyPoseKey "low" {
+                float[] coordinates = [0]
+                point3f[] points = [(0.25, 0.25, 0), (0.5, 0.5, 0), (0.75, 0.5, 0)]
+            }
+            def PainterlyPoseKey "high" {
+                float[] coordinates = [1]
+                point3f[] points = [(0.25, 0.75, 0), (0.5, 0.75, 0.5), (0.75, 0.75, 0)]
+            }
+        }
+    }
+}
+"#;
+
+    fn cfg(pairs: &[(&str, f64)]) -> Configuration {
+        pairs.iter().map(|&(a, v)| (a.to_string(), v)).collect()
+    }
+
+    fn knob() -> Character {
+        let path = std::env::temp_dir().join("painterly_configuration_test.usda");
+        let r = open_bytes(KNOB.as_bytes().to_vec(), &path).unwrap();
+        Character::from_reader(r, None).unwrap()
+    }
+
+    fn close(a: &[Vec3], b: &[[f32; 3]]) -> bool {
+        a.len() == b.len()
+            && a.iter()
+                .zip(b)
+                .all(|(p, q)| (*p - Vec3::from(*q)).abs().max_element() < 1e-6)
+    }
+
+    const LOW: [[f32; 3]; 3] = [[0.25, 0.25, 0.0], [0.5, 0.5, 0.0], [0.75, 0.5, 0.0]];
+    const HIGH: [[f32; 3]; 3] = [[0.25, 0.75, 0.0], [0.5, 0.75, 0.5], [0.75, 0.75, 0.0]];
+
+    #[test]
+    fn configuration_reads_every_axis_from_the_stage() {
+        let ch = knob();
+        assert_eq!(ch.axes(), ["/World/Paint/knob"]);
+        // USD's linear interpolation of the knob's samples: (6 - 1) / 10.
+        assert_eq!(ch.configuration(6.0).unwrap(), cfg(&[("/World/Paint/knob", 0.5)]));
+        assert_eq!(ch.configuration(11.0).unwrap().get("/World/Paint/knob"), Some(&1.0));
+    }
+
+    #[test]
+    fn overrides_replace_the_stage_value_and_nothing_else() {
+        let ch = knob();
+        // Without overrides: the same bits as a bake's evaluation.
+        let plain = ch.evaluate(6.0, false).unwrap();
+        let same = ch.evaluate_with(6.0, &Configuration::new(), false).unwrap();
+        assert_eq!(plain.layers[0].points, same.layers[0].points);
+        // The stage's own value as an override changes nothing.
+        let echo = ch.evaluate_with(6.0, &ch.configuration(6.0).unwrap(), false).unwrap();
+        assert_eq!(plain.layers[0].points, echo.layers[0].points);
+        // At frame 1 the knob is 0 (the "low" key); overridden to 1 the
+        // stroke takes the "high" key's shape (smooth Voronoi interpolates
+        // its keys; the static proxy does not move it), and back.
+        assert!(close(&ch.evaluate(1.0, false).unwrap().layers[0].points, &LOW));
+        let high = cfg(&[("/World/Paint/knob", 1.0)]);
+        assert!(close(
+            &ch.evaluate_with(1.0, &high, false).unwrap().layers[0].points,
+            &HIGH
+        ));
+        let low = cfg(&[("/World/Paint/knob", 0.0)]);
+        assert!(close(
+            &ch.evaluate_with(11.0, &low, false).unwrap().layers[0].points,
+            &LOW
+        ));
+        assert!(close(&ch.evaluate(11.0, false).unwrap().layers[0].points, &HIGH));
+    }
+
+    #[test]
+    fn overrides_of_unknown_axes_or_non_finite_values_are_errors() {
+        let ch = knob();
+        let e = ch
+            .evaluate_with(1.0, &cfg(&[("/World/Paint/nope", 1.0)]), false)
+            .err()
+            .unwrap();
+        assert_eq!(e.prim.as_deref(), Some("/World/Paint/nope"));
+        assert!(e.message.contains("not an axis"), "{e}");
+        let e = ch
+            .evaluate_with(1.0, &cfg(&[("/World/Paint/knob", f64::NAN)]), false)
+            .err()
+            .unwrap();
+        assert!(e.message.contains("not finite"), "{e}");
     }
 }

@@ -201,6 +201,20 @@ pub enum Command {
     ///
     /// Example: painterly render shot.usda --camera /World/Cam --frames 1:48 -o out/shot.####.exr --png --sheet
     Render(crate::render::RenderArgs),
+    /// Live preview in the browser: drag the configuration, scrub the
+    /// timeline, orbit the camera and see the paint move.
+    ///
+    /// Serves one page (plain WebGL2, embedded in the binary, no network
+    /// needed) on 127.0.0.1 and prints its URL. Every frame the page shows is
+    /// evaluated on demand by the same code as bake (one frame, nothing
+    /// written): the timeline plays and scrubs, one slider per axis pins that
+    /// axis to a value (pose mode) and shows its keys and their weights,
+    /// "view drives" makes the orbit camera the eye of viewDirection axes and
+    /// view-dependent meshes, and "render" shows `painterly render`'s frame of
+    /// the current view. The input is never written.
+    ///
+    /// Example: painterly preview fixtures/blowfish.usda --port 0
+    Preview(crate::preview::PreviewArgs),
     /// Write a layer that shows a bake over its input in usdview.
     ///
     /// The layer sublayers BAKE over INPUT (relative paths when possible) and
@@ -226,6 +240,17 @@ pub enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Bake a sequence on a farm: a task per chunk, then a dependent assembly.
+    ///
+    /// The same chunks as `bake --chunk N`, one scheduler task each
+    /// (`bake --chunk N --chunk-index K`), and a task that runs after all of
+    /// them (`bake --chunk N --assemble`). Slurm jobs are submitted with
+    /// sbatch; Open Job Description templates are written for `openjd run`
+    /// or a farm that takes them. `farm status` tells where a bake is.
+    ///
+    /// Example: painterly farm submit shot.usda -o bake/shot.usda --chunk 24 --scheduler slurm
+    #[command(subcommand)]
+    Farm(crate::farm::FarmCommand),
     /// Interpolation weights for keys and query points, JSON on stdin.
     ///
     /// Input: {"method": "smoothVoronoi"|"rbf"|"shepard", "radius": 1.0,
@@ -305,7 +330,7 @@ pub enum FalloffArg {
 }
 
 /// A count of at least 1 (a usage error otherwise).
-fn positive_count(s: &str) -> Result<usize, String> {
+pub(crate) fn positive_count(s: &str) -> Result<usize, String> {
     match s.parse::<usize>() {
         Ok(n) if n >= 1 => Ok(n),
         _ => Err(format!("{s:?} is not a whole number of at least 1")),
@@ -551,6 +576,10 @@ pub fn run(cli: Cli) -> i32 {
             }
             Err(e) => report(&e),
         },
+        Command::Preview(args) => match crate::preview::run(&args) {
+            Ok(()) => 0,
+            Err(e) => report(&e),
+        },
         Command::View {
             input,
             bake,
@@ -581,6 +610,7 @@ pub fn run(cli: Cli) -> i32 {
             }
             Err(e) => report(&e),
         },
+        Command::Farm(cmd) => crate::farm::run(cmd),
         Command::Interpolate => {
             let mut input = String::new();
             if let Err(e) = std::io::Read::read_to_string(&mut std::io::stdin(), &mut input) {

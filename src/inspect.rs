@@ -11,6 +11,7 @@ use std::path::{Path, PathBuf};
 use serde::Serialize;
 
 use crate::error::{Error, Result};
+use crate::rule::Rule;
 use crate::usd_io::clips::{clip_set_status, ChunkState};
 use crate::usd_io::scene::{ProxyMotion, Scene};
 use crate::usd_io::stage::StageReader;
@@ -59,6 +60,9 @@ pub struct RigReport {
     pub skeleton: Option<String>,
     pub animation_source: Option<String>,
     pub layers: Vec<LayerReport>,
+    /// How usd-core's UsdSkel rules treat this proxy where that may surprise
+    /// (e.g. a blend shape without offsets moves no point); not problems.
+    pub notes: Vec<String>,
 }
 
 /// One row of Bassett's Table I.
@@ -105,11 +109,16 @@ pub struct Problem {
     pub prim: Option<String>,
     pub attribute: Option<String>,
     pub message: String,
+    /// The rule it breaks ([`Rule::id`]); the Python package's validator
+    /// for that rule reports it.
+    pub rule: Rule,
 }
 
-impl From<Error> for Problem {
-    fn from(e: Error) -> Self {
+impl Problem {
+    /// A problem from an error, under `rule` unless the error names a more specific one.
+    fn new(e: Error, rule: Rule) -> Self {
         Problem {
+            rule: e.rule.unwrap_or(rule),
             prim: e.prim,
             attribute: e.attribute,
             message: e.message,
@@ -117,8 +126,10 @@ impl From<Error> for Problem {
     }
 }
 
-/// Counts the key prims under a layer: (position keys, opacity keys, time keys, sentinels).
-fn count_keys(r: &StageReader, layer: &str) -> Result<(usize, usize, usize, usize)> {
+/// Counts the key prims under a layer: (position keys, opacity keys, time
+/// keys, sentinels). A sentinel carrying points or opacity is a problem:
+/// sentinels carry no data, so what was authored there is ignored.
+fn count_keys(r: &StageReader, layer: &str, problems: &mut Vec<Problem>) -> Result<(usize, usize, usize, usize)> {
     let prim = r.require_prim(layer)?;
     let (mut pos, mut opa, mut time, mut sent) = (0, 0, 0, 0);
     let children = prim
@@ -137,6 +148,16 @@ fn count_keys(r: &StageReader, layer: &str) -> Result<(usize, usize, usize, usiz
                     != 0.0;
                 if s {
                     sent += 1;
+                    for attr in ["points", "opacity"] {
+                        if r.has_authored(&c, attr)? {
+                            let e = Error::attr(
+                                c.path(),
+                                attr,
+                                format!("a sentinel carries no {attr}: it would be ignored (set `sentinel = 0` for a time key)"),
+                            );
+                            problems.push(Problem::new(e, Rule::SentinelMisuse));
+                        }
+                    }
                 } else {
                     time += 1;
                 }
@@ -149,22 +170,31 @@ fn count_keys(r: &StageReader, layer: &str) -> Result<(usize, usize, usize, usiz
 
 /// Builds the report. Fails only when the file cannot be opened at all.
 pub fn inspect(path: &Path) -> Result<Report> {
-    let r = StageReader::open(path)?;
-    let (scene, problems) = Scene::read_lenient(&r).map_err(|e| e.in_file(path))?;
-    let mut problems: Vec<Problem> = problems.into_iter().map(Problem::from).collect();
+    inspect_stage(&StageReader::open(path)?)
+}
+
+/// Builds the report of an opened stage (a file, or a layer handed over in
+/// memory, see [`crate::usd_io::memory`]).
+pub fn inspect_stage(r: &StageReader) -> Result<Report> {
+    let path = r.file.as_path();
+    let (scene, problems) = Scene::read_lenient(r).map_err(|e| e.in_file(path))?;
+    let mut problems: Vec<Problem> = problems
+        .into_iter()
+        .map(|e| Problem::new(e, Rule::Unreadable))
+        .collect();
     let meta = r.metadata();
     let mut rigs = Vec::new();
     for rig in &scene.rigs {
-        let (skeleton, animation_source) = match &rig.proxy.motion {
-            ProxyMotion::Skel(s) => (Some(s.skeleton.clone()), s.animation.clone()),
-            _ => (None, None),
+        let (skeleton, animation_source, notes) = match &rig.proxy.motion {
+            ProxyMotion::Skel(s) => (Some(s.skeleton.clone()), s.animation.clone(), s.notes.clone()),
+            _ => (None, None, Vec::new()),
         };
         let mut layers = Vec::new();
         for l in &rig.layers {
-            let (pos, opa, time, sent) = match count_keys(&r, &l.path) {
+            let (pos, opa, time, sent) = match count_keys(r, &l.path, &mut problems) {
                 Ok(c) => c,
                 Err(e) => {
-                    problems.push(e.into());
+                    problems.push(Problem::new(e, Rule::Unreadable));
                     (0, 0, 0, 0)
                 }
             };
@@ -193,6 +223,7 @@ pub fn inspect(path: &Path) -> Result<Report> {
             skeleton,
             animation_source,
             layers,
+            notes,
         });
     }
     let mut axes = Vec::new();
@@ -211,8 +242,8 @@ pub fn inspect(path: &Path) -> Result<Report> {
             });
         }
     }
-    let (meshes, view_problems) = read_view_meshes_lenient(&r, &r.prim_paths()?).map_err(|e| e.in_file(path))?;
-    problems.extend(view_problems.into_iter().map(Problem::from));
+    let (meshes, view_problems) = read_view_meshes_lenient(r, &r.prim_paths()?).map_err(|e| e.in_file(path))?;
+    problems.extend(view_problems.into_iter().map(|e| Problem::new(e, Rule::Unreadable)));
     for m in meshes {
         view_meshes.push(ViewMeshReport {
             path: m.path.clone(),
@@ -267,6 +298,7 @@ fn clip_set_report(path: &Path, problems: &mut Vec<Problem>) -> Result<Option<Cl
                 problems.push(Problem {
                     prim: None,
                     attribute: None,
+                    rule: Rule::Chunks,
                     message: format!(
                         "chunk {} is {state}{}",
                         chunk.display(),
@@ -319,6 +351,9 @@ impl Report {
                     sk,
                     rig.animation_source.as_deref().unwrap_or("(none: rest pose)")
                 );
+            }
+            for n in &rig.notes {
+                let _ = writeln!(s, "  note: {n}");
             }
             let _ = writeln!(
                 s,
@@ -387,10 +422,9 @@ impl Report {
             let _ = writeln!(s, "{} problem(s):", self.problems.len());
             for p in &self.problems {
                 let e = Error {
-                    file: None,
                     prim: p.prim.clone(),
                     attribute: p.attribute.clone(),
-                    message: p.message.clone(),
+                    ..Error::msg(p.message.clone())
                 };
                 let _ = writeln!(s, "  {e}");
             }

@@ -20,8 +20,11 @@
 //! | [`character`] | a character resolved for evaluation: rest data once, frames on demand |
 //! | [`bake`] | the `bake` command: frames streamed through reader → evaluator → writer |
 //! | [`inspect`] | the `inspect` command |
+//! | [`farm`] | the `farm` command: chunked bakes as scheduler jobs (Slurm, Open Job Description) |
+//! | [`rule`] | the schema rules `inspect` checks, with stable ids |
 //! | [`interp`] | configuration-space interpolation (smooth Voronoi, RBF, Shepard) |
 //! | [`render`] | the `render` command: preview EXR/PNG frames and contact sheets |
+//! | [`preview`] | the `preview` command: a live view in the browser (loopback server, WebGL2 page) |
 
 pub mod author;
 pub mod bake;
@@ -30,13 +33,16 @@ pub mod character;
 pub mod cli;
 pub mod error;
 pub mod extent;
+pub mod farm;
 pub mod frames;
 pub mod inspect;
 pub mod interp;
 pub mod keys;
 pub mod log;
 pub mod mesh;
+pub mod preview;
 pub mod render;
+pub mod rule;
 pub mod skel_deform;
 pub mod skinning;
 pub mod tools;

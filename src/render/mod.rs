@@ -194,10 +194,10 @@ pub fn sheet_path(pattern: &Path) -> PathBuf {
 }
 
 /// Removes a temporary folder when dropped.
-struct TempDir(PathBuf);
+pub(crate) struct TempDir(pub(crate) PathBuf);
 
 impl TempDir {
-    fn new() -> Result<TempDir> {
+    pub(crate) fn new() -> Result<TempDir> {
         let nanos = std::time::SystemTime::now()
             .duration_since(std::time::UNIX_EPOCH)
             .map(|d| d.as_nanos())
@@ -253,7 +253,7 @@ fn check_args(args: &RenderArgs) -> Result<Vec<f64>> {
 }
 
 /// Writes the root layer that sublayers the bake (if any) over the input.
-fn write_root(dir: &Path, input: &Path, bake_layer: Option<&Path>) -> Result<PathBuf> {
+pub(crate) fn write_root(dir: &Path, input: &Path, bake_layer: Option<&Path>) -> Result<PathBuf> {
     let abs = |p: &Path| -> Result<String> {
         let a = p
             .canonicalize()
@@ -335,7 +335,7 @@ impl RenderSummary {
 /// Checks a `--bake` layer against the render: a bake of another input is
 /// refused; frames outside the baked range are warned about (strokes show
 /// their authored points there).
-fn check_bake(input: &Path, bake: &Path, times: &[f64], warnings: &mut Vec<String>) -> Result<()> {
+pub(crate) fn check_bake(input: &Path, bake: &Path, times: &[f64], warnings: &mut Vec<String>) -> Result<()> {
     let Some(p) = read_provenance(bake)? else {
         warnings.push(format!(
             "{} has no painterly provenance (customLayerData[\"painterly\"]): cannot check it was baked from {}",
@@ -495,6 +495,26 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary> {
         seconds: started.elapsed().as_secs_f64(),
         median_frame_seconds: median,
     })
+}
+
+/// Renders one frame of world-space curves and meshes through a camera
+/// given as numbers into PNG bytes (the preview's "render" button): the same
+/// projection, tessellation, shading and compositing as [`run`], no brush.
+pub fn render_png(
+    cam: &camera::CameraParams,
+    curves: &[curves::CurvesData],
+    meshes: &[prepare::MeshData],
+    size: ImageSize,
+    background: Option<Vec3>,
+) -> Result<Vec<u8>> {
+    cam.validate()
+        .map_err(|e| Error::msg(format!("bad camera ({}): {}", e.attribute, e.message)))?;
+    let proj = camera::Projector::new(cam, size.width, size.height);
+    let scene = prepare::build_scene(&proj, curves, meshes, &prepare::Style::default());
+    let frame = composite::render(&scene, None);
+    let data = image_io::frame_to_srgb8(&frame, background);
+    let channels = if background.is_some() { 3 } else { 4 };
+    image_io::encode_png8(size.width, size.height, channels, &data, false)
 }
 
 #[cfg(test)]

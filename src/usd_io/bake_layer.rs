@@ -6,8 +6,9 @@
 //! arrays in time order. Writers keep only small per-sample bookkeeping, never
 //! the frames themselves, so memory stays flat however long the shot:
 //! `.usda` output spills each sample's text to a scratch file and assembles
-//! the layer at the end; `.usdc` output goes through [`super::layer::OverLayer`].
-//! Either way the output appears only when complete (temporary file, rename).
+//! the layer at the end; `.usdc` output writes each sample into the crate file
+//! as it arrives ([`super::usdc::CrateStream`]) and the specs last. Either way
+//! the output appears only when complete (temporary file, rename).
 
 use std::fmt::Write as _;
 use std::fs::File;
@@ -19,6 +20,7 @@ use openusd::sdf::Value;
 
 use super::layer::{Format, OverLayer};
 use super::stage::StageMetadata;
+use super::usdc::{CrateStream, Stored, ValueHandle};
 use crate::error::{Error, Result};
 
 /// One attribute the bake writes, sampled at every frame.
@@ -40,6 +42,8 @@ pub enum SampleKind {
     Extent,
     /// `float[]`
     Floats,
+    /// `normal3f[]`
+    Normals,
 }
 
 impl SampleKind {
@@ -48,6 +52,7 @@ impl SampleKind {
             SampleKind::Points => "point3f[]",
             SampleKind::Extent => "float3[]",
             SampleKind::Floats => "float[]",
+            SampleKind::Normals => "normal3f[]",
         }
     }
 }
@@ -222,7 +227,7 @@ pub trait FrameSink: Send {
 pub fn create(path: &Path, layout: BakeLayout) -> Result<Box<dyn FrameSink>> {
     Ok(match Format::from_path(path)? {
         Format::Usda => Box::new(UsdaSink::new(path, layout)?),
-        Format::Usdc => Box::new(MemorySink::new(path, layout)),
+        Format::Usdc => Box::new(UsdcSink::new(path, layout)?),
     })
 }
 
@@ -231,7 +236,10 @@ pub const DOC: &str = "Baked by painterly: over specs only; sublayer above the i
 fn check_sample(attr: &BakeAttr, s: &Sample) -> Result<()> {
     let ok = matches!(
         (attr.kind, s),
-        (SampleKind::Points | SampleKind::Extent, Sample::Vec3s(_)) | (SampleKind::Floats, Sample::Floats(_))
+        (
+            SampleKind::Points | SampleKind::Extent | SampleKind::Normals,
+            Sample::Vec3s(_)
+        ) | (SampleKind::Floats, Sample::Floats(_))
     );
     if ok {
         Ok(())
@@ -240,54 +248,117 @@ fn check_sample(attr: &BakeAttr, s: &Sample) -> Result<()> {
     }
 }
 
-/// Collects every sample and writes the layer at the end.
-struct MemorySink {
+/// Streams `.usdc`: each sample goes into a temporary crate file as it
+/// arrives and only its handle is kept; `finish` adds the specs and tables,
+/// then renames the file into place.
+struct UsdcSink {
     path: PathBuf,
+    tmp: PathBuf,
     layout: BakeLayout,
-    samples: Vec<Vec<(f64, Value)>>,
+    stream: Option<CrateStream<BufWriter<File>>>,
+    /// The frames written so far, shared by every attribute.
+    times: Vec<f64>,
+    /// Per attribute, in declaration order: a stored value per frame.
+    samples: Vec<Vec<ValueHandle>>,
 }
 
-impl MemorySink {
-    fn new(path: &Path, layout: BakeLayout) -> Self {
+impl UsdcSink {
+    fn new(path: &Path, layout: BakeLayout) -> Result<Self> {
+        let dir = match path.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d,
+            _ => Path::new("."),
+        };
+        let name = path
+            .file_name()
+            .ok_or_else(|| Error::msg("output path has no file name").in_file(path))?;
+        let tmp = dir.join(format!(
+            ".{}.painterly-{}.tmp",
+            name.to_string_lossy(),
+            std::process::id()
+        ));
+        let file = File::create(&tmp).map_err(|e| Error::msg(format!("cannot write output: {e}")).in_file(path))?;
         let n = layout.attrs.len();
-        MemorySink {
+        // Owned by the sink from here, so an error below removes the file.
+        let mut sink = UsdcSink {
             path: path.to_path_buf(),
+            tmp,
             layout,
+            stream: None,
+            times: Vec::new(),
             samples: vec![Vec::new(); n],
-        }
+        };
+        sink.stream = Some(CrateStream::new(BufWriter::with_capacity(1 << 20, file)).map_err(|e| e.in_file(path))?);
+        Ok(sink)
     }
 }
 
-impl FrameSink for MemorySink {
+impl Drop for UsdcSink {
+    /// A bake that fails (or is dropped) before `finish` leaves no file.
+    fn drop(&mut self) {
+        let _ = std::fs::remove_file(&self.tmp);
+    }
+}
+
+impl FrameSink for UsdcSink {
     fn write_frame(&mut self, time: f64, samples: Vec<Sample>) -> Result<()> {
+        let stream = self
+            .stream
+            .as_mut()
+            .ok_or_else(|| Error::msg("internal: bake already finished"))?;
         for ((attr, out), s) in self.layout.attrs.iter().zip(&mut self.samples).zip(samples) {
             check_sample(attr, &s)?;
-            out.push((
-                time,
-                match s {
-                    Sample::Vec3s(v) => Value::Vec3fVec(bytemuck::allocation::cast_vec(v)),
-                    Sample::Floats(v) => Value::FloatVec(v),
-                },
-            ));
+            let value = match s {
+                Sample::Vec3s(v) => Value::Vec3fVec(bytemuck::allocation::cast_vec(v)),
+                Sample::Floats(v) => Value::FloatVec(v),
+            };
+            let handle = stream
+                .write_value(&value)
+                .map_err(|e| Error::attr(&attr.prim, attr.name, e.message).in_file(&self.path))?;
+            // Grown by whole blocks, not doubled: these are the only per-frame
+            // memory a long bake keeps.
+            if out.len() == out.capacity() {
+                out.reserve_exact(1024);
+            }
+            out.push(handle);
         }
+        self.times.push(time);
         Ok(())
     }
 
-    fn finish(self: Box<Self>) -> Result<()> {
-        let MemorySink { path, layout, samples } = *self;
-        let mut layer = OverLayer::new(layout.meta);
-        layer.set_provenance(&layout.provenance);
-        for (attr, s) in layout.attrs.iter().zip(samples) {
+    fn finish(mut self: Box<Self>) -> Result<()> {
+        let path = self.path.clone();
+        let mut stream = self
+            .stream
+            .take()
+            .ok_or_else(|| Error::msg("internal: bake already finished"))?;
+        let mut layer = OverLayer::new(self.layout.meta.clone());
+        layer.set_provenance(&self.layout.provenance);
+        let times: std::sync::Arc<[f64]> = std::mem::take(&mut self.times).into();
+        for (attr, values) in self.layout.attrs.iter().zip(std::mem::take(&mut self.samples)) {
+            let s = Stored {
+                times: times.clone(),
+                values,
+            };
             let metadata = match attr.interpolation {
                 Some(i) => vec![("interpolation", Value::Token(i.into()))],
                 None => vec![],
             };
-            layer.set_samples(&attr.prim, attr.name, attr.kind.type_name(), s, metadata);
+            layer.set_stored_samples(&attr.prim, attr.name, attr.kind.type_name(), s, metadata);
         }
-        for prim in &layout.blocked_skeletons {
+        for prim in &self.layout.blocked_skeletons {
             layer.block_relationship(prim, "skel:skeleton");
         }
-        layer.write(&path)
+        layer.write_to_stream(&mut stream).map_err(|e| e.in_file(&path))?;
+        let io = |e: std::io::Error| Error::msg(format!("cannot write output: {e}")).in_file(&path);
+        // No fsync: the rename makes the write atomic for readers and for a
+        // failed bake; durability across power loss is the filesystem's.
+        let file = stream
+            .finish()
+            .map_err(|e| e.in_file(&path))?
+            .into_inner()
+            .map_err(|e| io(e.into_error()))?;
+        drop(file);
+        std::fs::rename(&self.tmp, &path).map_err(io)
     }
 }
 

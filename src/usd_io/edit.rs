@@ -182,18 +182,15 @@ impl EditSession {
     pub fn save(self) -> Result<()> {
         let format = Format::from_path(&self.target)?;
         let root = self.reader.stage.root_layer();
-        let bytes = match format {
-            Format::Usda => openusd::usda::TextWriter::write_to_string(root.data())
-                .map(String::into_bytes)
-                .map_err(|e| Error::msg(format!("cannot serialise edit layer: {e}")))?,
-            Format::Usdc => {
-                let mut buf = std::io::Cursor::new(Vec::new());
-                openusd::usdc::CrateWriter::write(root.data(), &mut buf)
+        match format {
+            Format::Usda => {
+                let bytes = openusd::usda::TextWriter::write_to_string(root.data())
+                    .map(String::into_bytes)
                     .map_err(|e| Error::msg(format!("cannot serialise edit layer: {e}")))?;
-                buf.into_inner()
+                drop(root);
+                write_atomic(&self.target, &bytes)
             }
-        };
-        drop(root);
-        write_atomic(&self.target, &bytes)
+            Format::Usdc => super::usdc::write_layer_file(&self.target, root.data()),
+        }
     }
 }

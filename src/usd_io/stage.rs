@@ -169,6 +169,7 @@ impl StageReader {
                     name,
                     format!("expected {expected}, found {}", values::kind_name(&v)),
                 )
+                .rule(crate::rule::Rule::AttributeType)
             }),
         }
     }
