@@ -793,7 +793,8 @@ mod tests {
         let e = norm([-1.0, -2.0, -2.0]);
         let w = vb.weights(e);
         assert!(w.keys().is_empty());
-        assert!((w.base() - (1.0 + 1.0 / 3.0)).abs() < 1e-12);
+        // SPEC 1.1: 1 − max(0, d), exactly the base (v1's 1 − d gave 4/3).
+        assert_eq!(w.base(), 1.0);
         // Three keys on a great circle, 120° apart: every in-plane
         // direction is covered, the poles are 90° away.
         let third = 2.0 * std::f64::consts::PI / 3.0;
@@ -856,11 +857,12 @@ mod tests {
         blend_offsets(&base, &offsets, &w, &mut out);
         assert_eq!(out[0], Vec3::new(1.25, 2.0, 6.0));
         assert_eq!(out[1], Vec3::new(0.5, 2.0, 2.5));
-        // One key, eye behind it: Rademacher's formula gives (1−d)·base.
+        // One key, eye behind it: SPEC 1.1's (1 − max(0,d))·base is
+        // exactly the base (v1's (1−d)·base doubled it).
         let vb = ViewBlender::new(&[[0.0, 0.0, 1.0]], 1.0, Uncovered::Cosine).unwrap();
         let w = vb.weights([0.0, 0.0, -1.0]);
         blend_offsets(&base, &offsets, &w, &mut out);
-        assert_eq!(out[0], base[0] * 2.0);
+        assert_eq!(out, base);
         // d = 0.6: 0.6·(base + o0) + 0.4·base.
         let w = vb.weights([0.8, 0.0, 0.6]);
         blend_offsets(&base, &offsets, &w, &mut out);
