@@ -17,8 +17,8 @@ use glam::Vec3;
 
 use crate::character::{Character, FrameOutput, Model, RigModel};
 use crate::error::{Error, Result};
+use crate::extent::{curves_extent, point_based_extent};
 use crate::frames::FrameRange;
-use crate::mesh::bounds;
 use crate::usd_io::bake_layer::{self, BakeAttr, BakeLayout, FrameSink, Provenance, Sample, SampleKind};
 use crate::usd_io::clips::{self, ChunkedSink, ClipPlan};
 use crate::usd_io::layer::Format;
@@ -364,10 +364,10 @@ fn blocked_skeletons(model: &Model, bake_proxy: bool) -> Vec<String> {
 /// One frame's samples in [`layout_attrs`] order (extents computed here, on
 /// the worker thread).
 fn frame_samples(out: FrameOutput, baked_proxy: &[bool]) -> Vec<Sample> {
-    let extent = |p: &[Vec3]| Sample::Vec3s(bounds(p).unwrap_or([Vec3::ZERO; 2]).to_vec());
+    let extent = |p: &[Vec3]| Sample::Vec3s(point_based_extent(p).to_vec());
     let mut s = Vec::with_capacity(3 * out.layers.len() + 2 * (out.proxies.len() + out.views.len()));
     for l in out.layers {
-        let e = extent(&l.points);
+        let e = Sample::Vec3s(curves_extent(&l.points, l.max_width).to_vec());
         s.push(Sample::Vec3s(l.points));
         s.push(e);
         s.push(Sample::Floats(l.opacity));
