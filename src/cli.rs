@@ -484,5 +484,5 @@ pub fn run(cli: Cli) -> i32 {
 
 fn report(e: &Error) -> i32 {
     eprintln!("error: {e}");
-    1
+    e.exit_code()
 }

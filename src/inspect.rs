@@ -312,6 +312,7 @@ impl Report {
                     prim: p.prim.clone(),
                     attribute: p.attribute.clone(),
                     message: p.message.clone(),
+                    usage: false,
                 };
                 let _ = writeln!(s, "  {e}");
             }

@@ -20,6 +20,8 @@ fn main() {
             "error: internal error{at}: {msg} (this is a bug in painterly; please report it with the input file)"
         );
     }));
+    // SIGTERM/SIGINT/SIGHUP remove this run's temporary files, then exit 128+signo.
+    painterly::usd_io::atomic::install_signal_cleanup();
     let cli = painterly::cli::Cli::parse();
     let code = std::panic::catch_unwind(|| painterly::cli::run(cli)).unwrap_or(3);
     std::process::exit(code);

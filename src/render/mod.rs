@@ -41,6 +41,7 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use crate::bake::{bake, BakeOptions};
 use crate::error::{Error, Result};
 use crate::frames::FrameRange;
+use crate::usd_io::atomic::{write_atomic, TempDir};
 use crate::usd_io::render_scene::{layer_timing, RenderScene};
 use crate::usd_io::stage::StageReader;
 
@@ -188,28 +189,6 @@ pub fn sheet_path(pattern: &Path) -> PathBuf {
     pattern.with_file_name(format!("{base}.sheet.png"))
 }
 
-/// Removes a temporary folder when dropped.
-struct TempDir(PathBuf);
-
-impl TempDir {
-    fn new() -> Result<TempDir> {
-        let nanos = std::time::SystemTime::now()
-            .duration_since(std::time::UNIX_EPOCH)
-            .map(|d| d.as_nanos())
-            .unwrap_or(0);
-        let dir = std::env::temp_dir().join(format!("painterly-render-{}-{nanos}", std::process::id()));
-        std::fs::create_dir_all(&dir)
-            .map_err(|e| Error::msg(format!("cannot create a temporary folder: {e}")).in_file(&dir))?;
-        Ok(TempDir(dir))
-    }
-}
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
-
 fn check_args(args: &RenderArgs) -> Result<Vec<f64>> {
     let out = &args.output;
     let ext_ok = out
@@ -217,7 +196,7 @@ fn check_args(args: &RenderArgs) -> Result<Vec<f64>> {
         .is_some_and(|e| e.to_string_lossy().eq_ignore_ascii_case("exr"));
     if !ext_ok {
         return Err(
-            Error::msg("output must be an .exr path (PNG previews are written beside it with --png)").in_file(out),
+            Error::usage("output must be an .exr path (PNG previews are written beside it with --png)").in_file(out),
         );
     }
     let dir = match out.parent() {
@@ -230,7 +209,7 @@ fn check_args(args: &RenderArgs) -> Result<Vec<f64>> {
     let times = args.frames.times();
     let has_hash = out.file_name().is_some_and(|n| n.to_string_lossy().contains('#'));
     if times.len() > 1 && !has_hash {
-        return Err(Error::msg(format!(
+        return Err(Error::usage(format!(
             "{} frames would all write one file: put #### in the output name for the frame number",
             times.len()
         ))
@@ -270,7 +249,7 @@ fn write_root(dir: &Path, input: &Path, bake_layer: &Path) -> Result<PathBuf> {
         abs(input)?
     );
     let root = dir.join("render_root.usda");
-    std::fs::write(&root, text).map_err(|e| Error::msg(format!("cannot write: {e}")).in_file(&root))?;
+    write_atomic(&root, text.as_bytes())?;
     Ok(root)
 }
 
@@ -286,7 +265,7 @@ pub fn run(args: &RenderArgs) -> Result<String> {
     let bake_layer = match &args.bake {
         Some(b) => b.clone(),
         None => {
-            let out = tmp.0.join("bake.usdc");
+            let out = tmp.path().join("bake.usdc");
             let opts = BakeOptions {
                 frames: Some(args.frames),
                 camera: Some(args.camera.clone()),
@@ -296,7 +275,7 @@ pub fn run(args: &RenderArgs) -> Result<String> {
             out
         }
     };
-    let root = write_root(&tmp.0, &args.input, &bake_layer)?;
+    let root = write_root(tmp.path(), &args.input, &bake_layer)?;
     let input = args.input.clone();
     let name_input = |mut e: Error| {
         if e.file.as_deref() == Some(root.as_path()) || e.file.is_none() {

@@ -3,12 +3,16 @@
 //! Data flows one way: [`stage`] and [`scene`] read a composed stage into plain
 //! arrays, the math modules evaluate, and [`layer`] writes an override layer.
 
+pub mod atomic;
 pub mod axes;
 pub mod edit;
+pub mod guard;
 pub mod layer;
 pub mod render_scene;
 pub mod scene;
 pub mod skel;
 pub mod stage;
+pub mod usda_splice;
+pub mod usda_text;
 pub mod values;
 pub mod view_mesh;
