@@ -6,6 +6,10 @@ fn main() {
     // A bug must still end in a clear message and a non-zero exit, not a
     // Rust backtrace in a farm log.
     std::panic::set_hook(Box::new(|info| {
+        // A panic inside openusd while composing is reported as an input error.
+        if painterly::usd_io::compose_watch::is_active() {
+            return;
+        }
         let msg = info
             .payload()
             .downcast_ref::<&str>()

@@ -82,6 +82,7 @@ fn host() -> &'static str {
 pub fn install_signal_cleanup() {
     static ONCE: Once = Once::new();
     ONCE.call_once(|| {
+        super::compose_watch::install_crash_handlers();
         use signal_hook::consts::signal::{SIGHUP, SIGINT, SIGTERM, SIGXFSZ};
         // A handler that only sets a flag: write() then fails with EFBIG.
         static FSIZE: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
@@ -104,6 +105,14 @@ pub fn install_signal_cleanup() {
                 }
             });
     });
+}
+
+/// Removes every registered temporary (before an exit that skips destructors).
+pub fn remove_all_temporaries() {
+    let mut reg = registry();
+    for p in reg.live.drain(..) {
+        remove_any(&p);
+    }
 }
 
 fn remove_any(p: &Path) {

@@ -5,6 +5,7 @@
 
 pub mod atomic;
 pub mod axes;
+pub mod compose_watch;
 pub mod edit;
 pub mod guard;
 pub mod layer;

@@ -11,6 +11,7 @@ use openusd::sdf::Value;
 use openusd::usd::{self, TimeCode};
 use openusd_schemas::geom::XformCache;
 
+use super::compose_watch;
 use super::guard::Guard;
 use super::values;
 use crate::error::{Error, Result};
@@ -112,27 +113,31 @@ impl StageReader {
             .to_str()
             .ok_or_else(|| Error::msg("input path is not valid UTF-8").in_file(path))?;
         // Every layer passes the composition guard (nesting, namespace depth,
-        // inherit cycles) before openusd parses or composes it.
+        // inherit cycles) before openusd parses or composes it, and openusd
+        // runs under watch (panics, crashes, time limit).
         let guard = Guard::default();
         let first_problem = |e: Error| guard.problems().into_iter().next().unwrap_or(e).in_file(path);
-        let stage = usd::Stage::builder()
-            .schema_registry(openusd_schemas::schema_registry())
-            .resolver(guard.resolver())
-            .open(path_str)
-            .map_err(|e| first_problem(Error::msg(format!("cannot read USD file: {e}"))))?;
-        // The root layer stack is parsed but nothing is composed yet.
-        for id in stage.layer_identifiers() {
-            if let Some(layer) = stage.layer(&id) {
-                guard.check_layer(&id, layer.data()).map_err(|e| e.in_file(path))?;
+        let stage = compose_watch::watched(path, || {
+            let stage = usd::Stage::builder()
+                .schema_registry(openusd_schemas::schema_registry())
+                .resolver(guard.resolver())
+                .open(path_str)
+                .map_err(|e| first_problem(Error::msg(format!("cannot read USD file: {e}"))))?;
+            // The root layer stack is parsed but nothing is composed yet.
+            for id in stage.layer_identifiers() {
+                if let Some(layer) = stage.layer(&id) {
+                    guard.check_layer(&id, layer.data()).map_err(|e| e.in_file(path))?;
+                }
             }
-        }
-        guard.start_composing();
-        // Compose every prim now (inactive and abstract ones too), so every
-        // referenced layer is loaded, and checked, here. The pseudo-root must
-        // be readable; a truncated crate file can open lazily and only fail here.
-        stage
-            .traverse(usd::PrimPredicate::ALL, |_| {})
-            .map_err(|e| first_problem(Error::msg(format!("cannot read USD file: {e}"))))?;
+            guard.start_composing();
+            // Compose every prim now (inactive and abstract ones too), so every
+            // referenced layer is loaded, and checked, here. The pseudo-root must
+            // be readable; a truncated crate file can open lazily and only fail here.
+            stage
+                .traverse(usd::PrimPredicate::ALL, |_| {})
+                .map_err(|e| first_problem(Error::msg(format!("cannot read USD file: {e}"))))?;
+            Ok(stage)
+        })?;
         if let Some(e) = guard.problems().into_iter().next() {
             return Err(e.in_file(path));
         }
