@@ -326,6 +326,7 @@ pub fn bake(input: &Path, output: &Path, opts: &BakeOptions, progress: Progress)
     let started = Instant::now();
     check_output(input, output)?;
     let r = StageReader::open(input)?;
+    r.require_resolved().map_err(|e| e.in_file(input))?;
     let result = bake_stage(&r, output, opts, progress, started);
     result.map_err(|e| e.in_file(input))
 }
@@ -341,7 +342,7 @@ fn bake_stage(
     let view_meshes = read_view_meshes(r, &r.prim_paths()?)?;
     let times = resolve_frames(r, opts.frames)?;
     if let Some(c) = &opts.camera {
-        check_camera(r, c, "--camera")?;
+        r.require_camera(c, "--camera")?;
     }
     for vm in &view_meshes {
         let cam = vm.camera_for(opts.camera.as_deref())?;

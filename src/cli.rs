@@ -429,6 +429,9 @@ pub fn run(cli: Cli) -> i32 {
         } => {
             let result = (|| {
                 let session = open_session(&edit)?;
+                if let Some(c) = &camera {
+                    session.reader.require_camera(c, "--camera")?;
+                }
                 let kind = if sentinel {
                     KeyKind::Sentinel
                 } else if time_key {

@@ -12,7 +12,7 @@ use serde::Serialize;
 
 use crate::error::{Error, Result};
 use crate::usd_io::scene::{ProxyMotion, Scene};
-use crate::usd_io::stage::StageReader;
+use crate::usd_io::stage::{StageReader, UnresolvedAsset};
 use crate::usd_io::view_mesh::read_view_meshes_lenient;
 
 #[derive(Debug, Serialize)]
@@ -25,6 +25,9 @@ pub struct Report {
     pub rigs: Vec<RigReport>,
     pub axes: Vec<AxisReport>,
     pub view_dependent_meshes: Vec<ViewMeshReport>,
+    /// Sublayers, references and payloads that did not resolve (each is
+    /// also a problem: bake refuses such a stage).
+    pub unresolved_assets: Vec<UnresolvedAsset>,
     pub problems: Vec<Problem>,
 }
 
@@ -132,6 +135,24 @@ pub fn inspect(path: &Path) -> Result<Report> {
     let (scene, problems) = Scene::read_lenient(&r).map_err(|e| e.in_file(path))?;
     let mut problems: Vec<Problem> = problems.into_iter().map(Problem::from).collect();
     let meta = r.metadata();
+    // What bake checks before reading anything: assets, stage metadata and
+    // the default frame range.
+    for u in &r.unresolved {
+        problems.push(Problem {
+            prim: u.prim.clone(),
+            attribute: None,
+            message: format!("missing asset: {}", u.describe_asset()),
+        });
+    }
+    let has_range = meta.start_time_code.is_some() || meta.end_time_code.is_some();
+    if let Err(e) = meta.validate() {
+        problems.push(e.into());
+    } else if has_range {
+        // A stage without a range is fine: bake then needs --frames.
+        if let Err(e) = crate::frames::resolve(&meta, None) {
+            problems.push(e.into());
+        }
+    }
     let mut rigs = Vec::new();
     for rig in &scene.rigs {
         let (skeleton, animation_source) = match &rig.proxy.motion {
@@ -219,6 +240,7 @@ pub fn inspect(path: &Path) -> Result<Report> {
         rigs,
         axes,
         view_dependent_meshes: view_meshes,
+        unresolved_assets: r.unresolved.clone(),
         problems,
     })
 }
@@ -301,6 +323,9 @@ impl Report {
                 let [x, y, z] = k.direction;
                 let _ = writeln!(s, "  ({x:.3}, {y:.3}, {z:.3}): {}", k.keys.join(", "));
             }
+        }
+        for u in &self.unresolved_assets {
+            let _ = writeln!(s, "unresolved {}", u.describe());
         }
         if self.problems.is_empty() {
             let _ = writeln!(s, "no problems found");

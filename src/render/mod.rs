@@ -284,6 +284,7 @@ pub fn run(args: &RenderArgs) -> Result<String> {
         e
     };
     let r = StageReader::open(&root).map_err(name_input)?;
+    r.require_resolved().map_err(name_input)?;
     let scene = RenderScene::discover(&r, &args.camera).map_err(name_input)?;
 
     let bar = ProgressBar::hidden();

@@ -81,6 +81,9 @@ impl EditSession {
     pub fn open(input: &Path, target: &EditTarget) -> Result<EditSession> {
         // Reading the input first gives its own errors (missing, unreadable).
         let input_reader = StageReader::open(input)?;
+        // Edits are computed from the composed character: a missing asset
+        // would change what they capture.
+        input_reader.require_resolved().map_err(|e| e.in_file(input))?;
         let input_meta = input_reader.metadata();
         let session = |reader, target: &Path, original_text, scratch| EditSession {
             reader,

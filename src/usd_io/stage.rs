@@ -48,6 +48,11 @@ impl UnresolvedAsset {
         let on = self.prim.as_deref().map(|p| format!(" on {p}")).unwrap_or_default();
         format!("{} @{}@{on} (in {}): {}", self.arc, self.asset, self.layer, self.reason)
     }
+
+    /// The same without the prim (for messages that name it already).
+    pub fn describe_asset(&self) -> String {
+        format!("{} @{}@ (in {}): {}", self.arc, self.asset, self.layer, self.reason)
+    }
 }
 
 /// Stage-level metadata a bake copies into its output layer.
@@ -189,6 +194,22 @@ impl StageReader {
     /// The prim at `path`, or an error saying it is missing.
     pub fn require_prim(&self, path: &str) -> Result<usd::Prim> {
         self.prim(path)?.ok_or_else(|| Error::prim(path, "prim does not exist"))
+    }
+
+    /// Checks that `path` names a `Camera` prim (the `--camera` of bake,
+    /// render and key): a Mesh or an Xform there is a mistake, not a camera.
+    pub fn require_camera(&self, path: &str, origin: &str) -> Result<()> {
+        let prim = self
+            .prim(path)?
+            .ok_or_else(|| Error::prim(path, format!("the camera named by {origin} does not exist")))?;
+        match self.type_name(&prim)?.as_str() {
+            "Camera" => Ok(()),
+            "" => Err(Error::prim(
+                path,
+                format!("{origin} names an untyped prim, not a Camera"),
+            )),
+            ty => Err(Error::prim(path, format!("{origin} names a {ty} prim, not a Camera"))),
+        }
     }
 
     /// The composed type name ("" when untyped).
@@ -398,5 +419,7 @@ fn unresolved_assets(stage: &usd::Stage) -> Vec<UnresolvedAsset> {
             out.push(item);
         }
     }
+    // Composition reports them in hash order.
+    out.sort_by(|a, b| (&a.layer, &a.prim, &a.asset).cmp(&(&b.layer, &b.prim, &b.asset)));
     out
 }
