@@ -5,6 +5,7 @@ The painterly schema plugin is registered *before* the first `from pxr import Us
 against the codeless schema in `schemas/painterly/`.
 """
 
+import importlib.util
 import os
 import pathlib
 import subprocess
@@ -12,9 +13,19 @@ import subprocess
 REPO = pathlib.Path(__file__).resolve().parent.parent
 SCHEMA_DIR = REPO / "schemas" / "painterly"
 SHARED = REPO.parent / "shared"
-REAL_ASSETS = SHARED / "real_assets"
+# A worktree outside the usual layout can point at the assets directly.
+REAL_ASSETS = pathlib.Path(os.environ.get("PAINTERLY_REAL_ASSETS", SHARED / "real_assets"))
 
-os.environ["PXR_PLUGINPATH_NAME"] = str(SCHEMA_DIR)
+# With the `painterly` package installed, its usd-core validator plugin too
+# (found without importing the package, which would not matter, and pxr,
+# which would: the plugin path must be set before pxr starts).
+_package = importlib.util.find_spec("painterly")
+PAINTERLY_PLUGIN = (
+    os.path.join(list(_package.submodule_search_locations)[0], "validators")
+    if _package and _package.submodule_search_locations
+    else None
+)
+os.environ["PXR_PLUGINPATH_NAME"] = os.pathsep.join(p for p in (str(SCHEMA_DIR), PAINTERLY_PLUGIN) if p)
 
 import pytest  # noqa: E402
 

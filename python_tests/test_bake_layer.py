@@ -269,3 +269,62 @@ def test_fixture_tube_bake(painterly, tmp_path, repo_root):
                 diag = Au.bbox_diag(posed[r["mesh"]][t])
                 err = np.abs(Au.local_points(comp, l["path"], t) - exp[l["path"]][t]).max() / diag
                 assert err <= 1e-5, f"{l['path']} t={t}: {err:.3g} x diagonal"
+
+
+def all_samples(layer):
+    """{(attribute path, time): value} for every time sample in `layer`."""
+    out = {}
+
+    def visit(path):
+        if path.IsPropertyPath():
+            for t in layer.ListTimeSamplesForPath(path):
+                out[(str(path), t)] = np.array(layer.QueryTimeSample(path, t))
+
+    layer.Traverse(Sdf.Path.absoluteRootPath, visit)
+    return out
+
+
+@pytest.mark.parametrize("fixture", ["blowfish.usda", "head.usda"])
+def test_usda_and_usdc_bakes_hold_the_same_samples(painterly, tmp_path, repo_root, fixture):
+    """The two writers (streamed text, crate) must agree bit for bit."""
+    src = repo_root / "fixtures" / fixture
+    a, c = tmp_path / "b.usda", tmp_path / "b.usdc"
+    bake(painterly, src, a, "--frames", "1:6:0.5", "--bake-proxy", "--quiet")
+    bake(painterly, src, c, "--frames", "1:6:0.5", "--bake-proxy", "--quiet")
+    sa, sc = all_samples(Sdf.Layer.FindOrOpen(str(a))), all_samples(Sdf.Layer.FindOrOpen(str(c)))
+    assert sa.keys() == sc.keys() and len(sa) > 0
+    assert {t for _, t in sa} == {1 + 0.5 * k for k in range(11)}
+    for k in sa:
+        assert sa[k].dtype == sc[k].dtype and np.array_equal(sa[k], sc[k]), k
+    la, lc = Sdf.Layer.FindOrOpen(str(a)), Sdf.Layer.FindOrOpen(str(c))
+    for attr in ("primvars:displayOpacity",):
+        for path in {p for p, _ in sa if p.endswith("." + attr)}:
+            assert la.GetAttributeAtPath(path).GetInfo("interpolation") == "uniform"
+            assert lc.GetAttributeAtPath(path).GetInfo("interpolation") == "uniform"
+
+
+@pytest.mark.parametrize("ext", ["usda", "usdc"])
+def test_provenance_in_custom_layer_data(painterly, tmp_path, repo_root, ext):
+    src = repo_root / "fixtures" / "tube.usda"
+    out = tmp_path / f"b.{ext}"
+    bake(painterly, src, out, "--frames", "2:10:2", "--quiet")
+    data = Sdf.Layer.FindOrOpen(str(out)).customLayerData["painterly"]
+    assert data["input"] == str(src.resolve())
+    assert data["frames"] == "2:10:2"
+    cargo = (repo_root / "Cargo.toml").read_text()
+    assert f'version = "{data["version"]}"' in cargo
+
+
+def test_stage_with_nothing_to_bake_exits_1_and_writes_nothing(painterly, tmp_path):
+    src = tmp_path / "plain.usda"
+    stage = Usd.Stage.CreateNew(str(src))
+    UsdGeom.Mesh.Define(stage, "/World/Mesh")
+    stage.SetStartTimeCode(1)
+    stage.SetEndTimeCode(4)
+    stage.Save()
+    out = tmp_path / "b.usdc"
+    proc = painterly("bake", src, "-o", out, check=False)
+    assert proc.returncode == 1
+    assert "nothing to bake" in proc.stderr and str(src) in proc.stderr
+    assert not out.exists()
+    assert list(tmp_path.iterdir()) == [src]

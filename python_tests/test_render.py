@@ -9,6 +9,7 @@ matrices. EXR files are read back with the OpenEXR bindings (an independent
 reader), PNGs with Pillow.
 """
 
+import json
 import math
 
 import numpy as np
@@ -333,3 +334,73 @@ def test_brush_footprint_modulates_alpha(painterly, tmp_path):
     assert plain.sum(axis=1)[rows].sum() > 0
     top, bottom = brushed[: H // 2].sum(), brushed[H // 2 :].sum()
     assert min(top, bottom) < 0.1 * max(top, bottom)
+
+
+def fish_with_camera(tmp_path, repo_root, name="fish_cam.usda"):
+    """The blowfish under a camera that frames it (frames 1-48)."""
+    wrapper = tmp_path / name
+    stage = Usd.Stage.CreateNew(str(wrapper))
+    stage.GetRootLayer().subLayerPaths.append(str(repo_root / "fixtures" / "blowfish.usda"))
+    stage.SetStartTimeCode(1)
+    stage.SetEndTimeCode(48)
+    cam = UsdGeom.Camera.Define(stage, "/Cam")
+    cam.CreateFocalLengthAttr(35.0)
+    cam.CreateClippingRangeAttr(Gf.Vec2f(0.1, 1000))
+    UsdGeom.Xformable(cam).AddTranslateOp().Set(Gf.Vec3d(-0.9, 4.2, 40))
+    stage.GetRootLayer().Save()
+    return wrapper
+
+
+def test_bake_of_another_input_is_refused(painterly, tmp_path, repo_root):
+    wrapper = fish_with_camera(tmp_path, repo_root)
+    other = tmp_path / "apple_bake.usdc"
+    painterly("bake", repo_root / "fixtures" / "apple.usda", "-o", other, "--frames", "1:2")
+    proc = render(painterly, wrapper, tmp_path, "--bake", other, frames="1:2", check=False)
+    assert proc.returncode == 1
+    assert "was made from" in proc.stderr and "apple.usda" in proc.stderr and str(other) in proc.stderr
+    assert not list(tmp_path.glob("f.*.exr"))
+
+
+def test_frames_outside_the_bake_are_warned_about(painterly, tmp_path, repo_root):
+    wrapper = fish_with_camera(tmp_path, repo_root)
+    bake = tmp_path / "bake.usdc"
+    painterly("bake", wrapper, "-o", bake, "--frames", "1:5")
+    proc = render(painterly, wrapper, tmp_path, "--bake", bake, "--json", frames="4:7")
+    summary = json.loads(proc.stdout)
+    assert summary["frames"] == 4
+    assert summary["warnings"] == [
+        "2 frames outside the bake's frames 1:5 (6, 7): strokes there show their authored points"
+    ]
+    assert "warning: 2 frames outside the bake's frames 1:5 (6, 7)" in proc.stderr
+    quiet = render(painterly, wrapper, tmp_path, "--bake", bake, "--quiet", frames="4:7")
+    assert quiet.stdout == "" and quiet.stderr == ""
+
+
+def test_empty_frames_are_warned_about_and_listed(painterly, tmp_path):
+    # A stroke in view at frame 1 only: the camera turns away afterwards.
+    stage = author(
+        tmp_path / "s.usda",
+        camera={"translate": (0, 0, 10)},
+        strokes=[{"points": [(-1, 0, 0), (1, 0, 0)], "width": 0.3}],
+        end=3,
+    )
+    s = Usd.Stage.Open(str(stage))
+    rot = UsdGeom.Xformable(s.GetPrimAtPath("/Cam")).GetOrderedXformOps()[1]
+    rot.Set(Gf.Vec3f(0, 0, 0), 1)
+    rot.Set(Gf.Vec3f(0, 180, 0), 2)
+    s.GetRootLayer().Save()
+    proc = render(painterly, stage, tmp_path, "--json", frames="1:3")
+    summary = json.loads(proc.stdout)
+    assert summary["empty_frames"] == [2, 3]
+    assert summary["warnings"] == ["2 frames of 3 empty: nothing in front of /Cam at 2, 3"]
+    assert "warning: 2 frames of 3 empty" in proc.stderr
+    assert set(summary) == {
+        "input", "output", "frames", "width", "height", "curves", "strokes", "meshes", "triangles",
+        "sheet", "empty_frames", "warnings", "seconds", "median_frame_seconds",
+    }
+
+
+def test_summary_line_counts_in_words(painterly, tmp_path):
+    stage = author(tmp_path / "s.usda", camera={"translate": (0, 0, 10)}, strokes=[{"points": [(-1, 0, 0), (1, 0, 0)]}])
+    out = render(painterly, stage, tmp_path)
+    assert out.stdout.startswith(f"rendered 1 frame at {W}x{H}: 1 curves prim (1 stroke), 0 meshes (0 triangles) -> ")

@@ -20,8 +20,8 @@ use glam::{DAffine3, DMat3, DMat4, DVec3, Vec3};
 use openusd::gf;
 use openusd::sdf::Value;
 
-use crate::bake::eval_axes;
 use crate::bind::{Binding, ClosestPoint};
+use crate::character::eval_axes;
 use crate::error::{Error, Result};
 use crate::mesh::{fan_triangulate, OneRings};
 use crate::skinning::SkinningRest;
@@ -117,11 +117,17 @@ fn scene_at(session: &EditSession, time: Option<f64>) -> Result<(Scene, f64)> {
 }
 
 /// Finds a stroke layer by prim path: (rig index, layer index).
-fn find_layer(scene: &Scene, path: &str) -> Result<(usize, usize)> {
+fn find_layer(r: &StageReader, scene: &Scene, path: &str) -> Result<(usize, usize)> {
     for (ri, rig) in scene.rigs.iter().enumerate() {
         if let Some(li) = rig.layers.iter().position(|l| l.path == path) {
             return Ok((ri, li));
         }
+    }
+    if r.prim(path).ok().flatten().is_none() {
+        return Err(Error::prim(
+            path,
+            "prim does not exist (--layer names a stroke layer's prim path)",
+        ));
     }
     Err(Error::prim(
         path,
@@ -151,7 +157,7 @@ pub fn bind(session: &EditSession, opts: &BindOptions) -> Result<BindReport> {
     let r = &session.reader;
     let (scene, start) = scene_at(session, opts.time)?;
     for l in &opts.layers {
-        find_layer(&scene, l)?;
+        find_layer(r, &scene, l)?;
     }
     let mut report = Vec::new();
     for rig in &scene.rigs {
@@ -248,7 +254,7 @@ pub struct KeyOptions {
 pub fn key(session: &EditSession, opts: &KeyOptions) -> Result<String> {
     let r = &session.reader;
     let (mut scene, _) = scene_at(session, Some(opts.time))?;
-    let (ri, li) = find_layer(&scene, &opts.layer)?;
+    let (ri, li) = find_layer(r, &scene, &opts.layer)?;
     if opts.kind != KeyKind::Sentinel && !opts.points && opts.opacity.is_none() {
         return Err(Error::prim(
             &opts.layer,
@@ -468,7 +474,7 @@ pub fn brush(session: &EditSession, brush: Brush, opts: &BrushOptions) -> Result
         return Err(Error::msg(format!("--strength {} is not finite", opts.strength)));
     }
     let (scene, start) = scene_at(session, opts.time)?;
-    let (ri, li) = find_layer(&scene, &opts.layer)?;
+    let (ri, li) = find_layer(r, &scene, &opts.layer)?;
     let rig = &scene.rigs[ri];
     let layer = &rig.layers[li];
 

@@ -1,30 +1,28 @@
-//! `painterly bake`: read stage → evaluate every frame → write an override layer.
+//! `painterly bake`: frames streamed through reader → evaluator → writer.
 //!
-//! Rest data is computed once per rig and layer (one-rings, rest centroids,
-//! bindings: the stencil tables); each frame then costs one Procrustes per
-//! proxy vertex and one 3×4 blend per stroke point. Stage reads are serial
-//! (the stage is single-threaded), compute is parallel, the write is one
-//! serial pass at the end.
+//! The plan is resolved once ([`Character::open`]: rigs, bindings, cameras,
+//! view meshes; then the frames and the output layout). Frames then flow
+//! through three stages at once: the stage is read serially on this thread
+//! (it is single-threaded), each frame is evaluated on the thread pool, and a
+//! writer thread hands finished frames to the layer writer in time order. At
+//! most a small window of frames is in flight, so memory does not grow with
+//! the length of the shot.
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
+use std::sync::mpsc;
 use std::time::Instant;
 
-use glam::{Affine3A, DMat4, Vec3};
-use openusd::gf;
-use openusd::sdf::Value;
+use glam::Vec3;
 
-use crate::bind::{Binding, ClosestPoint};
+use crate::character::{Character, FrameOutput, Model, RigModel};
 use crate::error::{Error, Result};
 use crate::frames::FrameRange;
-use crate::keys::{combine, Source};
-use crate::mesh::{bounds, bounds_f64, fan_triangulate, weighted_sum, OneRings};
-use crate::skinning::{skin_points, to_f32, SkinningRest};
-use crate::usd_io::axes::AxisFrame;
-use crate::usd_io::layer::{Format, OverLayer};
-use crate::usd_io::scene::{LayerKeys, Rig, Scene};
+use crate::mesh::bounds;
+use crate::usd_io::bake_layer::{self, BakeAttr, BakeLayout, FrameSink, Provenance, Sample, SampleKind};
+use crate::usd_io::clips::{self, ChunkedSink, ClipPlan};
+use crate::usd_io::layer::Format;
 use crate::usd_io::stage::StageReader;
-use crate::usd_io::view_mesh::{check_camera, read_view_meshes, ViewBlend};
-use rayon::prelude::*;
 
 /// What to bake.
 #[derive(Debug, Clone, Default)]
@@ -35,6 +33,14 @@ pub struct BakeOptions {
     pub bake_proxy: bool,
     /// Camera prim for `viewDirection` axes without a source (and view-dependent meshes).
     pub camera: Option<String>,
+    /// Write value clips of this many frames per chunk layer (plus the
+    /// clip-set layer `output`) instead of one file.
+    pub chunk: Option<usize>,
+    /// With `chunk`: write only this chunk's layer (a farm task).
+    pub chunk_index: Option<usize>,
+    /// With `chunk`: write only the clip set, after checking that every
+    /// chunk layer is there and was baked from this input (a farm's last step).
+    pub assemble: bool,
 }
 
 /// What a bake did, for the summary line and `--json`.
@@ -49,6 +55,9 @@ pub struct BakeSummary {
     pub strokes: usize,
     pub points: usize,
     pub seconds: f64,
+    /// Chunk layers this run wrote (or, assembling, checked); empty for a
+    /// single-file bake.
+    pub chunks: Vec<PathBuf>,
 }
 
 /// Reports progress: (steps done, total steps); called from worker threads.
@@ -57,6 +66,11 @@ pub type Progress<'a> = &'a (dyn Fn(usize, usize) + Sync);
 /// Checks an output path before any work: format, directory, not the input.
 pub fn check_output(input: &Path, output: &Path) -> Result<Format> {
     let format = Format::from_path(output)?;
+    check_output_dir(input, output)?;
+    Ok(format)
+}
+
+fn check_output_dir(input: &Path, output: &Path) -> Result<()> {
     let dir = match output.parent() {
         Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
         _ => PathBuf::from("."),
@@ -69,7 +83,7 @@ pub fn check_output(input: &Path, output: &Path) -> Result<Format> {
             return Err(Error::msg("output would overwrite the input; inputs are never modified").in_file(output));
         }
     }
-    Ok(format)
+    Ok(())
 }
 
 /// The frames to bake: the option, checked against the stage's range, or
@@ -78,417 +92,362 @@ pub fn resolve_frames(r: &StageReader, frames: Option<FrameRange>) -> Result<Vec
     crate::frames::resolve(&r.metadata(), frames)
 }
 
-/// Per-rig data computed once.
-struct RigBake<'a> {
-    rig: &'a Rig,
-    skin: SkinningRest,
-    bindings: Vec<Binding>,
-    needed_axes: Vec<usize>,
-}
-
-fn prepare(rig: &Rig) -> RigBake<'_> {
-    let proxy = &rig.proxy;
-    let rings = OneRings::new(proxy.rest.len(), &proxy.face_counts, &proxy.face_indices);
-    let skin = SkinningRest::new(rings, &proxy.rest);
-    let tris = fan_triangulate(&proxy.face_counts, &proxy.face_indices);
-    let needs_bvh = rig.layers.iter().any(|l| l.cached_binding.is_none());
-    let bvh = needs_bvh.then(|| ClosestPoint::new(&proxy.rest, &tris));
-    let bindings = rig
-        .layers
-        .iter()
-        .map(|l| match (&l.cached_binding, &bvh) {
-            (Some(b), _) => b.clone(),
-            (None, Some(bvh)) => bvh.bind(&l.rest_points),
-            (None, None) => unreachable!("a BVH is built when a layer has no cached binding"),
-        })
-        .collect();
-    RigBake {
-        rig,
-        skin,
-        bindings,
-        needed_axes: needed_axes(rig),
-    }
-}
-
-fn affine_f32(m: DMat4) -> Affine3A {
-    Affine3A::from_mat4(m.as_mat4())
-}
-
-fn extent_value(points: &[Vec3]) -> Value {
-    let [lo, hi] = bounds(points).unwrap_or([Vec3::ZERO, Vec3::ZERO]);
-    Value::Vec3fVec(vec![gf::vec3f(lo.x, lo.y, lo.z), gf::vec3f(hi.x, hi.y, hi.z)])
-}
-
-fn points_value(points: Vec<Vec3>) -> Value {
-    Value::Vec3fVec(bytemuck::allocation::cast_vec(points))
-}
-
-/// Axes of `rig` that some keyed layer needs.
-pub fn needed_axes(rig: &Rig) -> Vec<usize> {
-    let mut needed: Vec<usize> = rig
-        .layers
-        .iter()
-        .filter(|l| l.keys.uses_axes())
-        .flat_map(|l| l.keys.axes.iter().copied())
-        .collect();
-    needed.sort_unstable();
-    needed.dedup();
-    needed
-}
-
-/// Values at `t` of the rig's axes listed in `needed` (0 for the others).
-pub fn eval_axes(
-    r: &StageReader,
-    rig: &Rig,
-    needed: &[usize],
-    t: f64,
-    proxy_to_world: DMat4,
-    posed: &[glam::DVec3],
-    camera: Option<&str>,
-) -> Result<Vec<f64>> {
-    let mut values = vec![0.0; rig.axes.len()];
-    if needed.is_empty() {
-        return Ok(values);
-    }
-    let [lo, hi] = bounds_f64(posed).unwrap_or([glam::DVec3::ZERO; 2]);
-    let frame = AxisFrame {
-        time: t,
-        proxy_to_world,
-        proxy_centre: (lo + hi) * 0.5,
-        camera,
-    };
-    for &a in needed {
-        values[a] = rig.axes[a].value(r, &frame)?;
-    }
-    Ok(values)
-}
-
-/// A layer's keyed rest points (None: its own `rest` points) and keyed opacity at `t`.
-pub fn keyed_state(k: &LayerKeys, rest: &[Vec3], axis_values: &[f64], t: f64) -> (Option<Vec<Vec3>>, f32) {
-    let x: Vec<f64> = k.axes.iter().map(|&a| axis_values[a]).collect();
-    let x = if x.is_empty() { vec![0.0] } else { x };
-
-    let pose_w = k.pose_points.as_ref().map(|c| c.interp.weights(&x));
-    let time_w = k.time_points.as_ref().map(|c| c.interp.weights(t));
-    let terms = combine(pose_w.as_ref(), time_w.as_ref());
-    let points = if terms == [(1.0, Source::Rest)] {
-        None
-    } else {
-        let arrays: Vec<(f64, &[Vec3])> = terms
-            .iter()
-            .map(|&(w, s)| {
-                let v: &[Vec3] = match s {
-                    Source::Rest => rest,
-                    Source::Pose(i) => &k.pose_points.as_ref().expect("pose weights come from pose keys").values[i],
-                    Source::Time(i) => &k.time_points.as_ref().expect("time weights come from time keys").values[i],
-                };
-                (w, v)
-            })
-            .collect();
-        let mut out = vec![Vec3::ZERO; rest.len()];
-        weighted_sum(&mut out, &arrays);
-        Some(out)
-    };
-
-    let pose_w = k.pose_opacity.as_ref().map(|c| c.interp.weights(&x));
-    let time_w = k.time_opacity.as_ref().map(|c| c.interp.weights(t));
-    let opacity: f64 = combine(pose_w.as_ref(), time_w.as_ref())
-        .iter()
-        .map(|&(w, s)| {
-            w * match s {
-                Source::Rest => 1.0,
-                Source::Pose(i) => k.pose_opacity.as_ref().expect("pose opacity keys").values[i] as f64,
-                Source::Time(i) => k.time_opacity.as_ref().expect("time opacity keys").values[i] as f64,
-            }
-        })
-        .sum();
-    (points, opacity as f32)
-}
-
-/// One rig at one frame, as read from the stage.
-struct RigFrame {
-    posed: Vec<glam::DVec3>,
-    axis_values: Vec<f64>,
-    /// Per layer: proxy-local → stroke-local transform and `painterly:opacity`.
-    layers: Vec<(Affine3A, f32)>,
-}
-
-/// Everything one frame needs, read serially from the stage.
-struct FrameInput {
-    time: f64,
-    rigs: Vec<RigFrame>,
-    /// Per view-dependent mesh: base points, the camera position (mesh-local), sharpness.
-    views: Vec<(Vec<Vec3>, glam::DVec3, f64)>,
-}
-
-/// One frame's results.
-struct FrameOutput {
-    time: f64,
-    /// Per stroke layer (all rigs, in order): points and per-curve opacity.
-    layers: Vec<(Vec<Vec3>, Vec<f32>)>,
-    /// Per rig: proxy points, when baking proxies.
-    proxies: Vec<Option<Vec<Vec3>>>,
-    views: Vec<Vec<Vec3>>,
-}
-
-/// The pure data of one rig that evaluation needs (shared across threads).
-struct RigCompute<'a> {
-    skin: &'a SkinningRest,
-    bindings: &'a [Binding],
-    /// Per layer: keys, rest points, authored opacity per curve, path.
-    layers: Vec<(&'a LayerKeys, &'a [Vec3], &'a [f32], &'a str)>,
-}
-
-fn read_frame(
-    r: &StageReader,
-    rigs: &[RigBake],
-    views: &[crate::usd_io::view_mesh::ViewMesh],
-    t: f64,
-    camera: Option<&str>,
-) -> Result<FrameInput> {
-    let mut rig_frames = Vec::with_capacity(rigs.len());
-    for rb in rigs {
-        let proxy = &rb.rig.proxy;
-        let posed = proxy.posed_points(r, t)?;
-        let proxy_l2w = proxy.local_to_world(r, t)?;
-        let axis_values = eval_axes(r, rb.rig, &rb.needed_axes, t, proxy_l2w, &posed, camera)?;
-        let mut layers = Vec::with_capacity(rb.rig.layers.len());
-        for layer in &rb.rig.layers {
-            let frame = affine_f32(layer.local_to_world(r, t)?.inverse() * proxy_l2w);
-            layers.push((frame, layer.opacity_at(r, t)?));
-        }
-        rig_frames.push(RigFrame {
-            posed,
-            axis_values,
-            layers,
-        });
-    }
-    let mut view_frames = Vec::with_capacity(views.len());
-    for vm in views {
-        let base = vm.mesh.posed_points_f32(r, t)?;
-        let cam = r.require_prim(vm.camera_for(camera)?)?;
-        let cam_world = r.local_to_world(&cam, t)?.transform_point3(glam::DVec3::ZERO);
-        let cam_local = vm.mesh.local_to_world(r, t)?.inverse().transform_point3(cam_world);
-        view_frames.push((base, cam_local, vm.sharpness_at(r, t)?));
-    }
-    Ok(FrameInput {
-        time: t,
-        rigs: rig_frames,
-        views: view_frames,
-    })
-}
-
-fn evaluate_frame(
-    rigs: &[RigCompute],
-    views: &[&ViewBlend],
-    input: FrameInput,
-    bake_proxy: bool,
-) -> Result<FrameOutput> {
-    let t = input.time;
-    let mut layers = Vec::new();
-    let mut proxies = Vec::with_capacity(rigs.len());
-    for (rc, rf) in rigs.iter().zip(input.rigs) {
-        let motions = to_f32(&rc.skin.vertex_motions(&rf.posed));
-        for ((binding, &(keys, rest, display, path)), (frame, opacity)) in
-            rc.bindings.iter().zip(&rc.layers).zip(rf.layers)
-        {
-            let (keyed, keyed_opacity) = keyed_state(keys, rest, &rf.axis_values, t);
-            let mut out = vec![Vec3::ZERO; rest.len()];
-            skin_points(binding, &motions, &frame, keyed.as_deref().unwrap_or(rest), &mut out);
-            if let Some(i) = out.iter().position(|p| !p.is_finite()) {
-                return Err(Error::prim(path, format!("baked point {i} is not finite at time {t}")));
-            }
-            let o = opacity * keyed_opacity;
-            layers.push((out, display.iter().map(|d| d * o).collect()));
-        }
-        proxies.push(bake_proxy.then(|| rf.posed.iter().map(|p| p.as_vec3()).collect()));
-    }
-    let mut view_out = Vec::with_capacity(views.len());
-    for (vb, (base, cam, sharpness)) in views.iter().zip(input.views) {
-        let out = vb.evaluate(t, &base, cam, sharpness)?;
-        if let Some(i) = out.iter().position(|p| !p.is_finite()) {
-            return Err(Error::msg(format!(
-                "view-dependent point {i} is not finite at time {t}"
-            )));
-        }
-        view_out.push(out);
-    }
-    Ok(FrameOutput {
-        time: t,
-        layers,
-        proxies,
-        views: view_out,
-    })
-}
-
-/// Bakes `input` into `output`.
+/// Bakes `input` into `output`. A stage with nothing to bake is an error.
 pub fn bake(input: &Path, output: &Path, opts: &BakeOptions, progress: Progress) -> Result<BakeSummary> {
+    bake_with(input, output, opts, progress, || StageReader::open(input))
+}
+
+/// Like [`bake`], for the stage `open` returns (a layer handed over in
+/// memory, see [`crate::usd_io::memory`]); `input` is the path it stands for.
+pub fn bake_with(
+    input: &Path,
+    output: &Path,
+    opts: &BakeOptions,
+    progress: Progress,
+    open: impl FnOnce() -> Result<StageReader>,
+) -> Result<BakeSummary> {
+    let started = Instant::now();
+    let character = open_for_bake_with(input, output, opts, open)?;
+    bake_character(&character, output, opts, progress, started).map_err(|e| e.in_file(input))
+}
+
+/// Every check [`bake`] makes before it bakes a frame (options, output
+/// path, the character, something to bake), and the opened character; a
+/// farm submission makes them too, before it queues any task.
+pub fn open_for_bake(input: &Path, output: &Path, opts: &BakeOptions) -> Result<Character> {
+    open_for_bake_with(input, output, opts, || StageReader::open(input))
+}
+
+/// [`open_for_bake`] for the stage `open` returns.
+fn open_for_bake_with(
+    input: &Path,
+    output: &Path,
+    opts: &BakeOptions,
+    open: impl FnOnce() -> Result<StageReader>,
+) -> Result<Character> {
+    if opts.chunk.is_some() && Format::from_path(output)? != Format::Usda {
+        return Err(Error::msg("with --chunk the output is the clip-set layer: name it .usda").in_file(output));
+    }
+    if opts.chunk.is_none() && (opts.chunk_index.is_some() || opts.assemble) {
+        return Err(Error::msg("--chunk-index and --assemble need --chunk N"));
+    }
+    check_output(input, output)?;
+    let mut character = Character::from_reader(open()?, opts.camera.as_deref()).map_err(|e| e.in_file(input))?;
+    character.proxy_normals = opts.bake_proxy;
+    if is_empty(&character.model, opts) {
+        return Err(Error::msg(
+            "nothing to bake: no stroke layer (PainterlyStrokeLayerAPI under a prim with PainterlyRigAPI) and no view-dependent mesh (PainterlyViewDependentAPI)",
+        )
+        .in_file(input));
+    }
+    Ok(character)
+}
+
+/// Like [`bake`], but a stage with nothing to bake writes nothing and
+/// returns None (a render of a plain scene needs no bake).
+pub fn bake_if_any(input: &Path, output: &Path, opts: &BakeOptions) -> Result<Option<BakeSummary>> {
     let started = Instant::now();
     check_output(input, output)?;
-    let r = StageReader::open(input)?;
-    r.require_resolved().map_err(|e| e.in_file(input))?;
-    let result = bake_stage(&r, output, opts, progress, started);
-    result.map_err(|e| e.in_file(input))
+    let mut character = Character::open(input, opts.camera.as_deref())?;
+    character.proxy_normals = opts.bake_proxy;
+    if is_empty(&character.model, opts) {
+        return Ok(None);
+    }
+    bake_character(&character, output, opts, &|_, _| {}, started)
+        .map(Some)
+        .map_err(|e| e.in_file(input))
 }
 
-fn bake_stage(
-    r: &StageReader,
+fn is_empty(model: &Model, opts: &BakeOptions) -> bool {
+    // --bake-proxy alone still has proxies to write.
+    let proxies = opts.bake_proxy && !model.rigs.is_empty();
+    !proxies && model.views.is_empty() && model.rigs.iter().all(|r| r.layers.is_empty())
+}
+
+fn bake_character(
+    ch: &Character,
     output: &Path,
     opts: &BakeOptions,
     progress: Progress,
     started: Instant,
 ) -> Result<BakeSummary> {
-    let scene = Scene::read(r)?;
-    let view_meshes = read_view_meshes(r, &r.prim_paths()?)?;
-    let times = resolve_frames(r, opts.frames)?;
-    if let Some(c) = &opts.camera {
-        r.require_camera(c, "--camera")?;
-    }
-    for vm in &view_meshes {
-        let cam = vm.camera_for(opts.camera.as_deref())?;
-        if opts.camera.is_none() {
-            check_camera(r, cam, &format!("{}.painterly:camera", vm.path))?;
+    let model = &ch.model;
+    let times = resolve_frames(&ch.reader, opts.frames)?;
+    let mut layout = BakeLayout {
+        meta: ch.reader.metadata(),
+        attrs: layout_attrs(model, opts.bake_proxy),
+        blocked_skeletons: blocked_skeletons(model, opts.bake_proxy),
+        provenance: Provenance {
+            input: std::fs::canonicalize(&ch.reader.file)
+                .unwrap_or_else(|_| ch.reader.file.clone())
+                .to_string_lossy()
+                .into_owned(),
+            frames: frames_text(&times, opts.frames),
+            version: env!("CARGO_PKG_VERSION").to_string(),
+            ..Default::default()
+        },
+    };
+    let (baked, chunks) = match opts.chunk {
+        None => {
+            stream(
+                ch,
+                &times,
+                opts.bake_proxy,
+                bake_layer::create(output, layout)?,
+                progress,
+            )?;
+            (times.len(), Vec::new())
         }
-    }
-    let rigs: Vec<RigBake> = scene.rigs.iter().map(prepare).collect();
-
-    // Read: everything each frame needs from the stage, serially (the stage
-    // is single-threaded).
-    let mut inputs = Vec::with_capacity(times.len());
-    for (fi, &t) in times.iter().enumerate() {
-        inputs.push(read_frame(r, &rigs, &view_meshes, t, opts.camera.as_deref())?);
-        progress(fi + 1, 2 * times.len());
-    }
-
-    // Evaluate: frames in parallel over pure data.
-    let done = std::sync::atomic::AtomicUsize::new(times.len());
-    let computes: Vec<RigCompute> = rigs
-        .iter()
-        .map(|rb| RigCompute {
-            skin: &rb.skin,
-            bindings: &rb.bindings,
-            layers: rb
-                .rig
-                .layers
-                .iter()
-                .map(|l| {
-                    (
-                        &l.keys,
-                        l.rest_points.as_slice(),
-                        &l.display_opacity[..],
-                        l.path.as_str(),
-                    )
-                })
-                .collect(),
-        })
-        .collect();
-    let blends: Vec<&ViewBlend> = view_meshes.iter().map(|v| &v.blend).collect();
-    let outputs: Vec<FrameOutput> = inputs
-        .into_par_iter()
-        .map(|input| {
-            let out = evaluate_frame(&computes, &blends, input, opts.bake_proxy);
-            let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
-            progress(n, 2 * times.len());
-            out
-        })
-        .collect::<Result<_>>()?;
-
-    // Assemble samples per attribute, moving the arrays.
-    let nlayers: usize = rigs.iter().map(|rb| rb.rig.layers.len()).sum();
-    let mut pts_samples: Vec<Vec<(f64, Value)>> = vec![Vec::with_capacity(times.len()); nlayers];
-    let mut ext_samples: Vec<Vec<(f64, Value)>> = vec![Vec::with_capacity(times.len()); nlayers];
-    let mut opa_samples: Vec<Vec<(f64, Value)>> = vec![Vec::with_capacity(times.len()); nlayers];
-    let mut proxy_pts: Vec<Vec<(f64, Value)>> = vec![Vec::new(); rigs.len()];
-    let mut proxy_ext: Vec<Vec<(f64, Value)>> = vec![Vec::new(); rigs.len()];
-    let mut view_pts: Vec<Vec<(f64, Value)>> = vec![Vec::with_capacity(times.len()); view_meshes.len()];
-    let mut view_ext: Vec<Vec<(f64, Value)>> = vec![Vec::with_capacity(times.len()); view_meshes.len()];
-    for out in outputs {
-        let t = out.time;
-        for (li, (pts, opa)) in out.layers.into_iter().enumerate() {
-            ext_samples[li].push((t, extent_value(&pts)));
-            pts_samples[li].push((t, points_value(pts)));
-            opa_samples[li].push((t, Value::FloatVec(opa)));
-        }
-        for (ri, pts) in out.proxies.into_iter().enumerate() {
-            if let Some(pts) = pts {
-                proxy_ext[ri].push((t, extent_value(&pts)));
-                proxy_pts[ri].push((t, points_value(pts)));
+        Some(size) => {
+            layout.provenance.input_hash = Some(clips::input_hash(&ch.reader)?);
+            let plan = ClipPlan::new(output, &times, size)?;
+            match (opts.chunk_index, opts.assemble) {
+                (Some(k), _) => {
+                    let chunk = plan.chunks.get(k).ok_or_else(|| {
+                        Error::msg(format!(
+                            "--chunk-index {k} is out of range: {} frames in chunks of {size} make {} chunks (0..{})",
+                            times.len(),
+                            plan.chunks.len(),
+                            plan.chunks.len()
+                        ))
+                    })?;
+                    plan.create_dir()?;
+                    let path = plan.chunk_path(chunk);
+                    let chunk_layout = clips::chunk_layout(&layout, &plan, chunk, &times, clips::frame_step(&times));
+                    let frames = &times[chunk.start..chunk.end];
+                    stream(
+                        ch,
+                        frames,
+                        opts.bake_proxy,
+                        bake_layer::create(&path, chunk_layout)?,
+                        progress,
+                    )?;
+                    (frames.len(), vec![path])
+                }
+                (None, true) => {
+                    let hash = layout.provenance.input_hash.clone().unwrap_or_default();
+                    clips::check_chunks(&plan, &hash, &times)?;
+                    clips::write_clip_set(&plan, &layout, &times)?;
+                    (0, plan.chunks.iter().map(|c| plan.chunk_path(c)).collect())
+                }
+                (None, false) => {
+                    let sink = Box::new(ChunkedSink::new(plan.clone(), layout, &times)?);
+                    stream(ch, &times, opts.bake_proxy, sink, progress)?;
+                    (times.len(), plan.chunks.iter().map(|c| plan.chunk_path(c)).collect())
+                }
             }
         }
-        for (vi, pts) in out.views.into_iter().enumerate() {
-            view_ext[vi].push((t, extent_value(&pts)));
-            view_pts[vi].push((t, points_value(pts)));
-        }
-    }
-
-    let mut layer_out = OverLayer::new(r.metadata());
-    let mut li = 0;
-    let (mut strokes, mut points) = (0, 0);
-    for (ri, rb) in rigs.iter().enumerate() {
-        for layer in &rb.rig.layers {
-            layer_out.set_samples(
-                &layer.path,
-                "points",
-                "point3f[]",
-                std::mem::take(&mut pts_samples[li]),
-                vec![],
-            );
-            layer_out.set_samples(
-                &layer.path,
-                "extent",
-                "float3[]",
-                std::mem::take(&mut ext_samples[li]),
-                vec![],
-            );
-            layer_out.set_samples(
-                &layer.path,
-                "primvars:displayOpacity",
-                "float[]",
-                std::mem::take(&mut opa_samples[li]),
-                vec![("interpolation", Value::Token("uniform".into()))],
-            );
-            strokes += layer.curve_counts.len();
-            points += layer.num_points();
-            li += 1;
-        }
-        if opts.bake_proxy {
-            let path = &rb.rig.proxy.path;
-            layer_out.set_samples(path, "points", "point3f[]", std::mem::take(&mut proxy_pts[ri]), vec![]);
-            layer_out.set_samples(path, "extent", "float3[]", std::mem::take(&mut proxy_ext[ri]), vec![]);
-            if rb.rig.proxy.is_skinned() {
-                layer_out.block_relationship(path, "skel:skeleton");
-            }
-        }
-    }
-    for (vi, vm) in view_meshes.iter().enumerate() {
-        layer_out.set_samples(
-            &vm.path,
-            "points",
-            "point3f[]",
-            std::mem::take(&mut view_pts[vi]),
-            vec![],
-        );
-        layer_out.set_samples(
-            &vm.path,
-            "extent",
-            "float3[]",
-            std::mem::take(&mut view_ext[vi]),
-            vec![],
-        );
-        if vm.mesh.is_skinned() {
-            layer_out.block_relationship(&vm.path, "skel:skeleton");
-        }
-    }
-    layer_out.write(output)?;
+    };
     Ok(BakeSummary {
-        input: r.file.clone(),
+        input: ch.reader.file.clone(),
         output: output.to_path_buf(),
-        frames: times.len(),
-        rigs: rigs.len(),
-        view_meshes: view_meshes.len(),
-        layers: nlayers,
-        strokes,
-        points,
+        frames: baked,
+        rigs: model.rigs.len(),
+        view_meshes: model.views.len(),
+        layers: model.num_layers(),
+        strokes: model
+            .rigs
+            .iter()
+            .flat_map(|r| &r.layers)
+            .map(|l| l.curve_counts.len())
+            .sum(),
+        points: model.rigs.iter().map(|r| r.num_points()).sum(),
         seconds: started.elapsed().as_secs_f64(),
+        chunks,
     })
+}
+
+/// `A:B:STEP` of the baked frames, as recorded in the layer.
+fn frames_text(times: &[f64], range: Option<FrameRange>) -> String {
+    match (range, times) {
+        (Some(r), _) => format!("{}:{}:{}", r.start, r.end, r.step),
+        (None, [first, .., last]) => format!("{first}:{last}:1"),
+        (None, [only]) => format!("{only}:{only}:1"),
+        (None, []) => String::new(),
+    }
+}
+
+/// The attributes a bake writes, in the order [`frame_samples`] fills them:
+/// per stroke layer points, extent, displayOpacity; per rig (with
+/// `--bake-proxy`) the proxy's points and extent; per view-dependent mesh
+/// its points and extent.
+fn layout_attrs(model: &Model, bake_proxy: bool) -> Vec<BakeAttr> {
+    let attr = |prim: &str, name, kind, interpolation| BakeAttr {
+        prim: prim.to_string(),
+        name,
+        kind,
+        interpolation,
+    };
+    let mut attrs = Vec::new();
+    for rig in &model.rigs {
+        for l in &rig.layers {
+            attrs.push(attr(&l.path, "points", SampleKind::Points, None));
+            attrs.push(attr(&l.path, "extent", SampleKind::Extent, None));
+            attrs.push(attr(
+                &l.path,
+                "primvars:displayOpacity",
+                SampleKind::Floats,
+                Some("uniform"),
+            ));
+        }
+    }
+    if bake_proxy {
+        for rig in baked_proxies(model) {
+            attrs.push(attr(&rig.proxy_path, "points", SampleKind::Points, None));
+            attrs.push(attr(&rig.proxy_path, "extent", SampleKind::Extent, None));
+            if rig.proxy_normals {
+                attrs.push(attr(&rig.proxy_path, "normals", SampleKind::Normals, None));
+            }
+        }
+    }
+    for v in &model.views {
+        attrs.push(attr(&v.path, "points", SampleKind::Points, None));
+        attrs.push(attr(&v.path, "extent", SampleKind::Extent, None));
+    }
+    attrs
+}
+
+/// Per rig, whether `--bake-proxy` writes its proxy: once per proxy mesh,
+/// and not when the proxy is also a view-dependent mesh (its view-dependent
+/// points are what the bake shows).
+fn baked_proxy_mask(model: &Model) -> Vec<bool> {
+    (0..model.rigs.len())
+        .map(|i| {
+            let p = &model.rigs[i].proxy_path;
+            !model.views.iter().any(|v| &v.path == p) && !model.rigs[..i].iter().any(|o| &o.proxy_path == p)
+        })
+        .collect()
+}
+
+fn baked_proxies(model: &Model) -> impl Iterator<Item = &RigModel> {
+    model
+        .rigs
+        .iter()
+        .zip(baked_proxy_mask(model))
+        .filter(|(_, keep)| *keep)
+        .map(|(r, _)| r)
+}
+
+/// Baked skinned meshes: their `skel:skeleton` is blocked so viewers do not
+/// deform them twice.
+fn blocked_skeletons(model: &Model, bake_proxy: bool) -> Vec<String> {
+    let proxies = baked_proxies(model)
+        .filter(|r| bake_proxy && r.proxy_skinned)
+        .map(|r| r.proxy_path.clone());
+    let views = model.views.iter().filter(|v| v.skinned).map(|v| v.path.clone());
+    proxies.chain(views).collect()
+}
+
+/// One frame's samples in [`layout_attrs`] order (extents computed here, on
+/// the worker thread).
+fn frame_samples(out: FrameOutput, baked_proxy: &[bool]) -> Vec<Sample> {
+    let extent = |p: &[Vec3]| Sample::Vec3s(bounds(p).unwrap_or([Vec3::ZERO; 2]).to_vec());
+    let mut s = Vec::with_capacity(3 * out.layers.len() + 2 * (out.proxies.len() + out.views.len()));
+    for l in out.layers {
+        let e = extent(&l.points);
+        s.push(Sample::Vec3s(l.points));
+        s.push(e);
+        s.push(Sample::Floats(l.opacity));
+    }
+    let proxies = out.proxies.into_iter().zip(out.proxy_normals);
+    for ((p, n), _) in proxies.zip(baked_proxy).filter(|(_, &keep)| keep) {
+        let Some(p) = p else { continue };
+        let e = extent(&p);
+        s.push(Sample::Vec3s(p));
+        s.push(e);
+        if let Some(n) = n {
+            s.push(Sample::Vec3s(n));
+        }
+    }
+    for v in out.views {
+        let e = extent(&v);
+        s.push(Sample::Vec3s(v));
+        s.push(e);
+    }
+    s
+}
+
+/// Streams every frame through read (this thread) → evaluate (thread pool)
+/// → write (a writer thread, in time order), with a bounded window of frames
+/// in flight.
+fn stream(
+    ch: &Character,
+    times: &[f64],
+    with_proxies: bool,
+    mut sink: Box<dyn FrameSink>,
+    progress: Progress,
+) -> Result<()> {
+    let model: &Model = &ch.model;
+    let window = 2 * rayon::current_num_threads() + 2;
+    let (done_tx, done_rx) = mpsc::sync_channel::<(usize, Result<Vec<Sample>>)>(window);
+    // A permit per frame in flight: taken before a read, returned by the writer.
+    let (permit_tx, permit_rx) = mpsc::sync_channel::<()>(window);
+    for _ in 0..window {
+        let _ = permit_tx.send(());
+    }
+    let total = times.len();
+    let mask = baked_proxy_mask(model);
+    let mask = &mask;
+    // Time spent in each stage, for --verbose (evaluation summed over threads).
+    let evaluating = std::sync::atomic::AtomicU64::new(0);
+    let evaluating = &evaluating;
+    let started = Instant::now();
+    let result = std::thread::scope(|s| {
+        let writer = s.spawn(move || -> Result<f64> {
+            let mut pending = BTreeMap::new();
+            let mut next = 0;
+            let mut writing = 0.0;
+            for (i, frame) in done_rx {
+                pending.insert(i, frame);
+                while let Some(frame) = pending.remove(&next) {
+                    let t0 = Instant::now();
+                    sink.write_frame(times[next], frame?)?;
+                    writing += t0.elapsed().as_secs_f64();
+                    next += 1;
+                    progress(next, total);
+                    let _ = permit_tx.send(());
+                }
+            }
+            if next < total {
+                // The reader stopped early; its error is the one to report.
+                return Err(Error::msg("bake stopped before the last frame"));
+            }
+            let t0 = Instant::now();
+            sink.finish()?;
+            Ok(writing + t0.elapsed().as_secs_f64())
+        });
+        let mut reading = 0.0;
+        let read = rayon::in_place_scope(|scope| -> Result<()> {
+            for (i, &t) in times.iter().enumerate() {
+                if permit_rx.recv().is_err() {
+                    break; // the writer failed; it reports why
+                }
+                let t0 = Instant::now();
+                let input = ch.read_frame(t)?;
+                reading += t0.elapsed().as_secs_f64();
+                let tx = done_tx.clone();
+                scope.spawn(move |_| {
+                    let t0 = Instant::now();
+                    let out = model.evaluate(input, with_proxies).map(|o| frame_samples(o, mask));
+                    let ns = t0.elapsed().as_nanos() as u64;
+                    evaluating.fetch_add(ns, std::sync::atomic::Ordering::Relaxed);
+                    let _ = tx.send((i, out));
+                });
+            }
+            Ok(())
+        });
+        drop(done_tx);
+        let written = writer
+            .join()
+            .unwrap_or_else(|_| Err(Error::msg("internal error: the layer writer panicked")));
+        read.and(written).map(|writing| (reading, writing))
+    });
+    let (reading, writing) = result?;
+    crate::vlog!(
+        "{}: read {reading:.3} s, evaluate {:.3} s (summed over threads), write {writing:.3} s; {:.3} s wall",
+        crate::words::plural(total, "frame"),
+        evaluating.load(std::sync::atomic::Ordering::Relaxed) as f64 * 1e-9,
+        started.elapsed().as_secs_f64()
+    );
+    Ok(())
 }

@@ -17,6 +17,7 @@ use crate::frames::FrameRange;
 use crate::inspect::inspect;
 use crate::tools::Falloff;
 use crate::usd_io::edit::{EditSession, EditTarget};
+use crate::words::plural;
 
 /// Painted strokes that follow rigged characters, baked into USD layers.
 ///
@@ -33,6 +34,10 @@ use crate::usd_io::edit::{EditSession, EditTarget};
     after_help = "Exit codes: 0 success; 1 bad input or a failed write (the message names the file, prim and attribute); 2 bad command-line usage; 3 internal error (a bug).\nDocs: README.md, docs/choices.md, schemas/painterly/schema.usda."
 )]
 pub struct Cli {
+    /// Log what was read and the time of each phase (read, bind, evaluate,
+    /// write) to stderr.
+    #[arg(short, long, global = true)]
+    pub verbose: bool,
     #[command(subcommand)]
     pub command: Command,
 }
@@ -67,6 +72,20 @@ pub enum Command {
         /// view-dependent mesh (overrides their painterly:camera).
         #[arg(long, value_name = "PRIM")]
         camera: Option<String>,
+        /// Write USD value clips: chunk layers of N frames in OUTPUT's
+        /// `<stem>.clips/` folder, and OUTPUT (.usda) as the clip set that
+        /// composes them. Memory and each file stay small whatever the range.
+        #[arg(long, value_name = "N", value_parser = positive_count)]
+        chunk: Option<usize>,
+        /// With --chunk: bake only chunk K (0-based) into its chunk layer;
+        /// one farm task per chunk.
+        #[arg(long, value_name = "K", requires = "chunk", conflicts_with = "assemble")]
+        chunk_index: Option<usize>,
+        /// With --chunk: only write the clip set, after checking that every
+        /// chunk layer exists and was baked from this input by this version
+        /// (a farm's last step).
+        #[arg(long, requires = "chunk")]
+        assemble: bool,
         /// Print nothing on success.
         #[arg(short, long)]
         quiet: bool,
@@ -182,12 +201,61 @@ pub enum Command {
     ///
     /// Example: painterly render shot.usda --camera /World/Cam --frames 1:48 -o out/shot.####.exr --png --sheet
     Render(crate::render::RenderArgs),
+    /// Live preview in the browser: drag the configuration, scrub the
+    /// timeline, orbit the camera and see the paint move.
+    ///
+    /// Serves one page (plain WebGL2, embedded in the binary, no network
+    /// needed) on 127.0.0.1 and prints its URL. Every frame the page shows is
+    /// evaluated on demand by the same code as bake (one frame, nothing
+    /// written): the timeline plays and scrubs, one slider per axis pins that
+    /// axis to a value (pose mode) and shows its keys and their weights,
+    /// "view drives" makes the orbit camera the eye of viewDirection axes and
+    /// view-dependent meshes, and "render" shows `painterly render`'s frame of
+    /// the current view. The input is never written.
+    ///
+    /// Example: painterly preview fixtures/blowfish.usda --port 0
+    Preview(crate::preview::PreviewArgs),
+    /// Write a layer that shows a bake over its input in usdview.
+    ///
+    /// The layer sublayers BAKE over INPUT (relative paths when possible) and
+    /// carries the baked time range, timeCodesPerSecond, framesPerSecond,
+    /// upAxis, metersPerUnit and defaultPrim, so a viewer opens it at the
+    /// right frames and UsdValidation finds nothing to report. A bake made
+    /// from another input is refused.
+    ///
+    /// Example: painterly view fixtures/blowfish.usda --bake /tmp/fish_bake.usdc -o /tmp/fish_view.usda
+    View {
+        /// The input the bake was made from.
+        input: PathBuf,
+        /// The layer `painterly bake` wrote (a single file or a --chunk clip set).
+        #[arg(long, value_name = "LAYER")]
+        bake: PathBuf,
+        /// The view layer to write (.usda).
+        #[arg(short, long)]
+        output: PathBuf,
+        /// Print nothing on success.
+        #[arg(short, long)]
+        quiet: bool,
+        /// Print a JSON summary on stdout instead of the summary line.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Bake a sequence on a farm: a task per chunk, then a dependent assembly.
+    ///
+    /// The same chunks as `bake --chunk N`, one scheduler task each
+    /// (`bake --chunk N --chunk-index K`), and a task that runs after all of
+    /// them (`bake --chunk N --assemble`). Slurm jobs are submitted with
+    /// sbatch; Open Job Description templates are written for `openjd run`
+    /// or a farm that takes them. `farm status` tells where a bake is.
+    ///
+    /// Example: painterly farm submit shot.usda -o bake/shot.usda --chunk 24 --scheduler slurm
+    #[command(subcommand)]
+    Farm(crate::farm::FarmCommand),
     /// Interpolation weights for keys and query points, JSON on stdin.
     ///
     /// Input: {"method": "smoothVoronoi"|"rbf"|"shepard", "radius": 1.0,
     /// "keys": [[...], ...], "points": [[...], ...]}. Output:
     /// {"weights": [[w_0, ..., w_n-1] per point]}. For tests and plots.
-    #[command(hide = true)]
     Interpolate,
 }
 
@@ -261,6 +329,14 @@ pub enum FalloffArg {
     None,
 }
 
+/// A count of at least 1 (a usage error otherwise).
+pub(crate) fn positive_count(s: &str) -> Result<usize, String> {
+    match s.parse::<usize>() {
+        Ok(n) if n >= 1 => Ok(n),
+        _ => Err(format!("{s:?} is not a whole number of at least 1")),
+    }
+}
+
 fn parse_point(s: &str) -> Result<glam::DVec3, Error> {
     let v: Vec<f64> = s
         .split(',')
@@ -313,9 +389,25 @@ fn run_brush(edit: &EditArgs, b: &BrushArgs, which: Brush) -> Result<String, Err
         strokes,
     };
     let moved = author::brush(&session, which, &opts)?;
+    if moved == 0 {
+        // Nothing changed: say so and leave every file as it was.
+        return Err(Error::prim(
+            &b.layer,
+            format!(
+                "no point lies within --radius {} of the tool path (in the pose at {}): nothing changed, nothing written",
+                b.radius,
+                b.time.map_or("rest".to_string(), |t| format!("time {t}"))
+            ),
+        ));
+    }
     let target = session.target().to_path_buf();
     session.save()?;
-    Ok(format!("moved {moved} points of {} -> {}", b.layer, target.display()))
+    Ok(format!(
+        "moved {} of {} -> {}",
+        plural(moved, "point"),
+        b.layer,
+        target.display()
+    ))
 }
 
 fn finish(result: Result<String, Error>, quiet: bool, input: &std::path::Path) -> i32 {
@@ -332,6 +424,7 @@ fn finish(result: Result<String, Error>, quiet: bool, input: &std::path::Path) -
 
 /// Runs a parsed command; returns the process exit code.
 pub fn run(cli: Cli) -> i32 {
+    crate::log::set_verbose(cli.verbose);
     match cli.command {
         Command::Bake {
             input,
@@ -339,6 +432,9 @@ pub fn run(cli: Cli) -> i32 {
             frames,
             bake_proxy,
             camera,
+            chunk,
+            chunk_index,
+            assemble,
             quiet,
             json,
         } => {
@@ -347,10 +443,8 @@ pub fn run(cli: Cli) -> i32 {
             if show_bar {
                 bar.set_draw_target(indicatif::ProgressDrawTarget::stderr());
                 bar.set_style(
-                    ProgressStyle::with_template(
-                        "{spinner} baking {pos}/{len} frames [{bar:30}] {elapsed} (eta {eta})",
-                    )
-                    .unwrap_or_else(|_| ProgressStyle::default_bar()),
+                    ProgressStyle::with_template("{spinner} baking frame {pos}/{len} [{bar:30}] {elapsed} (eta {eta})")
+                        .unwrap_or_else(|_| ProgressStyle::default_bar()),
                 );
             }
             let progress = |done: usize, total: usize| {
@@ -361,6 +455,9 @@ pub fn run(cli: Cli) -> i32 {
                 frames,
                 bake_proxy,
                 camera,
+                chunk,
+                chunk_index,
+                assemble,
             };
             let result = bake(&input, &output, &opts, &progress);
             bar.finish_and_clear();
@@ -369,13 +466,18 @@ pub fn run(cli: Cli) -> i32 {
                     if json {
                         println!("{}", serde_json::to_string(&s).unwrap_or_default());
                     } else if !quiet {
+                        let chunks = if s.chunks.is_empty() {
+                            String::new()
+                        } else {
+                            format!(" ({})", plural(s.chunks.len(), "chunk layer"))
+                        };
                         println!(
-                            "baked {} frames: {} layers, {} strokes, {} points, {} view-dependent meshes -> {} in {:.2} s",
-                            s.frames,
-                            s.layers,
-                            s.strokes,
-                            s.points,
-                            s.view_meshes,
+                            "baked {}: {}, {}, {}, {} -> {}{chunks} in {:.2} s",
+                            plural(s.frames, "frame"),
+                            plural(s.layers, "layer"),
+                            plural(s.strokes, "stroke"),
+                            plural(s.points, "point"),
+                            plural(s.view_meshes, "view-dependent mesh"),
                             s.output.display(),
                             s.seconds
                         );
@@ -408,8 +510,9 @@ pub fn run(cli: Cli) -> i32 {
                 session.save()?;
                 let n: usize = report.iter().map(|r| r.1).sum();
                 Ok(format!(
-                    "bound {n} points in {} layers -> {}",
-                    report.len(),
+                    "bound {} in {} -> {}",
+                    plural(n, "point"),
+                    plural(report.len(), "layer"),
                     target.display()
                 ))
             })();
@@ -463,12 +566,54 @@ pub fn run(cli: Cli) -> i32 {
         Command::Render(args) => match crate::render::run(&args) {
             Ok(summary) => {
                 if !args.quiet {
-                    println!("{summary}");
+                    for w in &summary.warnings {
+                        eprintln!("warning: {w}");
+                    }
+                }
+                if args.json {
+                    println!("{}", serde_json::to_string(&summary).unwrap_or_default());
+                } else if !args.quiet {
+                    println!("{}", summary.line());
                 }
                 0
             }
             Err(e) => report(&e),
         },
+        Command::Preview(args) => match crate::preview::run(&args) {
+            Ok(()) => 0,
+            Err(e) => report(&e),
+        },
+        Command::View {
+            input,
+            bake,
+            output,
+            quiet,
+            json,
+        } => match crate::usd_io::assembly::write_view_layer(&input, &bake, &output) {
+            Ok(s) => {
+                if !quiet {
+                    for w in &s.warnings {
+                        eprintln!("warning: {w}");
+                    }
+                }
+                if json {
+                    println!("{}", serde_json::to_string(&s).unwrap_or_default());
+                } else if !quiet {
+                    println!(
+                        "wrote {}: {} over {}, frames {}:{}, defaultPrim {}",
+                        s.output.display(),
+                        s.bake.display(),
+                        s.input.display(),
+                        s.start_time_code,
+                        s.end_time_code,
+                        s.default_prim
+                    );
+                }
+                0
+            }
+            Err(e) => report(&e),
+        },
+        Command::Farm(cmd) => crate::farm::run(cmd),
         Command::Interpolate => {
             let mut input = String::new();
             if let Err(e) = std::io::Read::read_to_string(&mut std::io::stdin(), &mut input) {

@@ -7,6 +7,8 @@
 use std::fmt;
 use std::path::{Path, PathBuf};
 
+use crate::rule::Rule;
+
 /// A painterly error: what went wrong and where.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Error {
@@ -21,6 +23,8 @@ pub struct Error {
     /// A command-line usage error (exit 2), e.g. an output path with the
     /// wrong extension, found after argument parsing.
     pub usage: bool,
+    /// The schema rule this breaks, for problems `inspect` reports.
+    pub rule: Option<Rule>,
 }
 
 /// Result alias used across the crate.
@@ -35,6 +39,7 @@ impl Error {
             attribute: None,
             message: message.into(),
             usage: false,
+            rule: None,
         }
     }
 
@@ -70,6 +75,19 @@ impl Error {
             attribute: Some(attribute.to_string()),
             ..Error::msg(message)
         }
+    }
+
+    /// Names the rule this error breaks (see [`Rule`]).
+    pub fn rule(mut self, rule: Rule) -> Self {
+        self.rule = Some(rule);
+        self
+    }
+
+    /// Names the rule unless a more specific one is already set: for the
+    /// places that collect errors from code that does not know the rule.
+    pub fn or_rule(mut self, rule: Rule) -> Self {
+        self.rule.get_or_insert(rule);
+        self
     }
 
     /// Attaches the file this error concerns, unless one is already set.

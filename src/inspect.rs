@@ -11,6 +11,8 @@ use std::path::{Path, PathBuf};
 use serde::Serialize;
 
 use crate::error::{Error, Result};
+use crate::rule::Rule;
+use crate::usd_io::clips::{clip_set_status, ChunkState};
 use crate::usd_io::scene::{ProxyMotion, Scene};
 use crate::usd_io::stage::{StageReader, UnresolvedAsset};
 use crate::usd_io::view_mesh::read_view_meshes_lenient;
@@ -28,7 +30,27 @@ pub struct Report {
     /// Sublayers, references and payloads that did not resolve (each is
     /// also a problem: bake refuses such a stage).
     pub unresolved_assets: Vec<UnresolvedAsset>,
+    /// For a clip-set layer written by `bake --chunk`: its chunks.
+    pub clip_set: Option<ClipSetReport>,
     pub problems: Vec<Problem>,
+}
+
+/// A clip-set bake's chunks.
+#[derive(Debug, Serialize)]
+pub struct ClipSetReport {
+    pub chunk_size: usize,
+    pub chunks: Vec<ChunkReport>,
+}
+
+/// One chunk layer of a clip-set bake.
+#[derive(Debug, Serialize)]
+pub struct ChunkReport {
+    /// Path of the chunk layer.
+    pub path: PathBuf,
+    /// "done", "missing" or "stale".
+    pub state: &'static str,
+    /// Why a chunk is stale.
+    pub detail: Option<String>,
 }
 
 #[derive(Debug, Serialize)]
@@ -41,6 +63,9 @@ pub struct RigReport {
     pub skeleton: Option<String>,
     pub animation_source: Option<String>,
     pub layers: Vec<LayerReport>,
+    /// How usd-core's UsdSkel rules treat this proxy where that may surprise
+    /// (e.g. a blend shape without offsets moves no point); not problems.
+    pub notes: Vec<String>,
 }
 
 /// One row of Bassett's Table I.
@@ -87,11 +112,16 @@ pub struct Problem {
     pub prim: Option<String>,
     pub attribute: Option<String>,
     pub message: String,
+    /// The rule it breaks ([`Rule::id`]); the Python package's validator
+    /// for that rule reports it.
+    pub rule: Rule,
 }
 
-impl From<Error> for Problem {
-    fn from(e: Error) -> Self {
+impl Problem {
+    /// A problem from an error, under `rule` unless the error names a more specific one.
+    fn new(e: Error, rule: Rule) -> Self {
         Problem {
+            rule: e.rule.unwrap_or(rule),
             prim: e.prim,
             attribute: e.attribute,
             message: e.message,
@@ -99,8 +129,10 @@ impl From<Error> for Problem {
     }
 }
 
-/// Counts the key prims under a layer: (position keys, opacity keys, time keys, sentinels).
-fn count_keys(r: &StageReader, layer: &str) -> Result<(usize, usize, usize, usize)> {
+/// Counts the key prims under a layer: (position keys, opacity keys, time
+/// keys, sentinels). A sentinel carrying points or opacity is a problem:
+/// sentinels carry no data, so what was authored there is ignored.
+fn count_keys(r: &StageReader, layer: &str, problems: &mut Vec<Problem>) -> Result<(usize, usize, usize, usize)> {
     let prim = r.require_prim(layer)?;
     let (mut pos, mut opa, mut time, mut sent) = (0, 0, 0, 0);
     let children = prim
@@ -119,6 +151,16 @@ fn count_keys(r: &StageReader, layer: &str) -> Result<(usize, usize, usize, usiz
                     != 0.0;
                 if s {
                     sent += 1;
+                    for attr in ["points", "opacity"] {
+                        if r.has_authored(&c, attr)? {
+                            let e = Error::attr(
+                                c.path(),
+                                attr,
+                                format!("a sentinel carries no {attr}: it would be ignored (set `sentinel = 0` for a time key)"),
+                            );
+                            problems.push(Problem::new(e, Rule::SentinelMisuse));
+                        }
+                    }
                 } else {
                     time += 1;
                 }
@@ -131,40 +173,49 @@ fn count_keys(r: &StageReader, layer: &str) -> Result<(usize, usize, usize, usiz
 
 /// Builds the report. Fails only when the file cannot be opened at all.
 pub fn inspect(path: &Path) -> Result<Report> {
-    let r = StageReader::open(path)?;
-    let (scene, problems) = Scene::read_lenient(&r).map_err(|e| e.in_file(path))?;
-    let mut problems: Vec<Problem> = problems.into_iter().map(Problem::from).collect();
+    inspect_stage(&StageReader::open(path)?)
+}
+
+/// Builds the report of an opened stage (a file, or a layer handed over in
+/// memory, see [`crate::usd_io::memory`]).
+pub fn inspect_stage(r: &StageReader) -> Result<Report> {
+    let path = r.file.as_path();
+    let (scene, problems) = Scene::read_lenient(r).map_err(|e| e.in_file(path))?;
+    let mut problems: Vec<Problem> = problems
+        .into_iter()
+        .map(|e| Problem::new(e, Rule::Unreadable))
+        .collect();
     let meta = r.metadata();
     // What bake checks before reading anything: assets, stage metadata and
     // the default frame range.
     for u in &r.unresolved {
-        problems.push(Problem {
+        let e = Error {
             prim: u.prim.clone(),
-            attribute: None,
-            message: format!("missing asset: {}", u.describe_asset()),
-        });
+            ..Error::msg(format!("missing asset: {}", u.describe_asset()))
+        };
+        problems.push(Problem::new(e, Rule::Unreadable));
     }
     let has_range = meta.start_time_code.is_some() || meta.end_time_code.is_some();
     if let Err(e) = meta.validate() {
-        problems.push(e.into());
+        problems.push(Problem::new(e, Rule::Unreadable));
     } else if has_range {
         // A stage without a range is fine: bake then needs --frames.
         if let Err(e) = crate::frames::resolve(&meta, None) {
-            problems.push(e.into());
+            problems.push(Problem::new(e, Rule::Unreadable));
         }
     }
     let mut rigs = Vec::new();
     for rig in &scene.rigs {
-        let (skeleton, animation_source) = match &rig.proxy.motion {
-            ProxyMotion::Skel(s) => (Some(s.skeleton.clone()), s.animation.clone()),
-            _ => (None, None),
+        let (skeleton, animation_source, notes) = match &rig.proxy.motion {
+            ProxyMotion::Skel(s) => (Some(s.skeleton.clone()), s.animation.clone(), s.notes.clone()),
+            _ => (None, None, Vec::new()),
         };
         let mut layers = Vec::new();
         for l in &rig.layers {
-            let (pos, opa, time, sent) = match count_keys(&r, &l.path) {
+            let (pos, opa, time, sent) = match count_keys(r, &l.path, &mut problems) {
                 Ok(c) => c,
                 Err(e) => {
-                    problems.push(e.into());
+                    problems.push(Problem::new(e, Rule::Unreadable));
                     (0, 0, 0, 0)
                 }
             };
@@ -193,6 +244,7 @@ pub fn inspect(path: &Path) -> Result<Report> {
             skeleton,
             animation_source,
             layers,
+            notes,
         });
     }
     let mut axes = Vec::new();
@@ -211,8 +263,8 @@ pub fn inspect(path: &Path) -> Result<Report> {
             });
         }
     }
-    let (meshes, view_problems) = read_view_meshes_lenient(&r, &r.prim_paths()?).map_err(|e| e.in_file(path))?;
-    problems.extend(view_problems.into_iter().map(Problem::from));
+    let (meshes, view_problems) = read_view_meshes_lenient(r, &r.prim_paths()?).map_err(|e| e.in_file(path))?;
+    problems.extend(view_problems.into_iter().map(|e| Problem::new(e, Rule::Unreadable)));
     for m in meshes {
         view_meshes.push(ViewMeshReport {
             path: m.path.clone(),
@@ -231,6 +283,7 @@ pub fn inspect(path: &Path) -> Result<Report> {
             encloses: m.blend.blender.encloses(),
         });
     }
+    let clip_set = clip_set_report(path, &mut problems)?;
     Ok(Report {
         file: path.to_path_buf(),
         start_time_code: meta.start_time_code,
@@ -241,8 +294,51 @@ pub fn inspect(path: &Path) -> Result<Report> {
         axes,
         view_dependent_meshes: view_meshes,
         unresolved_assets: r.unresolved.clone(),
+        clip_set,
         problems,
     })
+}
+
+/// The chunks of a clip-set bake; missing and stale chunks are problems.
+fn clip_set_report(path: &Path, problems: &mut Vec<Problem>) -> Result<Option<ClipSetReport>> {
+    let Some(status) = clip_set_status(path)? else {
+        return Ok(None);
+    };
+    let stem = path.file_stem().unwrap_or_default().to_string_lossy();
+    let dir = path.with_file_name(format!("{stem}.clips"));
+    let chunks = status
+        .chunks
+        .into_iter()
+        .map(|(name, state)| {
+            let chunk = dir.join(&name);
+            let (state, detail) = match state {
+                ChunkState::Done => ("done", None),
+                ChunkState::Missing => ("missing", None),
+                ChunkState::Stale(why) => ("stale", Some(why)),
+            };
+            if state != "done" {
+                problems.push(Problem {
+                    prim: None,
+                    attribute: None,
+                    rule: Rule::Chunks,
+                    message: format!(
+                        "chunk {} is {state}{}",
+                        chunk.display(),
+                        detail.as_deref().map(|d| format!(" ({d})")).unwrap_or_default()
+                    ),
+                });
+            }
+            ChunkReport {
+                path: chunk,
+                state,
+                detail,
+            }
+        })
+        .collect();
+    Ok(Some(ClipSetReport {
+        chunk_size: status.chunk_size,
+        chunks,
+    }))
 }
 
 impl Report {
@@ -252,12 +348,15 @@ impl Report {
         let mut s = String::new();
         let opt = |v: Option<f64>| v.map_or("-".to_string(), |v| v.to_string());
         let _ = writeln!(s, "{}", self.file.display());
+        let rate = match self.time_codes_per_second {
+            Some(r) => format!("{r} per second"),
+            None => "24 per second (timeCodesPerSecond not authored: USD's default)".to_string(),
+        };
         let _ = writeln!(
             s,
-            "  time codes {}..{} at {} per second, up axis {}",
+            "  time codes {}..{} at {rate}, up axis {}",
             opt(self.start_time_code),
             opt(self.end_time_code),
-            opt(self.time_codes_per_second),
             self.up_axis.as_deref().unwrap_or("-")
         );
         for rig in &self.rigs {
@@ -274,6 +373,9 @@ impl Report {
                     sk,
                     rig.animation_source.as_deref().unwrap_or("(none: rest pose)")
                 );
+            }
+            for n in &rig.notes {
+                let _ = writeln!(s, "  note: {n}");
             }
             let _ = writeln!(
                 s,
@@ -327,17 +429,27 @@ impl Report {
         for u in &self.unresolved_assets {
             let _ = writeln!(s, "unresolved {}", u.describe());
         }
+        if let Some(c) = &self.clip_set {
+            let count = |state: &str| c.chunks.iter().filter(|k| k.state == state).count();
+            let _ = writeln!(
+                s,
+                "clip set: {} chunks of {} frames: {} done, {} missing, {} stale",
+                c.chunks.len(),
+                c.chunk_size,
+                count("done"),
+                count("missing"),
+                count("stale")
+            );
+        }
         if self.problems.is_empty() {
             let _ = writeln!(s, "no problems found");
         } else {
             let _ = writeln!(s, "{} problem(s):", self.problems.len());
             for p in &self.problems {
                 let e = Error {
-                    file: None,
                     prim: p.prim.clone(),
                     attribute: p.attribute.clone(),
-                    message: p.message.clone(),
-                    usage: false,
+                    ..Error::msg(p.message.clone())
                 };
                 let _ = writeln!(s, "  {e}");
             }

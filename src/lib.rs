@@ -16,26 +16,36 @@
 //! | [`keys`] | pose keys and temporal keys with sentinels |
 //! | [`view`] | view-dependent geometry (Rademacher 1999) |
 //! | [`usd_io`] | reading stages, writing layers |
-//! | [`bake`] | the `bake` command |
+//! | [`character`] | a character resolved for evaluation: rest data once, frames on demand |
+//! | [`bake`] | the `bake` command: frames streamed through reader → evaluator → writer |
 //! | [`inspect`] | the `inspect` command |
+//! | [`farm`] | the `farm` command: chunked bakes as scheduler jobs (Slurm, Open Job Description) |
+//! | [`rule`] | the schema rules `inspect` checks, with stable ids |
 //! | [`interp`] | configuration-space interpolation (smooth Voronoi, RBF, Shepard) |
 //! | [`render`] | the `render` command: preview EXR/PNG frames and contact sheets |
+//! | [`preview`] | the `preview` command: a live view in the browser (loopback server, WebGL2 page) |
 
 pub mod author;
 pub mod bake;
 pub mod bind;
+pub mod character;
 pub mod cli;
 pub mod error;
+pub mod farm;
 pub mod frames;
 pub mod inspect;
 pub mod interp;
 pub mod keys;
+pub mod log;
 pub mod mesh;
+pub mod preview;
 pub mod render;
+pub mod rule;
 pub mod skel_deform;
 pub mod skinning;
 pub mod tools;
 pub mod usd_io;
 pub mod view;
+pub mod words;
 
 pub use error::{Error, Result};

@@ -20,61 +20,130 @@ pub enum SkinningMethod {
 }
 
 /// One blend shape target: sparse or dense offsets plus inbetweens.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct BlendShape {
-    /// Offsets at weight 1.
+    /// Offsets at weight 1; empty when the shape has no `offsets` (only
+    /// `normalOffsets`): it then moves no point.
     pub offsets: Vec<DVec3>,
+    /// Normal offsets at weight 1 (empty: none).
+    pub normal_offsets: Vec<DVec3>,
     /// Point each offset applies to; None = dense (offset i → point i).
     pub point_indices: Option<Vec<u32>>,
-    /// Inbetween shapes: (weight, offsets), any order.
-    pub inbetweens: Vec<(f64, Vec<DVec3>)>,
+    /// Inbetween shapes, any order.
+    pub inbetweens: Vec<Inbetween>,
+}
+
+/// An inbetween shape; empty offsets move nothing.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Inbetween {
+    pub weight: f64,
+    pub offsets: Vec<DVec3>,
+    pub normal_offsets: Vec<DVec3>,
+}
+
+/// usd-core's tolerance for inbetween weights and interpolation parameters.
+const SHAPE_EPS: f64 = 1e-6;
+
+/// A sub-shape of a blend shape: the primary or an inbetween.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum SubShape {
+    Primary,
+    Inbetween(usize),
 }
 
 impl BlendShape {
-    /// Adds `weight` of this shape to `points`.
+    /// The sub-shapes `weight` blends and their factors, as
+    /// UsdSkelBlendShapeQuery resolves them.
     ///
-    /// Inbetweens are piecewise-linear breakpoints along the weight axis with
-    /// the rest (weight 0, zero offsets) and the primary shape (weight 1);
-    /// outside the outermost breakpoints the outermost segment extrapolates,
-    /// as UsdSkel does for weights beyond [0, 1].
-    pub fn apply(&self, weight: f64, points: &mut [DVec3]) {
-        if weight == 0.0 {
+    /// Without inbetweens the primary shape scales linearly with the weight
+    /// (also below 0 and above 1). With inbetweens, the sub-shapes (rest at
+    /// weight 0, the primary at 1, each inbetween at its weight; inbetweens
+    /// within 1e-6 of 0 or 1 are ignored) are piecewise-linear breakpoints
+    /// along the weight axis, and outside the outermost breakpoints the
+    /// outermost segment extrapolates.
+    fn sub_shapes(&self, weight: f64) -> Vec<(SubShape, f64)> {
+        // Sub-shapes sorted by weight: primary, rest (None), inbetweens.
+        let mut subs: Vec<(f64, Option<SubShape>)> = vec![(1.0, Some(SubShape::Primary)), (0.0, None)];
+        subs.extend(
+            self.inbetweens
+                .iter()
+                .enumerate()
+                .filter(|(_, ib)| (ib.weight - 0.0).abs() > SHAPE_EPS && (ib.weight - 1.0).abs() > SHAPE_EPS)
+                .map(|(k, ib)| (ib.weight, Some(SubShape::Inbetween(k)))),
+        );
+        if subs.len() == 2 {
+            return vec![(SubShape::Primary, weight)];
+        }
+        subs.sort_by(|a, b| a.0.total_cmp(&b.0));
+        // The first sub-shape above the weight bounds the segment from above.
+        let upper = subs.iter().position(|s| s.0 > weight).unwrap_or(subs.len());
+        let (lo, hi) = match upper {
+            0 => (0, 1),
+            u if u == subs.len() => (u - 2, u - 1),
+            u => (u - 1, u),
+        };
+        let ((w0, s0), (w1, s1)) = (subs[lo], subs[hi]);
+        let span = w1 - w0;
+        if span <= SHAPE_EPS {
+            return Vec::new();
+        }
+        let alpha = (weight - w0) / span;
+        let mut out = Vec::new();
+        if let Some(s0) = s0 {
+            if (alpha - 1.0).abs() > SHAPE_EPS {
+                out.push((s0, 1.0 - alpha));
+            }
+        }
+        if let Some(s1) = s1 {
+            if alpha.abs() > SHAPE_EPS {
+                out.push((s1, alpha));
+            }
+        }
+        out
+    }
+
+    fn add(&self, target: &mut [DVec3], offsets: &[DVec3], scale: f64) {
+        if scale.abs() < SHAPE_EPS || offsets.is_empty() {
             return;
         }
-        let add = |points: &mut [DVec3], offsets: &[DVec3], scale: f64| {
-            if scale == 0.0 {
-                return;
-            }
-            match &self.point_indices {
-                None => points.iter_mut().zip(offsets).for_each(|(p, o)| *p += *o * scale),
-                Some(idx) => {
-                    for (&i, o) in idx.iter().zip(offsets) {
-                        points[i as usize] += *o * scale;
+        match &self.point_indices {
+            None => target.iter_mut().zip(offsets).for_each(|(p, o)| *p += *o * scale),
+            Some(idx) => {
+                for (&i, o) in idx.iter().zip(offsets) {
+                    if let Some(p) = target.get_mut(i as usize) {
+                        *p += *o * scale;
                     }
                 }
             }
-        };
-        if self.inbetweens.is_empty() {
-            add(points, &self.offsets, weight);
-            return;
         }
-        // Breakpoints sorted by weight: rest, inbetweens, primary.
-        let mut bps: Vec<(f64, Option<&[DVec3]>)> = vec![(0.0, None), (1.0, Some(&self.offsets))];
-        bps.extend(self.inbetweens.iter().map(|(w, o)| (*w, Some(o.as_slice()))));
-        bps.sort_by(|a, b| a.0.total_cmp(&b.0));
-        let seg = (0..bps.len() - 1)
-            .find(|&k| weight <= bps[k + 1].0)
-            .unwrap_or(bps.len() - 2);
-        let (w0, o0) = bps[seg];
-        let (w1, o1) = bps[seg + 1];
-        let span = w1 - w0;
-        let t = if span > 0.0 { (weight - w0) / span } else { 1.0 };
-        if let Some(o0) = o0 {
-            add(points, o0, 1.0 - t);
+    }
+
+    /// Adds `weight` of this shape to `points`.
+    pub fn apply(&self, weight: f64, points: &mut [DVec3]) {
+        for (sub, f) in self.sub_shapes(weight) {
+            let offsets = match sub {
+                SubShape::Primary => &self.offsets,
+                SubShape::Inbetween(k) => &self.inbetweens[k].offsets,
+            };
+            self.add(points, offsets, f);
         }
-        if let Some(o1) = o1 {
-            add(points, o1, t);
+    }
+
+    /// Adds `weight` of this shape's normal offsets to per-point `normals`
+    /// (not renormalised: see [`SkelDeformer::deform_normals`]).
+    pub fn apply_normals(&self, weight: f64, normals: &mut [DVec3]) {
+        for (sub, f) in self.sub_shapes(weight) {
+            let offsets = match sub {
+                SubShape::Primary => &self.normal_offsets,
+                SubShape::Inbetween(k) => &self.inbetweens[k].normal_offsets,
+            };
+            self.add(normals, offsets, f);
         }
+    }
+
+    /// Whether any sub-shape has normal offsets.
+    pub fn has_normal_offsets(&self) -> bool {
+        !self.normal_offsets.is_empty() || self.inbetweens.iter().any(|ib| !ib.normal_offsets.is_empty())
     }
 }
 
@@ -87,6 +156,9 @@ pub struct Influences {
     pub joints: Vec<u32>,
     /// Weight of each influence.
     pub weights: Vec<f64>,
+    /// `constant` interpolation: one set of influences for the whole mesh
+    /// (usd-core then moves the mesh's transform, not its points).
+    pub rigid: bool,
 }
 
 /// Everything needed to deform one skinned mesh, read once.
@@ -96,45 +168,142 @@ pub struct SkelDeformer {
     pub rest_points: Vec<DVec3>,
     /// `primvars:skel:geomBindTransform` (column form).
     pub geom_bind: DMat4,
-    pub influences: Influences,
+    /// Joint influences; None when the mesh has none (blend shapes only).
+    pub influences: Option<Influences>,
     pub method: SkinningMethod,
     /// Blend shapes in the mesh's `skel:blendShapes` order.
     pub blend_shapes: Vec<BlendShape>,
 }
 
 impl SkelDeformer {
-    /// Skel-space points for joint skinning transforms (mesh joint order,
-    /// column form: inverse bind then posed joint) and blend-shape weights
-    /// (mesh order).
-    pub fn deform(&self, skinning: &[DMat4], shape_weights: &[f64]) -> Vec<DVec3> {
+    /// Deformed points for blend-shape weights (mesh order) and, when the
+    /// mesh is skinned by joints, their skinning transforms (mesh joint
+    /// order, column form: inverse bind then posed joint).
+    ///
+    /// With joint skinning the result is in skeleton space; without, the
+    /// blend-shaped points stay in the mesh's own space (BakeSkinning
+    /// applies no geomBindTransform then).
+    pub fn deform(&self, skinning: Option<&[DMat4]>, shape_weights: &[f64]) -> Vec<DVec3> {
         let mut pts = self.rest_points.clone();
         for (shape, &w) in self.blend_shapes.iter().zip(shape_weights) {
             shape.apply(w, &mut pts);
         }
-        let n = self.influences.per_point;
-        let dq: Vec<(DualQuat, DMat3)> = match self.method {
-            SkinningMethod::ClassicLinear => Vec::new(),
-            SkinningMethod::DualQuaternion => skinning.iter().map(DualQuat::from_skinning).collect(),
+        let (Some(skinning), Some(infl)) = (skinning, &self.influences) else {
+            return pts;
+        };
+        let dq = match self.method {
+            SkinningMethod::ClassicLinear => None,
+            SkinningMethod::DualQuaternion => Some(DqJoints::new(skinning)),
         };
         for (i, p) in pts.iter_mut().enumerate() {
-            let bound = self.geom_bind.transform_point3(*p);
-            let joints = &self.influences.joints[i * n..i * n + n];
-            let weights = &self.influences.weights[i * n..i * n + n];
-            *p = match self.method {
-                SkinningMethod::ClassicLinear => {
-                    let mut acc = DVec3::ZERO;
-                    for (&j, &w) in joints.iter().zip(weights) {
-                        if w != 0.0 {
-                            acc += skinning[j as usize].transform_point3(bound) * w;
-                        }
-                    }
-                    acc
-                }
-                SkinningMethod::DualQuaternion => dq_skin(bound, joints, weights, &dq),
-            };
+            *p = skin_point(self.geom_bind.transform_point3(*p), infl, i, skinning, dq.as_ref());
         }
         pts
     }
+
+    /// Authored normals deformed as BakeSkinning deforms them: blend-shape
+    /// normal offsets (then renormalised), then, when joints skin the mesh,
+    /// the inverse transposes of the geomBindTransform and of each joint's
+    /// skinning transform, blended like the points (LBS: weighted sum; DQS:
+    /// blended rotation after the blended stretch) and renormalised. Rigid
+    /// bindings (usd-core moves the mesh's transform instead) get the
+    /// inverse transpose of the blended transform. `point_of` gives each
+    /// normal's point for `faceVarying` normals (None: one per point). Same
+    /// space as [`Self::deform`].
+    pub fn deform_normals(
+        &self,
+        normals: &[DVec3],
+        point_of: Option<&[u32]>,
+        skinning: Option<&[DMat4]>,
+        shape_weights: &[f64],
+    ) -> Vec<DVec3> {
+        let mut out = normals.to_vec();
+        if point_of.is_none() && self.blend_shapes.iter().any(BlendShape::has_normal_offsets) {
+            for (shape, &w) in self.blend_shapes.iter().zip(shape_weights) {
+                shape.apply_normals(w, &mut out);
+            }
+            out.iter_mut().for_each(|n| *n = normalized(*n));
+        }
+        let (Some(skinning), Some(infl)) = (skinning, &self.influences) else {
+            return out;
+        };
+        let point = |ni: usize| point_of.map_or(ni, |p| p[ni] as usize);
+        if infl.rigid {
+            // The linear part of p ↦ skin(geomBind · p), the same for every point.
+            let dq = match self.method {
+                SkinningMethod::ClassicLinear => None,
+                SkinningMethod::DualQuaternion => Some(DqJoints::new(skinning)),
+            };
+            let f = |p: DVec3| skin_point(self.geom_bind.transform_point3(p), infl, 0, skinning, dq.as_ref());
+            let o = f(DVec3::ZERO);
+            let linear = DMat3::from_cols(f(DVec3::X) - o, f(DVec3::Y) - o, f(DVec3::Z) - o);
+            let m = inverse_transpose(linear);
+            return out.iter().map(|n| m * *n).collect();
+        }
+        let bind = inverse_transpose(DMat3::from_mat4(self.geom_bind));
+        let joint: Vec<DMat3> = skinning
+            .iter()
+            .map(|s| inverse_transpose(DMat3::from_mat4(*s)))
+            .collect();
+        let dq = match self.method {
+            SkinningMethod::ClassicLinear => None,
+            SkinningMethod::DualQuaternion => Some(DqJoints::normal_rotations(&joint)),
+        };
+        let n_per = infl.per_point;
+        for (ni, n) in out.iter_mut().enumerate() {
+            let n0 = bind * *n;
+            let pi = point(ni);
+            let (joints, weights) = (
+                &infl.joints[pi * n_per..pi * n_per + n_per],
+                &infl.weights[pi * n_per..pi * n_per + n_per],
+            );
+            *n = normalized(match &dq {
+                None => joints
+                    .iter()
+                    .zip(weights)
+                    .filter(|(_, &w)| w != 0.0)
+                    .map(|(&j, &w)| joint[j as usize] * n0 * w)
+                    .sum(),
+                Some(dq) => dq.skin(n0, joints, weights),
+            });
+        }
+        out
+    }
+}
+
+/// One point (already through the geomBindTransform), skinned with point
+/// `i`'s influences.
+fn skin_point(bound: DVec3, infl: &Influences, i: usize, skinning: &[DMat4], dq: Option<&DqJoints>) -> DVec3 {
+    let n = infl.per_point;
+    let joints = &infl.joints[i * n..i * n + n];
+    let weights = &infl.weights[i * n..i * n + n];
+    match dq {
+        None => {
+            let mut acc = DVec3::ZERO;
+            for (&j, &w) in joints.iter().zip(weights) {
+                if w != 0.0 {
+                    acc += skinning[j as usize].transform_point3(bound) * w;
+                }
+            }
+            acc
+        }
+        Some(dq) => dq.skin(bound, joints, weights),
+    }
+}
+
+/// Inverse transpose of a 3x3 (identity when singular, as a normal matrix
+/// has nothing better to offer).
+fn inverse_transpose(m: DMat3) -> DMat3 {
+    if m.determinant().abs() > 0.0 {
+        m.inverse().transpose()
+    } else {
+        DMat3::IDENTITY
+    }
+}
+
+/// Gf's GetNormalized: divided by its length, or by 1e-10 when shorter.
+fn normalized(v: DVec3) -> DVec3 {
+    v / v.length().max(1e-10)
 }
 
 /// A unit dual quaternion (rotation `real`, translation in `dual`).
@@ -144,52 +313,153 @@ struct DualQuat {
     dual: DQuat,
 }
 
-impl DualQuat {
-    /// Splits a skinning transform into scale/shear (applied first, blended
-    /// linearly) and a rigid part (blended as a dual quaternion).
-    fn from_skinning(m: &DMat4) -> (DualQuat, DMat3) {
-        let linear = DMat3::from_mat4(*m);
-        let t = m.w_axis.truncate();
-        // Polar decomposition linear = R · S with R a rotation.
-        let (r, s) = polar(linear);
-        let real = DQuat::from_mat3(&r).normalize();
-        let tq = DQuat::from_xyzw(t.x, t.y, t.z, 0.0);
-        let dual = (tq * real) * 0.5;
-        (DualQuat { real, dual }, s)
+/// Every joint's skinning transform split as UsdSkel's DQS does: a rigid
+/// part (blended as dual quaternions) after a scale/shear part (blended
+/// linearly, and only when some joint has one).
+struct DqJoints {
+    rigid: Vec<DualQuat>,
+    stretch: Vec<DMat3>,
+    /// Whether any stretch differs from identity (by more than 1e-6 in an
+    /// entry); when none does, points are not multiplied by the weight sum.
+    has_stretch: bool,
+}
+
+impl DqJoints {
+    fn new(skinning: &[DMat4]) -> Self {
+        let mut rigid = Vec::with_capacity(skinning.len());
+        let mut stretch = Vec::with_capacity(skinning.len());
+        for m in skinning {
+            let linear = DMat3::from_mat4(*m);
+            if linear.determinant().abs() < 1e-10 {
+                // UsdSkel cannot factor it: it contributes nothing.
+                let zero = DQuat::from_xyzw(0.0, 0.0, 0.0, 0.0);
+                rigid.push(DualQuat { real: zero, dual: zero });
+                stretch.push(DMat3::IDENTITY);
+                continue;
+            }
+            let t = m.w_axis.truncate();
+            // Polar decomposition linear = R · S with R a rotation.
+            let (r, s) = polar(linear);
+            let real = DQuat::from_mat3(&r).normalize();
+            let tq = DQuat::from_xyzw(t.x, t.y, t.z, 0.0);
+            let dual = (tq * real) * 0.5;
+            rigid.push(DualQuat { real, dual });
+            stretch.push(s);
+        }
+        let has_stretch = stretch
+            .iter()
+            .any(|s| (*s - DMat3::IDENTITY).to_cols_array().iter().any(|d| d.abs() > 1e-6));
+        DqJoints {
+            rigid,
+            stretch,
+            has_stretch,
+        }
+    }
+
+    /// For normals: each joint's normal matrix (inverse transpose) split as
+    /// UsdSkel does, a rotation from Gf's iterative orthonormalisation of
+    /// its rows and the stretch left over (not a polar decomposition: they
+    /// differ when joints scale non-uniformly).
+    fn normal_rotations(mats: &[DMat3]) -> Self {
+        let mut rigid = Vec::with_capacity(mats.len());
+        let mut stretch = Vec::with_capacity(mats.len());
+        for m in mats {
+            let r = orthonormalized(*m);
+            let zero = DQuat::from_xyzw(0.0, 0.0, 0.0, 0.0);
+            rigid.push(DualQuat {
+                real: DQuat::from_mat3(&r).normalize(),
+                dual: zero,
+            });
+            let s = if r.determinant().abs() > 0.0 {
+                r.inverse() * *m
+            } else {
+                DMat3::IDENTITY
+            };
+            stretch.push(s);
+        }
+        let has_stretch = stretch
+            .iter()
+            .any(|s| (*s - DMat3::IDENTITY).to_cols_array().iter().any(|d| d.abs() > 1e-6));
+        DqJoints {
+            rigid,
+            stretch,
+            has_stretch,
+        }
+    }
+
+    /// One point. The pivot (the rotation every other joint's is brought
+    /// onto the hemisphere of) is the joint with the largest weight, the
+    /// first one on ties. A point whose weights are all zero stays where it
+    /// is (UsdSkel normalises the zero dual quaternion to the identity).
+    fn skin(&self, p: DVec3, joints: &[u32], weights: &[f64]) -> DVec3 {
+        let mut pivot: Option<(usize, f64)> = None;
+        for (&j, &w) in joints.iter().zip(weights) {
+            if pivot.is_none_or(|(_, best)| best < w) {
+                pivot = Some((j as usize, w));
+            }
+        }
+        let pivot = pivot.map_or(DQuat::from_xyzw(0.0, 0.0, 0.0, 0.0), |(j, _)| self.rigid[j].real);
+        let mut real = DQuat::from_xyzw(0.0, 0.0, 0.0, 0.0);
+        let mut dual = DQuat::from_xyzw(0.0, 0.0, 0.0, 0.0);
+        let mut scaled = DVec3::ZERO;
+        for (&j, &w) in joints.iter().zip(weights) {
+            if w == 0.0 {
+                continue;
+            }
+            let q = &self.rigid[j as usize];
+            if self.has_stretch {
+                scaled += self.stretch[j as usize] * p * w;
+            }
+            let w = if q.real.dot(pivot) < 0.0 { -w } else { w };
+            real = real + q.real * w;
+            dual = dual + q.dual * w;
+        }
+        if !self.has_stretch {
+            scaled = p;
+        }
+        let len = real.length();
+        if len < 1e-10 {
+            return scaled;
+        }
+        let (real, dual) = (real * (1.0 / len), dual * (1.0 / len));
+        let t = (dual * real.conjugate()) * 2.0;
+        real * scaled + DVec3::new(t.x, t.y, t.z)
     }
 }
 
-fn dq_skin(p: DVec3, joints: &[u32], weights: &[f64], dq: &[(DualQuat, DMat3)]) -> DVec3 {
-    let mut real = DQuat::from_xyzw(0.0, 0.0, 0.0, 0.0);
-    let mut dual = DQuat::from_xyzw(0.0, 0.0, 0.0, 0.0);
-    let mut scale = DMat3::ZERO;
-    let mut pivot: Option<DQuat> = None;
-    for (&j, &w) in joints.iter().zip(weights) {
-        if w == 0.0 {
-            continue;
-        }
-        let (q, s) = &dq[j as usize];
-        // Keep every rotation on the pivot's hemisphere (shortest path).
-        let sign = match pivot {
-            None => {
-                pivot = Some(q.real);
-                1.0
+/// Gf's `GetOrthonormalized` of a matrix (column form: its columns are the
+/// rows Gf works on): the three vectors normalised, then up to 20 rounds of
+/// averaging each with itself minus its projections on the other two,
+/// renormalised, until they move less than 1e-6.
+fn orthonormalized(m: DMat3) -> DMat3 {
+    let mut t = [
+        m.x_axis.normalize_or_zero(),
+        m.y_axis.normalize_or_zero(),
+        m.z_axis.normalize_or_zero(),
+    ];
+    let close = |a: DVec3, b: DVec3| (a - b).abs().max_element() <= 1e-6;
+    if close(t[0], t[1]) || close(t[0], t[2]) || close(t[1], t[2]) {
+        return DMat3::from_cols(t[0], t[1], t[2]);
+    }
+    for _ in 0..20 {
+        let a = t;
+        let mut c = t;
+        for i in 0..3 {
+            let mut b = t[i];
+            for (j, aj) in a.iter().enumerate() {
+                if j != i {
+                    b -= aj.dot(b) * *aj;
+                }
             }
-            Some(pv) if pv.dot(q.real) < 0.0 => -1.0,
-            Some(_) => 1.0,
-        };
-        real = real + q.real * (w * sign);
-        dual = dual + q.dual * (w * sign);
-        scale += *s * w;
+            c[i] = ((t[i] + b) * 0.5).normalize_or_zero();
+        }
+        let error: f64 = (0..3).map(|i| (t[i] - c[i]).length_squared()).sum();
+        if error < 1e-12 {
+            break;
+        }
+        t = c;
     }
-    let len = real.length();
-    if len <= f64::MIN_POSITIVE {
-        return p;
-    }
-    let (real, dual) = (real * (1.0 / len), dual * (1.0 / len));
-    let scaled = scale * p;
-    let t = (dual * real.conjugate()) * 2.0;
-    real * scaled + DVec3::new(t.x, t.y, t.z)
+    DMat3::from_cols(t[0], t[1], t[2])
 }
 
 /// Polar decomposition M = R · S (R proper rotation, S symmetric) by SVD.
@@ -210,7 +480,8 @@ fn polar(m: DMat3) -> (DMat3, DMat3) {
     (rg, rg.transpose() * m)
 }
 
-/// Joint local transforms (skeleton order) to skeleton space, parents first.
+/// Joint local transforms (skeleton order) to skeleton space. Parents come
+/// before their children (a valid UsdSkel topology; checked when read).
 pub fn local_to_skel(local: &[DMat4], parents: &[Option<usize>]) -> Vec<DMat4> {
     let mut out: Vec<DMat4> = Vec::with_capacity(local.len());
     for (j, l) in local.iter().enumerate() {
@@ -227,11 +498,19 @@ pub fn local_to_skel(local: &[DMat4], parents: &[Option<usize>]) -> Vec<DMat4> {
 mod tests {
     use super::*;
 
+    fn ib(weight: f64, offsets: Vec<DVec3>) -> Inbetween {
+        Inbetween {
+            weight,
+            offsets,
+            normal_offsets: vec![],
+        }
+    }
+
     fn shape_with_inbetween() -> BlendShape {
         BlendShape {
             offsets: vec![DVec3::new(2.0, 0.0, 0.0)],
-            point_indices: None,
-            inbetweens: vec![(0.5, vec![DVec3::new(0.0, 1.0, 0.0)])],
+            inbetweens: vec![ib(0.5, vec![DVec3::new(0.0, 1.0, 0.0)])],
+            ..Default::default()
         }
     }
 
@@ -252,11 +531,48 @@ mod tests {
     }
 
     #[test]
+    fn inbetweens_extrapolate_below_and_ignore_weights_at_0_and_1() {
+        let s = BlendShape {
+            offsets: vec![DVec3::X],
+            // The ones at ~0 and ~1 are ignored (usd-core: within 1e-6).
+            inbetweens: vec![
+                ib(-0.5, vec![DVec3::Y]),
+                ib(1.0 - 1e-7, vec![DVec3::Z * 100.0]),
+                ib(1e-7, vec![DVec3::Z * 100.0]),
+            ],
+            ..Default::default()
+        };
+        let at = |w| {
+            let mut p = vec![DVec3::ZERO];
+            s.apply(w, &mut p);
+            p[0]
+        };
+        assert!((at(-0.5) - DVec3::Y).length() < 1e-12);
+        // Below the lowest breakpoint the (-0.5, 0) segment extrapolates.
+        assert!((at(-1.0) - DVec3::Y * 2.0).length() < 1e-12);
+        assert!((at(-0.25) - DVec3::Y * 0.5).length() < 1e-12);
+        assert!((at(2.0) - DVec3::X * 2.0).length() < 1e-12);
+    }
+
+    #[test]
+    fn shapes_without_offsets_move_nothing() {
+        let s = BlendShape {
+            inbetweens: vec![ib(0.5, vec![DVec3::Y])],
+            ..Default::default()
+        };
+        let mut p = vec![DVec3::ZERO];
+        s.apply(1.0, &mut p);
+        assert_eq!(p[0], DVec3::ZERO);
+        s.apply(0.25, &mut p);
+        assert!((p[0] - DVec3::Y * 0.5).length() < 1e-12);
+    }
+
+    #[test]
     fn sparse_offsets_touch_only_their_points() {
         let s = BlendShape {
             offsets: vec![DVec3::X],
             point_indices: Some(vec![1]),
-            inbetweens: vec![],
+            ..Default::default()
         };
         let mut p = vec![DVec3::ZERO; 3];
         s.apply(0.5, &mut p);
@@ -267,11 +583,12 @@ mod tests {
         SkelDeformer {
             rest_points: vec![DVec3::new(1.0, 0.0, 0.0), DVec3::new(0.0, 2.0, 0.0)],
             geom_bind: DMat4::IDENTITY,
-            influences: Influences {
+            influences: Some(Influences {
                 per_point: 2,
                 joints: vec![0, 1, 0, 1],
                 weights: vec![0.5, 0.5, 1.0, 0.0],
-            },
+                rigid: false,
+            }),
             method,
             blend_shapes: vec![],
         }
@@ -281,7 +598,7 @@ mod tests {
     fn lbs_averages_joint_transforms() {
         let d = deformer(SkinningMethod::ClassicLinear);
         let xf = [DMat4::IDENTITY, DMat4::from_translation(DVec3::new(0.0, 0.0, 2.0))];
-        let p = d.deform(&xf, &[]);
+        let p = d.deform(Some(&xf), &[]);
         assert!((p[0] - DVec3::new(1.0, 0.0, 1.0)).length() < 1e-12);
         assert!((p[1] - DVec3::new(0.0, 2.0, 0.0)).length() < 1e-12);
     }
@@ -294,8 +611,8 @@ mod tests {
             DMat4::from_rotation_z(std::f64::consts::FRAC_PI_2),
             DMat4::from_rotation_z(-std::f64::consts::FRAC_PI_2),
         ];
-        let lbs = deformer(SkinningMethod::ClassicLinear).deform(&xf, &[]);
-        let dqs = deformer(SkinningMethod::DualQuaternion).deform(&xf, &[]);
+        let lbs = deformer(SkinningMethod::ClassicLinear).deform(Some(&xf), &[]);
+        let dqs = deformer(SkinningMethod::DualQuaternion).deform(Some(&xf), &[]);
         assert!(lbs[0].length() < 1e-12);
         assert!((dqs[0] - DVec3::new(1.0, 0.0, 0.0)).length() < 1e-12);
         // Single influence: DQS equals the rigid transform itself.
@@ -306,9 +623,82 @@ mod tests {
     fn dqs_of_translation_and_rotation_single_joint() {
         let m = DMat4::from_translation(DVec3::new(1.0, 2.0, 3.0)) * DMat4::from_rotation_y(0.7);
         let mut d = deformer(SkinningMethod::DualQuaternion);
-        d.influences.weights = vec![1.0, 0.0, 1.0, 0.0];
-        let p = d.deform(&[m, DMat4::IDENTITY], &[]);
+        d.influences.as_mut().unwrap().weights = vec![1.0, 0.0, 1.0, 0.0];
+        let p = d.deform(Some(&[m, DMat4::IDENTITY]), &[]);
         assert!((p[0] - m.transform_point3(DVec3::X)).length() < 1e-12);
+    }
+
+    #[test]
+    fn dqs_pivot_is_the_largest_weight() {
+        // Rotations of 0°, +120° and -120° about z: +120° and -120° are on
+        // opposite quaternion hemispheres. With the +120° joint as pivot (the
+        // largest weight), the -120° one is flipped; a pivot at the first
+        // joint would flip nothing and give another point.
+        let xf = [
+            DMat4::IDENTITY,
+            DMat4::from_rotation_z(120f64.to_radians()),
+            DMat4::from_rotation_z(-120f64.to_radians()),
+        ];
+        let w = [0.2, 0.5, 0.3];
+        let mut d = deformer(SkinningMethod::DualQuaternion);
+        d.rest_points = vec![DVec3::X];
+        d.influences = Some(Influences {
+            per_point: 3,
+            joints: vec![0, 1, 2],
+            weights: w.to_vec(),
+            rigid: false,
+        });
+        let p = d.deform(Some(&xf), &[])[0];
+        let q = |deg: f64| DQuat::from_rotation_z(deg.to_radians());
+        let blend = (q(0.0) * w[0] + q(120.0) * w[1] - q(-120.0) * w[2]).normalize();
+        assert!((p - blend * DVec3::X).length() < 1e-12, "{p}");
+    }
+
+    #[test]
+    fn dqs_without_joint_scale_ignores_the_weight_sum() {
+        let xf = [DMat4::from_rotation_z(0.3), DMat4::from_rotation_z(-0.2)];
+        let mut d = deformer(SkinningMethod::DualQuaternion);
+        d.influences.as_mut().unwrap().weights = vec![0.4, 0.4, 0.9, 0.0];
+        let p = d.deform(Some(&xf), &[]);
+        // Unnormalised weights: the rigid blend is normalised, the point is not scaled.
+        assert!((p[0].length() - 1.0).abs() < 1e-12);
+        assert!((p[1].length() - 2.0).abs() < 1e-12);
+        // With a scaled joint the stretch part is the weighted sum.
+        let xf = [DMat4::from_scale(DVec3::splat(2.0)), DMat4::IDENTITY];
+        let p = d.deform(Some(&xf), &[]);
+        assert!((p[0] - DVec3::X * (0.4 * 2.0 + 0.4)).length() < 1e-12);
+    }
+
+    #[test]
+    fn normals_follow_the_inverse_transpose() {
+        // A joint squashing y by 2 tilts a 45° normal towards y.
+        let mut d = deformer(SkinningMethod::ClassicLinear);
+        d.influences.as_mut().unwrap().weights = vec![1.0, 0.0, 1.0, 0.0];
+        let s = DMat4::from_scale(DVec3::new(1.0, 0.5, 1.0));
+        let n = DVec3::new(1.0, 1.0, 0.0).normalize();
+        let out = d.deform_normals(&[n, n], None, Some(&[s, DMat4::IDENTITY]), &[]);
+        let want = DVec3::new(1.0, 2.0, 0.0).normalize();
+        assert!((out[0] - want).length() < 1e-12, "{}", out[0]);
+        // faceVarying: each normal takes its point's influences.
+        let out = d.deform_normals(&[n], Some(&[1]), Some(&[s, DMat4::IDENTITY]), &[]);
+        assert!((out[0] - want).length() < 1e-12);
+    }
+
+    #[test]
+    fn orthonormalized_keeps_rotations_and_orthogonalises() {
+        let r = DMat3::from_rotation_y(0.7) * DMat3::from_rotation_x(-0.3);
+        assert!((orthonormalized(r) - r).to_cols_array().iter().all(|d| d.abs() < 1e-12));
+        let m = DMat3::from_cols(
+            DVec3::new(1.0, 0.2, 0.0),
+            DVec3::new(0.1, 2.0, 0.3),
+            DVec3::new(0.0, 0.0, 0.5),
+        );
+        let o = orthonormalized(m);
+        let g = o.transpose() * o;
+        assert!(
+            (g - DMat3::IDENTITY).to_cols_array().iter().all(|d| d.abs() < 1e-5),
+            "{g}"
+        );
     }
 
     #[test]

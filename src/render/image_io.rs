@@ -142,6 +142,12 @@ pub fn frame_to_srgb8(frame: &Frame, background: Option<Vec3>) -> Vec<u8> {
 
 /// Writes 8-bit pixels (3 or 4 channels per pixel) as a PNG tagged sRGB.
 pub fn write_png8(path: &Path, width: usize, height: usize, channels: usize, data: &[u8], small: bool) -> Result<()> {
+    let bytes = encode_png8(width, height, channels, data, small).map_err(|e| e.in_file(path))?;
+    write_atomic(path, &bytes)
+}
+
+/// Encodes 8-bit pixels (3 or 4 channels per pixel) as PNG bytes tagged sRGB.
+pub fn encode_png8(width: usize, height: usize, channels: usize, data: &[u8], small: bool) -> Result<Vec<u8>> {
     let mut bytes = Vec::new();
     let result = (|| -> std::result::Result<(), png::EncodingError> {
         let mut enc = png::Encoder::new(&mut bytes, width as u32, height as u32);
@@ -161,8 +167,8 @@ pub fn write_png8(path: &Path, width: usize, height: usize, channels: usize, dat
         w.write_image_data(data)?;
         w.finish()
     })();
-    result.map_err(|e| Error::msg(format!("cannot encode PNG: {e}")).in_file(path))?;
-    write_atomic(path, &bytes)
+    result.map_err(|e| Error::msg(format!("cannot encode PNG: {e}")))?;
+    Ok(bytes)
 }
 
 /// Writes a frame as an sRGB PNG preview.

@@ -38,12 +38,15 @@ use std::time::Instant;
 use glam::Vec3;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
-use crate::bake::{bake, BakeOptions};
+use crate::bake::{bake_if_any, BakeOptions};
 use crate::error::{Error, Result};
 use crate::frames::FrameRange;
-use crate::usd_io::atomic::{write_atomic, TempDir};
+use crate::usd_io::atomic::write_atomic;
+pub(crate) use crate::usd_io::atomic::TempDir;
+use crate::usd_io::bake_layer::read_provenance;
 use crate::usd_io::render_scene::{layer_timing, RenderScene};
 use crate::usd_io::stage::StageReader;
+use crate::words::plural;
 
 /// Image size `WIDTHxHEIGHT`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -142,6 +145,9 @@ pub struct RenderArgs {
     /// Print nothing on success.
     #[arg(short, long)]
     pub quiet: bool,
+    /// Print a JSON summary on stdout instead of the summary line.
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// Paper white (#f1ede4) for sheets without --background.
@@ -226,8 +232,8 @@ fn check_args(args: &RenderArgs) -> Result<Vec<f64>> {
     Ok(times)
 }
 
-/// Writes the root layer that sublayers the bake over the input.
-fn write_root(dir: &Path, input: &Path, bake_layer: &Path) -> Result<PathBuf> {
+/// Writes the root layer that sublayers the bake (if any) over the input.
+pub(crate) fn write_root(dir: &Path, input: &Path, bake_layer: Option<&Path>) -> Result<PathBuf> {
     let abs = |p: &Path| -> Result<String> {
         let a = p
             .canonicalize()
@@ -243,27 +249,126 @@ fn write_root(dir: &Path, input: &Path, bake_layer: &Path) -> Result<PathBuf> {
     if let (Some(s), Some(e)) = (start, end) {
         meta.push_str(&format!("    startTimeCode = {s}\n    endTimeCode = {e}\n"));
     }
+    let mut layers = Vec::new();
+    if let Some(b) = bake_layer {
+        layers.push(format!("        @{}@", abs(b)?));
+    }
+    layers.push(format!("        @{}@", abs(input)?));
     let text = format!(
-        "#usda 1.0\n(\n{meta}    subLayers = [\n        @{}@,\n        @{}@\n    ]\n)\n",
-        abs(bake_layer)?,
-        abs(input)?
+        "#usda 1.0\n(\n{meta}    subLayers = [\n{}\n    ]\n)\n",
+        layers.join(",\n")
     );
     let root = dir.join("render_root.usda");
     write_atomic(&root, text.as_bytes())?;
     Ok(root)
 }
 
-/// Renders every frame; returns the summary line.
-pub fn run(args: &RenderArgs) -> Result<String> {
+/// What a render did, for the summary line and `--json`.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct RenderSummary {
+    pub input: PathBuf,
+    /// The EXR path pattern.
+    pub output: PathBuf,
+    pub frames: usize,
+    pub width: usize,
+    pub height: usize,
+    /// BasisCurves prims and the most strokes drawn in one frame.
+    pub curves: usize,
+    pub strokes: usize,
+    /// Mesh prims and the most triangles drawn in one frame.
+    pub meshes: usize,
+    pub triangles: usize,
+    /// The contact sheet, when written.
+    pub sheet: Option<PathBuf>,
+    /// Frames with nothing in view (every pixel's alpha 0).
+    pub empty_frames: Vec<f64>,
+    /// Everything that looks wrong but did not stop the render.
+    pub warnings: Vec<String>,
+    pub seconds: f64,
+    pub median_frame_seconds: f64,
+}
+
+impl RenderSummary {
+    /// The summary line.
+    pub fn line(&self) -> String {
+        let sheet = self
+            .sheet
+            .as_ref()
+            .map(|p| format!(", sheet {}", p.display()))
+            .unwrap_or_default();
+        format!(
+            "rendered {} at {}x{}: {} ({}), {} ({}) -> {}{sheet} in {:.2} s (median {:.3} s/frame)",
+            plural(self.frames, "frame"),
+            self.width,
+            self.height,
+            plural(self.curves, "curves prim"),
+            plural(self.strokes, "stroke"),
+            plural(self.meshes, "mesh"),
+            plural(self.triangles, "triangle"),
+            self.output.display(),
+            self.seconds,
+            self.median_frame_seconds
+        )
+    }
+}
+
+/// Checks a `--bake` layer against the render: a bake of another input is
+/// refused; frames outside the baked range are warned about (strokes show
+/// their authored points there).
+pub(crate) fn check_bake(input: &Path, bake: &Path, times: &[f64], warnings: &mut Vec<String>) -> Result<()> {
+    let Some(p) = read_provenance(bake)? else {
+        warnings.push(format!(
+            "{} has no painterly provenance (customLayerData[\"painterly\"]): cannot check it was baked from {}",
+            bake.display(),
+            input.display()
+        ));
+        return Ok(());
+    };
+    let same = match (std::fs::canonicalize(input), std::fs::canonicalize(&p.input)) {
+        (Ok(a), Ok(b)) => a == b,
+        _ => false,
+    };
+    if !same {
+        return Err(Error::msg(format!(
+            "this bake was made from {}, not from the input {}: bake the input first (painterly bake {} -o LAYER)",
+            p.input,
+            input.display(),
+            input.display()
+        ))
+        .in_file(bake));
+    }
+    if let Some((a, b, _)) = p.frame_range() {
+        let outside: Vec<String> = times
+            .iter()
+            .filter(|&&t| t < a - 1e-9 || t > b + 1e-9)
+            .map(|t| t.to_string())
+            .collect();
+        if !outside.is_empty() {
+            warnings.push(format!(
+                "{} outside the bake's frames {a}:{b} ({}): strokes there show their authored points",
+                plural(outside.len(), "frame"),
+                outside.join(", ")
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Renders every frame.
+pub fn run(args: &RenderArgs) -> Result<RenderSummary> {
     let started = Instant::now();
     let times = check_args(args)?;
     let brush = match &args.brush {
         Some(p) => Some(image_io::read_brush(p)?),
         None => None,
     };
+    let mut warnings = Vec::new();
+    if let Some(b) = &args.bake {
+        check_bake(&args.input, b, &times, &mut warnings)?;
+    }
     let tmp = TempDir::new()?;
     let bake_layer = match &args.bake {
-        Some(b) => b.clone(),
+        Some(b) => Some(b.clone()),
         None => {
             let out = tmp.path().join("bake.usdc");
             let opts = BakeOptions {
@@ -271,11 +376,11 @@ pub fn run(args: &RenderArgs) -> Result<String> {
                 camera: Some(args.camera.clone()),
                 ..Default::default()
             };
-            bake(&args.input, &out, &opts, &|_, _| {})?;
-            out
+            // A plain scene (no painted strokes) renders without a bake.
+            bake_if_any(&args.input, &out, &opts)?.map(|_| out)
         }
     };
-    let root = write_root(tmp.path(), &args.input, &bake_layer)?;
+    let root = write_root(tmp.path(), &args.input, bake_layer.as_deref())?;
     let input = args.input.clone();
     let name_input = |mut e: Error| {
         if e.file.as_deref() == Some(root.as_path()) || e.file.is_none() {
@@ -305,6 +410,7 @@ pub fn run(args: &RenderArgs) -> Result<String> {
     let mut thumbs = Vec::new();
     let mut seconds = Vec::with_capacity(times.len());
     let (mut strokes, mut triangles) = (0usize, 0usize);
+    let mut empty = Vec::new();
     for &t in &times {
         let frame_start = Instant::now();
         let cam = scene.camera_at(&r, t).map_err(name_input)?;
@@ -315,6 +421,9 @@ pub fn run(args: &RenderArgs) -> Result<String> {
         strokes = strokes.max(fs.strokes.len());
         triangles = triangles.max(fs.triangles.len());
         let frame = composite::render(&fs, brush.as_ref());
+        if frame.rgba.iter().all(|p| p[3] <= 0.0) {
+            empty.push(t);
+        }
         let path = frame_path(&args.output, t);
         image_io::write_exr(&path, &frame)?;
         if args.png {
@@ -328,7 +437,7 @@ pub fn run(args: &RenderArgs) -> Result<String> {
         bar.inc(1);
     }
     bar.finish_and_clear();
-    let mut sheet_note = String::new();
+    let mut sheet_path_out = None;
     if args.sheet {
         // Dark labels on light backgrounds, light ones on dark.
         let luminance = sheet_bg.dot(Vec3::new(0.2126, 0.7152, 0.0722));
@@ -336,19 +445,57 @@ pub fn run(args: &RenderArgs) -> Result<String> {
         let (sw, sh, px) = sheet::compose(&thumbs, cols, sheet_bg, ink);
         let sp = sheet_path(&args.output);
         image_io::write_png8(&sp, sw, sh, 3, &px, true)?;
-        sheet_note = format!(", sheet {}", sp.display());
+        sheet_path_out = Some(sp);
+    }
+    if !empty.is_empty() {
+        warnings.push(format!(
+            "{} of {} empty: nothing in front of {} at {}",
+            plural(empty.len(), "frame"),
+            times.len(),
+            args.camera,
+            empty.iter().map(|t| t.to_string()).collect::<Vec<_>>().join(", ")
+        ));
     }
     let mut sorted = seconds.clone();
     sorted.sort_by(f64::total_cmp);
     let median = sorted.get(sorted.len() / 2).copied().unwrap_or(0.0);
-    let (ncurves, nmeshes) = scene.counts();
-    Ok(format!(
-        "rendered {} frames at {w}x{h}: {ncurves} curves prims ({strokes} strokes), {nmeshes} meshes ({triangles} triangles) -> {}{sheet_note} in {:.2} s (median {:.3} s/frame)",
-        times.len(),
-        args.output.display(),
-        started.elapsed().as_secs_f64(),
-        median
-    ))
+    let (curves, meshes) = scene.counts();
+    Ok(RenderSummary {
+        input: args.input.clone(),
+        output: args.output.clone(),
+        frames: times.len(),
+        width: w,
+        height: h,
+        curves,
+        strokes,
+        meshes,
+        triangles,
+        sheet: sheet_path_out,
+        empty_frames: empty,
+        warnings,
+        seconds: started.elapsed().as_secs_f64(),
+        median_frame_seconds: median,
+    })
+}
+
+/// Renders one frame of world-space curves and meshes through a camera
+/// given as numbers into PNG bytes (the preview's "render" button): the same
+/// projection, tessellation, shading and compositing as [`run`], no brush.
+pub fn render_png(
+    cam: &camera::CameraParams,
+    curves: &[curves::CurvesData],
+    meshes: &[prepare::MeshData],
+    size: ImageSize,
+    background: Option<Vec3>,
+) -> Result<Vec<u8>> {
+    cam.validate()
+        .map_err(|e| Error::msg(format!("bad camera ({}): {}", e.attribute, e.message)))?;
+    let proj = camera::Projector::new(cam, size.width, size.height);
+    let scene = prepare::build_scene(&proj, curves, meshes, &prepare::Style::default());
+    let frame = composite::render(&scene, None);
+    let data = image_io::frame_to_srgb8(&frame, background);
+    let channels = if background.is_some() { 3 } else { 4 };
+    image_io::encode_png8(size.width, size.height, channels, &data, false)
 }
 
 #[cfg(test)]

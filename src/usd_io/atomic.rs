@@ -206,15 +206,20 @@ pub fn sweep_stale(dir: &Path) -> Vec<PathBuf> {
     removed
 }
 
-/// Creates `tmp` and registers it, under the registry lock, so a signal
-/// never finds it created but unregistered.
+/// Creates `tmp` (read-write) and registers it, under the registry lock, so
+/// a signal never finds it created but unregistered.
 fn create_registered(tmp: &Path) -> std::io::Result<File> {
     let mut reg = registry();
     // A leftover with our own pid belongs to a dead process (pid reuse).
     if tmp.exists() && !reg.live.iter().any(|p| p == tmp) {
         let _ = std::fs::remove_file(tmp);
     }
-    let f = File::create(tmp)?;
+    let f = File::options()
+        .read(true)
+        .write(true)
+        .create(true)
+        .truncate(true)
+        .open(tmp)?;
     reg.live.push(tmp.to_path_buf());
     Ok(f)
 }
@@ -230,38 +235,110 @@ fn discard(tmp: &Path) {
     unregister(&mut reg, tmp);
 }
 
+/// What a write callback may fail with: an I/O error (reported as "cannot
+/// write output") or a painterly error kept as it is.
+pub trait WriteFailure {
+    /// The error to report.
+    fn report(self) -> Error;
+}
+
+impl WriteFailure for std::io::Error {
+    fn report(self) -> Error {
+        Error::msg(format!("cannot write output: {self}"))
+    }
+}
+
+impl WriteFailure for Error {
+    fn report(self) -> Error {
+        self
+    }
+}
+
+/// A registered temporary file beside a target, for writes that stream
+/// into it over a while (a bake's frames): removed when dropped, on signals,
+/// and by the next run after a `kill -9`; [`TempFile::persist`] renames it
+/// into place.
+pub struct TempFile {
+    path: PathBuf,
+    persisted: bool,
+}
+
+impl TempFile {
+    /// Creates `.<target name><tag>.painterly-<host>-<pid>.tmp` beside
+    /// `target` (`tag` tells several temporaries of one target apart, e.g.
+    /// `.samples`), read-write, after sweeping the folder's stale ones.
+    pub fn create(target: &Path, tag: &str) -> Result<(TempFile, File)> {
+        sweep_stale(dir_of(target));
+        let named = if tag.is_empty() {
+            target.to_path_buf()
+        } else {
+            let name = target
+                .file_name()
+                .ok_or_else(|| Error::msg("output path has no file name").in_file(target))?;
+            target.with_file_name(format!("{}{tag}", name.to_string_lossy()))
+        };
+        let path = temp_path(&named, TMP_SUFFIX)?;
+        match create_registered(&path) {
+            Ok(f) => Ok((TempFile { path, persisted: false }, f)),
+            Err(e) => {
+                discard(&path);
+                Err(e.report().in_file(target))
+            }
+        }
+    }
+
+    /// Where the temporary is.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Renames the temporary to `target` (its file must be closed); on
+    /// failure it is removed.
+    pub fn persist(mut self, target: &Path) -> Result<()> {
+        let mut reg = registry();
+        let renamed = std::fs::rename(&self.path, target);
+        unregister(&mut reg, &self.path);
+        drop(reg);
+        match renamed {
+            Ok(()) => {
+                self.persisted = true;
+                Ok(())
+            }
+            Err(e) => Err(e.report().in_file(target)),
+        }
+    }
+}
+
+impl Drop for TempFile {
+    fn drop(&mut self) {
+        if !self.persisted {
+            discard(&self.path);
+        }
+    }
+}
+
 /// Writes `bytes` to a temporary sibling of `path` and renames it into place.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    write_atomic_with(path, |out| {
-        out.write_all(bytes)
-            .map_err(|e| Error::msg(format!("cannot write output: {e}")))
-    })
+    write_atomic_with(path, |out| out.write_all(bytes))
 }
 
 /// Runs `write` on a buffered temporary sibling of `path` and renames it into
 /// place once `write` succeeds; on failure the temporary file is removed and
-/// `path` is untouched.
-pub fn write_atomic_with(path: &Path, write: impl FnOnce(&mut BufWriter<File>) -> Result<()>) -> Result<()> {
-    sweep_stale(dir_of(path));
-    let tmp = temp_path(path, TMP_SUFFIX)?;
-    let io = |e: std::io::Error| Error::msg(format!("cannot write output: {e}"));
-    let result = (|| -> Result<()> {
-        let mut out = BufWriter::with_capacity(1 << 20, create_registered(&tmp).map_err(io)?);
-        write(&mut out)?;
-        // No fsync: the rename makes the write atomic for readers and for a
-        // failed run; durability across power loss is the filesystem's.
-        out.flush().map_err(io)?;
-        drop(out);
-        let mut reg = registry();
-        std::fs::rename(&tmp, path).map_err(io)?;
-        unregister(&mut reg, &tmp);
-        Ok(())
-    })();
-    if let Err(e) = result {
-        discard(&tmp);
-        return Err(e.in_file(path));
-    }
-    Ok(())
+/// `path` is untouched. `write` fails with an I/O error or a painterly one
+/// (kept as it is, e.g. naming a spec).
+pub fn write_atomic_with<E: WriteFailure>(
+    path: &Path,
+    write: impl FnOnce(&mut BufWriter<File>) -> std::result::Result<(), E>,
+) -> Result<()> {
+    let (tmp, file) = TempFile::create(path, "")?;
+    let mut out = BufWriter::with_capacity(1 << 20, file);
+    write(&mut out).map_err(|e| e.report().in_file(path))?;
+    // No fsync: the rename makes the write atomic for readers and for a
+    // failed run; durability across power loss is the filesystem's.
+    out.into_inner()
+        .map_err(|e| e.into_error().report().in_file(path))
+        .map(drop)?;
+    tmp.persist(path)
 }
 
 /// A scratch file beside `target` (e.g. the header a new edit layer is

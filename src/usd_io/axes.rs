@@ -58,6 +58,10 @@ pub struct AxisFrame<'a> {
     pub proxy_centre: DVec3,
     /// The bake's `--camera`, if any.
     pub camera: Option<&'a str>,
+    /// A world-space eye position that replaces the camera of every
+    /// viewDirection axis, even one with its own `source` (a live
+    /// preview's orbit camera).
+    pub eye: Option<DVec3>,
 }
 
 const KINDS: &str = "attribute, blendShape, jointRotation, position or viewDirection";
@@ -253,17 +257,22 @@ impl Axis {
                 f.proxy_to_world.inverse().transform_point3(world)[self.component as usize]
             }
             AxisSource::ViewDirection { camera } => {
-                let cam = camera.as_deref().or(f.camera).ok_or_else(|| {
-                    Error::attr(
-                        &self.path,
-                        "source",
-                        "a viewDirection axis needs `rel source` or `painterly bake --camera`",
-                    )
-                })?;
-                let p = r
-                    .prim(cam)?
-                    .ok_or_else(|| Error::prim(cam, "camera prim does not exist"))?;
-                let world = r.local_to_world(&p, t)?.transform_point3(DVec3::ZERO);
+                let (world, cam) = match f.eye {
+                    Some(eye) => (eye, self.path.as_str()),
+                    None => {
+                        let cam = camera.as_deref().or(f.camera).ok_or_else(|| {
+                            Error::attr(
+                                &self.path,
+                                "source",
+                                "a viewDirection axis needs `rel source` or `painterly bake --camera`",
+                            )
+                        })?;
+                        let p = r
+                            .prim(cam)?
+                            .ok_or_else(|| Error::prim(cam, "camera prim does not exist"))?;
+                        (r.local_to_world(&p, t)?.transform_point3(DVec3::ZERO), cam)
+                    }
+                };
                 let local = f.proxy_to_world.inverse().transform_point3(world);
                 let d = local - f.proxy_centre;
                 if d.length() <= f64::MIN_POSITIVE {

@@ -243,11 +243,10 @@ impl EditSession {
     pub fn save(self) -> Result<()> {
         let root = self.reader.stage.root_layer();
         let Some(text) = &self.original_text else {
-            let mut buf = std::io::Cursor::new(Vec::new());
-            openusd::usdc::CrateWriter::write(root.data(), &mut buf)
-                .map_err(|e| Error::msg(format!("cannot serialise edit layer: {e}")).in_file(&self.target))?;
+            // Not a usda target: a crate file, from painterly's crate writer.
+            let written = super::usdc::write_layer_file(&self.target, root.data());
             drop(root);
-            return write_atomic(&self.target, &buf.into_inner());
+            return written;
         };
         let data = root.data();
         let prims: Vec<String> = self

@@ -75,8 +75,14 @@ pub struct Guard {
 impl Guard {
     /// A resolver (the default one, guarded) reporting into this guard.
     pub fn resolver(&self) -> GuardedResolver {
+        self.resolver_over(ar::DefaultResolver::new())
+    }
+
+    /// `inner` (e.g. the resolver of a layer handed over in memory),
+    /// guarded, reporting into this guard.
+    pub fn resolver_over<R: ar::Resolver>(&self, inner: R) -> GuardedResolver<R> {
         GuardedResolver {
-            inner: ar::DefaultResolver::new(),
+            inner,
             guard: self.clone(),
         }
     }
@@ -287,13 +293,14 @@ fn shorten(p: &str) -> String {
     }
 }
 
-/// The default resolver, checking each layer's bytes before openusd does.
-pub struct GuardedResolver {
-    inner: ar::DefaultResolver,
+/// A resolver (by default the default one) checking each layer's bytes
+/// before openusd does.
+pub struct GuardedResolver<R = ar::DefaultResolver> {
+    inner: R,
     guard: Guard,
 }
 
-impl ar::Resolver for GuardedResolver {
+impl<R: ar::Resolver> ar::Resolver for GuardedResolver<R> {
     fn create_identifier(&self, asset_path: &str, anchor: Option<&ResolvedPath>) -> String {
         self.inner.create_identifier(asset_path, anchor)
     }

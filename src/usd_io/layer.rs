@@ -1,9 +1,9 @@
 //! Writes a bake: a layer of `over` specs with time samples (SPEC §7).
 //!
-//! Specs are collected in memory, serialised into a buffer, written to a
-//! temporary file beside the target and renamed, so a failed bake never leaves
-//! a partial file (and `.usdc` writes are not slowed by unbuffered I/O; see
-//! `../shared/notes/openusd.md`).
+//! Specs are collected in memory and written to a temporary file beside the
+//! target, which is then renamed, so a failed bake never leaves a partial
+//! file. `.usdc` goes through painterly's own crate writer ([`super::usdc`]),
+//! buffered.
 
 use std::collections::BTreeMap;
 use std::io::Cursor;
@@ -13,14 +13,25 @@ use openusd::sdf::{self, ChildrenKey, FieldKey, SpecType, Specifier, Value, Vari
 
 pub use super::atomic::{write_atomic, write_atomic_with};
 use super::stage::StageMetadata;
+use super::usdc::{self, CrateStream, Stored};
 use crate::error::{Error, Result};
 
 /// One attribute to author.
 struct AttrOut {
     type_name: &'static str,
-    samples: Vec<(f64, Value)>,
+    samples: Samples,
     metadata: Vec<(&'static str, Value)>,
 }
+
+/// An attribute's time samples: values in memory, or values a crate stream
+/// already wrote (a streamed bake keeps only their handles).
+enum Samples {
+    Values(Vec<(f64, Value)>),
+    Stored(Stored),
+}
+
+/// Stored samples by attribute path, for [`usdc::add_layer_specs`].
+type StoredSamples = std::collections::HashMap<String, Stored>;
 
 #[derive(Default)]
 struct PrimOut {
@@ -32,6 +43,7 @@ struct PrimOut {
 pub struct OverLayer {
     meta: StageMetadata,
     prims: BTreeMap<String, PrimOut>,
+    custom_layer_data: Vec<(String, Value)>,
 }
 
 /// Output formats, chosen by the file extension.
@@ -58,7 +70,27 @@ impl OverLayer {
         OverLayer {
             meta,
             prims: BTreeMap::new(),
+            custom_layer_data: Vec::new(),
         }
+    }
+
+    /// Records where a bake came from in `customLayerData["painterly"]`.
+    pub fn set_provenance(&mut self, p: &super::bake_layer::Provenance) {
+        use super::bake_layer::DataValue;
+        let dict = p
+            .fields()
+            .into_iter()
+            .map(|(k, v)| {
+                let v = match v {
+                    DataValue::Str(s) => Value::String(s),
+                    DataValue::Int(i) => Value::Int(i as i32),
+                    DataValue::Strs(v) => Value::StringVec(v),
+                };
+                (k.to_string(), v)
+            })
+            .collect();
+        self.custom_layer_data
+            .push(("painterly".to_string(), Value::Dictionary(dict)));
     }
 
     /// Authors time samples of an attribute (replacing earlier ones).
@@ -74,7 +106,27 @@ impl OverLayer {
             attr.to_string(),
             AttrOut {
                 type_name,
-                samples,
+                samples: Samples::Values(samples),
+                metadata,
+            },
+        );
+    }
+
+    /// Authors time samples whose values `stream` already wrote (see
+    /// [`write_to_stream`](Self::write_to_stream)).
+    pub fn set_stored_samples(
+        &mut self,
+        prim: &str,
+        attr: &str,
+        type_name: &'static str,
+        samples: Stored,
+        metadata: Vec<(&'static str, Value)>,
+    ) {
+        self.prims.entry(prim.to_string()).or_default().attrs.insert(
+            attr.to_string(),
+            AttrOut {
+                type_name,
+                samples: Samples::Stored(samples),
                 metadata,
             },
         );
@@ -91,6 +143,25 @@ impl OverLayer {
 
     /// Builds the Sdf data: over specs for every authored prim and its ancestors.
     fn into_data(self) -> Result<sdf::Data> {
+        let (data, stored) = self.into_parts()?;
+        match stored.keys().next() {
+            Some(attr) => Err(Error::msg(format!(
+                "internal: {attr} holds samples of a crate stream; write the layer to that stream"
+            ))),
+            None => Ok(data),
+        }
+    }
+
+    /// Writes the layer's specs to the crate stream that stored its samples;
+    /// the caller finishes the stream.
+    pub fn write_to_stream<W: std::io::Write + std::io::Seek>(self, stream: &mut CrateStream<W>) -> Result<()> {
+        let (data, stored) = self.into_parts()?;
+        usdc::add_layer_specs(stream, &data, &|p| stored.get(p.as_str()))
+    }
+
+    /// The Sdf data, and the stored samples it leaves out (by attribute path).
+    fn into_parts(self) -> Result<(sdf::Data, StoredSamples)> {
+        let mut stored = StoredSamples::new();
         let mut data = sdf::Data::new();
         // Every prim path that needs a spec, with its children names in order.
         let mut children: BTreeMap<String, Vec<String>> = BTreeMap::new();
@@ -137,6 +208,12 @@ impl OverLayer {
         }
         if let Some(v) = m.meters_per_unit {
             root.add("metersPerUnit", Value::Double(v));
+        }
+        if !self.custom_layer_data.is_empty() {
+            root.add(
+                "customLayerData",
+                Value::Dictionary(self.custom_layer_data.into_iter().collect()),
+            );
         }
         root.add(
             "documentation",
@@ -188,8 +265,13 @@ impl OverLayer {
                 for (k, v) in a.metadata {
                     spec.add(k, v);
                 }
-                // Moved, not cloned: bakes hold hundreds of MB of samples.
-                spec.add(FieldKey::TimeSamples, Value::TimeSamples(a.samples));
+                match a.samples {
+                    // Moved, not cloned: bakes hold hundreds of MB of samples.
+                    Samples::Values(v) => spec.add(FieldKey::TimeSamples, Value::TimeSamples(v)),
+                    Samples::Stored(h) => {
+                        stored.insert(format!("{prim_path}.{name}"), h);
+                    }
+                }
             }
             for rel in &o.blocked_rels {
                 let rp = path(&format!("{prim_path}.{rel}"))?;
@@ -202,19 +284,14 @@ impl OverLayer {
                 );
             }
         }
-        Ok(data)
+        Ok((data, stored))
     }
 
     /// Serialises to bytes in `format`.
     pub fn into_bytes(self, format: Format) -> Result<Vec<u8>> {
         let data = self.into_data()?;
         match format {
-            Format::Usdc => {
-                let mut buf = Cursor::new(Vec::new());
-                openusd::usdc::CrateWriter::write(&data, &mut buf)
-                    .map_err(|e| Error::msg(format!("cannot serialise layer: {e}")))?;
-                Ok(buf.into_inner())
-            }
+            Format::Usdc => Ok(super::usdc::write_layer(&data, Cursor::new(Vec::new()))?.into_inner()),
             Format::Usda => {
                 let s = openusd::usda::TextWriter::write_to_string(&data)
                     .map_err(|e| Error::msg(format!("cannot serialise layer: {e}")))?;
@@ -224,8 +301,11 @@ impl OverLayer {
     }
 
     /// Writes atomically: a temporary file beside `path`, then a rename.
+    /// `.usdc` is streamed to the file rather than built in memory first.
     pub fn write(self, path: &Path) -> Result<()> {
-        let bytes = self.into_bytes(Format::from_path(path)?)?;
-        write_atomic(path, &bytes)
+        match Format::from_path(path)? {
+            Format::Usdc => super::usdc::write_layer_file(path, &self.into_data()?),
+            Format::Usda => write_atomic(path, &self.into_bytes(Format::Usda)?),
+        }
     }
 }

@@ -224,7 +224,8 @@ struct MeshSource {
 
 /// The drawable content of a composed stage, with readers per frame.
 pub struct RenderScene {
-    camera: usd::Prim,
+    /// None for a scene drawn through cameras given as numbers (the preview).
+    camera: Option<usd::Prim>,
     camera_path: String,
     curves: Vec<CurvesSource>,
     meshes: Vec<MeshSource>,
@@ -250,9 +251,18 @@ impl RenderScene {
             };
             return Err(Error::prim(camera, format!("--camera names {what}, not a Camera")));
         }
+        let mut scene = RenderScene::discover_drawables(r)?;
+        scene.camera = Some(cam);
+        scene.camera_path = camera.to_string();
+        Ok(scene)
+    }
+
+    /// Finds everything drawable, without a camera prim ([`RenderScene::camera_at`]
+    /// then fails): for views whose camera is given as numbers.
+    pub fn discover_drawables(r: &StageReader) -> Result<RenderScene> {
         let mut scene = RenderScene {
-            camera: cam,
-            camera_path: camera.to_string(),
+            camera: None,
+            camera_path: String::new(),
             curves: Vec::new(),
             meshes: Vec::new(),
         };
@@ -371,7 +381,10 @@ impl RenderScene {
 
     /// The camera's parameters at `t` (validated).
     pub fn camera_at(&self, r: &StageReader, t: f64) -> Result<CameraParams> {
-        let p = &self.camera;
+        let p = self
+            .camera
+            .as_ref()
+            .ok_or_else(|| Error::msg("this scene was discovered without a camera"))?;
         let d = CameraParams::default();
         let f = |name: &str, fallback: f64| -> Result<f64> {
             Ok(r.typed(p, name, Some(t), "float", values::scalar)?.unwrap_or(fallback))

@@ -17,6 +17,7 @@ use crate::bind::Binding;
 use crate::error::{Error, Result};
 use crate::interp::{InterpError, Method};
 use crate::keys::{PoseChannel, TimeChannel, TimeKeyError};
+use crate::rule::Rule;
 
 pub const RIG_API: &str = "PainterlyRigAPI";
 pub const STROKE_LAYER_API: &str = "PainterlyStrokeLayerAPI";
@@ -51,10 +52,40 @@ pub struct Proxy {
     /// Rest pose, mesh-local (SPEC §2).
     pub rest: Vec<DVec3>,
     pub motion: ProxyMotion,
+    /// Authored `normals` of a UsdSkel proxy, when BakeSkinning rewrites them.
+    normals: Option<RestNormals>,
     prim: usd::Prim,
     /// A cached query on `points`: per-frame reads through a plain attribute
     /// decode every time sample of a crate file each time.
     points_query: usd::AttributeQuery,
+}
+
+/// A skinned proxy's authored `normals`: per point (`vertex`, `varying`)
+/// or per face vertex (`faceVarying`, with the point of each).
+struct RestNormals {
+    values: Vec<DVec3>,
+    point_of: Option<Vec<u32>>,
+}
+
+/// The `normals` BakeSkinning deforms (`vertex`, `varying`, `faceVarying`,
+/// sized for the mesh); others it leaves alone, and so do we.
+fn read_rest_normals(
+    r: &StageReader,
+    prim: &usd::Prim,
+    npts: usize,
+    face_indices: &[i64],
+) -> Result<Option<RestNormals>> {
+    // Not a 3-vector array: usd-core cannot read it as normals either.
+    let Some(n) = r.value(prim, "normals", None)?.as_ref().and_then(values::vec3_array) else {
+        return Ok(None);
+    };
+    let values: Vec<DVec3> = n.iter().map(|v| v.as_dvec3()).collect();
+    let point_of = match r.primvar_interpolation(prim, "normals", "vertex")?.as_str() {
+        "vertex" | "varying" if values.len() == npts => None,
+        "faceVarying" if values.len() == face_indices.len() => Some(face_indices.iter().map(|&i| i as u32).collect()),
+        _ => return Ok(None),
+    };
+    Ok(Some(RestNormals { values, point_of }))
 }
 
 /// One stroke layer (a BasisCurves prim).
@@ -160,7 +191,7 @@ impl Scene {
                     layers: Vec::new(),
                     axes: Vec::new(),
                 }),
-                Err(e) => problems.push(e),
+                Err(e) => problems.push(e.or_rule(Rule::Unreadable)),
             }
         }
         for lp in &layer_paths {
@@ -171,10 +202,13 @@ impl Scene {
                 .max_by_key(|rig| rig.path.len());
             let Some(owner) = owner else {
                 if !rig_paths.iter().any(|rp| is_descendant(lp, rp)) {
-                    problems.push(Error::prim(
-                        lp,
-                        format!("stroke layer ({STROKE_LAYER_API}) is not under a prim with {RIG_API}"),
-                    ));
+                    problems.push(
+                        Error::prim(
+                            lp,
+                            format!("stroke layer ({STROKE_LAYER_API}) is not under a prim with {RIG_API}"),
+                        )
+                        .rule(Rule::LayerOutsideRig),
+                    );
                 }
                 continue;
             };
@@ -184,7 +218,7 @@ impl Scene {
             });
             match layer {
                 Ok(layer) => owner.layers.push(layer),
-                Err(e) => problems.push(e),
+                Err(e) => problems.push(e.or_rule(Rule::Unreadable)),
             }
         }
         Ok((Scene { rigs }, problems))
@@ -200,11 +234,9 @@ fn is_descendant(path: &str, ancestor: &str) -> bool {
 fn check_finite(points: &[Vec3], prim: &str, attr: &str) -> Result<()> {
     match points.iter().position(|p| !p.is_finite()) {
         None => Ok(()),
-        Some(i) => Err(Error::attr(
-            prim,
-            attr,
-            format!("point {i} is not finite ({})", points[i]),
-        )),
+        Some(i) => {
+            Err(Error::attr(prim, attr, format!("point {i} is not finite ({})", points[i])).rule(Rule::NonFinite))
+        }
     }
 }
 
@@ -217,7 +249,8 @@ fn read_proxy(r: &StageReader, rig: &usd::Prim) -> Result<Proxy> {
                 rig_path,
                 "painterly:proxy",
                 "not authored: a rig must name its proxy Mesh with `rel painterly:proxy`",
-            ))
+            )
+            .rule(Rule::MissingProxy))
         }
         [p] => p.clone(),
         many => {
@@ -225,7 +258,8 @@ fn read_proxy(r: &StageReader, rig: &usd::Prim) -> Result<Proxy> {
                 rig_path,
                 "painterly:proxy",
                 format!("has {} targets, expected exactly one Mesh", many.len()),
-            ))
+            )
+            .rule(Rule::MissingProxy))
         }
     };
     let prim = r.prim(&proxy_path)?.ok_or_else(|| {
@@ -234,6 +268,7 @@ fn read_proxy(r: &StageReader, rig: &usd::Prim) -> Result<Proxy> {
             "painterly:proxy",
             format!("targets {proxy_path}, which does not exist"),
         )
+        .rule(Rule::MissingProxy)
     })?;
     let ty = r.type_name(&prim)?;
     if ty != "Mesh" {
@@ -241,7 +276,8 @@ fn read_proxy(r: &StageReader, rig: &usd::Prim) -> Result<Proxy> {
             rig_path,
             "painterly:proxy",
             format!("targets {proxy_path}, a {:?} prim, expected a Mesh", ty),
-        ));
+        )
+        .rule(Rule::MissingProxy));
     }
     let rest_time = r.typed(rig, "painterly:restTime", None, "double", values::scalar)?;
     read_mesh(r, prim, rest_time)
@@ -255,10 +291,10 @@ pub fn read_mesh(r: &StageReader, prim: usd::Prim, rest_time: Option<f64>) -> Re
     let proxy_path = prim.path().as_str().to_string();
     let counts = r
         .typed(&prim, "faceVertexCounts", None, "int[]", values::int_array)?
-        .ok_or_else(|| Error::attr(&proxy_path, "faceVertexCounts", "proxy mesh has no faces"))?;
+        .ok_or_else(|| Error::attr(&proxy_path, "faceVertexCounts", "proxy mesh has no faces").rule(Rule::Mesh))?;
     let indices = r
         .typed(&prim, "faceVertexIndices", None, "int[]", values::int_array)?
-        .ok_or_else(|| Error::attr(&proxy_path, "faceVertexIndices", "proxy mesh has no faces"))?;
+        .ok_or_else(|| Error::attr(&proxy_path, "faceVertexIndices", "proxy mesh has no faces").rule(Rule::Mesh))?;
     if counts.iter().any(|&c| c < 0) || counts.iter().sum::<i64>() != indices.len() as i64 {
         return Err(Error::attr(
             &proxy_path,
@@ -268,18 +304,20 @@ pub fn read_mesh(r: &StageReader, prim: usd::Prim, rest_time: Option<f64>) -> Re
                 counts.iter().sum::<i64>(),
                 indices.len()
             ),
-        ));
+        )
+        .rule(Rule::Mesh));
     }
     if !counts.iter().any(|&c| c >= 3) {
         return Err(Error::attr(
             &proxy_path,
             "faceVertexCounts",
             "proxy mesh has no polygon with 3 or more vertices",
-        ));
+        )
+        .rule(Rule::Mesh));
     }
 
     // Rest pose and motion kind (SPEC §2).
-    let skeleton = skeleton_binding(r, &prim)?;
+    let skeleton = skeleton_binding(r, &prim).map_err(|e| e.or_rule(Rule::Skinning))?;
     let has_samples = !r.sample_times(&prim, "points")?.is_empty();
     let rest_pts = if skeleton.is_some() {
         r.typed(&prim, "points", None, "point3f[]", values::vec3_array)?
@@ -298,7 +336,7 @@ pub fn read_mesh(r: &StageReader, prim: usd::Prim, rest_time: Option<f64>) -> Re
             } else {
                 "proxy mesh has no points"
             };
-            return Err(Error::attr(&proxy_path, "points", why));
+            return Err(Error::attr(&proxy_path, "points", why).rule(Rule::Mesh));
         }
     };
     check_finite(&rest_pts, &proxy_path, "points")?;
@@ -308,13 +346,20 @@ pub fn read_mesh(r: &StageReader, prim: usd::Prim, rest_time: Option<f64>) -> Re
             &proxy_path,
             "faceVertexIndices",
             format!("index {bad} is out of range ({n} points)"),
-        ));
+        )
+        .rule(Rule::Mesh));
     }
     let rest: Vec<DVec3> = rest_pts.iter().map(|p| p.as_dvec3()).collect();
     let motion = match skeleton {
-        Some(s) => ProxyMotion::Skel(Box::new(SkelProxy::read(r, &prim, &s, &rest)?)),
+        Some(s) => ProxyMotion::Skel(Box::new(
+            SkelProxy::read(r, &prim, &s, &rest).map_err(|e| e.or_rule(Rule::Skinning))?,
+        )),
         None if has_samples => ProxyMotion::Sampled,
         None => ProxyMotion::Static,
+    };
+    let normals = match &motion {
+        ProxyMotion::Skel(s) if s.deforms_normals() => read_rest_normals(r, &prim, n, &indices)?,
+        _ => None,
     };
     Ok(Proxy {
         path: proxy_path,
@@ -322,6 +367,7 @@ pub fn read_mesh(r: &StageReader, prim: usd::Prim, rest_time: Option<f64>) -> Re
         face_indices: indices.iter().map(|&i| i as u32).collect(),
         rest,
         motion,
+        normals,
         points_query: usd::AttributeQuery::new(&prim.attribute("points")),
         prim,
     })
@@ -337,11 +383,15 @@ impl Proxy {
                 p.iter().map(|p| p.as_dvec3()).collect::<Vec<_>>()
             }
             ProxyMotion::Skel(s) => {
-                let (skinning, weights) = s.pose(t)?;
-                let skel_pts = s.deformer.deform(&skinning, &weights);
-                let skel_prim = r.require_prim(&s.skeleton)?;
-                let to_local = self.local_to_world(r, t)?.inverse() * r.local_to_world(&skel_prim, t)?;
-                skel_pts.iter().map(|p| to_local.transform_point3(*p)).collect()
+                let pts = s.deform(t)?;
+                if s.skins_joints() {
+                    // Skeleton space → mesh space, as BakeSkinning writes them.
+                    let skel_prim = r.require_prim(&s.skeleton)?;
+                    let to_local = self.local_to_world(r, t)?.inverse() * r.local_to_world(&skel_prim, t)?;
+                    pts.iter().map(|p| to_local.transform_point3(*p)).collect()
+                } else {
+                    pts
+                }
             }
         };
         if let Some(i) = pts.iter().position(|p| !p.is_finite()) {
@@ -352,6 +402,36 @@ impl Proxy {
             ));
         }
         Ok(pts)
+    }
+
+    /// Whether the proxy has authored normals that BakeSkinning rewrites
+    /// (a UsdSkel proxy's `vertex`, `varying` or `faceVarying` normals).
+    pub fn has_deformed_normals(&self) -> bool {
+        self.normals.is_some()
+    }
+
+    /// The proxy's authored normals at `t`, deformed as BakeSkinning
+    /// rewrites them (mesh-local); None when it leaves them alone.
+    pub fn posed_normals(&self, r: &StageReader, t: f64) -> Result<Option<Vec<Vec3>>> {
+        let (ProxyMotion::Skel(s), Some(rest)) = (&self.motion, &self.normals) else {
+            return Ok(None);
+        };
+        let mut n = s.deform_normals(t, &rest.values, rest.point_of.as_deref())?;
+        if s.skins_joints() {
+            // Skeleton space → mesh space, not renormalised (as BakeSkinning).
+            let skel_prim = r.require_prim(&s.skeleton)?;
+            let to_local = self.local_to_world(r, t)?.inverse() * r.local_to_world(&skel_prim, t)?;
+            let m = glam::DMat3::from_mat4(to_local).inverse().transpose();
+            n.iter_mut().for_each(|v| *v = m * *v);
+        }
+        if let Some(i) = n.iter().position(|v| !v.is_finite()) {
+            return Err(Error::attr(
+                &self.path,
+                "normals",
+                format!("deformed normal {i} is not finite at time {t}"),
+            ));
+        }
+        Ok(Some(n.iter().map(|v| v.as_vec3()).collect()))
     }
 
     /// Posed points in f32 (what view-dependent blending and output use);
@@ -416,13 +496,14 @@ fn read_layer(r: &StageReader, path: &str, proxy_points: usize) -> Result<Stroke
         return Err(Error::prim(
             path,
             format!("{STROKE_LAYER_API} is applied to a {ty:?} prim; stroke layers must be BasisCurves"),
-        ));
+        )
+        .rule(Rule::LayerNotCurves));
     }
     let counts = r
         .typed(&prim, "curveVertexCounts", None, "int[]", values::int_array)?
         .unwrap_or_default();
     if let Some(bad) = counts.iter().find(|&&c| c < 0) {
-        return Err(Error::attr(path, "curveVertexCounts", format!("negative count {bad}")));
+        return Err(Error::attr(path, "curveVertexCounts", format!("negative count {bad}")).rule(Rule::PointCounts));
     }
     let total: i64 = counts.iter().sum();
     let points = r.typed(&prim, "points", None, "point3f[]", values::vec3_array)?;
@@ -434,7 +515,8 @@ fn read_layer(r: &StageReader, path: &str, proxy_points: usize) -> Result<Stroke
                 path,
                 "curveVertexCounts",
                 format!("counts sum to {total}, but the layer has {} points", p.len()),
-            ));
+            )
+            .rule(Rule::PointCounts));
         }
     }
     let authored_points = points.clone();
@@ -447,7 +529,8 @@ fn read_layer(r: &StageReader, path: &str, proxy_points: usize) -> Result<Stroke
                         path,
                         "painterly:restPoints",
                         format!("{} rest points, but the layer has {} points", rest.len(), p.len()),
-                    ));
+                    )
+                    .rule(Rule::PointCounts));
                 }
             }
             if rest.len() as i64 != total {
@@ -455,7 +538,8 @@ fn read_layer(r: &StageReader, path: &str, proxy_points: usize) -> Result<Stroke
                     path,
                     "painterly:restPoints",
                     format!("{} rest points, but curveVertexCounts sum to {total}", rest.len()),
-                ));
+                )
+                .rule(Rule::PointCounts));
             }
             rest
         }
@@ -465,18 +549,20 @@ fn read_layer(r: &StageReader, path: &str, proxy_points: usize) -> Result<Stroke
                 path,
                 "points",
                 "stroke layer has neither painterly:restPoints nor a default value of points",
-            ))
+            )
+            .rule(Rule::MissingRestPoints))
         }
     };
 
-    let cached_binding = read_cached_binding(r, &prim, path, rest_points.len(), proxy_points)?;
+    let cached_binding =
+        read_cached_binding(r, &prim, path, rest_points.len(), proxy_points).map_err(|e| e.or_rule(Rule::Binding))?;
     let opacity = r
         .typed(&prim, "painterly:opacity", None, "float", values::scalar)?
         .unwrap_or(1.0) as f32;
     if !opacity.is_finite() {
-        return Err(Error::attr(path, "painterly:opacity", "opacity is not finite"));
+        return Err(Error::attr(path, "painterly:opacity", "opacity is not finite").rule(Rule::NonFinite));
     }
-    let display_opacity = read_display_opacity(r, &prim, path, &counts)?;
+    let display_opacity = read_display_opacity(r, &prim, path, &counts).map_err(|e| e.or_rule(Rule::DisplayOpacity))?;
     Ok(StrokeLayer {
         path: path.to_string(),
         curve_counts: counts.iter().map(|&c| c as u32).collect(),
@@ -495,7 +581,7 @@ fn axis_index(r: &StageReader, rig: &mut Rig, path: &str) -> Result<usize> {
     if let Some(i) = rig.axes.iter().position(|a| a.path == path) {
         return Ok(i);
     }
-    rig.axes.push(Axis::read(r, path)?);
+    rig.axes.push(Axis::read(r, path).map_err(|e| e.or_rule(Rule::Axis))?);
     Ok(rig.axes.len() - 1)
 }
 
@@ -508,9 +594,14 @@ fn duplicate_error(paths: &[String], e: InterpError, channel: &str) -> Error {
                 "{} has the same coordinates: two {channel} keys at one configuration",
                 paths[second]
             ),
-        ),
-        InterpError::NonFinite { key } => Error::attr(&paths[key], "coordinates", "coordinates are not finite"),
-        other => Error::prim(&paths[0], format!("cannot interpolate {channel} keys: {other}")),
+        )
+        .rule(Rule::CoincidentKeys),
+        InterpError::NonFinite { key } => {
+            Error::attr(&paths[key], "coordinates", "coordinates are not finite").rule(Rule::NonFinite)
+        }
+        other => {
+            Error::prim(&paths[0], format!("cannot interpolate {channel} keys: {other}")).rule(Rule::Interpolation)
+        }
     }
 }
 
@@ -559,8 +650,9 @@ fn time_channel<V>(keys: Vec<(String, f64, V)>, sentinels: &[f64]) -> Result<Opt
                 "{} has the same time: two time keys of one channel at one time",
                 paths[second]
             ),
-        ),
-        TimeKeyError::NonFinite { key } => Error::attr(&paths[key], "time", "time is not finite"),
+        )
+        .rule(Rule::CoincidentKeys),
+        TimeKeyError::NonFinite { key } => Error::attr(&paths[key], "time", "time is not finite").rule(Rule::NonFinite),
     })?;
     Ok(Some(Channel {
         interp,
@@ -592,11 +684,9 @@ pub fn layer_axes(r: &StageReader, all_paths: &[String], rig: &mut Rig, layer: &
     let mut axes = Vec::new();
     for ap in &axis_paths {
         if r.prim(ap)?.is_none() {
-            return Err(Error::attr(
-                path,
-                "painterly:axes",
-                format!("targets {ap}, which does not exist"),
-            ));
+            return Err(
+                Error::attr(path, "painterly:axes", format!("targets {ap}, which does not exist")).rule(Rule::Axis),
+            );
         }
         axes.push(axis_index(r, rig, ap)?);
     }
@@ -625,7 +715,8 @@ fn read_keys(r: &StageReader, all_paths: &[String], rig: &mut Rig, layer: &Strok
                 cp,
                 "points",
                 format!("{} points, but the layer {path} has {npoints}", p.len()),
-            ));
+            )
+            .rule(Rule::KeyPointCounts));
         }
         check_finite(&p, cp, "points")?;
         Ok(Some(p))
@@ -634,7 +725,7 @@ fn read_keys(r: &StageReader, all_paths: &[String], rig: &mut Rig, layer: &Strok
         let o = r.typed(c, "opacity", None, "float", values::scalar)?;
         if let Some(o) = o {
             if !o.is_finite() {
-                return Err(Error::attr(cp, "opacity", "opacity is not finite"));
+                return Err(Error::attr(cp, "opacity", "opacity is not finite").rule(Rule::NonFinite));
             }
         }
         Ok(o.map(|o| o as f32))
@@ -647,7 +738,10 @@ fn read_keys(r: &StageReader, all_paths: &[String], rig: &mut Rig, layer: &Strok
                 has_pose_keys = true;
                 let coords = r
                     .typed(c, "coordinates", None, "float[]", values::f32_array)?
-                    .ok_or_else(|| Error::attr(&cp, "coordinates", "a pose key needs `float[] coordinates`"))?;
+                    .ok_or_else(|| {
+                        Error::attr(&cp, "coordinates", "a pose key needs `float[] coordinates`")
+                            .rule(Rule::KeyCoordinates)
+                    })?;
                 let coords: Vec<f64> = coords.iter().map(|&x| x as f64).collect();
                 if let Some(p) = read_points(c, &cp)? {
                     pose_pts.push((cp.clone(), coords.clone(), p));
@@ -659,9 +753,9 @@ fn read_keys(r: &StageReader, all_paths: &[String], rig: &mut Rig, layer: &Strok
             "PainterlyTimeKey" => {
                 let time = r
                     .typed(c, "time", None, "double", values::scalar)?
-                    .ok_or_else(|| Error::attr(&cp, "time", "a time key needs `double time`"))?;
+                    .ok_or_else(|| Error::attr(&cp, "time", "a time key needs `double time`").rule(Rule::KeyTime))?;
                 if !time.is_finite() {
-                    return Err(Error::attr(&cp, "time", "time is not finite"));
+                    return Err(Error::attr(&cp, "time", "time is not finite").rule(Rule::NonFinite));
                 }
                 let sentinel = r.typed(c, "sentinel", None, "bool", values::scalar)?.unwrap_or(0.0) != 0.0;
                 if sentinel {
@@ -696,7 +790,8 @@ fn read_keys(r: &StageReader, all_paths: &[String], rig: &mut Rig, layer: &Strok
                 cp,
                 "coordinates",
                 format!("{} coordinates, but the layer {path} has {dim} axes", coords.len()),
-            ));
+            )
+            .rule(Rule::KeyCoordinates));
         }
     }
     let token = r
@@ -711,14 +806,14 @@ fn read_keys(r: &StageReader, all_paths: &[String], rig: &mut Rig, layer: &Strok
             "painterly:interpolation",
             format!("unknown interpolation {token:?} (expected smoothVoronoi, rbf or shepard)"),
         )
+        .rule(Rule::Interpolation)
     })?;
     if let Method::Rbf { radius } = method {
         if !(radius.is_finite() && radius > 0.0) {
-            return Err(Error::attr(
-                path,
-                "painterly:rbfRadius",
-                format!("radius {radius} must be positive"),
-            ));
+            return Err(
+                Error::attr(path, "painterly:rbfRadius", format!("radius {radius} must be positive"))
+                    .rule(Rule::Interpolation),
+            );
         }
     }
     Ok(LayerKeys {
@@ -844,7 +939,7 @@ fn read_display_opacity(r: &StageReader, prim: &usd::Prim, path: &str, counts: &
         ));
     };
     if out.iter().any(|x| !x.is_finite()) {
-        return Err(Error::attr(path, NAME, "opacity is not finite"));
+        return Err(Error::attr(path, NAME, "opacity is not finite").rule(Rule::NonFinite));
     }
     Ok(out)
 }

@@ -16,6 +16,9 @@ use super::guard::Guard;
 use super::values;
 use crate::error::{Error, Result};
 
+/// A prim of an opened stage (a handle: cheap to clone, tied to its stage's thread).
+pub type Prim = usd::Prim;
+
 /// An opened, composed USD stage.
 pub struct StageReader {
     /// The composed stage (sublayers, references and payloads resolved).
@@ -117,6 +120,13 @@ impl StageReader {
         let path_str = path
             .to_str()
             .ok_or_else(|| Error::msg("input path is not valid UTF-8").in_file(path))?;
+        Self::compose(path, path_str, openusd::ar::DefaultResolver::new())
+    }
+
+    /// Opens and composes the layer `identifier` through `resolver` (see
+    /// [`super::memory`]), with the checks of [`StageReader::open`]; errors
+    /// name `path`.
+    pub fn compose<R: openusd::ar::Resolver + 'static>(path: &Path, identifier: &str, resolver: R) -> Result<Self> {
         // Every layer passes the composition guard (nesting, namespace depth,
         // inherit cycles) before openusd parses or composes it, and openusd
         // runs under watch (panics, crashes, time limit).
@@ -125,8 +135,8 @@ impl StageReader {
         let stage = compose_watch::watched(path, || {
             let stage = usd::Stage::builder()
                 .schema_registry(openusd_schemas::schema_registry())
-                .resolver(guard.resolver())
-                .open(path_str)
+                .resolver(guard.resolver_over(resolver))
+                .open(identifier)
                 .map_err(|e| first_problem(Error::msg(format!("cannot read USD file: {e}"))))?;
             // The root layer stack is parsed but nothing is composed yet.
             for id in stage.layer_identifiers() {
@@ -291,6 +301,7 @@ impl StageReader {
                     name,
                     format!("expected {expected}, found {}", values::kind_name(&v)),
                 )
+                .rule(crate::rule::Rule::AttributeType)
             }),
         }
     }

@@ -10,6 +10,7 @@ use super::scene::{read_mesh, Proxy, VIEW_DEPENDENT_API};
 use super::stage::StageReader;
 use super::values;
 use crate::error::{Error, Result};
+use crate::rule::Rule;
 use crate::view::{same_direction, NaturalCubicSpline, Uncovered, ViewBlender, ViewError};
 
 /// One key viewpoint: a direction and its deformation offsets from the base,
@@ -68,18 +69,20 @@ fn view_error(keys: &[KeyIn], vp_paths: &[Vec<String>], mesh: &str, e: ViewError
                 "{} has the same direction: two key viewpoints cannot share a direction",
                 first_of(second)
             ),
-        ),
+        )
+        .rule(Rule::ViewKeyDirections),
         ViewError::ZeroDirection { index } | ViewError::NonFiniteDirection { index } => Error::attr(
             first_of(index),
             "direction",
             "direction must be a finite, non-zero vector",
-        ),
+        )
+        .rule(Rule::ViewKeyDirections),
         ViewError::InvalidSharpness(s) => {
-            Error::attr(mesh, "painterly:sharpness", format!("sharpness {s} must be positive"))
+            Error::attr(mesh, "painterly:sharpness", format!("sharpness {s} must be positive")).rule(Rule::ViewMesh)
         }
         other => {
             let _ = keys;
-            Error::prim(mesh, format!("cannot build the key viewpoint hull: {other}"))
+            Error::prim(mesh, format!("cannot build the key viewpoint hull: {other}")).rule(Rule::ViewKeyDirections)
         }
     }
 }
@@ -104,7 +107,7 @@ pub fn read_view_meshes_lenient(r: &StageReader, paths: &[String]) -> Result<(Ve
         if r.api_schemas(&prim)?.iter().any(|a| a == VIEW_DEPENDENT_API) {
             match read_view_mesh(r, prim) {
                 Ok(m) => out.push(m),
-                Err(e) => problems.push(e),
+                Err(e) => problems.push(e.or_rule(Rule::Unreadable)),
             }
         }
     }
@@ -118,7 +121,8 @@ fn read_view_mesh(r: &StageReader, prim: usd::Prim) -> Result<ViewMesh> {
         return Err(Error::prim(
             &path,
             format!("{VIEW_DEPENDENT_API} is applied to a {ty:?} prim, expected a Mesh"),
-        ));
+        )
+        .rule(Rule::ViewMesh));
     }
     let sharpness = r
         .typed(&prim, "painterly:sharpness", None, "float", values::scalar)?
@@ -128,7 +132,8 @@ fn read_view_mesh(r: &StageReader, prim: usd::Prim) -> Result<ViewMesh> {
             &path,
             "painterly:sharpness",
             format!("sharpness {sharpness} must be positive"),
-        ));
+        )
+        .rule(Rule::ViewMesh));
     }
     let token = r
         .typed(&prim, "painterly:uncovered", None, "token", values::token)?
@@ -139,6 +144,7 @@ fn read_view_mesh(r: &StageReader, prim: usd::Prim) -> Result<ViewMesh> {
             "painterly:uncovered",
             format!("unknown token {token:?} (expected cosine or base)"),
         )
+        .rule(Rule::ViewMesh)
     })?;
     let camera = r.targets(&prim, "painterly:camera")?.into_iter().next();
     let rest_time = r.typed(&prim, "painterly:restTime", None, "double", values::scalar)?;
@@ -157,32 +163,34 @@ fn read_view_mesh(r: &StageReader, prim: usd::Prim) -> Result<ViewMesh> {
         let cp = c.path().as_str().to_string();
         let points = r
             .typed(&c, "points", None, "point3f[]", values::vec3_array)?
-            .ok_or_else(|| Error::attr(&cp, "points", "a view key needs `point3f[] points`"))?;
+            .ok_or_else(|| {
+                Error::attr(&cp, "points", "a view key needs `point3f[] points`").rule(Rule::ViewKeyCounts)
+            })?;
         if points.len() != n {
             return Err(Error::attr(
                 &cp,
                 "points",
                 format!("{} points, but the mesh {path} has {n}", points.len()),
-            ));
+            )
+            .rule(Rule::ViewKeyCounts));
         }
         if let Some(i) = points.iter().position(|p| !p.is_finite()) {
-            return Err(Error::attr(&cp, "points", format!("point {i} is not finite")));
+            return Err(Error::attr(&cp, "points", format!("point {i} is not finite")).rule(Rule::NonFinite));
         }
-        let d = r
-            .typed(&c, "direction", None, "float3", values::vec3)?
-            .ok_or_else(|| Error::attr(&cp, "direction", "a view key needs `float3 direction`"))?;
+        let d = r.typed(&c, "direction", None, "float3", values::vec3)?.ok_or_else(|| {
+            Error::attr(&cp, "direction", "a view key needs `float3 direction`").rule(Rule::ViewKeyDirections)
+        })?;
         let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
         if !(len.is_finite() && len > 0.0) {
-            return Err(Error::attr(
-                &cp,
-                "direction",
-                "direction must be a finite, non-zero vector",
-            ));
+            return Err(
+                Error::attr(&cp, "direction", "direction must be a finite, non-zero vector")
+                    .rule(Rule::ViewKeyDirections),
+            );
         }
         let time = r.typed(&c, "time", None, "double", values::scalar)?;
         if let Some(t) = time {
             if !t.is_finite() {
-                return Err(Error::attr(&cp, "time", "time is not finite"));
+                return Err(Error::attr(&cp, "time", "time is not finite").rule(Rule::NonFinite));
             }
         }
         let viewpoint = r.typed(&c, "viewpoint", None, "token", values::token)?;
@@ -217,7 +225,8 @@ fn read_view_mesh(r: &StageReader, prim: usd::Prim) -> Result<ViewMesh> {
                             k.viewpoint.as_deref().unwrap_or(""),
                             f.path
                         ),
-                    ));
+                    )
+                    .rule(Rule::ViewKeyDirections));
                 }
                 groups[g].push(i);
             }
@@ -239,7 +248,8 @@ fn read_view_mesh(r: &StageReader, prim: usd::Prim) -> Result<ViewMesh> {
                     "is one key viewpoint with {}, which has a time: give every key of a viewpoint a time, or none",
                     keys[*a].path
                 ),
-            ));
+            )
+            .rule(Rule::ViewKeyTimes));
         }
         g.sort_by(|&a, &b| keys[a].time.unwrap_or(0.0).total_cmp(&keys[b].time.unwrap_or(0.0)));
         for w in g.windows(2) {
@@ -248,7 +258,8 @@ fn read_view_mesh(r: &StageReader, prim: usd::Prim) -> Result<ViewMesh> {
                     &keys[w[0]].path,
                     "time",
                     format!("{} has the same direction and time", keys[w[1]].path),
-                ));
+                )
+                .rule(Rule::ViewKeyTimes));
             }
         }
         let mut offsets = Vec::with_capacity(g.len());
@@ -261,7 +272,10 @@ fn read_view_mesh(r: &StageReader, prim: usd::Prim) -> Result<ViewMesh> {
         }
         let spline = if timed > 0 {
             let times: Vec<f64> = g.iter().map(|&i| keys[i].time.expect("timed")).collect();
-            Some(NaturalCubicSpline::new(&times).map_err(|e| Error::prim(&keys[g[0]].path, format!("{e}")))?)
+            Some(
+                NaturalCubicSpline::new(&times)
+                    .map_err(|e| Error::prim(&keys[g[0]].path, format!("{e}")).rule(Rule::ViewKeyTimes))?,
+            )
         } else if g.len() > 1 {
             return Err(Error::attr(
                 &keys[g[1]].path,
@@ -270,7 +284,8 @@ fn read_view_mesh(r: &StageReader, prim: usd::Prim) -> Result<ViewMesh> {
                     "{} has the same direction and neither has a time: one viewpoint needs one key, or keys at different times",
                     keys[g[0]].path
                 ),
-            ));
+            )
+            .rule(Rule::ViewKeyTimes));
         } else {
             None
         };
@@ -320,18 +335,7 @@ pub fn check_camera(r: &StageReader, path: &str, origin: &str) -> Result<()> {
 impl ViewMesh {
     /// `painterly:sharpness` at `t` (it may be animated), checked positive.
     pub fn sharpness_at(&self, r: &StageReader, t: f64) -> Result<f64> {
-        let prim = r.require_prim(&self.path)?;
-        let s = r
-            .typed(&prim, "painterly:sharpness", Some(t), "float", values::scalar)?
-            .unwrap_or(1.0);
-        if !(s.is_finite() && s > 0.0) {
-            return Err(Error::attr(
-                &self.path,
-                "painterly:sharpness",
-                format!("sharpness {s} at time {t} must be positive"),
-            ));
-        }
-        Ok(s)
+        sharpness_at(r, &self.path, t)
     }
 
     /// The camera for this mesh: the bake's `--camera`, else `painterly:camera`.
@@ -388,6 +392,22 @@ impl ViewBlend {
         crate::mesh::weighted_sum(&mut out, &terms);
         Ok(out)
     }
+}
+
+/// `painterly:sharpness` of the mesh at `path` at `t`, checked positive.
+pub fn sharpness_at(r: &StageReader, path: &str, t: f64) -> Result<f64> {
+    let prim = r.require_prim(path)?;
+    let s = r
+        .typed(&prim, "painterly:sharpness", Some(t), "float", values::scalar)?
+        .unwrap_or(1.0);
+    if !(s.is_finite() && s > 0.0) {
+        return Err(Error::attr(
+            path,
+            "painterly:sharpness",
+            format!("sharpness {s} at time {t} must be positive"),
+        ));
+    }
+    Ok(s)
 }
 
 /// Prim types that have no transform: a camera must not be one of these.

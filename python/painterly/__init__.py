@@ -1,0 +1,80 @@
+"""painterly from Python: bake, evaluate, inspect and validate painted characters.
+
+Thin over the Rust library; long work releases the GIL, so Python threads
+run bakes at once. Inputs are a file path or a usd-core ``Sdf.Layer`` (read
+through ``ExportToString()``, as if it were its own file, so relative asset
+paths still resolve). A bake without ``output`` returns its layer's usda
+text under ``"layer"``; :func:`to_layer` opens such text in usd-core.
+
+The usd-core validators (one per rule ``painterly inspect`` checks) live in
+:mod:`painterly.validators`; ``painterly-validate FILE`` runs them.
+"""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+from ._painterly import Character, Error, __version__, _interpolate, _rules, bake, inspect
+
+__all__ = [
+    "Character",
+    "Error",
+    "RULES",
+    "__version__",
+    "bake",
+    "inspect",
+    "interpolate",
+    "plugin_path",
+    "to_layer",
+]
+
+#: The rules ``painterly inspect`` checks: ``{"id", "validator", "doc"}`` each.
+#: A problem in ``inspect(path)["problems"]`` names its rule by ``id``; the
+#: UsdValidation validator ``painterly.validators:<validator>`` reports it.
+RULES = [{"id": i, "validator": v, "doc": d} for i, v, d in _rules()]
+
+
+def interpolate(keys, values, queries, method: str = "smooth_voronoi", radius: float = 1.0) -> np.ndarray:
+    """Configuration-space interpolation (Bassett et al. 2013, §4.2).
+
+    ``keys``: (n, d) key coordinates, or (n,) in one dimension. ``values``:
+    (n, ...) one value (scalar or array) per key. ``queries``: (m, d), or
+    (m,) in one dimension. Returns float64 (m, ...): at each query the
+    values blended with the basis weights of ``method`` ("smooth_voronoi",
+    "rbf" with ``radius``, or "shepard"), the weights the ``painterly
+    interpolate`` command prints.
+    """
+    keys = np.asarray(keys, dtype=np.float64)
+    queries = np.asarray(queries, dtype=np.float64)
+    values = np.asarray(values, dtype=np.float64)
+    if keys.ndim == 1:
+        keys = keys[:, None]
+    if queries.ndim == 1:
+        queries = queries[:, None] if keys.shape[1] == 1 else queries[None, :]
+    if keys.ndim != 2 or queries.ndim != 2:
+        raise Error("keys and queries must be (n, d) and (m, d) arrays")
+    if values.ndim == 0 or values.shape[0] != keys.shape[0]:
+        raise Error(f"{keys.shape[0]} keys but values of shape {values.shape}: one value per key")
+    rest = values.shape[1:]
+    flat = np.ascontiguousarray(values.reshape(values.shape[0], -1))
+    out = _interpolate(np.ascontiguousarray(keys), flat, np.ascontiguousarray(queries), method, float(radius))
+    return out.reshape((queries.shape[0],) + rest)
+
+
+def to_layer(text: str):
+    """An anonymous usd-core ``Sdf.Layer`` holding ``text`` (usda), e.g. the
+    ``"layer"`` of an in-memory :func:`bake`."""
+    from pxr import Sdf
+
+    layer = Sdf.Layer.CreateAnonymous(".usda")
+    if not layer.ImportFromString(text):
+        raise Error("usd-core could not read the layer text")
+    return layer
+
+
+def plugin_path() -> str:
+    """The directory holding the validators' ``plugInfo.json``: put it on
+    ``PXR_PLUGINPATH_NAME`` before usd-core starts (see the README)."""
+    return os.path.join(os.path.dirname(os.path.abspath(__file__)), "validators")

@@ -1,0 +1,146 @@
+"""painterly's rules as usd-core UsdValidation validators.
+
+One stage validator per rule ``painterly inspect`` checks (``painterly.RULES``),
+named ``painterly.validators:<Rule>``, with the keyword ``painterly``. The
+findings come from the Rust inspection (``painterly.inspect``), run once
+per stage state and shared by every validator: the rules have one
+implementation, and the CLI and the validators cannot disagree.
+
+usd-core imports this module itself when ``plugInfo.json`` beside it is on
+``PXR_PLUGINPATH_NAME`` as the validation registry starts (the plugin
+path), and a validation context asks for the keyword. Importing it by hand
+registers the same validators explicitly when the registry did not see
+the plugin (``PXR_PLUGINPATH_NAME`` set too late).
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+
+from pxr import Sdf, UsdValidation
+
+import painterly
+
+PLUGIN = "painterly.validators"
+KEYWORD = "painterly"
+UNREADABLE = "unreadable"
+
+_lock = threading.Lock()
+_cache: dict = {}
+
+
+def _fingerprint(stage):
+    """What the inspection of `stage` depends on: its layers' content (text
+    for unsaved or anonymous layers, size and mtime for files) and the
+    chunk files of a clip-set bake."""
+    parts = []
+    for layer in stage.GetUsedLayers():
+        real = layer.realPath
+        if layer.anonymous or layer.dirty or not real or not os.path.isfile(real):
+            parts.append((layer.identifier, layer.ExportToString()))
+        else:
+            st = os.stat(real)
+            parts.append((layer.identifier, st.st_size, st.st_mtime_ns))
+    real = stage.GetRootLayer().realPath
+    if real:
+        clips = os.path.splitext(real)[0] + ".clips"
+        if os.path.isdir(clips):
+            for name in sorted(os.listdir(clips)):
+                st = os.stat(os.path.join(clips, name))
+                parts.append((name, st.st_size, st.st_mtime_ns))
+    return tuple(sorted(parts, key=lambda p: p[0]))
+
+
+def _source(stage):
+    """The file itself when the stage is exactly what is on disk (relative
+    paths, clips and chunk checks work as in the CLI), else the flattened
+    stage, which holds every unsaved edit."""
+    root = stage.GetRootLayer()
+    session = stage.GetSessionLayer()
+    clean = (
+        root.realPath
+        and not root.anonymous
+        and not any(layer.dirty for layer in stage.GetUsedLayers() if layer != session)
+        and (session is None or session.empty)
+    )
+    return root.realPath if clean else stage.Flatten()
+
+
+def problems(stage):
+    """The inspection of `stage`: (problems as in ``inspect --json``, None)
+    or ([], the ``painterly.Error`` that stopped it)."""
+    key = (stage.GetRootLayer().identifier, _fingerprint(stage))
+    with _lock:
+        if key not in _cache:
+            try:
+                _cache.clear()  # one stage state at a time: validators of one run share it
+                _cache[key] = (painterly.inspect(_source(stage))["problems"], None)
+            except painterly.Error as e:
+                _cache[key] = ([], e)
+        return _cache[key]
+
+
+def _site(stage, prim, attribute):
+    """The property when the stage has it, else its prim (a site must
+    exist on the stage to be valid); the message names both anyway."""
+    p = stage.GetPrimAtPath(prim) if prim and Sdf.Path.IsValidPathString(prim) else None
+    if not p:
+        return UsdValidation.ValidationErrorSite(stage, Sdf.Path.absoluteRootPath)
+    path = p.GetPath()
+    if attribute and p.GetProperty(attribute):
+        path = path.AppendProperty(attribute)
+    return UsdValidation.ValidationErrorSite(stage, path)
+
+
+def _error(stage, name, p):
+    where = p["prim"] or ""
+    if p["attribute"]:
+        where += "." + p["attribute"]
+    text = f"{where}: {p['message']}" if where else p["message"]
+    return UsdValidation.ValidationError(
+        name, UsdValidation.ValidationErrorType.Error, [_site(stage, p["prim"], p["attribute"])], text
+    )
+
+
+def _rule_task(rule):
+    def task(stage, time_range=None):
+        found, failure = problems(stage)
+        errors = [_error(stage, rule["validator"], p) for p in found if p["rule"] == rule["id"]]
+        if failure is not None and rule["id"] == UNREADABLE:
+            # The inspection could not even open the stage.
+            p = {"prim": failure.prim, "attribute": failure.attribute, "message": str(failure)}
+            errors.append(_error(stage, rule["validator"], p))
+        return errors
+
+    return task
+
+
+def validators():
+    """(name, doc, task) of every painterly validator, one per rule."""
+    return [(r["validator"], r["doc"], _rule_task(r)) for r in painterly.RULES]
+
+
+def plugin_info():
+    """The contents ``plugInfo.json`` must have (a test compares them)."""
+    entries = {name: {"doc": doc} for name, doc, _ in validators()}
+    entries["keywords"] = [KEYWORD]
+    return {"Plugins": [{"Type": "python", "Name": PLUGIN, "Info": {"Validators": entries}}]}
+
+
+def register():
+    """Registers every validator, once: under the plugin's metadata when the
+    registry read ``plugInfo.json``, else explicitly with the same metadata."""
+    registry = UsdValidation.ValidationRegistry()
+    for name, doc, task in validators():
+        full = f"{PLUGIN}:{name}"
+        if registry.HasValidator(full):
+            continue
+        if registry.GetValidatorMetadata(full) is not None:
+            registry.RegisterPluginStageValidator(full, task)
+        else:
+            meta = UsdValidation.ValidatorMetadata(name=full, doc=doc, keywords=[KEYWORD])
+            registry.RegisterStageValidator(meta, task)
+
+
+register()

@@ -1,0 +1,175 @@
+"""Helpers for `painterly preview` tests: start/stop the server by pid, speak
+its HTTP protocol (docs/preview.md), drive Debian's chromium through
+browser_tests/driver.mjs (playwright-core)."""
+
+import json
+import os
+import pathlib
+import re
+import shutil
+import signal
+import struct
+import subprocess
+import time
+import urllib.error
+import urllib.request
+
+from conftest import REPO, painterly_binary
+
+MAGIC = struct.unpack("<I", b"PTLY")[0]
+CHROMIUM = pathlib.Path(os.environ.get("CHROMIUM", "/usr/bin/chromium"))
+DRIVER = REPO / "browser_tests" / "driver.mjs"
+
+
+def decode_frame(data: bytes):
+    """(header, {name: list of floats}) of a binary reply."""
+    import numpy as np
+
+    magic, n = struct.unpack_from("<II", data, 0)
+    assert magic == MAGIC, f"bad magic {magic:#x}"
+    assert n % 4 == 0
+    header = json.loads(data[8 : 8 + n])
+    payload = np.frombuffer(data, dtype="<f4", offset=8 + n)
+    arrays = {name: payload[off : off + length] for name, (off, length) in header["arrays"].items()}
+    return header, arrays
+
+
+class PreviewServer:
+    """`painterly preview IN --port 0 ...`, stopped by its pid on exit."""
+
+    def __init__(self, path, *args):
+        self.args = [str(painterly_binary()), "preview", str(path), "--port", "0", *map(str, args)]
+        self.proc = None
+        self.url = None
+
+    def __enter__(self):
+        self.proc = subprocess.Popen(self.args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        deadline = time.monotonic() + 120
+        line = ""
+        while time.monotonic() < deadline:
+            line = self.proc.stdout.readline()
+            if not line:
+                break
+            m = re.search(r"(http://\S+/)", line)
+            if m:
+                self.url = m.group(1)
+                return self
+        self.stop()
+        raise AssertionError(f"preview did not print a URL (last line {line!r}): {self.proc.stderr.read()}")
+
+    def stop(self):
+        if self.proc and self.proc.poll() is None:
+            os.kill(self.proc.pid, signal.SIGTERM)
+            try:
+                self.proc.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                os.kill(self.proc.pid, signal.SIGKILL)
+                self.proc.wait()
+
+    def __exit__(self, *exc):
+        self.stop()
+
+    def alive(self):
+        return self.proc.poll() is None
+
+    def request(self, path, body=None, method=None, headers=None, raw=None):
+        """(status, headers, bytes); JSON `body` is sent as application/json."""
+        data = raw
+        hdrs = dict(headers or {})
+        if body is not None:
+            data = json.dumps(body).encode()
+            hdrs.setdefault("Content-Type", "application/json")
+        req = urllib.request.Request(self.url + path.lstrip("/"), data=data, method=method, headers=hdrs)
+        try:
+            with urllib.request.urlopen(req, timeout=120) as r:
+                return r.status, dict(r.headers), r.read()
+        except urllib.error.HTTPError as e:
+            return e.code, dict(e.headers), e.read()
+
+    def scene(self):
+        status, _, data = self.request("api/scene")
+        assert status == 200
+        return json.loads(data)
+
+    def frame(self, **req):
+        status, _, data = self.request("api/frame", body=req)
+        assert status == 200, data
+        return decode_frame(data)
+
+
+def browser_available():
+    """Why the browser tests cannot run, or None."""
+    if not CHROMIUM.exists():
+        return f"{CHROMIUM} is missing (scripts/test installs Debian's chromium)"
+    if not (REPO / "node_modules" / "playwright-core").exists():
+        return "node_modules/playwright-core is missing (scripts/test runs npm ci)"
+    if not shutil.which("node"):
+        return "node is missing"
+    return None
+
+
+class Browser:
+    """Debian's chromium driven by playwright-core through driver.mjs."""
+
+    def __init__(self):
+        self.proc = subprocess.Popen(
+            ["node", str(DRIVER)],
+            cwd=REPO,
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        self.browser_pids = []
+        r = self.call("launch")
+        self.browser_pids = r["browser_pids"]
+
+    def call(self, cmd, **kw):
+        self.proc.stdin.write(json.dumps({"cmd": cmd, **kw}) + "\n")
+        self.proc.stdin.flush()
+        line = self.proc.stdout.readline()
+        if not line:
+            raise AssertionError(f"browser driver died: {self.proc.stderr.read()}")
+        reply = json.loads(line)
+        if not reply.pop("ok"):
+            raise AssertionError(f"browser {cmd} failed: {reply['error']}")
+        return reply
+
+    def eval(self, js):
+        return self.call("eval", js=js).get("value")
+
+    def wait(self, js, timeout=30000):
+        self.call("wait", js=js, timeout=timeout)
+
+    def settle(self, frames_before=None):
+        """Waits until no frame request is pending (and a new frame was drawn)."""
+        cond = "window.painterly && window.painterly.idle()"
+        if frames_before is not None:
+            cond += f" && window.painterly.framesDrawn > {frames_before}"
+        self.wait(cond)
+        # One animation frame so the canvas shows what arrived.
+        self.eval("new Promise(r => requestAnimationFrame(() => requestAnimationFrame(r)))")
+
+    def close(self):
+        try:
+            if self.proc.poll() is None:
+                self.call("quit")
+                self.proc.wait(timeout=20)
+        except Exception:
+            pass
+        finally:
+            if self.proc.poll() is None:
+                os.kill(self.proc.pid, signal.SIGKILL)
+            for pid in self.browser_pids:
+                # Only a browser process we started that is still there.
+                try:
+                    comm = pathlib.Path(f"/proc/{pid}/comm").read_text()
+                except OSError:
+                    continue
+                if "chrom" in comm:
+                    try:
+                        os.kill(pid, signal.SIGKILL)
+                    except ProcessLookupError:
+                        pass
+            if self.proc.poll() is None:
+                self.proc.wait()

@@ -1,0 +1,58 @@
+"""What a new user reads (issue 13): errors that say what is wrong, counts
+in words, a --verbose log of phases, no silent no-op edits."""
+
+import json
+
+import pytest
+
+
+def test_key_on_a_missing_layer_says_it_does_not_exist(painterly, tmp_path, repo_root):
+    proc = painterly(
+        "key", repo_root / "fixtures" / "blowfish.usda", "--layer", "/Blowfish/Paint/Nope", "--time", "3",
+        "--edit-layer", tmp_path / "e.usda", check=False,
+    )
+    assert proc.returncode == 1
+    assert "/Blowfish/Paint/Nope: prim does not exist" in proc.stderr
+    assert not (tmp_path / "e.usda").exists()
+
+
+def test_key_on_a_prim_that_is_not_a_layer(painterly, tmp_path, repo_root):
+    proc = painterly(
+        "key", repo_root / "fixtures" / "blowfish.usda", "--layer", "/Blowfish/Paint", "--time", "3",
+        "--edit-layer", tmp_path / "e.usda", check=False,
+    )
+    assert proc.returncode == 1
+    assert "/Blowfish/Paint: is not a stroke layer" in proc.stderr
+
+
+@pytest.mark.parametrize("brush", ["smudge", "expand"])
+def test_a_brush_that_moves_nothing_writes_nothing(painterly, tmp_path, repo_root, brush):
+    edit = tmp_path / "e.usda"
+    proc = painterly(
+        brush, repo_root / "fixtures" / "blowfish.usda", "--layer", "/Blowfish/Paint/Hair",
+        "--path", "0,1,0 1,1.2,0", "--radius", "0.5", "--strength", "0.2", "--edit-layer", edit, check=False,
+    )
+    assert proc.returncode == 1
+    assert "nothing changed, nothing written" in proc.stderr and "/Blowfish/Paint/Hair" in proc.stderr
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_counts_in_words(painterly, tmp_path, repo_root):
+    out = painterly("bake", repo_root / "fixtures" / "tube.usda", "-o", tmp_path / "b.usdc", "--frames", "3")
+    assert out.stdout.startswith("baked 1 frame: 2 layers, 50 strokes, 450 points, 0 view-dependent meshes -> ")
+
+
+def test_verbose_logs_phases_on_stderr_only(painterly, tmp_path, repo_root):
+    out = painterly("-v", "bake", repo_root / "fixtures" / "tube.usda", "-o", tmp_path / "b.usdc", "--json")
+    json.loads(out.stdout)
+    lines = out.stderr.splitlines()
+    assert [l.split()[1] for l in lines] == ["opened", "read", "bound", "24"], lines
+    assert "read 1 rig, 2 stroke layers, 0 view-dependent meshes in" in lines[1]
+    assert "bound 450 stroke points (rest data of 194 proxy vertices) in" in lines[2]
+    assert lines[3].startswith("painterly: 24 frames: read ") and "evaluate" in lines[3] and "write" in lines[3]
+    quiet = painterly("bake", repo_root / "fixtures" / "tube.usda", "-o", tmp_path / "c.usdc", "--json")
+    assert quiet.stderr == ""
+
+
+def test_interpolate_is_listed_in_help(painterly):
+    assert "interpolate" in painterly("--help").stdout

@@ -1,0 +1,151 @@
+"""Chunked bakes as USD value clips (issue 10 §2).
+
+`painterly bake IN -o shot.usda --chunk N` writes chunk layers plus a
+clip-set layer. Composed over the input by usd-core, the clip set must give
+exactly the single-file bake: at every baked frame (bit for bit) and at
+fractional times between frames, across chunk boundaries too. A farm runs
+the same chunks one per task (`--chunk-index K`) and assembles the clip set
+last (`--assemble`), which refuses missing or stale chunks.
+"""
+
+import json
+import pathlib
+import shutil
+
+import numpy as np
+import pytest
+from clip_compare import compare
+from pxr import Sdf, Usd
+
+FIXTURES = ["blowfish.usda", "tube.usda", "wave.usda", "static.usda", "apple.usda", "head.usda", "walk.usda", "building.usda"]
+
+
+@pytest.mark.parametrize("fixture", FIXTURES)
+def test_clip_set_composes_to_the_single_file_bake(painterly, tmp_path, repo_root, fixture):
+    src = repo_root / "fixtures" / fixture
+    single, shot = tmp_path / "single.usdc", tmp_path / "shot.usda"
+    painterly("bake", src, "-o", single, "--quiet")
+    painterly("bake", src, "-o", shot, "--chunk", "7", "--quiet")
+    layer = Sdf.Layer.FindOrOpen(str(single))
+    first, last = layer.startTimeCode, layer.endTimeCode
+    frames = list(np.arange(first, last + 0.5))
+    compare(single, shot, src, frames, exact=True)
+    halves = [f + 0.5 for f in frames[:-1]]
+    compare(single, shot, src, halves, exact=False)
+    # The clip set carries the single-file bake's layer metadata.
+    clip_layer = Sdf.Layer.FindOrOpen(str(shot))
+    for key in ("startTimeCode", "endTimeCode", "timeCodesPerSecond", "framesPerSecond"):
+        assert clip_layer.pseudoRoot.GetInfo(key) == layer.pseudoRoot.GetInfo(key), key
+    stage = Usd.Stage.Open(str(shot))
+    for key in ("upAxis", "metersPerUnit"):
+        assert stage.GetMetadata(key) == Usd.Stage.Open(str(single)).GetMetadata(key), key
+
+
+def test_fractional_steps_and_uneven_last_chunk(painterly, tmp_path, repo_root):
+    src = repo_root / "fixtures" / "blowfish.usda"
+    single, shot = tmp_path / "single.usda", tmp_path / "shot.usda"
+    painterly("bake", src, "-o", single, "--frames", "10:14:0.25", "--quiet")
+    out = painterly("bake", src, "-o", shot, "--frames", "10:14:0.25", "--chunk", "4", "--json")
+    summary = json.loads(out.stdout)
+    assert summary["frames"] == 17
+    names = [pathlib.Path(c).name for c in summary["chunks"]]
+    assert names == [
+        "shot.0000.10-10.75.usdc",
+        "shot.0001.11-11.75.usdc",
+        "shot.0002.12-12.75.usdc",
+        "shot.0003.13-13.75.usdc",
+        "shot.0004.14-14.usdc",
+    ]
+    assert sorted(p.name for p in (tmp_path / "shot.clips").iterdir()) == sorted(names + ["shot.manifest.usda"])
+    times = [10 + 0.25 * k for k in range(17)]
+    compare(single, shot, src, times, exact=True)
+    compare(single, shot, src, [t + 0.125 for t in times[:-1]], exact=False)
+
+
+def test_farm_tasks_and_assembly_match_a_local_chunked_bake(painterly, tmp_path, repo_root):
+    src = repo_root / "fixtures" / "tube.usda"
+    local, farm = tmp_path / "local" / "shot.usda", tmp_path / "farm" / "shot.usda"
+    local.parent.mkdir()
+    farm.parent.mkdir()
+    painterly("bake", src, "-o", local, "--chunk", "5", "--quiet")
+    for k in range(5):
+        out = json.loads(painterly("bake", src, "-o", farm, "--chunk", "5", "--chunk-index", k, "--json").stdout)
+        assert len(out["chunks"]) == 1 and out["frames"] == (5 if k < 4 else 4)
+    assert not farm.exists(), "a chunk task must not write the clip set"
+    painterly("bake", src, "-o", farm, "--chunk", "5", "--assemble", "--quiet")
+    for f in sorted((local.parent / "shot.clips").iterdir()):
+        g = farm.parent / "shot.clips" / f.name
+        assert f.read_bytes() == g.read_bytes(), f.name
+    assert local.read_text() == farm.read_text()
+
+
+def test_assemble_refuses_missing_and_stale_chunks(painterly, tmp_path, repo_root):
+    src = tmp_path / "tube.usda"
+    shutil.copy(repo_root / "fixtures" / "tube.usda", src)
+    shot = tmp_path / "shot.usda"
+    for k in (0, 2, 3, 4):
+        painterly("bake", src, "-o", shot, "--chunk", "5", "--chunk-index", k, "--quiet")
+    proc = painterly("bake", src, "-o", shot, "--chunk", "5", "--assemble", check=False)
+    assert proc.returncode == 1
+    assert "1 of 5 chunks missing: shot.0001.6-10.usdc" in proc.stderr
+    assert not shot.exists()
+    # Change the input: every chunk baked from the old one is stale.
+    text = src.read_text().replace("timeCodesPerSecond = 24", "timeCodesPerSecond = 24.0")
+    assert text != src.read_text()
+    src.write_text(text)
+    painterly("bake", src, "-o", shot, "--chunk", "5", "--chunk-index", 1, "--quiet")
+    proc = painterly("bake", src, "-o", shot, "--chunk", "5", "--assemble", check=False)
+    assert proc.returncode == 1
+    assert "4 stale" in proc.stderr and "baked from a different input" in proc.stderr
+    assert not shot.exists()
+
+
+@pytest.mark.parametrize(
+    "args,code,message",
+    [
+        (["--chunk", "0"], 2, "not a whole number of at least 1"),
+        (["--chunk", "5", "--chunk-index", "9"], 1, "--chunk-index 9 is out of range"),
+        (["--chunk-index", "1"], 2, "--chunk"),
+        (["--assemble"], 2, "--chunk"),
+    ],
+)
+def test_bad_chunk_arguments(painterly, tmp_path, repo_root, args, code, message):
+    proc = painterly("bake", repo_root / "fixtures" / "tube.usda", "-o", tmp_path / "shot.usda", *args, check=False)
+    assert proc.returncode == code, proc.stderr
+    assert message in proc.stderr
+    assert not (tmp_path / "shot.usda").exists()
+
+
+def test_chunked_output_must_be_usda(painterly, tmp_path, repo_root):
+    proc = painterly("bake", repo_root / "fixtures" / "tube.usda", "-o", tmp_path / "shot.usdc", "--chunk", "5", check=False)
+    assert proc.returncode != 0
+    assert "name it .usda" in proc.stderr
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_inspect_reports_chunks(painterly, tmp_path, repo_root):
+    src = tmp_path / "tube.usda"
+    shutil.copy(repo_root / "fixtures" / "tube.usda", src)
+    shot = tmp_path / "shot.usda"
+    painterly("bake", src, "-o", shot, "--chunk", "10", "--quiet")
+    proc = painterly("inspect", shot)
+    assert "clip set: 3 chunks of 10 frames: 3 done, 0 missing, 0 stale" in proc.stdout
+    report = json.loads(painterly("inspect", shot, "--json").stdout)
+    assert report["clip_set"]["chunk_size"] == 10
+    assert [c["state"] for c in report["clip_set"]["chunks"]] == ["done"] * 3
+    (tmp_path / "shot.clips" / "shot.0001.11-20.usdc").unlink()
+    # a chunk re-baked from another input is stale
+    text = src.read_text().replace("timeCodesPerSecond = 24", "timeCodesPerSecond = 24.0")
+    src.write_text(text)
+    painterly("bake", src, "-o", shot, "--chunk", "10", "--chunk-index", "2", "--quiet")
+    proc = painterly("inspect", shot, "--json", check=False)
+    assert proc.returncode == 1
+    chunks = json.loads(proc.stdout)["clip_set"]["chunks"]
+    assert [(pathlib.Path(c["path"]).name, c["state"]) for c in chunks] == [
+        ("shot.0000.1-10.usdc", "done"),
+        ("shot.0001.11-20.usdc", "missing"),
+        ("shot.0002.21-24.usdc", "stale"),
+    ]
+    assert chunks[2]["detail"] == "baked from a different input"
+    text = painterly("inspect", shot, check=False).stdout
+    assert "1 done, 1 missing, 1 stale" in text and "shot.0001.11-20.usdc is missing" in text

@@ -1,0 +1,430 @@
+"""Farm bakes (issue 10 §3-5): `painterly farm submit` / `farm status`.
+
+The Slurm tests run on a real single-host cluster: the one `scripts/test`
+starts (it exports PAINTERLY_SLURM_CONF), or else one this module starts
+with `scripts/slurm_local` when Slurm is installed (and stops at the end).
+They skip when Slurm is not installed, unless PAINTERLY_REQUIRE_SLURM=1
+(set by scripts/test), where they fail instead. A user's own cluster
+(plain SLURM_CONF) is never used.
+
+The Open Job Description tests run the written template with `openjd run`
+(openjd-cli, pinned in requirements.txt).
+"""
+
+import json
+import os
+import pathlib
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+
+import pytest
+from clip_compare import compare
+from conftest import REPO, painterly_binary
+from pxr import Sdf
+
+BLOWFISH = REPO / "fixtures" / "blowfish.usda"
+SUBMIT_FIELDS = {
+    "scheduler", "input", "output", "plan", "chunk_size", "chunks", "submitted", "skipped",
+    "job", "tasks", "assemble_job", "files", "next",
+}
+STATUS_FIELDS = {
+    "output", "plan", "input", "scheduler", "submitted_at", "scheduler_queried", "input_changed",
+    "chunk_size", "job", "chunks", "counts", "assembly", "assembled", "complete",
+}
+CHUNK_FIELDS = {"index", "name", "path", "frames", "state", "task", "scheduler_state", "detail"}
+PLAN_FIELDS = {
+    "format", "scheduler", "input", "output", "input_hash", "painterly", "version", "frames",
+    "frame_range", "frame_count", "chunk_size", "camera", "bake_proxy", "submitted_at", "job",
+    "assemble_job", "assemble_command", "submit_commands", "files", "chunks",
+}
+PLAN_CHUNK_FIELDS = {"index", "name", "frames", "state_at_submit", "submitted", "task", "command"}
+# Slow enough to cancel a running task reliably: 4 chunks of 189 frames,
+# each several seconds with two tasks sharing two cores.
+SLOW_FRAMES, SLOW_CHUNK = "1:48:0.0625", "189"
+
+
+# --------------------------------------------------------------------------
+# the cluster
+# --------------------------------------------------------------------------
+
+def sbin_path():
+    return os.environ.get("PATH", "") + ":/usr/sbin:/sbin"
+
+
+def cluster_idle(env):
+    try:
+        out = subprocess.run(["sinfo", "-h", "-N", "-o", "%T"], env=env, capture_output=True, text=True, timeout=20)
+    except (OSError, subprocess.TimeoutExpired):
+        return False
+    return out.returncode == 0 and "idle" in out.stdout
+
+
+@pytest.fixture(scope="module")
+def slurm():
+    """Environment for painterly and Slurm's commands on a running test cluster."""
+    required = os.environ.get("PAINTERLY_REQUIRE_SLURM") == "1"
+
+    def unavailable(msg):
+        if required:
+            pytest.fail(msg + " (PAINTERLY_REQUIRE_SLURM=1)")
+        pytest.skip(msg)
+
+    env = dict(os.environ)
+    conf = os.environ.get("PAINTERLY_SLURM_CONF")
+    if conf:
+        env["SLURM_CONF"] = conf
+        if not cluster_idle(env):
+            unavailable(f"PAINTERLY_SLURM_CONF={conf}: no idle node answers")
+        yield env
+        return
+    if not (shutil.which("slurmctld", path=sbin_path()) and shutil.which("sbatch")):
+        unavailable("Slurm is not installed (scripts/slurm_local install, as root; scripts/test does it)")
+    tmp = tempfile.mkdtemp(prefix="painterly-slurm-")
+    helper = REPO / "scripts" / "slurm_local"
+    proc = subprocess.run([str(helper), "start", tmp], capture_output=True, text=True, timeout=180)
+    if proc.returncode != 0:
+        shutil.rmtree(tmp, ignore_errors=True)
+        unavailable(f"could not start a local Slurm cluster: {proc.stderr.strip()[-2000:]}")
+    env["SLURM_CONF"] = f"{tmp}/slurm.conf"
+    try:
+        yield env
+    finally:
+        subprocess.run([str(helper), "stop", tmp], capture_output=True, text=True, timeout=120)
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+def slurm_cmd(env, *args, check=True):
+    proc = subprocess.run([str(a) for a in args], env=env, capture_output=True, text=True, timeout=60)
+    if check and proc.returncode != 0:
+        raise AssertionError(f"{' '.join(map(str, args))} exited {proc.returncode}: {proc.stderr}")
+    return proc
+
+
+def live_tasks(env, jobs):
+    """Task ids of `jobs` that wait or run (squeue's default states)."""
+    proc = slurm_cmd(env, "squeue", "-h", "-r", f"--jobs={','.join(jobs)}", "-o", "%i|%T", check=False)
+    if proc.returncode != 0:
+        assert "Invalid job id" in proc.stderr, proc.stderr
+        return {}
+    return dict(line.split("|") for line in proc.stdout.split())
+
+
+def wait_until_done(env, jobs, timeout=300):
+    deadline = time.monotonic() + timeout
+    while live_tasks(env, jobs):
+        assert time.monotonic() < deadline, f"jobs {jobs} still running after {timeout} s: {live_tasks(env, jobs)}"
+        time.sleep(0.2)
+
+
+def stat_key(path):
+    st = pathlib.Path(path).stat()
+    return st.st_ino, st.st_mtime_ns, st.st_size
+
+
+# --------------------------------------------------------------------------
+# helpers
+# --------------------------------------------------------------------------
+
+def submit(painterly, env, src, shot, *args, check=True):
+    proc = painterly("farm", "submit", src, "-o", shot, *args, "--json", env=env, check=check)
+    return (json.loads(proc.stdout) if proc.returncode == 0 else None), proc
+
+
+def status(painterly, env, shot):
+    proc = painterly("farm", "status", shot, "--json", env=env, check=False)
+    assert proc.returncode in (0, 1), proc.stderr
+    st = json.loads(proc.stdout)
+    assert set(st) == STATUS_FIELDS
+    assert all(set(c) == CHUNK_FIELDS for c in st["chunks"])
+    assert st["complete"] == (proc.returncode == 0)
+    return st
+
+
+def states(st):
+    return [c["state"] for c in st["chunks"]]
+
+
+def chunk_names(shot):
+    return sorted(p.name for p in (shot.parent / f"{shot.stem}.clips").glob("*.usdc"))
+
+
+def openjd_exe():
+    exe = pathlib.Path(sys.executable).parent / "openjd"
+    if not exe.exists():
+        pytest.fail(f"openjd-cli is not installed in {sys.prefix} (pip install -r python_tests/requirements.txt)")
+    return exe
+
+
+# --------------------------------------------------------------------------
+# Slurm
+# --------------------------------------------------------------------------
+
+def test_slurm_bake_of_four_chunks_composes_to_the_single_file_bake(slurm, painterly, tmp_path):
+    shot, single = tmp_path / "out" / "shot.usda", tmp_path / "single.usdc"
+    shot.parent.mkdir()
+    sub, _ = submit(painterly, slurm, BLOWFISH, shot, "--chunk", "12", "--scheduler", "slurm")
+    assert set(sub) == SUBMIT_FIELDS
+    job, asm = sub["job"], sub["assemble_job"]
+    assert job.isdigit() and asm.isdigit() and job != asm
+    clips = shot.parent / "shot.clips"
+    assert sub == {
+        "scheduler": "slurm", "input": str(BLOWFISH), "output": str(shot),
+        "plan": str(clips / "farm" / "plan.json"), "chunk_size": 12, "chunks": 4,
+        "submitted": [0, 1, 2, 3], "skipped": [], "job": job,
+        "tasks": [{"chunk": k, "task": f"{job}_{k}"} for k in range(4)], "assemble_job": asm,
+        "files": [str(clips / "farm" / "bake.sh"), str(clips / "farm" / "assemble.sh")], "next": None,
+    }
+    # The plan says exactly what every task runs, with this binary.
+    plan = json.loads((clips / "farm" / "plan.json").read_text())
+    assert set(plan) == PLAN_FIELDS and all(set(c) == PLAN_CHUNK_FIELDS for c in plan["chunks"])
+    exe = str(painterly_binary().resolve())
+    base = [exe, "bake", str(BLOWFISH), "-o", str(shot), "--chunk", "12"]
+    assert [c["command"] for c in plan["chunks"]] == [base + ["--chunk-index", str(k)] for k in range(4)]
+    assert plan["assemble_command"] == base + ["--assemble"]
+    assert (plan["painterly"], plan["frames"], plan["frame_range"], plan["frame_count"]) == (exe, None, "1:48:1", 48)
+    assert [c["frames"] for c in plan["chunks"]] == ["1:12:1", "13:24:1", "25:36:1", "37:48:1"]
+    assert [c["task"] for c in plan["chunks"]] == [f"{job}_{k}" for k in range(4)]
+    assert plan["submit_commands"][0][0] == "sbatch" and "--array=0-3" in plan["submit_commands"][0]
+    assert f"--dependency=afterok:{job}" in plan["submit_commands"][1]
+    assert plan["submitted_at"].endswith("Z") and len(plan["submitted_at"]) == 20
+
+    wait_until_done(slurm, [job, asm])
+    st = status(painterly, slurm, shot)
+    assert st["complete"] and st["assembled"] and st["scheduler_queried"]
+    assert states(st) == ["done"] * 4
+    assert st["counts"] == {"done": 4, "running": 0, "pending": 0, "failed": 0, "missing": 0, "stale": 0}
+    assert st["assembly"]["state"] == "done" and st["assembly"]["job"] == asm
+    logs = sorted(p.name for p in (clips / "farm" / "logs").iterdir())
+    assert logs == [f"assemble.{asm}.log"] + [f"bake.{job}_{k}.log" for k in range(4)]
+
+    painterly("bake", BLOWFISH, "-o", single, "--quiet")
+    compare(single, shot, BLOWFISH, list(range(1, 49)), exact=True)
+    compare(single, shot, BLOWFISH, [f + 0.5 for f in range(1, 48)], exact=False)
+    assert "4 done, 0 missing, 0 stale" in painterly("inspect", shot).stdout
+
+    # Without Slurm's commands on PATH, status answers from the files.
+    bare = dict(slurm, PATH=str(tmp_path))
+    st = status(painterly, bare, shot)
+    assert (st["complete"], st["scheduler_queried"]) == (True, False)
+    (clips / "shot.0002.25-36.usdc").unlink()
+    st = status(painterly, bare, shot)
+    assert states(st) == ["done", "done", "missing", "done"]
+    assert (st["complete"], st["assembled"], st["assembly"]["state"]) == (False, False, "missing")
+    # With Slurm, the chunk's task is known to have ended: failed.
+    st = status(painterly, slurm, shot)
+    assert states(st) == ["done", "done", "failed", "done"]
+    assert st["chunks"][2]["scheduler_state"] == "COMPLETED"
+    assert st["chunks"][2]["detail"] == f"task {job}_2 ended COMPLETED and the chunk is missing"
+
+
+def test_a_cancelled_task_is_redone_alone_on_resubmit(slurm, painterly, tmp_path):
+    shot = tmp_path / "shot.usda"
+    args = ("--chunk", SLOW_CHUNK, "--frames", SLOW_FRAMES, "--scheduler", "slurm")
+    # Held: every task waits, deterministically.
+    sub, _ = submit(painterly, slurm, BLOWFISH, shot, *args, "--sbatch-arg", "--hold")
+    job, asm = sub["job"], sub["assemble_job"]
+    st = status(painterly, slurm, shot)
+    assert states(st) == ["pending"] * 4
+    assert [c["detail"] for c in st["chunks"]] == ["JobHeldUser"] * 4
+    assert st["assembly"]["state"] == "pending"
+    # Re-submitting while tasks wait is refused: they would bake the same chunks.
+    _, proc = submit(painterly, slurm, BLOWFISH, shot, *args, check=False)
+    assert proc.returncode == 1
+    assert "tasks of the previous submission still wait or run" in proc.stderr and f"scancel {job}" in proc.stderr
+    assert json.loads((shot.parent / "shot.clips" / "farm" / "plan.json").read_text())["job"] == job
+
+    slurm_cmd(slurm, "scontrol", "release", job)
+    slurm_cmd(slurm, "scontrol", "release", asm)
+    victim = f"{job}_1"
+    deadline = time.monotonic() + 120
+    while live_tasks(slurm, [job]).get(victim) != "RUNNING":
+        assert time.monotonic() < deadline, "chunk 1's task never ran"
+        time.sleep(0.05)
+    st = status(painterly, slurm, shot)
+    assert st["chunks"][1]["state"] == "running" and st["chunks"][1]["task"] == victim
+    slurm_cmd(slurm, "scancel", victim)
+    wait_until_done(slurm, [job, asm])
+
+    st = status(painterly, slurm, shot)
+    names = [c["name"] for c in st["chunks"]]
+    assert not (shot.parent / "shot.clips" / names[1]).exists(), \
+        "chunk 1 finished before scancel reached it: make the chunks slower"
+    assert states(st) == ["done", "failed", "done", "done"]
+    assert st["chunks"][1]["scheduler_state"] == "CANCELLED"
+    assert st["assembly"]["state"] == "failed" and st["assembly"]["scheduler_state"] == "CANCELLED"
+    assert (st["complete"], st["assembled"]) == (False, False)
+    assert not shot.exists()
+    # Nothing half-written under a chunk's final name: only finished chunks are there.
+    assert chunk_names(shot) == sorted([names[0], names[2], names[3]])
+    before = {n: stat_key(shot.parent / "shot.clips" / n) for n in (names[0], names[2], names[3])}
+
+    sub2, _ = submit(painterly, slurm, BLOWFISH, shot, *args)
+    assert (sub2["submitted"], sub2["skipped"]) == ([1], [0, 2, 3])
+    assert sub2["tasks"] == [{"chunk": 1, "task": f"{sub2['job']}_0"}]
+    st = status(painterly, slurm, shot)
+    assert states(st)[0::2] == ["done", "done"] and states(st)[3] == "done"
+    assert st["chunks"][1]["state"] in ("pending", "running")
+    wait_until_done(slurm, [sub2["job"], sub2["assemble_job"]])
+    st = status(painterly, slurm, shot)
+    assert st["complete"] and states(st) == ["done"] * 4
+    assert {n: stat_key(shot.parent / "shot.clips" / n) for n in before} == before
+    # The re-baked chunk is the one a local task writes, byte for byte.
+    local = tmp_path / "local" / "shot.usda"
+    local.parent.mkdir()
+    painterly("bake", BLOWFISH, "-o", local, "--chunk", SLOW_CHUNK, "--frames", SLOW_FRAMES, "--chunk-index", "1", "--quiet")
+    assert (local.parent / "shot.clips" / names[1]).read_bytes() == (shot.parent / "shot.clips" / names[1]).read_bytes()
+    layer = Sdf.Layer.FindOrOpen(str(shot))
+    assert (layer.startTimeCode, layer.endTimeCode) == (1, 48)
+
+
+def test_sbatch_rejections_are_reported_and_nothing_is_planned(slurm, painterly, tmp_path):
+    shot = tmp_path / "shot.usda"
+    _, proc = submit(painterly, slurm, BLOWFISH, shot, "--chunk", "12", "--scheduler", "slurm",
+                     "--partition", "nosuch", check=False)
+    assert proc.returncode == 1
+    assert "sbatch refused the chunk tasks" in proc.stderr and "invalid partition specified: nosuch" in proc.stderr
+    assert "--partition=nosuch" in proc.stderr
+    assert not (tmp_path / "shot.clips" / "farm" / "plan.json").exists()
+    proc = painterly("farm", "status", shot, env=slurm, check=False)
+    assert proc.returncode == 1 and "no farm plan at" in proc.stderr
+    _, proc = submit(painterly, slurm, BLOWFISH, shot, "--chunk", "12", "--scheduler", "slurm",
+                     "--sbatch-arg=--no-such-option", check=False)
+    assert proc.returncode == 1 and "unrecognized option '--no-such-option'" in proc.stderr
+
+
+# --------------------------------------------------------------------------
+# errors without a cluster
+# --------------------------------------------------------------------------
+
+def test_submit_without_sbatch_on_path(painterly, tmp_path):
+    env = dict(os.environ, PATH=str(tmp_path))
+    proc = painterly("farm", "submit", BLOWFISH, "-o", tmp_path / "shot.usda", "--chunk", "12",
+                     "--scheduler", "slurm", env=env, check=False)
+    assert proc.returncode == 1
+    assert "sbatch not found on PATH" in proc.stderr
+    assert not (tmp_path / "shot.clips").exists()
+
+
+def test_a_refused_assembly_takes_the_chunk_tasks_back(painterly, tmp_path):
+    # A stand-in sbatch that accepts the job array and refuses the assembly
+    # job: the one failure the real cluster cannot be made to produce on cue.
+    bin_dir = tmp_path / "bin"
+    bin_dir.mkdir()
+    (bin_dir / "sbatch").write_text(
+        "#!/bin/sh\n"
+        f"if [ -e {bin_dir}/once ]; then echo 'sbatch: error: Batch job submission failed: QOSMaxSubmitJobPerUserLimit' >&2; exit 1; fi\n"
+        f": > {bin_dir}/once; echo '4242;cluster'\n")
+    (bin_dir / "scancel").write_text(f"#!/bin/sh\necho \"$@\" > {bin_dir}/cancelled\n")
+    for f in ("sbatch", "scancel"):
+        (bin_dir / f).chmod(0o755)
+    env = dict(os.environ, PATH=str(bin_dir))
+    out = tmp_path / "out"
+    out.mkdir()
+    proc = painterly("farm", "submit", BLOWFISH, "-o", out / "shot.usda", "--chunk", "12", "--scheduler", "slurm",
+                     env=env, check=False)
+    assert proc.returncode == 1
+    assert "sbatch refused the assembly job: sbatch: error: Batch job submission failed: QOSMaxSubmitJobPerUserLimit" in proc.stderr
+    assert "the chunk tasks (job 4242) were cancelled" in proc.stderr
+    assert (bin_dir / "cancelled").read_text() == "4242\n"
+    assert not (out / "shot.clips" / "farm" / "plan.json").exists()
+
+
+@pytest.mark.parametrize(
+    "args,code,message",
+    [
+        (["--chunk", "0", "--scheduler", "openjd"], 2, "not a whole number of at least 1"),
+        (["--chunk", "4"], 2, "--scheduler"),
+        (["--chunk", "4", "--scheduler", "tractor"], 2, "invalid value 'tractor'"),
+        (["--chunk", "4", "--scheduler", "openjd", "--partition", "p"], 2, "--partition and --sbatch-arg are for --scheduler slurm"),
+        (["--chunk", "4", "--scheduler", "openjd", "--frames", "1:99"], 1, "outside the stage's time range"),
+        (["--chunk", "4", "--scheduler", "openjd", "--camera", "/Nope"], 1, "/Nope"),
+    ],
+)
+def test_bad_submit_arguments(painterly, tmp_path, args, code, message):
+    proc = painterly("farm", "submit", BLOWFISH, "-o", tmp_path / "shot.usda", *args, check=False)
+    assert proc.returncode == code, proc.stderr
+    assert message in proc.stderr
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_bad_inputs_and_outputs(painterly, tmp_path):
+    for src, out, message in [
+        (tmp_path / "nope.usda", tmp_path / "shot.usda", "cannot open input"),
+        (BLOWFISH, tmp_path / "shot.usdc", "name it .usda"),
+        (BLOWFISH, tmp_path / "no" / "shot.usda", "does not exist"),
+    ]:
+        proc = painterly("farm", "submit", src, "-o", out, "--chunk", "4", "--scheduler", "openjd", check=False)
+        assert proc.returncode == 1, proc.stderr
+        assert message in proc.stderr
+    assert list(tmp_path.iterdir()) == []
+    bad = tmp_path / "shot.clips" / "farm"
+    bad.mkdir(parents=True)
+    (bad / "plan.json").write_text("{not json")
+    proc = painterly("farm", "status", tmp_path / "shot.usda", check=False)
+    assert proc.returncode == 1 and "not a painterly farm plan" in proc.stderr
+
+
+# --------------------------------------------------------------------------
+# Open Job Description
+# --------------------------------------------------------------------------
+
+def test_openjd_template_runs_locally_and_resubmits_only_missing_chunks(painterly, tmp_path):
+    openjd = openjd_exe()
+    shot, single = tmp_path / "shot.usda", tmp_path / "single.usdc"
+    sub, _ = submit(painterly, None, BLOWFISH, shot, "--chunk", "12", "--scheduler", "openjd")
+    folder = tmp_path / "shot.clips" / "farm" / "openjd"
+    template, params = folder / "template.json", folder / "parameters.json"
+    assert sub == {
+        "scheduler": "openjd", "input": str(BLOWFISH), "output": str(shot),
+        "plan": str(tmp_path / "shot.clips" / "farm" / "plan.json"), "chunk_size": 12, "chunks": 4,
+        "submitted": [0, 1, 2, 3], "skipped": [], "job": None,
+        "tasks": [{"chunk": k, "task": f"BakeChunks[Chunk={k}]"} for k in range(4)], "assemble_job": "Assemble",
+        "files": [str(template), str(params)], "next": f"openjd run {template} -p file://{params}",
+    }
+    doc = json.loads(template.read_text())
+    assert [s["name"] for s in doc["steps"]] == ["BakeChunks", "Assemble"]
+    assert doc["steps"][0]["parameterSpace"]["taskParameterDefinitions"] == [{"name": "Chunk", "type": "INT", "range": "0-3"}]
+    assert doc["steps"][1]["dependencies"] == [{"dependsOn": "BakeChunks"}]
+    assert json.loads(params.read_text()) == {
+        "Painterly": str(painterly_binary().resolve()), "Input": str(BLOWFISH), "Output": str(shot),
+    }
+    check = subprocess.run([str(openjd), "check", str(template)], capture_output=True, text=True, timeout=120)
+    assert check.returncode == 0, check.stdout + check.stderr
+    st = status(painterly, None, shot)
+    assert states(st) == ["missing"] * 4 and not st["scheduler_queried"]
+
+    def run():
+        proc = subprocess.run([str(openjd), "run", str(template), "-p", f"file://{params}"],
+                              capture_output=True, text=True, timeout=600, cwd=tmp_path)
+        assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+        return proc.stdout
+
+    run()
+    st = status(painterly, None, shot)
+    assert st["complete"] and states(st) == ["done"] * 4 and st["assembly"]["state"] == "done"
+    painterly("bake", BLOWFISH, "-o", single, "--quiet")
+    compare(single, shot, BLOWFISH, list(range(1, 49)), exact=True)
+    compare(single, shot, BLOWFISH, [11.5, 12.5, 24.5, 36.5], exact=False)
+
+    # One chunk lost: the next template bakes only that one.
+    names = chunk_names(shot)
+    before = {n: stat_key(tmp_path / "shot.clips" / n) for n in names if ".0002." not in n}
+    (tmp_path / "shot.clips" / names[2]).unlink()
+    sub, _ = submit(painterly, None, BLOWFISH, shot, "--chunk", "12", "--scheduler", "openjd")
+    assert (sub["submitted"], sub["skipped"]) == ([2], [0, 1, 3])
+    doc = json.loads(template.read_text())
+    assert doc["steps"][0]["parameterSpace"]["taskParameterDefinitions"][0]["range"] == "2"
+    run()
+    assert status(painterly, None, shot)["complete"]
+    assert {n: stat_key(tmp_path / "shot.clips" / n) for n in before} == before
+
+    # Everything done: only the assembly step is left.
+    sub, _ = submit(painterly, None, BLOWFISH, shot, "--chunk", "12", "--scheduler", "openjd")
+    assert (sub["submitted"], sub["tasks"]) == ([], [])
+    doc = json.loads(template.read_text())
+    assert [s["name"] for s in doc["steps"]] == ["Assemble"] and "dependencies" not in doc["steps"][0]
+    run()
+    assert status(painterly, None, shot)["complete"]

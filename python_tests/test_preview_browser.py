@@ -1,0 +1,211 @@
+"""`painterly preview` in a real browser: Debian's chromium (headless,
+SwiftShader WebGL2) driven by playwright-core (browser_tests/driver.mjs).
+
+The page must load without a console error, draw, follow its sliders and
+timeline with `painterly bake`'s frames (read back with usd-core), and
+change a view-dependent mesh while orbiting with "view drives" on.
+Screenshots of three fixtures go to a temporary folder, and to
+docs/figures/ when PAINTERLY_FIGURES=1 (how the committed ones were made).
+"""
+
+import os
+import shutil
+import subprocess
+
+import numpy as np
+import pytest
+from pxr import Usd
+
+from conftest import REPO, painterly_binary
+from preview_helpers import Browser, PreviewServer, browser_available
+
+FISH = REPO / "fixtures" / "blowfish.usda"
+HEAD = REPO / "fixtures" / "head.usda"
+APPLE = REPO / "fixtures" / "apple.usda"
+
+
+@pytest.fixture(scope="module")
+def browser():
+    why = browser_available()
+    if why:
+        pytest.fail(f"cannot run the browser tests: {why}")
+    b = Browser()
+    yield b
+    b.close()
+
+
+def open_page(browser, server):
+    browser.call("goto", url=server.url)
+    browser.settle(0)
+    return browser
+
+
+def canvas_pixels(browser, tmp_path, name):
+    from PIL import Image
+
+    path = tmp_path / f"{name}.png"
+    browser.call("screenshot", selector="#live", path=str(path))
+    return np.asarray(Image.open(path).convert("RGB"), dtype=np.int16)
+
+
+def set_slider(browser, selector, value):
+    """What a drag does: the range input's value changes, `input` fires."""
+    browser.eval(
+        f"""(() => {{ const e = document.querySelector({selector!r});
+        e.value = {value!r}; e.dispatchEvent(new Event('input', {{bubbles: true}})); return e.value; }})()"""
+    )
+
+
+def bake(tmp_path, src, t):
+    out = tmp_path / f"{src.stem}_bake_{t}.usdc"
+    subprocess.run([str(painterly_binary()), "bake", str(src), "-o", str(out), "--frames", str(t), "--quiet"], check=True)
+    return Usd.Stage.Open(str(out))
+
+
+def test_page_loads_and_draws_without_console_errors(browser, tmp_path):
+    with PreviewServer(FISH) as s:
+        open_page(browser, s)
+        assert browser.call("console")["errors"] == []
+        assert browser.eval("window.painterly.errors") == []
+        assert browser.eval("document.querySelectorAll('#layers tbody tr').length") == 14
+        assert browser.eval("document.querySelectorAll('#axes input[type=range]').length") == 4
+        # Key marks on the inflate slider: the Spikes' keys.
+        assert browser.eval("document.querySelectorAll('#axes .mark').length") >= 4
+        assert browser.eval("document.querySelector('#problems').textContent") == "none found"
+        px = canvas_pixels(browser, tmp_path, "fish")
+        paper = np.array([241, 237, 228])
+        painted = np.abs(px - paper).sum(axis=2) > 30
+        assert painted.mean() > 0.01, "strokes are drawn"
+        assert browser.eval("window.painterly.framesDrawn") >= 1
+
+
+def test_moving_a_slider_changes_pixels_and_serves_the_bakes_points(browser, tmp_path):
+    # Pinning "blink" to 0.8 at frame 5 (eyes open there) must show what a
+    # bake of a copy whose blink attribute is authored to 0.8 holds (an
+    # independent stage, read back by usd-core): the eyelids' opacity keys.
+    t = 5
+    copy = tmp_path / "blink.usda"
+    shutil.copy(FISH, copy)
+    stage = Usd.Stage.Open(str(copy))
+    attr = stage.GetPrimAtPath("/Blowfish").GetAttribute("blink")
+    attr.Clear()
+    attr.Set(0.8)
+    stage.Save()
+    baked = bake(tmp_path, copy, t)
+    with PreviewServer(FISH) as s:
+        open_page(browser, s)
+        n = browser.eval("window.painterly.framesDrawn")
+        set_slider(browser, "#time", t)
+        browser.settle(n)
+        before = canvas_pixels(browser, tmp_path, "before")
+        n = browser.eval("window.painterly.framesDrawn")
+        set_slider(browser, 'input[data-axis="/Blowfish/Paint/blink"]', 0.8)
+        browser.settle(n)
+        assert browser.eval("window.painterly.state.overrides") == {"/Blowfish/Paint/blink": 0.8}
+        after = canvas_pixels(browser, tmp_path, "after")
+        changed = (np.abs(after - before).sum(axis=2) > 30).sum()
+        assert changed > 50, f"only {changed} pixels changed when the eyelids closed"
+        scene = browser.eval("window.painterly.scene")
+        for i, info in enumerate(scene["layers"]):
+            prim = baked.GetPrimAtPath(info["path"])
+            want = np.array(prim.GetAttribute("points").Get(t), dtype=np.float32).ravel()
+            got = np.array(browser.eval(f"window.painterly.layerPoints({i})"), dtype=np.float32)
+            np.testing.assert_array_equal(got, want, err_msg=info["path"])
+            want = np.array(prim.GetAttribute("primvars:displayOpacity").Get(t), dtype=np.float32)
+            got = np.array(browser.eval(f"window.painterly.layerOpacity({i})"), dtype=np.float32)
+            np.testing.assert_allclose(got, want, atol=1e-6, err_msg=info["path"])
+        assert browser.call("console")["errors"] == []
+
+
+def test_timeline_shows_the_bakes_frame(browser, tmp_path):
+    t = 30
+    baked = bake(tmp_path, FISH, t)
+    with PreviewServer(FISH) as s:
+        open_page(browser, s)
+        n = browser.eval("window.painterly.framesDrawn")
+        set_slider(browser, "#time", t)
+        browser.settle(n)
+        assert browser.eval("document.querySelector('#time-value').textContent") == str(t)
+        assert browser.eval("window.painterly.lastHeader.time") == t
+        scene = browser.eval("window.painterly.scene")
+        for i, info in enumerate(scene["layers"]):
+            want = np.array(baked.GetPrimAtPath(info["path"]).GetAttribute("points").Get(t), dtype=np.float32).ravel()
+            got = np.array(browser.eval(f"window.painterly.layerPoints({i})"), dtype=np.float32)
+            np.testing.assert_array_equal(got, want, err_msg=info["path"])
+        # The sliders follow the timeline: inflate is held at 1 at frame 30.
+        assert float(browser.eval("document.querySelector('input[data-axis=\"/Blowfish/Paint/inflate\"]').value")) == 1.0
+        # Play advances frames.
+        n = browser.eval("window.painterly.framesDrawn")
+        browser.call("click", selector="#play")
+        browser.wait(f"window.painterly.framesDrawn > {n + 2}")
+        browser.call("click", selector="#play")
+        browser.settle()
+        assert browser.eval("window.painterly.state.time") != t
+        assert browser.call("console")["errors"] == []
+
+
+def test_orbiting_with_view_drives_changes_the_view_dependent_mesh(browser, tmp_path):
+    with PreviewServer(HEAD) as s:
+        open_page(browser, s)
+        before = np.array(browser.eval("window.painterly.viewPoints(0)"))
+        # Without "view drives" the head follows its USD camera: orbiting
+        # changes only the picture.
+        n = browser.eval("window.painterly.framesDrawn")
+        browser.call("drag", selector="#live", dx=160, dy=0)
+        browser.settle()
+        assert browser.eval("window.painterly.framesDrawn") == n
+        browser.call("click", selector="#view-drives")
+        browser.settle(n)
+        first = np.array(browser.eval("window.painterly.viewPoints(0)"))
+        eye = browser.eval("window.painterly.lastHeader.eye")
+        pose = browser.eval("window.painterly.cameraPose().position")
+        np.testing.assert_allclose(eye, pose, rtol=1e-9)
+        px1 = canvas_pixels(browser, tmp_path, "head1")
+        n = browser.eval("window.painterly.framesDrawn")
+        browser.call("drag", selector="#live", dx=-260, dy=40)
+        browser.settle(n)
+        second = np.array(browser.eval("window.painterly.viewPoints(0)"))
+        assert np.abs(second - first).max() > 1e-3, "the head's shape follows the orbit camera"
+        assert np.abs(first - before).max() > 1e-3
+        px2 = canvas_pixels(browser, tmp_path, "head2")
+        assert (np.abs(px2 - px1).sum(axis=2) > 30).sum() > 100
+        # The viewDirection axes measure the orbit camera too.
+        conf = browser.eval("window.painterly.lastHeader.configuration")
+        assert set(conf) == {"/Head/Paint/viewX", "/Head/Paint/viewZ"}
+        assert browser.call("console")["errors"] == []
+
+
+def test_render_button_shows_painterly_render_beside(browser):
+    with PreviewServer(APPLE) as s:
+        open_page(browser, s)
+        browser.call("click", selector="#render-button")
+        browser.wait("window.painterly.rendered === 1", timeout=60000)
+        browser.wait("document.querySelector('#render').complete && document.querySelector('#render').naturalWidth > 0")
+        assert not browser.eval("document.querySelector('#render-figure').hidden")
+        assert browser.call("console")["errors"] == []
+
+
+@pytest.mark.parametrize(
+    "name,path,setup",
+    [
+        ("blowfish", FISH, ["window.painterly.setTime(26)", "window.painterly.pin('/Blowfish/Paint/blink', 0.0)"]),
+        ("head", HEAD, ["document.querySelector('#view-drives').click()"]),
+        ("apple", APPLE, ["window.painterly.setTime(20)"]),
+    ],
+)
+def test_screenshots(browser, tmp_path, name, path, setup):
+    from PIL import Image
+
+    with PreviewServer(path) as s:
+        open_page(browser, s)
+        n = browser.eval("window.painterly.framesDrawn")
+        for js in setup:
+            browser.eval(js)
+        browser.settle(n)
+        shot = tmp_path / f"preview_{name}.png"
+        browser.call("screenshot", selector="body", path=str(shot))
+        img = Image.open(shot)
+        assert img.size[0] > 600 and img.size[1] > 400
+        if os.environ.get("PAINTERLY_FIGURES") == "1":
+            shutil.copy(shot, REPO / "docs" / "figures" / shot.name)
+        assert browser.call("console")["errors"] == []

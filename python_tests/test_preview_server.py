@@ -1,0 +1,314 @@
+"""`painterly preview` over plain HTTP: what it serves, what it refuses, that
+it survives bad requests and never writes its input, and that the frames it
+serves are `painterly bake`'s frames (read back with usd-core)."""
+
+import hashlib
+import json
+import os
+import re
+import shutil
+import socket
+import subprocess
+
+import numpy as np
+import pytest
+from pxr import Gf, Usd, UsdGeom
+
+from conftest import REPO, painterly_binary
+from preview_helpers import PreviewServer, decode_frame
+
+FISH = REPO / "fixtures" / "blowfish.usda"
+HEAD = REPO / "fixtures" / "head.usda"
+
+
+def sha(path):
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+@pytest.fixture(scope="module")
+def fish_copy(tmp_path_factory):
+    d = tmp_path_factory.mktemp("preview_fish")
+    p = d / "blowfish.usda"
+    shutil.copy(FISH, p)
+    return p
+
+
+@pytest.fixture(scope="module")
+def fish(fish_copy):
+    before = (sha(fish_copy), fish_copy.stat().st_mtime_ns)
+    with PreviewServer(fish_copy) as s:
+        yield s
+        assert s.alive(), "the server must survive every test"
+    # The input is never written.
+    assert (sha(fish_copy), fish_copy.stat().st_mtime_ns) == before
+    assert sorted(x.name for x in fish_copy.parent.iterdir()) == ["blowfish.usda"]
+
+
+def test_listens_on_loopback_and_prints_the_port(fish):
+    m = re.match(r"http://127\.0\.0\.1:(\d+)/$", fish.url)
+    assert m and int(m.group(1)) > 0, fish.url
+
+
+def test_serves_its_page(fish):
+    for path, kind in [("", "text/html"), ("index.html", "text/html"), ("app.js", "text/javascript"), ("style.css", "text/css")]:
+        status, headers, body = fish.request(path)
+        assert status == 200, path
+        assert headers["content-type"].startswith(kind), (path, headers)
+        assert body
+    status, headers, body = fish.request("")
+    assert b'<script src="app.js">' in body
+    assert "default-src 'self'" in headers["content-security-policy"]
+
+
+@pytest.mark.parametrize(
+    "path",
+    [
+        "fixtures/blowfish.usda",
+        "blowfish.usda",
+        "..%2f..%2fCargo.toml",
+        "%2e%2e/%2e%2e/etc/passwd",
+        "api/../Cargo.toml",
+        "src/preview/page/app.js",
+        "api/scene/extra",
+        "api/nope",
+    ],
+)
+def test_serves_nothing_else(fish, path):
+    status, _, body = fish.request(path)
+    assert status == 404, (path, status)
+    assert b"Cargo" not in body and b"root:" not in body
+
+
+def test_other_hosts_are_refused(fish):
+    # A page elsewhere reaching the server by DNS rebinding sends its own Host.
+    status, _, body = fish.request("api/scene", headers={"Host": "evil.example:80"})
+    assert status == 403
+    assert b"evil.example" in body
+    port = fish.url.rsplit(":", 1)[1].strip("/")
+    assert fish.request("api/scene", headers={"Host": f"localhost:{port}"})[0] == 200
+
+
+@pytest.mark.parametrize(
+    "raw,ctype,status",
+    [
+        (b"{not json", "application/json", 400),
+        (b'{"time": "one"}', "application/json", 400),
+        (b'{"time": 1, "bogus": 2}', "application/json", 400),
+        (b'{"time": 1e999}', "application/json", 400),
+        (b'{"time": 1, "eye": [0, 0]}', "application/json", 400),
+        (b'{"time": 1, "overrides": {"/Blowfish/Nope": 1}}', "application/json", 400),
+        (b'{"time": 1, "overrides": {"/Blowfish/Paint/blink": 1e999}}', "application/json", 400),
+        (b'{"time": 1}', "text/plain", 415),
+        (b"x" * (3 << 20), "application/json", 413),
+    ],
+)
+def test_bad_frame_requests_get_4xx(fish, raw, ctype, status):
+    got, _, body = fish.request("api/frame", raw=raw, headers={"Content-Type": ctype}, method="POST")
+    assert got == status, body[:200]
+    assert fish.alive()
+
+
+def test_bad_render_requests_get_4xx(fish):
+    cam = {"position": [0, 0, 30], "target": [0, 0, 0], "up": [0, 1, 0], "fov_y": 40, "near": 0.1, "far": 1000}
+    for width, c in [(0, cam), (100000, cam), (64, {**cam, "near": -1}), (64, {**cam, "fov_y": 0})]:
+        status, _, body = fish.request("api/render", body={"frame": {"time": 1}, "camera": c, "width": width, "height": 64})
+        assert status == 400, body
+    assert fish.request("api/frame", method="GET")[0] == 405
+    assert fish.alive()
+
+
+def test_an_eye_at_the_proxy_centre_is_422_not_a_crash(tmp_path):
+    # The head's viewDirection axes cannot be measured from inside the head.
+    with PreviewServer(HEAD) as s:
+        scene = s.scene()
+        status, _, body = s.request("api/frame", body={"time": 1, "eye": [0, 150, 0]})
+        lo, hi = np.array(scene["bounds"])
+        centre = ((lo + hi) / 2).tolist()
+        status, _, body = s.request("api/frame", body={"time": 1, "eye": centre})
+        # Either the eye is exactly at the centre (422 with a message) or it
+        # evaluates; never a 5xx or a dead server.
+        assert status in (200, 422), body
+        assert s.alive()
+        assert s.frame(time=1)[0]["time"] == 1
+
+
+def test_scene_describes_the_character(fish):
+    scene = fish.scene()
+    stage = Usd.Stage.Open(str(FISH))
+    assert scene["start"] == stage.GetStartTimeCode() and scene["end"] == stage.GetEndTimeCode()
+    layers = {l["path"]: l for l in scene["layers"]}
+    # Table I counts from the stage itself.
+    for path, info in layers.items():
+        curves = UsdGeom.BasisCurves(stage.GetPrimAtPath(path))
+        counts = list(curves.GetCurveVertexCountsAttr().Get())
+        assert info["strokes"] == len(counts) and info["points"] == sum(counts), path
+        assert info["curve_counts"] == counts
+    assert len(layers) == 14
+    assert sum(l["strokes"] for l in layers.values()) == 2588
+    axes = {a["path"]: a for a in scene["axes"]}
+    assert set(axes) == {f"/Blowfish/Paint/{n}" for n in ["inflate", "eyeX", "eyeY", "blink"]}
+    # Key marks: the Eyelids' opacity keys sit at blink 0 and 1.
+    marks = sorted(k["coordinate"] for k in axes["/Blowfish/Paint/blink"]["keys"])
+    assert marks == [0.0, 1.0]
+    assert all(a["min"] < a["max"] for a in axes.values())
+    assert scene["problems"] == []
+
+
+def test_stroke_widths_and_colours_come_from_the_stage(fish):
+    status, _, data = fish.request("api/strokes")
+    assert status == 200
+    _, arrays = decode_frame(data)
+    scene = fish.scene()
+    stage = Usd.Stage.Open(str(FISH))
+    for i, info in enumerate(scene["layers"]):
+        prim = stage.GetPrimAtPath(info["path"])
+        curves = UsdGeom.BasisCurves(prim)
+        widths = np.array(curves.GetWidthsAttr().Get(), dtype=np.float32)
+        scale = np.cbrt(abs(np.linalg.det(np.array(UsdGeom.Xformable(prim).ComputeLocalToWorldTransform(scene["start"]))[:3, :3])))
+        got = arrays[f"layer/{i}/widths"]
+        if len(widths) == len(got):
+            np.testing.assert_allclose(got, widths * scale, rtol=1e-5, err_msg=info["path"])
+        colours = np.array(UsdGeom.PrimvarsAPI(prim).GetPrimvar("displayColor").Get(), dtype=np.float32)
+        per_point = np.repeat(colours, info["curve_counts"], axis=0)
+        np.testing.assert_allclose(arrays[f"layer/{i}/colors"].reshape(-1, 3), per_point, rtol=1e-6, err_msg=info["path"])
+
+
+def bake_frame(tmp_path, src, t):
+    out = tmp_path / f"bake_{t}.usdc"
+    subprocess.run([str(painterly_binary()), "bake", str(src), "-o", str(out), "--frames", str(t), "--quiet"], check=True)
+    return Usd.Stage.Open(str(out))
+
+
+def test_timeline_frames_are_the_bakes_frames(fish, tmp_path):
+    scene = fish.scene()
+    for t in [1, 30]:
+        bake = bake_frame(tmp_path, FISH, t)
+        header, arrays = fish.frame(time=t)
+        assert header["time"] == t
+        for i, info in enumerate(scene["layers"]):
+            prim = bake.GetPrimAtPath(info["path"])
+            pts = np.array(prim.GetAttribute("points").Get(t), dtype=np.float32).ravel()
+            np.testing.assert_array_equal(arrays[f"layer/{i}/points"], pts, err_msg=f"{info['path']} at {t}")
+            op = np.array(prim.GetAttribute("primvars:displayOpacity").Get(t), dtype=np.float32)
+            np.testing.assert_array_equal(arrays[f"layer/{i}/opacity"], op)
+        timing = header["timing"]
+        assert 0 <= timing["read_ms"] <= timing["total_ms"]
+
+
+def test_pinned_axes_give_the_bake_of_a_stage_authored_that_way(fish, tmp_path):
+    # A copy whose blink and eye target hold still: its bake at frame 5 is
+    # what the original must show with those axes pinned (pose mode).
+    t = 5
+    copy = tmp_path / "still.usda"
+    shutil.copy(FISH, copy)
+    stage = Usd.Stage.Open(str(copy))
+    root = stage.GetPrimAtPath("/Blowfish")
+    blink = root.GetAttribute("blink")
+    blink.Clear()
+    blink.Set(0.7)
+    target = UsdGeom.Xformable(stage.GetPrimAtPath("/Blowfish/EyeTarget"))
+    op = target.GetOrderedXformOps()[0]
+    held = Gf.Vec3d(op.Get(t)) + Gf.Vec3d(0.4, -0.3, 0.2)
+    op.GetAttr().Clear()
+    op.Set(held)
+    stage.Save()
+    # The eye axes, derived here with usd-core: the target's world origin
+    # in the proxy's local space, times `scale` where the server's
+    # unpinned values at this frame say the axes are scaled.
+    s2 = Usd.Stage.Open(str(copy))
+    proxy = UsdGeom.Xformable(s2.GetPrimAtPath("/Blowfish/Rig/Proxy")).ComputeLocalToWorldTransform(t)
+    world = UsdGeom.Xformable(s2.GetPrimAtPath("/Blowfish/EyeTarget")).ComputeLocalToWorldTransform(t).ExtractTranslation()
+    local = proxy.GetInverse().Transform(world)
+    conf = fish.frame(time=t)[0]["configuration"]
+    s1 = Usd.Stage.Open(str(FISH))
+    p1 = UsdGeom.Xformable(s1.GetPrimAtPath("/Blowfish/Rig/Proxy")).ComputeLocalToWorldTransform(t)
+    w1 = UsdGeom.Xformable(s1.GetPrimAtPath("/Blowfish/EyeTarget")).ComputeLocalToWorldTransform(t).ExtractTranslation()
+    raw_x = p1.GetInverse().Transform(w1)[0]
+    scale = 0.5 if abs(conf["/Blowfish/Paint/eyeX"] - 0.5 * raw_x) < 1e-6 else 1.0
+    assert abs(conf["/Blowfish/Paint/eyeX"] - scale * raw_x) < 1e-6
+    overrides = {
+        "/Blowfish/Paint/blink": 0.7,
+        "/Blowfish/Paint/eyeX": scale * local[0],
+        "/Blowfish/Paint/eyeY": scale * local[1],
+    }
+    header, arrays = fish.frame(time=t, overrides=overrides)
+    for k, v in overrides.items():
+        assert header["configuration"][k] == pytest.approx(v, abs=1e-12)
+    bake = bake_frame(tmp_path, copy, t)
+    changed = 0
+    plain = fish.frame(time=t)[1]
+    for i, info in enumerate(fish.scene()["layers"]):
+        prim = bake.GetPrimAtPath(info["path"])
+        pts = np.array(prim.GetAttribute("points").Get(t), dtype=np.float32).ravel()
+        np.testing.assert_allclose(arrays[f"layer/{i}/points"], pts, atol=2e-5, err_msg=info["path"])
+        op = np.array(prim.GetAttribute("primvars:displayOpacity").Get(t), dtype=np.float32)
+        np.testing.assert_allclose(arrays[f"layer/{i}/opacity"], op, atol=2e-6, err_msg=info["path"])
+        changed += not np.array_equal(arrays[f"layer/{i}/points"], plain[f"layer/{i}/points"])
+        changed += not np.array_equal(arrays[f"layer/{i}/opacity"], plain[f"layer/{i}/opacity"])
+    assert changed >= 2, "pinning blink and the eye must change the pupils and the eyelids"
+    weights = header["weights"]["/Blowfish/Paint/Eyelids"]["opacity"]
+    ws = {(k or "/rest").rsplit("/", 1)[1]: w for k, w in weights}
+    assert abs(sum(ws.values()) - 1) < 1e-9, ws
+    assert ws.get("shut", 0) > ws.get("open", 0), ws
+
+
+def test_render_returns_a_png_of_the_asked_size(fish):
+    scene = fish.scene()
+    v = scene["view"]
+    cam = {"position": v["position"], "target": v["target"], "up": v["up"], "fov_y": v["fov_y"], "near": 0.1, "far": 10000}
+    status, headers, body = fish.request("api/render", body={"frame": {"time": 24}, "camera": cam, "width": 96, "height": 64})
+    assert status == 200, body
+    assert headers["content-type"] == "image/png"
+    from PIL import Image
+    import io
+
+    img = Image.open(io.BytesIO(body))
+    assert img.size == (96, 64)
+    alpha = np.array(img.convert("RGBA"))[..., 3]
+    assert alpha.max() > 0, "the fish is in view"
+
+
+def test_bad_inputs_exit_1_without_serving(tmp_path):
+    missing = tmp_path / "missing.usda"
+    r = subprocess.run([str(painterly_binary()), "preview", str(missing), "--port", "0"], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 1
+    assert str(missing) in r.stderr
+    bad = tmp_path / "bad.usda"
+    bad.write_text("#usda 1.0\ndef Xform \"A\" {\n")
+    r = subprocess.run([str(painterly_binary()), "preview", str(bad), "--port", "0"], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 1 and "bad.usda" in r.stderr
+
+
+def test_a_busy_port_is_a_clear_error(fish):
+    port = int(fish.url.rsplit(":", 1)[1].strip("/"))
+    r = subprocess.run([str(painterly_binary()), "preview", str(FISH), "--port", str(port)], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 1
+    assert f"127.0.0.1:{port}" in r.stderr
+
+
+def test_bake_layer_frames_are_served_as_baked(tmp_path):
+    bake = tmp_path / "fish_bake.usdc"
+    subprocess.run([str(painterly_binary()), "bake", str(FISH), "-o", str(bake), "--frames", "10:12", "--quiet"], check=True)
+    before = sha(bake)
+    with PreviewServer(FISH, "--bake", bake) as s:
+        scene = s.scene()
+        assert scene["bake"] == str(bake)
+        stage = Usd.Stage.Open(str(bake))
+        header, arrays = s.frame(time=11, bake=True)
+        assert header["source"] == "bake"
+        live = s.frame(time=11)[1]
+        for i, info in enumerate(scene["layers"]):
+            pts = np.array(stage.GetPrimAtPath(info["path"]).GetAttribute("points").Get(11), dtype=np.float32).ravel()
+            np.testing.assert_array_equal(arrays[f"layer/{i}/points"], pts)
+            np.testing.assert_array_equal(live[f"layer/{i}/points"], pts)
+    assert sha(bake) == before
+    # A bake of another input is refused.
+    other = tmp_path / "head_bake.usdc"
+    subprocess.run([str(painterly_binary()), "bake", str(HEAD), "-o", str(other), "--frames", "1", "--quiet"], check=True)
+    r = subprocess.run(
+        [str(painterly_binary()), "preview", str(FISH), "--bake", str(other), "--port", "0"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert r.returncode == 1 and "not from the input" in r.stderr

@@ -1,0 +1,350 @@
+"""The `painterly` Python package (issue 14): bake, Character, interpolate,
+inspect and errors, checked against the CLI and usd-core.
+
+- `Character.evaluate(t)` / `.opacities(t)` equal, to the last bit, the
+  points and displayOpacity that `painterly bake` writes for that frame,
+  read back with usd-core;
+- what-if configurations: overriding an axis to the value the stage gives
+  it at another frame reproduces that frame (static proxy);
+- `interpolate` equals the weights `painterly interpolate` prints, bit for
+  bit, and blends values in key order;
+- `bake` returns the `--json` summary; two bakes in two threads run at once
+  (the GIL is released): each bake's progress callback waits at a barrier
+  for the other, which only passes if both bakes are running together;
+- inputs as `Sdf.Layer` (edited in memory, anonymous), errors as
+  `painterly.Error` with `.file`, `.prim`, `.attribute`, `.rule`.
+
+The package must be installed (`scripts/test` builds it into .venv); when it
+is not, these tests skip unless PAINTERLY_PYTHON_PACKAGE=required.
+"""
+
+import json
+import os
+import threading
+import time
+
+import numpy as np
+import pytest
+from pxr import Sdf, Usd, UsdGeom, Vt
+
+import authoring as Au
+import authoring_keys as AK
+from conftest import REPO, run_painterly
+
+if os.environ.get("PAINTERLY_PYTHON_PACKAGE") == "required":
+    import painterly
+else:
+    painterly = pytest.importorskip("painterly")
+
+FIXTURES = REPO / "fixtures"
+
+
+def baked(path, prim, attr, t):
+    """A baked attribute's value at `t`, read with usd-core from the bake layer alone."""
+    layer = Sdf.Layer.FindOrOpen(str(path))
+    stage = Usd.Stage.Open(layer)
+    return np.asarray(stage.GetPrimAtPath(prim).GetAttribute(attr).Get(Usd.TimeCode(t)))
+
+
+# ---------------------------------------------------------------------------
+# evaluate == bake, bit for bit
+
+
+@pytest.mark.parametrize(
+    "fixture,frames,times",
+    [
+        ("blowfish.usda", "1:48:6", [1.0, 13.0, 37.0, 43.0]),  # skinned, pose keys, time keys and sentinels
+        ("apple.usda", "1:48:8", [1.0, 25.0, 41.0]),  # light-position axes
+        ("head.usda", "1:48:12", [1.0, 25.0]),  # view-dependent mesh
+        ("walk.usda", "1:40:12", [13.0, 37.0]),  # animated view-dependent base
+    ],
+)
+def test_evaluate_equals_the_bake_bit_for_bit(tmp_path, fixture, frames, times):
+    src = FIXTURES / fixture
+    out = tmp_path / "bake.usdc"
+    run_painterly("bake", src, "-o", out, "--frames", frames, "--quiet")
+    ch = painterly.Character(str(src))
+    assert len(ch.layers) + len(ch.view_meshes) > 0
+    for t in times:
+        points = ch.evaluate(t)
+        assert sorted(points) == sorted(ch.layers + ch.view_meshes)
+        for prim, got in points.items():
+            assert got.dtype == np.float32 and got.ndim == 2 and got.shape[1] == 3
+            expected = baked(out, prim, "points", t)
+            assert np.array_equal(got, expected.astype(np.float32)), f"{prim} at {t}"
+        opacities = ch.opacities(t)
+        assert sorted(opacities) == sorted(ch.layers)
+        for prim, got in opacities.items():
+            assert got.dtype == np.float32
+            assert np.array_equal(got, baked(out, prim, "primvars:displayOpacity", t)), f"{prim} at {t}"
+
+
+def test_a_bake_from_python_writes_the_cli_bytes_and_its_summary(tmp_path):
+    src = FIXTURES / "tube.usda"
+    cli = tmp_path / "cli.usda"
+    cli_summary = json.loads(run_painterly("bake", src, "-o", cli, "--frames", "1:12", "--json").stdout)
+    py = tmp_path / "py.usda"
+    summary = painterly.bake(str(src), str(py), frames="1:12")
+    assert set(summary) == set(cli_summary)
+    for k in summary:
+        if k not in ("seconds", "output"):
+            assert summary[k] == cli_summary[k], k
+    assert summary["output"] == str(py)
+    strip = lambda text: "\n".join(l for l in text.splitlines() if "seconds" not in l)  # noqa: E731
+    assert strip(py.read_text()) == strip(cli.read_text())
+    # frames as a tuple, and a bake in memory whose layer usd-core opens.
+    mem = painterly.bake(src, frames=(1, 12))
+    assert mem["output"] is None and mem["frames"] == 12
+    layer = painterly.to_layer(mem["layer"])
+    stage = Usd.Stage.Open(layer)
+    ch = painterly.Character(src)
+    for prim in ch.layers:
+        got = np.asarray(stage.GetPrimAtPath(prim).GetAttribute("points").Get(Usd.TimeCode(7)))
+        assert np.array_equal(got, ch.evaluate(7)[prim])
+
+
+# ---------------------------------------------------------------------------
+# what-if configurations
+
+
+def knob_stage(path=None):
+    """A static quad proxy and one stroke keyed to a knob animated 0 → 1
+    over frames 1..11 (pose keys at 0 and 1): a static proxy means the
+    frame's pose does not matter, only the knob."""
+    stage = Usd.Stage.CreateNew(str(path)) if path else Usd.Stage.CreateInMemory()
+    Au.set_stage_metadata(stage, 1, 11)
+    ctl = stage.DefinePrim("/World/Controls")
+    knob = ctl.CreateAttribute("knob", Sdf.ValueTypeNames.Double)
+    knob.Set(0.0, 1)
+    knob.Set(1.0, 11)
+    mesh = UsdGeom.Mesh.Define(stage, "/World/Proxy")
+    mesh.CreateFaceVertexCountsAttr([4, 4])
+    mesh.CreateFaceVertexIndicesAttr([0, 1, 4, 3, 1, 2, 5, 4])
+    mesh.CreatePointsAttr(Au.v3f([[0, 0, 0], [1, 0, 0], [2, 0, 0], [0, 1, 0], [1, 1, 0], [2, 1, 0]]))
+    Au.add_painterly_rig(stage, "/World/Paint", "/World/Proxy")
+    AK.add_axis(stage, "/World/Paint/knob", "attribute", source="/World/Controls.knob")
+    low = np.array([[0.2, 0.2, 0], [0.8, 0.5, 0], [1.5, 0.5, 0], [1.8, 0.8, 0]])
+    high = low + np.array([[0, 0.1, 0.3], [0, 0.2, 0.1], [0, -0.1, 0.2], [0, 0.1, -0.2]])
+    Au.add_stroke_layer(stage, "/World/Paint/Hair", [4], low)
+    AK.add_pose_key(stage, "/World/Paint/Hair", "low", [0], points=low, opacity=1.0)
+    AK.add_pose_key(stage, "/World/Paint/Hair", "high", [1], points=high, opacity=0.25)
+    return stage, low, high
+
+
+def test_configuration_overrides_reproduce_the_frame_with_that_value(tmp_path):
+    stage, low, high = knob_stage(tmp_path / "knob.usda")
+    stage.Save()
+    ch = painterly.Character(tmp_path / "knob.usda")
+    assert ch.axes == ["/World/Paint/knob"]
+    assert ch.configuration(6) == {"/World/Paint/knob": 0.5}
+    hair = "/World/Paint/Hair"
+    # The stage's own values change nothing.
+    assert np.array_equal(ch.evaluate(6, ch.configuration(6))[hair], ch.evaluate(6)[hair])
+    # At frame 1 the knob reads 0; set to 1 it shows frame 11, bit for bit,
+    # which is the "high" key (smooth Voronoi interpolates its keys).
+    what_if = ch.evaluate(1, {"/World/Paint/knob": 1.0})[hair]
+    assert np.array_equal(what_if, ch.evaluate(11)[hair])
+    assert np.allclose(what_if, high, atol=1e-6)
+    assert np.allclose(ch.evaluate(1)[hair], low, atol=1e-6)
+    assert np.array_equal(ch.opacities(1, {"/World/Paint/knob": 1.0})[hair], np.float32([0.25]))
+    assert np.array_equal(ch.opacities(1)[hair], np.float32([1.0]))
+    with pytest.raises(painterly.Error) as e:
+        ch.evaluate(1, {"/World/Paint/nope": 1.0})
+    assert e.value.prim == "/World/Paint/nope" and "not an axis" in e.value.message
+
+
+# ---------------------------------------------------------------------------
+# Sdf.Layer inputs
+
+
+def test_layers_are_read_with_their_unsaved_edits(tmp_path):
+    stage, low, high = knob_stage()
+    anon = stage.GetRootLayer()
+    ch = painterly.Character(anon)  # an anonymous layer, never on disk
+    assert np.allclose(ch.evaluate(11)["/World/Paint/Hair"], high, atol=1e-6)
+    assert painterly.inspect(anon)["problems"] == []
+
+    # A file layer edited in memory: the edit is what painterly sees.
+    path = tmp_path / "knob.usda"
+    knob_stage(path)[0].Save()
+    layer = Sdf.Layer.FindOrOpen(str(path))
+    on_disk = painterly.Character(layer).opacities(1)["/World/Paint/Hair"]
+    edit = Usd.Stage.Open(layer)
+    edit.GetPrimAtPath("/World/Paint/Hair").CreateAttribute("painterly:opacity", Sdf.ValueTypeNames.Float).Set(0.5)
+    assert layer.dirty
+    assert np.array_equal(painterly.Character(layer).opacities(1)["/World/Paint/Hair"], on_disk * np.float32(0.5))
+    # A problem introduced in memory: errors name the layer, the prim and the attribute.
+    edit.GetPrimAtPath("/World/Paint/Hair/high").GetAttribute("coordinates").Set(Vt.FloatArray([0.0]))
+    problems = painterly.inspect(layer)["problems"]
+    assert [(p["prim"], p["attribute"], p["rule"]) for p in problems] == [
+        ("/World/Paint/Hair/low", "coordinates", "coincident-keys")
+    ]
+    with pytest.raises(painterly.Error) as e:
+        painterly.Character(layer)
+    assert (e.value.file, e.value.prim, e.value.attribute, e.value.rule) == (
+        layer.identifier,
+        "/World/Paint/Hair/low",
+        "coordinates",
+        "coincident-keys",
+    )
+
+
+def test_a_layer_with_relative_sublayers_resolves_them_where_it_lives(tmp_path):
+    knob_stage(tmp_path / "character.usda")[0].Save()
+    shot = Sdf.Layer.CreateNew(str(tmp_path / "shot.usda"))
+    shot.subLayerPaths.append("./character.usda")
+    shot.Save()
+    layer = Sdf.Layer.FindOrOpen(str(tmp_path / "shot.usda"))
+    edit = Usd.Stage.Open(layer)
+    edit.OverridePrim("/World/Paint/Hair").CreateAttribute("painterly:opacity", Sdf.ValueTypeNames.Float).Set(0.5)
+    ch = painterly.Character(layer)
+    assert ch.opacities(1)["/World/Paint/Hair"].tolist() == [0.5]
+
+
+# ---------------------------------------------------------------------------
+# interpolate == `painterly interpolate`
+
+
+def cli_weights(painterly_cli, method, keys, points, radius=None):
+    payload = {"method": method, "keys": np.asarray(keys).tolist(), "points": np.asarray(points).tolist()}
+    if radius is not None:
+        payload["radius"] = radius
+    out = painterly_cli("interpolate", input=json.dumps(payload)).stdout
+    return np.array(json.loads(out)["weights"])
+
+
+@pytest.mark.parametrize("method,token,radius", [("smooth_voronoi", "smoothVoronoi", None), ("rbf", "rbf", 0.7), ("shepard", "shepard", None)])
+def test_interpolate_matches_the_cli_bit_for_bit(method, token, radius):
+    rng = np.random.default_rng(14)
+    keys = rng.uniform(-1, 1, (6, 2))
+    queries = np.vstack([rng.uniform(-1.2, 1.2, (20, 2)), keys[:2]])
+    w = cli_weights(run_painterly, token, keys, queries, radius)
+    kw = {"radius": radius} if radius is not None else {}
+    # Identity values give the weights themselves.
+    assert np.array_equal(painterly.interpolate(keys, np.eye(6), queries, method=method, **kw), w)
+    # Any values are blended in key order: sum_i w_i * v_i.
+    values = rng.normal(size=(6, 4, 3))
+    got = painterly.interpolate(keys, values, queries, method=method, **kw)
+    assert got.shape == (len(queries), 4, 3)
+    expected = np.zeros((len(queries), 12))
+    for q in range(len(queries)):
+        for j in range(12):
+            s = 0.0
+            for i in range(6):
+                s += float(w[q, i]) * float(values.reshape(6, 12)[i, j])
+            expected[q, j] = s
+    assert np.array_equal(got.reshape(len(queries), 12), expected)
+
+
+def test_interpolate_in_one_dimension_and_its_errors():
+    keys = [0.0, 0.3, 1.0]
+    w = cli_weights(run_painterly, "smoothVoronoi", [[k] for k in keys], [[0.1], [0.65]])
+    got = painterly.interpolate(keys, [10.0, 20.0, 40.0], [0.1, 0.65])
+    assert got.shape == (2,)
+    assert np.array_equal(got, [sum(float(wi) * v for wi, v in zip(row, [10.0, 20.0, 40.0])) for row in w])
+    assert np.array_equal(painterly.interpolate(keys, [10.0, 20.0, 40.0], keys), [10.0, 20.0, 40.0])
+    with pytest.raises(painterly.Error, match="keys 0 and 1"):
+        painterly.interpolate([0.0, 0.0], [1.0, 2.0], [0.5])
+    with pytest.raises(painterly.Error, match="unknown method"):
+        painterly.interpolate(keys, [1.0, 2.0, 3.0], [0.5], method="linear")
+    with pytest.raises(painterly.Error, match="one value per key"):
+        painterly.interpolate(keys, [1.0, 2.0], [0.5])
+
+
+# ---------------------------------------------------------------------------
+# inspect, errors
+
+
+def test_inspect_is_the_cli_report():
+    for name in ("blowfish.usda", "head.usda"):
+        path = FIXTURES / name
+        assert painterly.inspect(path) == json.loads(run_painterly("inspect", path, "--json").stdout)
+
+
+def test_errors_are_painterly_errors_naming_where(tmp_path):
+    with pytest.raises(painterly.Error) as e:
+        painterly.Character(tmp_path / "missing.usda")
+    assert e.value.file == str(tmp_path / "missing.usda") and e.value.prim is None
+    stage, _, _ = knob_stage(tmp_path / "bad.usda")
+    stage.GetPrimAtPath("/World/Paint").GetRelationship("painterly:proxy").ClearTargets(True)
+    stage.Save()
+    for call in (lambda: painterly.Character(tmp_path / "bad.usda"), lambda: painterly.bake(tmp_path / "bad.usda")):
+        with pytest.raises(painterly.Error) as e:
+            call()
+        err = e.value
+        assert (err.file, err.prim, err.attribute, err.rule) == (
+            str(tmp_path / "bad.usda"),
+            "/World/Paint",
+            "painterly:proxy",
+            "missing-proxy",
+        )
+        assert str(err).startswith(f"{tmp_path / 'bad.usda'}: /World/Paint.painterly:proxy: ")
+    with pytest.raises(painterly.Error, match="step"):
+        painterly.bake(FIXTURES / "tube.usda", frames="1:12:0")
+    with pytest.raises(painterly.Error, match="outside the stage's time range"):
+        painterly.bake(FIXTURES / "tube.usda", frames=(0, 1000))
+    with pytest.raises(TypeError):
+        painterly.Character(42)
+    assert not list(tmp_path.glob("*.usdc"))
+
+
+# ---------------------------------------------------------------------------
+# progress and the GIL
+
+
+def test_progress_reports_every_frame_and_its_exceptions_surface(tmp_path):
+    calls = []
+    painterly.bake(FIXTURES / "tube.usda", tmp_path / "a.usdc", frames="1:10", progress=lambda d, n: calls.append((d, n)))
+    assert calls == [(i, 10) for i in range(1, 11)]
+
+    def boom(done, total):
+        raise RuntimeError(f"stop at {done}")
+
+    with pytest.raises(RuntimeError, match="stop at 1"):
+        painterly.bake(FIXTURES / "tube.usda", tmp_path / "b.usdc", frames="1:4", progress=boom)
+
+
+def test_two_bakes_in_threads_run_at_once(tmp_path):
+    """Each bake's first progress call waits at a two-party barrier: it only
+    passes when the other bake is running too, which needs the GIL released
+    while baking. The [first, last] progress intervals then overlap."""
+    barrier = threading.Barrier(2, timeout=120)
+    spans = {}
+    errors = []
+
+    def run(name):
+        def progress(done, total):
+            now = time.monotonic()
+            if done == 1:
+                barrier.wait()
+                spans[name] = [now, now]
+            spans[name][1] = now
+
+        try:
+            painterly.bake(FIXTURES / "blowfish.usda", tmp_path / f"{name}.usdc", frames="1:8", progress=progress)
+        except BaseException as e:  # noqa: BLE001  (reported below)
+            errors.append(e)
+
+    threads = [threading.Thread(target=run, args=(n,)) for n in ("a", "b")]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert not errors, errors
+    (a0, a1), (b0, b1) = spans["a"], spans["b"]
+    assert max(a0, b0) <= min(a1, b1), spans
+    assert (tmp_path / "a.usdc").exists() and (tmp_path / "b.usdc").exists()
+
+
+def test_the_readme_example_runs():
+    """The README's "From Python" example, as written, from the repository root."""
+    import re
+    import subprocess
+    import sys
+
+    section = (REPO / "README.md").read_text().split("## From Python", 1)[1].split("\n## ", 1)[0]
+    code = re.search(r"```python\n(.*?)```", section, re.S).group(1)
+    env = {k: v for k, v in os.environ.items() if k != "PXR_PLUGINPATH_NAME"}
+    proc = subprocess.run([sys.executable, "-c", code], cwd=REPO, env=env, capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr
+    assert "24 frames, 17940 points" in proc.stdout

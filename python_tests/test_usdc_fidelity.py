@@ -1,0 +1,414 @@
+"""Every .usdc painterly writes survives usd-core (issue 9 §1).
+
+What a TD does with a painterly file: open it in usd-core, add a prim, set
+layer metadata, add a time sample, `Save()` in place, open it again in
+usd-core and in painterly. Before painterly had its own crate writer, usd-core
+failed that save (`_GetIndexForToken`: the pseudo-root's empty element token
+was missing from the file's token table) and the half-written save damaged
+the file. Here, for each kind of .usdc painterly writes — a bake (with and
+without --bake-proxy), an edit layer from bind / key / smudge, and an
+--in-place edit of a .usdc written by usd-core holding every construct —
+the save must succeed and the file must reopen exactly as usd-core held it.
+
+Also: the crate version is the lowest the content needs (what usd-core itself
+would write: 0.8.0 for bakes), an in-place edit changes nothing but what it
+edits, and bakes are no bigger than usd-core's own file of the same layer.
+"""
+
+from __future__ import annotations
+
+import pathlib
+import shutil
+
+import numpy as np
+import pytest
+from pxr import Gf, Sdf, Usd, Vt
+
+import authoring as Au
+
+T = Sdf.ValueTypeNames
+
+
+# ---------------------------------------------------------------------------
+# helpers
+
+
+def crate_version(path) -> str:
+    return str(Sdf.CrateInfo.Open(str(path)).GetFileVersion())
+
+
+def open_for_edit(path):
+    """The layer at `path` as on disk now (painterly rewrote it behind
+    usd-core's layer cache)."""
+    layer = Sdf.Layer.Find(str(path))
+    if layer:
+        layer.Reload(force=True)
+        return layer
+    return Sdf.Layer.FindOrOpen(str(path))
+
+
+def on_disk(path) -> str:
+    """The file as a fresh usd-core read sees it."""
+    return Sdf.Layer.OpenAsAnonymous(str(path)).ExportToString()
+
+
+def usd_core_touch(path, prim_path="/UsdCoreAdded") -> str:
+    """Open in usd-core, add a prim, set layer metadata, add time samples (to
+    a new and to an existing attribute), Save() in place. Returns what usd-core
+    held when it saved."""
+    layer = open_for_edit(path)
+    layer.comment = "touched by usd-core"
+    layer.customLayerData = dict(layer.customLayerData, touchedBy="usd-core")
+    prim = Sdf.CreatePrimInLayer(layer, prim_path)
+    prim.specifier = Sdf.SpecifierDef
+    prim.typeName = "Xform"
+    attr = Sdf.AttributeSpec(prim, "weight", T.Float)
+    layer.SetTimeSample(attr.path, 3.0, 0.5)
+    sampled = []
+    layer.Traverse("/", lambda p: sampled.append(p) if p.IsPropertyPath() and layer.GetNumTimeSamplesForPath(p) else None)
+    if sampled:
+        p = sorted(sampled, key=str)[0]
+        times = layer.ListTimeSamplesForPath(p)
+        layer.SetTimeSample(p, max(times) + 0.5, layer.QueryTimeSample(p, times[0]))
+    held = layer.ExportToString()
+    assert layer.Save(), f"usd-core could not save {path} in place"
+    return held
+
+
+def contents(layer) -> dict:
+    """Every spec of a layer as usd-core reads it: its kind, every field
+    (ListInfoKeys/GetInfo) and its ordered children."""
+    out = {}
+
+    def visit(path):
+        spec = layer.GetObjectAtPath(path)
+        if spec is None:  # targets and connections Traverse lists
+            return
+        fields = {key: info(layer, spec, key) for key in spec.ListInfoKeys()}
+        if isinstance(spec, (Sdf.PrimSpec, Sdf.PseudoRootSpec)):
+            fields["<children>"] = [c.name for c in spec.nameChildren]
+        if isinstance(spec, (Sdf.PrimSpec, Sdf.VariantSpec)):
+            prim = spec if isinstance(spec, Sdf.PrimSpec) else spec.primSpec
+            fields["<properties>"] = [p.name for p in prim.properties]
+            fields["<variantSets>"] = list(prim.variantSets.keys())
+        out[str(path)] = (type(spec).__name__, fields)
+
+    layer.Traverse("/", visit)
+    return out
+
+
+def info(layer, spec, key):
+    if key == "subLayerOffsets":  # a std::vector<SdfLayerOffset> has no Python converter
+        return [(o.offset, o.scale) for o in layer.subLayerOffsets]
+    return spec.GetInfo(key)
+
+
+def differences(a: dict, b: dict) -> list:
+    """(path, field) pairs where two contents() differ."""
+    diffs = []
+    for path in sorted(set(a) | set(b)):
+        if path not in a or path not in b:
+            diffs.append((path, "<spec>"))
+            continue
+        if a[path][0] != b[path][0]:
+            diffs.append((path, "<kind>"))
+        fa, fb = a[path][1], b[path][1]
+        for key in sorted(set(fa) | set(fb)):
+            if key not in fa or key not in fb or not same(fa[key], fb[key]):
+                diffs.append((path, key))
+    return diffs
+
+
+def same(x, y) -> bool:
+    eq = x == y
+    return bool(eq) if isinstance(eq, bool) else bool(np.all(eq))
+
+
+def composed(layer_path, input_path, out):
+    """A stage file sublayering `layer_path` over `input_path`."""
+    out.write_text(f'#usda 1.0\n(\n    subLayers = [@{layer_path.name}@, @{input_path.name}@]\n)\n')
+    return out
+
+
+def stroke_points(path, prim, frames):
+    st = Usd.Stage.Open(str(path))
+    a = st.GetPrimAtPath(prim).GetAttribute("points")
+    return [np.array(a.Get(t)) for t in frames]
+
+
+def skel_rig(tmp_path, name="rig.usda", **kw):
+    kw.setdefault("world_xform", Au.xf_static(translate=(0.5, -1, 2), rotate=(0, 30, 0)))
+    kw.setdefault("n_strokes", 6)
+    return Au.build_skel_rig(tmp_path / name, **kw)
+
+
+# ---------------------------------------------------------------------------
+# bakes
+
+
+@pytest.mark.parametrize("proxy", [False, True], ids=["strokes", "bake-proxy"])
+def test_bake_survives_usd_core_save(painterly, tmp_path, proxy):
+    rig = skel_rig(tmp_path)
+    bake = tmp_path / "bake.usdc"
+    painterly("bake", rig.path, "-o", bake, "--quiet", *(["--bake-proxy"] if proxy else []))
+    shot = composed(bake, rig.path, tmp_path / "shot.usda")
+    before = stroke_points(shot, rig.layers[0], rig.frames)
+    original = contents(Sdf.Layer.OpenAsAnonymous(str(bake)))
+
+    held = usd_core_touch(bake)
+    assert on_disk(bake) == held, "the file usd-core saved does not reopen as usd-core held it"
+    assert crate_version(bake) == "0.8.0", "a bake needs nothing newer than what usd-core writes"
+    # Everything painterly wrote is still there, unchanged.
+    after = contents(Sdf.Layer.OpenAsAnonymous(str(bake)))
+    lost = [d for d in differences(original, after) if not d[0].startswith("/UsdCoreAdded") and d[0] != "/"]
+    assert not [d for d in lost if d[1] != "timeSamples"], lost
+    # ...and usd-core composes the same strokes through it.
+    for a, b in zip(before, stroke_points(shot, rig.layers[0], rig.frames)):
+        assert np.array_equal(a, b)
+    # painterly reads the saved file: on its own and over the input.
+    painterly("inspect", bake)
+    out = painterly("inspect", shot)
+    assert rig.layers[0] in out.stdout
+
+
+# ---------------------------------------------------------------------------
+# edit layers
+
+
+def smudge_args(rig):
+    st = Usd.Stage.Open(str(rig.path))
+    from pxr import UsdGeom
+
+    cache = UsdGeom.BBoxCache(Usd.TimeCode.Default(), ["default", "render"])
+    box = cache.ComputeWorldBound(st.GetPrimAtPath(rig.layers[0])).ComputeAlignedRange()
+    lo, hi = np.array(box.GetMin()), np.array(box.GetMax())
+    c, size = (lo + hi) / 2, float(np.linalg.norm(hi - lo))
+    a, b = c - [size / 2, 0, 0], c + [size / 2, 0, 0]
+    path = " ".join(",".join(f"{x:.9g}" for x in p) for p in (a, b))
+    return ["--layer", rig.layers[0], "--path", path, f"--radius={size / 2:.9g}", "--strength=0.05"]
+
+
+EDITS = {
+    "bind": lambda rig: ["--time", 5],
+    "key": lambda rig: ["--layer", rig.layers[0], "--time", 6],
+    "smudge": smudge_args,
+}
+
+
+@pytest.mark.parametrize("cmd", sorted(EDITS))
+def test_edit_layer_survives_usd_core_save(painterly, tmp_path, cmd):
+    rig = skel_rig(tmp_path)
+    e = tmp_path / "edits.usdc"
+    painterly(cmd, rig.path, *EDITS[cmd](rig), "--edit-layer", e, "--quiet")
+    version = crate_version(e)
+    baked = tmp_path / "b1.usdc"
+    painterly("bake", e, "-o", baked, "--quiet")
+    before = on_disk(baked)
+
+    held = usd_core_touch(e)
+    assert on_disk(e) == held
+    assert version == "0.8.0"
+    # painterly reads the edits back as they were: the same bake.
+    again = tmp_path / "b2.usdc"
+    painterly("bake", e, "-o", again, "--quiet")
+    assert on_disk(again) == before
+    # and appends to the layer usd-core saved, which usd-core saves again.
+    painterly("bind", rig.path, "--time", 4, "--edit-layer", e, "--quiet")
+    assert Sdf.Layer.OpenAsAnonymous(str(e)).GetPrimAtPath("/UsdCoreAdded"), "painterly dropped usd-core's prim"
+    held = usd_core_touch(e, "/UsdCoreAddedAgain")
+    assert on_disk(e) == held
+
+
+# ---------------------------------------------------------------------------
+# --in-place on a .usdc usd-core wrote, holding every construct
+
+
+def add_every_construct(layer, tmp_path):
+    """Author, with usd-core's Sdf API, one of everything a layer can hold
+    (beside the painterly character already in it)."""
+    ref = tmp_path / "ref.usda"
+    ref_layer = Sdf.Layer.CreateNew(str(ref))
+    r = Sdf.CreatePrimInLayer(ref_layer, "/R")
+    r.specifier = Sdf.SpecifierDef
+    Sdf.CreatePrimInLayer(ref_layer, "/R/Child").specifier = Sdf.SpecifierDef
+    ref_layer.Save()
+    sub = tmp_path / "sub.usda"
+    Sdf.Layer.CreateNew(str(sub)).Save()
+
+    layer.subLayerPaths.append("./sub.usda")
+    layer.subLayerOffsets[0] = Sdf.LayerOffset(2.0, 0.5)
+    layer.customLayerData = {"studio": "painterly tests", "nested": {"n": 1, "tags": Vt.StringArray(["a", "b"])}}
+    layer.documentation = "every construct"
+    layer.relocates = [(Sdf.Path("/Extras/Referenced/Child"), Sdf.Path("/Extras/Referenced/Renamed"))]
+
+    x = Sdf.CreatePrimInLayer(layer, "/Extras")
+    x.specifier = Sdf.SpecifierDef
+    x.typeName = "Xform"
+    x.documentation = "a prim with everything"
+    x.kind = "component"
+    x.customData = {"int": 3, "double": 0.25, "token": Sdf.AssetPath("@tex.png@"), "dict": {"s": "deep"}}
+    x.assetInfo = {"identifier": Sdf.AssetPath("./asset.usd"), "version": "1"}
+    x.SetInfo("apiSchemas", Sdf.TokenListOp.Create(prependedItems=["CollectionAPI:set"]))
+    x.SetInfo("instanceable", False)
+    x.hidden = True
+    x.active = True
+
+    cls = Sdf.CreatePrimInLayer(layer, "/Extras_Class")
+    cls.specifier = Sdf.SpecifierClass
+    x.inheritPathList.Prepend("/Extras_Class")
+    x.specializesList.Append("/Extras_Class")
+
+    refd = Sdf.CreatePrimInLayer(layer, "/Extras/Referenced")
+    refd.specifier = Sdf.SpecifierDef
+    refd.referenceList.Prepend(Sdf.Reference("./ref.usda", "/R", Sdf.LayerOffset(1.0, 2.0), {"note": "hi"}))
+    payd = Sdf.CreatePrimInLayer(layer, "/Extras/Payloaded")
+    payd.specifier = Sdf.SpecifierDef
+    payd.payloadList.explicitItems = [Sdf.Payload("./ref.usda", "/R", Sdf.LayerOffset(-3.0, 1.0))]
+    dflt = Sdf.CreatePrimInLayer(layer, "/Extras/DefaultRef")
+    dflt.specifier = Sdf.SpecifierOver
+    dflt.referenceList.Append(Sdf.Reference("./ref.usda"))
+
+    vs = Sdf.VariantSetSpec(x, "shape")
+    for name, value in (("round", 1.0), ("square", 2.0)):
+        v = Sdf.VariantSpec(vs, name)
+        inner = Sdf.PrimSpec(v.primSpec, "Inner", Sdf.SpecifierDef, "Xform")
+        a = Sdf.AttributeSpec(inner, "size", T.Double)
+        a.default = value
+        Sdf.AttributeSpec(v.primSpec, "variantAttr", T.Token).default = name
+    x.variantSelections["shape"] = "round"
+    x.SetInfo("variantSetNames", Sdf.StringListOp.Create(prependedItems=["shape"]))
+
+    values = [
+        ("b", T.Bool, True), ("uc", T.UChar, 200), ("i", T.Int, -7), ("u", T.UInt, 4000000000),
+        ("i64", T.Int64, 5), ("i64big", T.Int64, -(2**40)), ("u64", T.UInt64, 2**63),
+        ("h", T.Half, 0.5), ("f", T.Float, -1.25), ("d", T.Double, 0.1),
+        ("s", T.String, "h\u00e9 \"q\"\nline"), ("t", T.Token, "tok"), ("a", T.Asset, Sdf.AssetPath("./tex/a.png")),
+        ("m4", T.Matrix4d, Gf.Matrix4d(1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16)),
+        ("m3", T.Matrix3d, Gf.Matrix3d(1)), ("q", T.Quatf, Gf.Quatf(0.5, 0.5, -0.5, 0.5)),
+        ("qh", T.Quath, Gf.Quath(1, 0, 0, 0)), ("v3d", T.Double3, Gf.Vec3d(1e10, -2, 3)),
+        ("v2h", T.Half2, Gf.Vec2h(1, 2)), ("v4i", T.Int4, Gf.Vec4i(1, -2, 3, 400)),
+        ("tc", T.TimeCode, Sdf.TimeCode(12.5)), ("tcs", T.TimeCodeArray, Sdf.TimeCodeArray([1, 2.5])),
+        ("expr", T.PathExpression, Sdf.PathExpression("/World//Mesh* - /World/Hidden")),
+        ("ints", T.IntArray, Vt.IntArray(list(range(0, 300, 7)))),
+        ("floats", T.FloatArray, Vt.FloatArray([0.5, -0.0, 1.0] * 10)),
+        ("halves", T.HalfArray, Vt.HalfArray([1, 2, 3, 4] * 5)),
+        ("doubles", T.DoubleArray, Vt.DoubleArray([i / 7 for i in range(20)])),
+        ("strs", T.StringArray, Vt.StringArray(["a", "", "b"])),
+        ("toks", T.TokenArray, Vt.TokenArray(["x", "y"])),
+        ("assets", T.AssetArray, Sdf.AssetPathArray([Sdf.AssetPath("a.usd"), Sdf.AssetPath("b.usd")])),
+        ("bools", T.BoolArray, Vt.BoolArray([True, False])),
+        ("quats", T.QuatdArray, Vt.QuatdArray([Gf.Quatd(1, 2, 3, 4)])),
+        ("mats", T.Matrix4dArray, Vt.Matrix4dArray([Gf.Matrix4d(2)])),
+        ("i64s", T.Int64Array, Vt.Int64Array([-(2**62), 2**62, 0] * 6)),
+        ("empty", T.Point3fArray, Vt.Vec3fArray()),
+    ]
+    for name, tn, value in values:
+        a = Sdf.AttributeSpec(x, name, tn)
+        a.default = value
+    held = Sdf.AttributeSpec(x, "held", T.Float, Sdf.VariabilityUniform)
+    held.default = Sdf.ValueBlock()
+    held.custom = True
+    anim = Sdf.AttributeSpec(x, "anim", T.Float3Array)
+    anim.SetInfo("interpolation", "vertex")
+    anim.displayName = "Animated"
+    anim.documentation = "samples with a block"
+    for t, v in ((1.0, Vt.Vec3fArray([(1, 2, 3)])), (2.0, Sdf.ValueBlock()), (3.5, Vt.Vec3fArray([(0, 0, 1)]))):
+        layer.SetTimeSample(anim.path, t, v)
+    tok = Sdf.AttributeSpec(x, "choice", T.Token, Sdf.VariabilityUniform)
+    tok.allowedTokens = ["a", "b"]
+    tok.default = "a"
+    rel = Sdf.RelationshipSpec(x, "targets")
+    rel.targetPathList.explicitItems = ["/Extras/Referenced", "/World"]
+    rel2 = Sdf.RelationshipSpec(x, "edits", custom=True)
+    rel2.targetPathList.Prepend("/Extras/Payloaded")
+    rel2.targetPathList.deletedItems.append("/Gone")
+    con = Sdf.AttributeSpec(x, "connected", T.Float)
+    con.connectionPathList.Append("/Extras.f")
+    clip = tmp_path / "clip.usda"
+    Sdf.Layer.CreateNew(str(clip)).Save()
+    c = Sdf.CreatePrimInLayer(layer, "/Extras/Clipped")
+    c.specifier = Sdf.SpecifierDef
+    c.SetInfo("clips", {"default": {
+        "assetPaths": Sdf.AssetPathArray([Sdf.AssetPath("./clip.usda")]),
+        "primPath": "/R", "active": Vt.Vec2dArray([(1, 0)]), "times": Vt.Vec2dArray([(1, 1), (2, 2)])}})
+    c.SetInfo("clipSets", Sdf.StringListOp.CreateExplicit(["default"]))
+
+
+def test_in_place_on_usd_core_usdc_changes_only_the_edit(painterly, tmp_path):
+    rig = skel_rig(tmp_path, name="authored.usda")
+    src = Sdf.Layer.FindOrOpen(str(rig.path))
+    add_every_construct(src, tmp_path)
+    inp = tmp_path / "input.usdc"
+    src.Export(str(inp))
+    version = crate_version(inp)
+    assert version == "0.11.0", "test setup: layer relocates need 0.11.0 in usd-core"
+    original = contents(Sdf.Layer.OpenAsAnonymous(str(inp)))
+    assert len(original) > 40, "test setup"
+
+    painterly("bind", inp, "--time", 5, "--in-place", "--quiet")
+    edited = contents(Sdf.Layer.OpenAsAnonymous(str(inp)))
+    lp = rig.layers[0]
+    bind_attrs = {f"{lp}.painterly:{n}" for n in ("restPoints", "bindVertices", "bindWeights")}
+    unexpected = [d for d in differences(original, edited)
+                  if d[0] not in bind_attrs and d != (lp, "<properties>")]
+    assert not unexpected, f"--in-place changed more than the bind: {unexpected}"
+    assert {d[0] for d in differences(original, edited)} & bind_attrs, "test setup: bind changed nothing"
+    assert crate_version(inp) == version, "not the lowest version the content needs (usd-core's)"
+
+    baked = tmp_path / "b1.usdc"
+    painterly("bake", inp, "-o", baked, "--quiet")
+    held = usd_core_touch(inp)
+    assert on_disk(inp) == held
+    again = tmp_path / "b2.usdc"
+    painterly("bake", inp, "-o", again, "--quiet")
+    assert on_disk(again) == on_disk(baked)
+
+
+def test_in_place_plain_usdc_stays_0_8(painterly, tmp_path):
+    rig = skel_rig(tmp_path, name="plain.usdc")
+    assert crate_version(rig.path) == "0.8.0"
+    painterly("bind", rig.path, "--time", 5, "--in-place", "--quiet")
+    assert crate_version(rig.path) == "0.8.0"
+    held = usd_core_touch(rig.path)
+    assert on_disk(rig.path) == held
+
+
+# Values usd-core writes that openusd 0.8's crate reader gets wrong, so an
+# --in-place edit cannot keep them (painterly's writer is not involved).
+OPENUSD_READER_BUGS = {
+    # usd-core inlines small int64s; openusd zero-extends the 32-bit payload.
+    "negative int64": (T.Int64, -5),
+    # usd-core stores an empty string[] as payload 0; openusd reads it as an offset.
+    "empty string[]": (T.StringArray, Vt.StringArray()),
+}
+
+
+@pytest.mark.xfail(strict=True, reason="openusd 0.8 crate reader bugs (see OPENUSD_READER_BUGS)")
+@pytest.mark.parametrize("case", sorted(OPENUSD_READER_BUGS))
+def test_in_place_keeps_values_openusd_misreads(painterly, tmp_path, case):
+    type_name, value = OPENUSD_READER_BUGS[case]
+    rig = skel_rig(tmp_path, name="bug.usda")
+    src = Sdf.Layer.FindOrOpen(str(rig.path))
+    x = Sdf.CreatePrimInLayer(src, "/Bug")
+    x.specifier = Sdf.SpecifierDef
+    Sdf.AttributeSpec(x, "v", type_name).default = value
+    inp = tmp_path / "bug.usdc"
+    src.Export(str(inp))
+    painterly("bind", inp, "--in-place", "--quiet")
+    assert Sdf.Layer.OpenAsAnonymous(str(inp)).GetAttributeAtPath("/Bug.v").default == value
+
+
+# ---------------------------------------------------------------------------
+# size
+
+
+def test_bake_is_no_bigger_than_usd_cores_file(painterly, tmp_path):
+    rig = skel_rig(tmp_path, frames=(1, 48), n_strokes=40)
+    bake = tmp_path / "bake.usdc"
+    painterly("bake", rig.path, "-o", bake, "--quiet", "--bake-proxy")
+    theirs = tmp_path / "usd_core.usdc"
+    Sdf.Layer.OpenAsAnonymous(str(bake)).Export(str(theirs))
+    assert on_disk(theirs) == on_disk(bake)
+    ours, ref = bake.stat().st_size, theirs.stat().st_size
+    print(f"bake: painterly {ours} bytes, usd-core {ref} bytes ({ours / ref:.3f}x)")
+    assert ours <= 1.02 * ref, f"painterly {ours} bytes vs usd-core {ref}"

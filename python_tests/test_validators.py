@@ -1,0 +1,365 @@
+"""painterly's rules as usd-core UsdValidation validators (issue 14).
+
+- `plugInfo.json` declares one validator per rule `painterly inspect`
+  checks (`painterly.RULES`, from the Rust `Rule` list), keyword
+  "painterly";
+- every rule's validator fires on a bad input written with usd-core, names
+  the prim and attribute, and agrees with `painterly inspect`; it stays
+  quiet on every fixture;
+- usd-core finds the plugin through PXR_PLUGINPATH_NAME (set before its
+  registry starts) and imports it lazily; importing `painterly.validators`
+  after the registry started registers the same validators explicitly;
+- `painterly-validate FILE` exits 1 on errors, 0 without, 2 on bad usage.
+"""
+
+import json
+import os
+import pathlib
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from pxr import Gf, Sdf, Usd, UsdGeom, UsdValidation, Vt
+
+import authoring as Au
+import authoring_keys as AK
+from conftest import PAINTERLY_PLUGIN, REPO
+
+if os.environ.get("PAINTERLY_PYTHON_PACKAGE") == "required":
+    import painterly
+else:
+    painterly = pytest.importorskip("painterly")
+
+FIXTURES = REPO / "fixtures"
+PLUGIN = "painterly.validators"
+T = Sdf.ValueTypeNames
+LAYER = "/World/Paint/Hair"
+FACE = "/World/Face"
+
+
+def good_stage(path):
+    """A small correct character: a static proxy, an attribute axis, a stroke
+    layer with two pose keys, a time key bounded by a sentinel, and a
+    view-dependent mesh with one key."""
+    stage = Usd.Stage.CreateNew(str(path))
+    Au.set_stage_metadata(stage, 1, 11)
+    knob = stage.DefinePrim("/World/Controls").CreateAttribute("knob", T.Double)
+    knob.Set(0.0, 1)
+    knob.Set(1.0, 11)
+    mesh = UsdGeom.Mesh.Define(stage, "/World/Proxy")
+    mesh.CreateFaceVertexCountsAttr([4, 4])
+    mesh.CreateFaceVertexIndicesAttr([0, 1, 4, 3, 1, 2, 5, 4])
+    quad = [[0, 0, 0], [1, 0, 0], [2, 0, 0], [0, 1, 0], [1, 1, 0], [2, 1, 0]]
+    mesh.CreatePointsAttr(Au.v3f(quad))
+    Au.add_painterly_rig(stage, "/World/Paint", "/World/Proxy")
+    AK.add_axis(stage, "/World/Paint/knob", "attribute", source="/World/Controls.knob")
+    low = np.array([[0.2, 0.2, 0], [0.8, 0.5, 0], [1.5, 0.5, 0], [1.8, 0.8, 0]])
+    Au.add_stroke_layer(stage, LAYER, [4], low)
+    AK.add_pose_key(stage, LAYER, "low", [0], points=low)
+    AK.add_pose_key(stage, LAYER, "high", [1], points=low + 0.1)
+    AK.add_time_key(stage, LAYER, "shock", 6, points=low - 0.1)
+    AK.add_time_key(stage, LAYER, "calm", 8, sentinel=True)
+    face = UsdGeom.Mesh.Define(stage, FACE)
+    face.CreateFaceVertexCountsAttr([4])
+    face.CreateFaceVertexIndicesAttr([0, 1, 2, 3])
+    face.CreatePointsAttr(Au.v3f(quad[:2] + [quad[4], quad[3]]))
+    face.GetPrim().AddAppliedSchema("PainterlyViewDependentAPI")
+    cam = UsdGeom.Camera.Define(stage, "/World/Cam")
+    cam.AddTranslateOp().Set(Gf.Vec3d(1, 0.5, 5))
+    face.GetPrim().CreateRelationship("painterly:camera").SetTargets([cam.GetPath()])
+    key = stage.DefinePrim(f"{FACE}/front", "PainterlyViewKey")
+    key.CreateAttribute("direction", T.Float3).Set(Gf.Vec3f(0, 0, 1))
+    key.CreateAttribute("points", T.Point3fArray).Set(Au.v3f(np.array(quad[:2] + [quad[4], quad[3]]) + [0, 0, 0.2]))
+    return stage
+
+
+def prim(stage, path):
+    return stage.GetPrimAtPath(path)
+
+
+def _curves(stage, path, parent_api=True):
+    c = UsdGeom.BasisCurves.Define(stage, path)
+    c.GetPrim().AddAppliedSchema("PainterlyStrokeLayerAPI")
+    c.CreateCurveVertexCountsAttr([2])
+    return c
+
+
+def _skinning(stage):
+    p = prim(stage, "/World/Proxy")
+    p.AddAppliedSchema("SkelBindingAPI")
+    p.CreateRelationship("skel:skeleton").SetTargets([Sdf.Path("/World/Controls")])
+    return "/World/Proxy", "skel:skeleton"
+
+
+def _layer_not_curves(stage):
+    x = UsdGeom.Xform.Define(stage, "/World/Paint/NotCurves")
+    x.GetPrim().AddAppliedSchema("PainterlyStrokeLayerAPI")
+    return "/World/Paint/NotCurves", None
+
+
+def _missing_rest_points(stage):
+    _curves(stage, "/World/Paint/Empty")
+    return "/World/Paint/Empty", "points"
+
+
+def _layer_outside_rig(stage):
+    c = _curves(stage, "/World/Loose")
+    c.CreatePointsAttr(Au.v3f([[0, 0, 0], [1, 0, 0]]))
+    return "/World/Loose", None
+
+
+def _set(path, name, tname, value):
+    def make(stage):
+        prim(stage, path).CreateAttribute(name, tname).Set(value)
+        return path, name
+
+    return make
+
+
+def _time_key_without_time(stage):
+    stage.DefinePrim(f"{LAYER}/untimed", "PainterlyTimeKey")
+    return f"{LAYER}/untimed", "time"
+
+
+def _sentinel_with_points(stage):
+    prim(stage, f"{LAYER}/calm").CreateAttribute("points", T.Point3fArray).Set(Au.v3f(np.zeros((4, 3))))
+    return f"{LAYER}/calm", "points"
+
+
+def _binding_half(stage):
+    prim(stage, LAYER).CreateAttribute("painterly:bindVertices", T.Int3Array).Set(Vt.Vec3iArray([Gf.Vec3i(0, 1, 4)] * 4))
+    return LAYER, "painterly:bindWeights"
+
+
+def _second_untimed_view_key(stage):
+    key = stage.DefinePrim(f"{FACE}/front2", "PainterlyViewKey")
+    key.CreateAttribute("direction", T.Float3).Set(Gf.Vec3f(0, 0, 2))
+    key.CreateAttribute("points", T.Point3fArray).Set(prim(stage, f"{FACE}/front").GetAttribute("points").Get())
+    return f"{FACE}/front", "time"
+
+
+def _missing_proxy(stage):
+    prim(stage, "/World/Paint").GetRelationship("painterly:proxy").ClearTargets(True)
+    return "/World/Paint", "painterly:proxy"
+
+
+def _spec_with_type(stage, path, name, tname, value):
+    """An attribute spec of the wrong type, written at the Sdf level (the
+    schema plugin makes usd-core refuse it through Usd)."""
+    spec = Sdf.AttributeSpec(stage.GetRootLayer().GetPrimAtPath(path), name, tname)
+    spec.default = value
+    return path, name
+
+
+NAN = float("nan")
+
+# rule id → a function that breaks a good stage and returns the (prim, attribute) the error must name.
+BREAK = {
+    "missing-proxy": _missing_proxy,
+    "mesh": _set("/World/Proxy", "faceVertexIndices", T.IntArray, Vt.IntArray([0, 1, 4, 3, 1, 2, 5, 9])),
+    "skinning": _skinning,
+    "layer-outside-rig": _layer_outside_rig,
+    "layer-not-curves": _layer_not_curves,
+    "point-counts": _set(LAYER, "curveVertexCounts", T.IntArray, Vt.IntArray([5])),
+    "missing-rest-points": _missing_rest_points,
+    "binding": _binding_half,
+    "display-opacity": _set(LAYER, "primvars:displayOpacity", T.FloatArray, Vt.FloatArray([1, 1, 1])),
+    "axis": _set("/World/Paint/knob", "kind", T.Token, "bogus"),
+    "key-point-counts": _set(f"{LAYER}/high", "points", T.Point3fArray, Au.v3f(np.zeros((3, 3)))),
+    "key-coordinates": _set(f"{LAYER}/high", "coordinates", T.FloatArray, Vt.FloatArray([1, 2])),
+    "key-time": _time_key_without_time,
+    "coincident-keys": lambda s: (_set(f"{LAYER}/high", "coordinates", T.FloatArray, Vt.FloatArray([0]))(s), (f"{LAYER}/low", "coordinates"))[1],
+    "sentinel-misuse": _sentinel_with_points,
+    "interpolation": _set(LAYER, "painterly:interpolation", T.Token, "linear"),
+    "view-mesh": _set(FACE, "painterly:uncovered", T.Token, "sideways"),
+    "view-key-counts": _set(f"{FACE}/front", "points", T.Point3fArray, Au.v3f(np.zeros((3, 3)))),
+    "view-key-directions": _set(f"{FACE}/front", "direction", T.Float3, Gf.Vec3f(0, 0, 0)),
+    "view-key-times": _second_untimed_view_key,
+    "non-finite": _set(LAYER, "painterly:restPoints", T.Point3fArray, Au.v3f([[0, 0, 0], [NAN, 0, 0], [1, 0, 0], [1, 1, 0]])),
+    "attribute-type": lambda s: _spec_with_type(s, LAYER, "painterly:opacity", T.String, "half"),
+}
+# Rules whose bad input is not a stage edit: tested on their own below.
+SEPARATE = {"chunks", "unreadable"}
+
+
+_opened = []  # stages stay alive while their errors' sites are looked at
+
+
+def validate(path_or_stage):
+    stage = path_or_stage if isinstance(path_or_stage, Usd.Stage) else Usd.Stage.Open(str(path_or_stage))
+    _opened[:] = [stage]
+    context = UsdValidation.ValidationContext(keywords=["painterly"])
+    return [e for e in context.Validate(stage) if not e.HasNoError()]
+
+
+def by_validator(errors):
+    out = {}
+    for e in errors:
+        out.setdefault(e.GetValidator().GetMetadata().name, []).append(e)
+    return out
+
+
+def test_plugin_info_declares_one_validator_per_rule():
+    with open(pathlib.Path(painterly.plugin_path()) / "plugInfo.json") as f:
+        info = json.load(f)
+    import painterly.validators as V
+
+    assert info == V.plugin_info()
+    declared = info["Plugins"][0]["Info"]["Validators"]
+    assert declared.pop("keywords") == ["painterly"]
+    assert sorted(declared) == sorted(r["validator"] for r in painterly.RULES)
+    # Every rule is broken by a test below.
+    assert sorted(BREAK.keys() | SEPARATE) == sorted(r["id"] for r in painterly.RULES)
+
+
+def test_usd_core_loaded_the_plugin_from_the_plugin_path():
+    registry = UsdValidation.ValidationRegistry()
+    for r in painterly.RULES:
+        meta = registry.GetValidatorMetadata(f"{PLUGIN}:{r['validator']}")
+        assert meta is not None and meta.plugin is not None, r
+        assert list(meta.GetKeywords()) == ["painterly"] and meta.doc == r["doc"]
+
+
+@pytest.mark.parametrize("rule", sorted(BREAK))
+def test_each_rule_fires_on_a_bad_input_and_names_prim_and_attribute(tmp_path, rule):
+    path = tmp_path / f"{rule}.usda"
+    stage = good_stage(path)
+    stage.Save()
+    assert validate(path) == []
+    where_prim, where_attr = BREAK[rule](stage)
+    stage.Save()
+    validator = next(r["validator"] for r in painterly.RULES if r["id"] == rule)
+    found = by_validator(validate(path))
+    assert f"{PLUGIN}:{validator}" in found, {k: [e.GetMessage() for e in v] for k, v in found.items()}
+    errors = found[f"{PLUGIN}:{validator}"]
+    where = where_prim + (f".{where_attr}" if where_attr else "")
+    assert any(e.GetMessage().startswith(f"{where}: ") for e in errors), [e.GetMessage() for e in errors]
+    for e in errors:
+        assert e.GetType() == UsdValidation.ValidationErrorType.Error
+    sites = [s for e in errors for s in e.GetSites()]
+    assert all(s.IsValid() for s in sites)
+    on = [s.GetProperty().GetPrimPath() if s.IsProperty() else s.GetPrim().GetPath() for s in sites]
+    assert Sdf.Path(where_prim) in on, on
+    if where_attr:  # the site is the property itself whenever the stage has it
+        has = bool(stage.GetPrimAtPath(where_prim)) and bool(stage.GetPrimAtPath(where_prim).GetProperty(where_attr))
+        assert has == any(s.IsProperty() and s.GetProperty().GetName() == where_attr for s in sites)
+    # The same finding as `painterly inspect`, under the same rule.
+    report = painterly.inspect(path)
+    assert any(p["rule"] == rule and p["prim"] == where_prim and p["attribute"] == where_attr for p in report["problems"])
+    # And nothing else fires.
+    assert set(found) == {f"{PLUGIN}:{validator}"}, sorted(found)
+
+
+def test_unsaved_edits_are_validated(tmp_path):
+    stage = good_stage(tmp_path / "edit.usda")
+    stage.Save()
+    assert validate(stage) == []
+    _missing_proxy(stage)  # not saved
+    assert stage.GetRootLayer().dirty
+    found = by_validator(validate(stage))
+    assert list(found) == [f"{PLUGIN}:MissingProxy"]
+    stage.GetRootLayer().Reload()
+    assert validate(stage) == []
+
+
+def test_chunks(tmp_path):
+    src = tmp_path / "shot.usda"
+    good_stage(src).Save()
+    clips = tmp_path / "bake.usda"
+    painterly.bake(src, clips, chunk=4)
+    assert validate(clips) == []
+    chunk = sorted((tmp_path / "bake.clips").iterdir())[1]
+    chunk.unlink()
+    found = by_validator(validate(clips))
+    assert list(found) == [f"{PLUGIN}:Chunks"]
+    assert chunk.name in found[f"{PLUGIN}:Chunks"][0].GetMessage()
+
+
+def test_unreadable(tmp_path):
+    """A stage painterly cannot read is reported, not skipped: here its file
+    went away after usd-core opened it (openusd reads every layer usd-core
+    reads, so a file is the way to get there)."""
+    path = tmp_path / "shot.usda"
+    good_stage(path).Save()
+    stage = Usd.Stage.Open(str(path))
+    assert validate(stage) == []
+    os.rename(path, tmp_path / "moved.usda")
+    found = by_validator(validate(stage))
+    assert list(found) == [f"{PLUGIN}:Unreadable"], found
+    assert "shot.usda" in found[f"{PLUGIN}:Unreadable"][0].GetMessage()
+
+
+@pytest.mark.parametrize("fixture", sorted(p.name for p in FIXTURES.glob("*.usda")))
+def test_quiet_on_every_fixture(fixture):
+    assert validate(FIXTURES / fixture) == []
+
+
+# ---------------------------------------------------------------------------
+# discovery and the command line
+
+
+def run_python(code, env_extra=None):
+    env = {k: v for k, v in os.environ.items() if k != "PXR_PLUGINPATH_NAME"}
+    env.update(env_extra or {})
+    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=300)
+
+
+def test_plugin_route_imports_the_validators_lazily(tmp_path):
+    path = tmp_path / "bad.usda"
+    stage = good_stage(path)
+    _missing_proxy(stage)
+    stage.Save()
+    code = f"""
+import sys
+from pxr import Usd, UsdValidation
+meta = UsdValidation.ValidationRegistry().GetValidatorMetadata("{PLUGIN}:MissingProxy")
+assert meta is not None and meta.plugin is not None
+assert "painterly.validators" not in sys.modules
+errors = UsdValidation.ValidationContext(keywords=["painterly"]).Validate(Usd.Stage.Open({str(path)!r}))
+assert "painterly.validators" in sys.modules
+print([e.GetValidator().GetMetadata().name for e in errors])
+"""
+    proc = run_python(code, {"PXR_PLUGINPATH_NAME": PAINTERLY_PLUGIN})
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip() == f"['{PLUGIN}:MissingProxy']"
+
+
+def test_a_late_import_registers_the_validators_explicitly(tmp_path):
+    path = tmp_path / "bad.usda"
+    stage = good_stage(path)
+    _missing_proxy(stage)
+    stage.Save()
+    code = f"""
+from pxr import Usd, UsdValidation
+assert UsdValidation.ValidationRegistry().GetValidatorMetadata("{PLUGIN}:MissingProxy") is None
+import painterly.validators
+errors = UsdValidation.ValidationContext(keywords=["painterly"]).Validate(Usd.Stage.Open({str(path)!r}))
+print([e.GetValidator().GetMetadata().name for e in errors])
+"""
+    proc = run_python(code)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip() == f"['{PLUGIN}:MissingProxy']"
+
+
+def painterly_validate(*args):
+    exe = pathlib.Path(sys.executable).parent / "painterly-validate"
+    env = {k: v for k, v in os.environ.items() if k != "PXR_PLUGINPATH_NAME"}
+    return subprocess.run([str(exe), *map(str, args)], capture_output=True, text=True, env=env, timeout=300)
+
+
+def test_painterly_validate_exit_codes(tmp_path):
+    bad = tmp_path / "bad.usda"
+    stage = good_stage(bad)
+    _missing_proxy(stage)
+    stage.Save()
+    proc = painterly_validate(bad)
+    assert proc.returncode == 1, proc.stderr
+    assert f"{PLUGIN}:MissingProxy" in proc.stdout and "/World/Paint.painterly:proxy: not authored" in proc.stdout
+    proc = painterly_validate(FIXTURES / "blowfish.usda", FIXTURES / "head.usda")
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert proc.stdout.count("no problems found") == 2
+    proc = painterly_validate()
+    assert proc.returncode == 2
+    proc = painterly_validate(tmp_path / "missing.usda")
+    assert proc.returncode == 1 and "missing.usda" in proc.stderr

@@ -1,0 +1,79 @@
+"""`painterly view`: an assembly layer that shows a bake over its input in
+usdview at the baked frames, with nothing for UsdValidation to report."""
+
+import json
+
+import numpy as np
+from pxr import Sdf, Usd, UsdGeom, UsdValidation
+
+
+def validation_errors(stage):
+    registry = UsdValidation.ValidationRegistry()
+    ctx = UsdValidation.ValidationContext(registry.GetOrLoadAllValidators())
+    return [e.GetMessage() for e in ctx.Validate(stage)]
+
+
+def test_view_layer_shows_the_bake_at_its_frames(painterly, tmp_path, repo_root):
+    src = repo_root / "fixtures" / "blowfish.usda"
+    shot = tmp_path / "shot"
+    shot.mkdir()
+    bake = shot / "fish_bake.usdc"
+    painterly("bake", src, "-o", bake, "--frames", "5:20")
+    view = shot / "fish_view.usda"
+    out = json.loads(painterly("view", src, "--bake", bake, "-o", view, "--json").stdout)
+    assert out == {
+        "input": str(src),
+        "bake": str(bake),
+        "output": str(view),
+        "start_time_code": 5.0,
+        "end_time_code": 20.0,
+        "default_prim": "Blowfish",
+        "warnings": [],
+    }
+    layer = Sdf.Layer.FindOrOpen(str(view))
+    assert list(layer.subLayerPaths)[0] == "./fish_bake.usdc"
+    stage = Usd.Stage.Open(str(view))
+    assert (stage.GetStartTimeCode(), stage.GetEndTimeCode()) == (5, 20)
+    assert stage.GetTimeCodesPerSecond() == 24 and stage.GetFramesPerSecond() == 24
+    assert UsdGeom.GetStageUpAxis(stage) == "Y" and UsdGeom.GetStageMetersPerUnit(stage) == 0.01
+    assert stage.GetDefaultPrim().GetPath() == "/Blowfish"
+    assert validation_errors(stage) == []
+    baked = Sdf.Layer.FindOrOpen(str(bake))
+    path = "/Blowfish/Paint/Spikes.points"
+    for t in (5, 12, 20):
+        np.testing.assert_array_equal(
+            np.array(stage.GetAttributeAtPath(path).Get(t)), np.array(baked.QueryTimeSample(path, t))
+        )
+    # Moving the shot folder keeps the bake (relative path).
+    moved = tmp_path / "moved"
+    shot.rename(moved)
+    stage = Usd.Stage.Open(str(moved / "fish_view.usda"))
+    assert len(stage.GetAttributeAtPath(path).Get(12)) == 780
+
+
+def test_view_refuses_a_bake_of_another_input(painterly, tmp_path, repo_root):
+    bake = tmp_path / "apple.usdc"
+    painterly("bake", repo_root / "fixtures" / "apple.usda", "-o", bake, "--frames", "1:2")
+    proc = painterly("view", repo_root / "fixtures" / "blowfish.usda", "--bake", bake, "-o", tmp_path / "v.usda", check=False)
+    assert proc.returncode == 1
+    assert "was made from" in proc.stderr and "apple.usda" in proc.stderr
+    assert not (tmp_path / "v.usda").exists()
+
+
+def test_view_of_a_clip_set_bake(painterly, tmp_path, repo_root):
+    src = repo_root / "fixtures" / "tube.usda"
+    painterly("bake", src, "-o", tmp_path / "shot.usda", "--chunk", "10")
+    painterly("view", src, "--bake", tmp_path / "shot.usda", "-o", tmp_path / "view.usda")
+    stage = Usd.Stage.Open(str(tmp_path / "view.usda"))
+    assert (stage.GetStartTimeCode(), stage.GetEndTimeCode()) == (1, 24)
+    single = tmp_path / "single.usdc"
+    painterly("bake", src, "-o", single)
+    path = "/Tube/Paint/Rings.points"
+    reference = Usd.Stage.Open(str(single))
+    for t in (3, 11, 12.5, 24):
+        np.testing.assert_allclose(
+            np.array(stage.GetAttributeAtPath(path).Get(t)),
+            np.array(reference.GetAttributeAtPath(path).Get(t)),
+            rtol=0, atol=1e-6,
+        )
+    assert validation_errors(stage) == []

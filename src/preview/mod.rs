@@ -1,0 +1,96 @@
+//! `painterly preview`: a live view of a painted character in the browser.
+//!
+//! A loopback web server (axum + tokio) serves one page of our own (plain
+//! WebGL2, embedded in the binary) and evaluates frames on demand: the
+//! timeline, one slider per configuration axis (pose mode overrides), and
+//! the orbit camera as the eye of viewDirection axes and view-dependent
+//! meshes. See docs/preview.md for the protocol.
+//!
+//! | module | concept |
+//! |---|---|
+//! | [`protocol`] | requests, the binary frame format, the scene description |
+//! | [`evaluator`] | the thread that owns the character and evaluates frames |
+//! | [`server`] | routes, assets, host check, websocket stream |
+
+pub mod evaluator;
+pub mod protocol;
+pub mod server;
+
+use std::io::Write;
+use std::net::{IpAddr, Ipv4Addr, SocketAddr};
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use crate::error::{Error, Result};
+
+/// `painterly preview` options.
+#[derive(Debug, Clone, clap::Args)]
+pub struct PreviewArgs {
+    /// The painted character (.usda, .usdc or .usdz). Never written.
+    pub input: PathBuf,
+    /// A layer `painterly bake` wrote from INPUT: the page can show its
+    /// frames beside the live evaluation ("show bake").
+    #[arg(long, value_name = "LAYER")]
+    pub bake: Option<PathBuf>,
+    /// Camera prim for viewDirection axes without a source and for every
+    /// view-dependent mesh (overrides their painterly:camera), as in bake;
+    /// also where the page's orbit starts.
+    #[arg(long, value_name = "PRIM")]
+    pub camera: Option<String>,
+    /// Port to listen on; 0 picks a free one (the URL printed says which).
+    #[arg(long, default_value_t = 8765)]
+    pub port: u16,
+    /// Address to listen on. The default serves this machine only; any
+    /// other address lets other machines evaluate (never write) the input.
+    #[arg(long, default_value_t = IpAddr::V4(Ipv4Addr::LOCALHOST), value_name = "ADDR")]
+    pub host: IpAddr,
+}
+
+/// Opens the character, binds, prints the URL and serves until killed.
+pub fn run(args: &PreviewArgs) -> Result<()> {
+    if !args.input.is_file() {
+        return Err(Error::msg("cannot open input: no such file").in_file(&args.input));
+    }
+    let evaluator = evaluator::Evaluator::start(&args.input, args.camera.as_deref(), args.bake.as_deref())?;
+    let runtime = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .map_err(|e| Error::msg(format!("cannot start the server runtime: {e}")))?;
+    runtime.block_on(async move {
+        let addr = SocketAddr::new(args.host, args.port);
+        let listener = tokio::net::TcpListener::bind(addr)
+            .await
+            .map_err(|e| Error::msg(format!("cannot listen on {addr}: {e}")))?;
+        let local = listener
+            .local_addr()
+            .map_err(|e| Error::msg(format!("cannot read the listening address: {e}")))?;
+        let state = Arc::new(server::AppState {
+            evaluator,
+            hosts: allowed_hosts(local),
+        });
+        let url = format!("http://{local}/");
+        println!("painterly preview of {}: {url}", args.input.display());
+        println!("(serving {} only; Ctrl-C stops)", local.ip());
+        let _ = std::io::stdout().flush();
+        axum::serve(listener, server::router(state))
+            .await
+            .map_err(|e| Error::msg(format!("server stopped: {e}")))
+    })
+}
+
+/// `Host` header values a browser sends for this server on loopback;
+/// `None` (any host) when serving another address on purpose (`--host`).
+pub fn allowed_hosts(local: SocketAddr) -> Option<Vec<String>> {
+    if !local.ip().is_loopback() {
+        return None;
+    }
+    let port = local.port();
+    let mut hosts = vec![
+        local.to_string(),
+        format!("127.0.0.1:{port}"),
+        format!("localhost:{port}"),
+        format!("[::1]:{port}"),
+    ];
+    hosts.dedup();
+    Some(hosts)
+}

@@ -1,0 +1,324 @@
+//! What the preview page and the server say to each other (docs/preview.md).
+//!
+//! Requests are small JSON objects, checked here before they reach the
+//! evaluator. Bulk data goes back as one binary buffer: a little-endian
+//! `u32` magic, a `u32` header length, a JSON header (padded with spaces to
+//! a multiple of 4 bytes) and a Float32 payload. The header's `arrays` maps
+//! each array's name to `[offset, length]`, both counted in floats from the
+//! payload's start.
+
+use std::collections::BTreeMap;
+
+use serde::{Deserialize, Serialize};
+
+use crate::character::Configuration;
+
+/// "PTLY", little-endian.
+pub const MAGIC: u32 = u32::from_le_bytes(*b"PTLY");
+
+/// The most pixels a render request may ask for (per side).
+pub const MAX_RENDER_SIDE: usize = 4096;
+
+/// One frame to evaluate.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FrameRequest {
+    /// Echoed in the reply, so a page can match replies to requests.
+    #[serde(default)]
+    pub id: u64,
+    /// Time code.
+    pub time: f64,
+    /// Axis prim path → value (axis units): the pose mode's pinned sliders.
+    #[serde(default)]
+    pub overrides: Configuration,
+    /// World-space eye for viewDirection axes and view-dependent meshes
+    /// ("view drives"); absent: the stage's cameras.
+    #[serde(default)]
+    pub eye: Option<[f64; 3]>,
+    /// Also send the posed proxies.
+    #[serde(default)]
+    pub proxy: bool,
+    /// Send the `--bake` layer's points at `time` instead of evaluating
+    /// (overrides and eye do not apply).
+    #[serde(default)]
+    pub bake: bool,
+}
+
+/// The orbit camera, as the page draws it.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ViewCamera {
+    /// Eye position, world space.
+    pub position: [f64; 3],
+    /// The point looked at.
+    pub target: [f64; 3],
+    /// Up direction.
+    pub up: [f64; 3],
+    /// Vertical field of view in degrees.
+    pub fov_y: f64,
+    pub near: f64,
+    pub far: f64,
+}
+
+/// A `painterly render` frame of the current view.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RenderRequest {
+    pub frame: FrameRequest,
+    pub camera: ViewCamera,
+    pub width: usize,
+    pub height: usize,
+}
+
+/// A request the server refuses (HTTP 400).
+#[derive(Debug, Clone, PartialEq)]
+pub struct BadRequest(pub String);
+
+fn finite(what: &str, v: &[f64]) -> Result<(), BadRequest> {
+    if v.iter().all(|x| x.is_finite()) {
+        Ok(())
+    } else {
+        Err(BadRequest(format!("{what} must be finite, got {v:?}")))
+    }
+}
+
+impl FrameRequest {
+    /// Checks numbers and axis names against the opened character.
+    pub fn check(&self, axes: &[String]) -> Result<(), BadRequest> {
+        finite("time", &[self.time])?;
+        if let Some(e) = &self.eye {
+            finite("eye", e)?;
+        }
+        for (path, v) in &self.overrides {
+            if !axes.iter().any(|a| a == path) {
+                return Err(BadRequest(format!("{path} is not an axis of this character")));
+            }
+            finite(path, &[*v])?;
+        }
+        Ok(())
+    }
+}
+
+impl RenderRequest {
+    /// Checks the frame, the camera and the image size.
+    pub fn check(&self, axes: &[String]) -> Result<(), BadRequest> {
+        self.frame.check(axes)?;
+        let c = &self.camera;
+        finite("camera.position", &c.position)?;
+        finite("camera.target", &c.target)?;
+        finite("camera.up", &c.up)?;
+        finite("camera fov_y, near and far", &[c.fov_y, c.near, c.far])?;
+        if !(c.fov_y > 0.1 && c.fov_y < 179.0) {
+            return Err(BadRequest(format!(
+                "camera.fov_y {} is not in (0.1, 179) degrees",
+                c.fov_y
+            )));
+        }
+        if !(c.near > 0.0 && c.far > c.near) {
+            return Err(BadRequest(format!(
+                "camera near {} and far {} must satisfy 0 < near < far",
+                c.near, c.far
+            )));
+        }
+        for (what, n) in [("width", self.width), ("height", self.height)] {
+            if n == 0 || n > MAX_RENDER_SIDE {
+                return Err(BadRequest(format!("{what} {n} is not in 1..={MAX_RENDER_SIDE}")));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Builds a binary reply: named Float32 arrays behind a JSON header.
+#[derive(Default)]
+pub struct Buffer {
+    arrays: BTreeMap<String, [usize; 2]>,
+    floats: Vec<f32>,
+}
+
+impl Buffer {
+    /// Appends an array under `name`.
+    pub fn push(&mut self, name: impl Into<String>, values: impl IntoIterator<Item = f32>) {
+        let start = self.floats.len();
+        self.floats.extend(values);
+        self.arrays.insert(name.into(), [start, self.floats.len() - start]);
+    }
+
+    /// The reply: magic, header length, header (`header` plus `arrays`), payload.
+    pub fn finish(self, header: serde_json::Value) -> Vec<u8> {
+        let mut header = match header {
+            serde_json::Value::Object(m) => m,
+            other => {
+                let mut m = serde_json::Map::new();
+                m.insert("value".into(), other);
+                m
+            }
+        };
+        header.insert(
+            "arrays".into(),
+            serde_json::to_value(&self.arrays).unwrap_or(serde_json::Value::Null),
+        );
+        let mut json = serde_json::to_vec(&header).unwrap_or_else(|_| b"{}".to_vec());
+        while json.len() % 4 != 0 {
+            json.push(b' ');
+        }
+        let mut out = Vec::with_capacity(8 + json.len() + 4 * self.floats.len());
+        out.extend_from_slice(&MAGIC.to_le_bytes());
+        out.extend_from_slice(&(json.len() as u32).to_le_bytes());
+        out.extend_from_slice(&json);
+        out.extend_from_slice(bytemuck::cast_slice(&self.floats));
+        out
+    }
+}
+
+/// Reads a reply back (tests and tools): the header and the payload.
+pub fn decode(bytes: &[u8]) -> Option<(serde_json::Value, Vec<f32>)> {
+    let word = |i: usize| {
+        bytes
+            .get(i..i + 4)
+            .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+    };
+    if word(0)? != MAGIC {
+        return None;
+    }
+    let n = word(4)? as usize;
+    let header = serde_json::from_slice(bytes.get(8..8 + n)?).ok()?;
+    let payload = bytes.get(8 + n..)?;
+    if payload.len() % 4 != 0 {
+        return None;
+    }
+    let floats = payload
+        .chunks_exact(4)
+        .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+        .collect();
+    Some((header, floats))
+}
+
+/// One pose key's mark on its axis's slider.
+#[derive(Debug, Clone, Serialize)]
+pub struct KeyMark {
+    /// The key prim.
+    pub key: String,
+    /// Its coordinate on this axis (axis units, as authored).
+    pub coordinate: f64,
+}
+
+/// One axis and its slider.
+#[derive(Debug, Clone, Serialize)]
+pub struct AxisInfo {
+    pub path: String,
+    pub rig: String,
+    pub kind: String,
+    /// Slider range: the keys' coordinates and the values over the
+    /// timeline, padded.
+    pub min: f64,
+    pub max: f64,
+    pub keys: Vec<KeyMark>,
+}
+
+/// One stroke layer: where it lives and Bassett's Table I counts.
+#[derive(Debug, Clone, Serialize)]
+pub struct LayerInfo {
+    pub path: String,
+    pub rig: String,
+    pub strokes: usize,
+    pub points: usize,
+    pub pose_position_keys: usize,
+    pub pose_opacity_keys: usize,
+    pub time_keys: usize,
+    pub sentinels: usize,
+    /// Points per stroke.
+    pub curve_counts: Vec<u32>,
+    /// Axis paths its pose keys are placed on, in coordinate order.
+    pub axes: Vec<String>,
+}
+
+/// A polygon mesh's topology and look.
+#[derive(Debug, Clone, Serialize)]
+pub struct MeshInfo {
+    pub path: String,
+    pub face_counts: Vec<u32>,
+    pub face_indices: Vec<u32>,
+    /// Smooth normals (subdivision surfaces) or faceted.
+    pub smooth: bool,
+    /// Linear display colour (the first authored one).
+    pub color: [f32; 3],
+    /// For view-dependent meshes: the camera they are seen from.
+    pub camera: Option<String>,
+}
+
+/// A problem `painterly inspect` reports.
+#[derive(Debug, Clone, Serialize)]
+pub struct ProblemInfo {
+    pub prim: Option<String>,
+    pub attribute: Option<String>,
+    pub message: String,
+}
+
+/// Where the page's orbit camera starts.
+#[derive(Debug, Clone, Serialize)]
+pub struct StartView {
+    pub position: [f64; 3],
+    pub target: [f64; 3],
+    pub up: [f64; 3],
+    pub fov_y: f64,
+    /// The USD camera it came from, if any.
+    pub camera: Option<String>,
+}
+
+/// Everything about the opened character that does not change per frame.
+#[derive(Debug, Clone, Serialize)]
+pub struct SceneInfo {
+    pub file: String,
+    pub start: f64,
+    pub end: f64,
+    pub frames_per_second: f64,
+    pub up_axis: String,
+    pub layers: Vec<LayerInfo>,
+    pub axes: Vec<AxisInfo>,
+    pub proxies: Vec<MeshInfo>,
+    pub views: Vec<MeshInfo>,
+    pub problems: Vec<ProblemInfo>,
+    pub view: StartView,
+    /// Scene bounds (world), for the orbit's zoom range.
+    pub bounds: [[f64; 3]; 2],
+    /// The `--bake` layer, when given.
+    pub bake: Option<String>,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn buffers_round_trip_with_aligned_payload() {
+        let mut b = Buffer::default();
+        b.push("a", [1.0, 2.0, 3.0]);
+        b.push("b", [4.5]);
+        let bytes = b.finish(serde_json::json!({"time": 3}));
+        let n = u32::from_le_bytes(bytes[4..8].try_into().unwrap()) as usize;
+        assert_eq!(n % 4, 0);
+        let (h, f) = decode(&bytes).unwrap();
+        assert_eq!(f, [1.0, 2.0, 3.0, 4.5]);
+        assert_eq!(h["time"], 3);
+        assert_eq!(h["arrays"]["a"], serde_json::json!([0, 3]));
+        assert_eq!(h["arrays"]["b"], serde_json::json!([3, 1]));
+        assert!(decode(b"nope").is_none());
+    }
+
+    #[test]
+    fn requests_are_checked() {
+        let axes = vec!["/A/x".to_string()];
+        let ok: FrameRequest = serde_json::from_str(r#"{"time": 3, "overrides": {"/A/x": 0.5}}"#).unwrap();
+        assert!(ok.check(&axes).is_ok());
+        let unknown: FrameRequest = serde_json::from_str(r#"{"time": 3, "overrides": {"/A/y": 0.5}}"#).unwrap();
+        assert!(unknown.check(&axes).is_err());
+        assert!(serde_json::from_str::<FrameRequest>(r#"{"time": 3, "bogus": 1}"#).is_err());
+        let r: RenderRequest = serde_json::from_str(
+            r#"{"frame": {"time": 1}, "camera": {"position": [0,0,5], "target": [0,0,0], "up": [0,1,0],
+                "fov_y": 45, "near": 0.1, "far": 100}, "width": 0, "height": 10}"#,
+        )
+        .unwrap();
+        assert!(r.check(&axes).unwrap_err().0.contains("width"));
+    }
+}

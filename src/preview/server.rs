@@ -1,0 +1,224 @@
+//! The HTTP side: the page's own assets (embedded in the binary), the
+//! opened character's scene and frames, nothing else.
+//!
+//! | route | answer |
+//! |---|---|
+//! | `GET /`, `/app.js`, `/style.css` | the page |
+//! | `GET /api/scene` | [`SceneInfo`](super::protocol::SceneInfo) as JSON |
+//! | `GET /api/strokes` | per-point widths and colours (binary) |
+//! | `POST /api/frame` | a [`FrameRequest`] → one frame (binary) |
+//! | `GET /api/ws` | websocket: `FrameRequest` text messages → binary frames |
+//! | `POST /api/render` | a [`RenderRequest`] → PNG |
+//!
+//! Requests whose `Host` is not this server's loopback address get 403
+//! (a web page elsewhere cannot reach the server by DNS rebinding); bad
+//! JSON or values get 400, frames that cannot be evaluated 422.
+
+use std::sync::Arc;
+
+use axum::body::Bytes;
+use axum::extract::ws::{Message, WebSocket, WebSocketUpgrade};
+use axum::extract::{Request, State};
+use axum::http::{header, HeaderMap, HeaderValue, StatusCode};
+use axum::middleware::{self, Next};
+use axum::response::{IntoResponse, Response};
+use axum::routing::{get, post};
+use axum::{Json, Router};
+
+use super::evaluator::{Evaluator, JobError};
+use super::protocol::{BadRequest, FrameRequest, RenderRequest};
+
+const INDEX: &str = include_str!("page/index.html");
+const APP: &str = include_str!("page/app.js");
+const STYLE: &str = include_str!("page/style.css");
+
+/// Largest websocket message accepted (a frame request is a few hundred bytes).
+const MAX_WS_MESSAGE: usize = 64 * 1024;
+
+/// Shared by every handler.
+pub struct AppState {
+    pub evaluator: Evaluator,
+    /// Accepted `Host` header values (`None`: any, when not on loopback).
+    pub hosts: Option<Vec<String>>,
+}
+
+/// An error answer: a status and a JSON `{"error": message}` body.
+pub struct ApiError(StatusCode, String);
+
+impl IntoResponse for ApiError {
+    fn into_response(self) -> Response {
+        let body = Json(serde_json::json!({ "error": self.1 }));
+        (self.0, no_store(), body).into_response()
+    }
+}
+
+impl From<BadRequest> for ApiError {
+    fn from(b: BadRequest) -> Self {
+        ApiError(StatusCode::BAD_REQUEST, b.0)
+    }
+}
+
+impl From<JobError> for ApiError {
+    fn from(e: JobError) -> Self {
+        match e {
+            JobError::Unprocessable(m) => ApiError(StatusCode::UNPROCESSABLE_ENTITY, m),
+            JobError::Internal(m) => ApiError(StatusCode::INTERNAL_SERVER_ERROR, m),
+        }
+    }
+}
+
+fn no_store() -> [(header::HeaderName, HeaderValue); 1] {
+    [(header::CACHE_CONTROL, HeaderValue::from_static("no-store"))]
+}
+
+/// The router over an opened character.
+pub fn router(state: Arc<AppState>) -> Router {
+    Router::new()
+        .route("/", get(|| async { page(INDEX, "text/html; charset=utf-8") }))
+        .route("/index.html", get(|| async { page(INDEX, "text/html; charset=utf-8") }))
+        .route("/app.js", get(|| async { page(APP, "text/javascript; charset=utf-8") }))
+        .route("/style.css", get(|| async { page(STYLE, "text/css; charset=utf-8") }))
+        .route("/api/scene", get(scene))
+        .route("/api/strokes", get(strokes))
+        .route("/api/frame", post(frame))
+        .route("/api/render", post(render))
+        .route("/api/ws", get(ws))
+        .fallback(|| async { ApiError(StatusCode::NOT_FOUND, "no such page".into()) })
+        .layer(middleware::from_fn_with_state(state.clone(), check_host))
+        .with_state(state)
+}
+
+fn page(body: &'static str, content_type: &'static str) -> Response {
+    (
+        [
+            (header::CONTENT_TYPE, HeaderValue::from_static(content_type)),
+            (
+                header::CONTENT_SECURITY_POLICY,
+                HeaderValue::from_static(
+                    "default-src 'self'; img-src 'self' blob: data:; connect-src 'self'; object-src 'none'; base-uri 'none'",
+                ),
+            ),
+            (header::X_CONTENT_TYPE_OPTIONS, HeaderValue::from_static("nosniff")),
+        ],
+        body,
+    )
+        .into_response()
+}
+
+async fn check_host(State(state): State<Arc<AppState>>, req: Request, next: Next) -> Response {
+    let host = req
+        .headers()
+        .get(header::HOST)
+        .and_then(|h| h.to_str().ok())
+        .unwrap_or("");
+    let ok = match &state.hosts {
+        None => true,
+        Some(hosts) => hosts.iter().any(|h| h.eq_ignore_ascii_case(host)),
+    };
+    if !ok {
+        return ApiError(
+            StatusCode::FORBIDDEN,
+            format!("host {host:?} is not this preview server's address"),
+        )
+        .into_response();
+    }
+    next.run(req).await
+}
+
+async fn scene(State(state): State<Arc<AppState>>) -> Response {
+    (no_store(), Json(&state.evaluator.scene)).into_response()
+}
+
+fn binary(bytes: Vec<u8>, content_type: &'static str) -> Response {
+    (
+        [
+            (header::CONTENT_TYPE, HeaderValue::from_static(content_type)),
+            (header::CACHE_CONTROL, HeaderValue::from_static("no-store")),
+        ],
+        bytes,
+    )
+        .into_response()
+}
+
+async fn strokes(State(state): State<Arc<AppState>>) -> Response {
+    binary(state.evaluator.strokes.clone(), "application/octet-stream")
+}
+
+/// Parses a JSON body by hand so every failure is a 400 with a message.
+fn parse<T: serde::de::DeserializeOwned>(headers: &HeaderMap, body: &Bytes) -> Result<T, ApiError> {
+    let json = headers
+        .get(header::CONTENT_TYPE)
+        .and_then(|v| v.to_str().ok())
+        .is_some_and(|v| v.starts_with("application/json"));
+    if !json {
+        return Err(ApiError(
+            StatusCode::UNSUPPORTED_MEDIA_TYPE,
+            "expected Content-Type: application/json".into(),
+        ));
+    }
+    serde_json::from_slice(body).map_err(|e| ApiError(StatusCode::BAD_REQUEST, format!("bad request: {e}")))
+}
+
+async fn frame(State(state): State<Arc<AppState>>, headers: HeaderMap, body: Bytes) -> Result<Response, ApiError> {
+    let req: FrameRequest = parse(&headers, &body)?;
+    req.check(&state.evaluator.axes)?;
+    let bytes = state.evaluator.frame(req).await?;
+    Ok(binary(bytes, "application/octet-stream"))
+}
+
+async fn render(State(state): State<Arc<AppState>>, headers: HeaderMap, body: Bytes) -> Result<Response, ApiError> {
+    let req: RenderRequest = parse(&headers, &body)?;
+    req.check(&state.evaluator.axes)?;
+    let png = state.evaluator.render(req).await?;
+    Ok(binary(png, "image/png"))
+}
+
+async fn ws(State(state): State<Arc<AppState>>, upgrade: WebSocketUpgrade) -> Response {
+    upgrade
+        .max_message_size(MAX_WS_MESSAGE)
+        .max_frame_size(MAX_WS_MESSAGE)
+        .on_upgrade(move |socket| stream(socket, state))
+}
+
+/// One page's slider stream: each text message is a [`FrameRequest`],
+/// answered by a binary frame or a text `{"id", "status", "error"}`.
+async fn stream(mut socket: WebSocket, state: Arc<AppState>) {
+    while let Some(Ok(msg)) = socket.recv().await {
+        let text = match msg {
+            Message::Text(t) => t,
+            Message::Close(_) => break,
+            Message::Ping(_) | Message::Pong(_) => continue,
+            Message::Binary(_) => {
+                let reply = error_message(0, StatusCode::BAD_REQUEST, "send frame requests as JSON text");
+                if socket.send(reply).await.is_err() {
+                    break;
+                }
+                continue;
+            }
+        };
+        let reply = match serde_json::from_str::<FrameRequest>(text.as_str()) {
+            Err(e) => error_message(0, StatusCode::BAD_REQUEST, &format!("bad request: {e}")),
+            Ok(req) => {
+                let id = req.id;
+                match req.check(&state.evaluator.axes) {
+                    Err(b) => error_message(id, StatusCode::BAD_REQUEST, &b.0),
+                    Ok(()) => match state.evaluator.frame(req).await {
+                        Ok(bytes) => Message::Binary(bytes.into()),
+                        Err(e) => {
+                            let ApiError(status, m) = e.into();
+                            error_message(id, status, &m)
+                        }
+                    },
+                }
+            }
+        };
+        if socket.send(reply).await.is_err() {
+            break;
+        }
+    }
+}
+
+fn error_message(id: u64, status: StatusCode, message: &str) -> Message {
+    let body = serde_json::json!({ "id": id, "status": status.as_u16(), "error": message });
+    Message::Text(body.to_string().into())
+}

@@ -1,0 +1,575 @@
+//! Writes a bake as its frames arrive (SPEC §7): a layer of `over` specs
+//! whose attributes carry one time sample per baked frame.
+//!
+//! A bake declares its layout once (which attributes of which prims, which
+//! relationships to block, the layer metadata), then hands over each frame's
+//! arrays in time order. Writers keep only small per-sample bookkeeping, never
+//! the frames themselves, so memory stays flat however long the shot:
+//! `.usda` output spills each sample's text to a scratch file and assembles
+//! the layer at the end; `.usdc` output writes each sample into the crate file
+//! as it arrives ([`super::usdc::CrateStream`]) and the specs last. Either way
+//! the output appears only when complete (temporary file, rename).
+
+use std::fmt::Write as _;
+use std::fs::File;
+use std::io::{BufWriter, Read, Seek, SeekFrom, Write};
+use std::path::{Path, PathBuf};
+
+use glam::Vec3;
+use openusd::sdf::Value;
+
+use super::atomic::TempFile;
+use super::layer::{Format, OverLayer};
+use super::stage::StageMetadata;
+use super::usdc::{CrateStream, Stored, ValueHandle};
+use crate::error::{Error, Result};
+
+/// One attribute the bake writes, sampled at every frame.
+#[derive(Debug, Clone)]
+pub struct BakeAttr {
+    pub prim: String,
+    pub name: &'static str,
+    pub kind: SampleKind,
+    /// Primvar `interpolation` metadata to author, if any.
+    pub interpolation: Option<&'static str>,
+}
+
+/// The USD type of a baked attribute.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SampleKind {
+    /// `point3f[]`
+    Points,
+    /// `float3[]` (extents)
+    Extent,
+    /// `float[]`
+    Floats,
+    /// `normal3f[]`
+    Normals,
+}
+
+impl SampleKind {
+    pub fn type_name(self) -> &'static str {
+        match self {
+            SampleKind::Points => "point3f[]",
+            SampleKind::Extent => "float3[]",
+            SampleKind::Floats => "float[]",
+            SampleKind::Normals => "normal3f[]",
+        }
+    }
+}
+
+/// One frame's value of one attribute.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Sample {
+    Vec3s(Vec<Vec3>),
+    Floats(Vec<f32>),
+}
+
+/// Where a bake came from, recorded in the layer's `customLayerData`
+/// (`painterly` dictionary) so a render or a farm can tell which input and
+/// frames it holds.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Provenance {
+    /// The input's absolute path.
+    pub input: String,
+    /// The baked frames as `A:B:STEP`.
+    pub frames: String,
+    /// painterly's version.
+    pub version: String,
+    /// SHA-256 over the input's layers (chunked bakes: a chunk is reused only
+    /// for the same input).
+    pub input_hash: Option<String>,
+    /// Value-clip bakes: this chunk's index and the chunk count.
+    pub chunk: Option<(usize, usize)>,
+    /// Value-clip stages: frames per chunk and the chunk layers, in order.
+    pub chunks: Option<(usize, Vec<String>)>,
+}
+
+/// Reads the provenance painterly recorded in a layer's
+/// `customLayerData["painterly"]`; None when the layer has none (it was not
+/// written by painterly). Only the layer itself is read, not what it
+/// sublayers.
+pub fn read_provenance(path: &Path) -> Result<Option<Provenance>> {
+    use openusd::sdf;
+    let p = path
+        .to_str()
+        .ok_or_else(|| Error::msg("path is not valid UTF-8").in_file(path))?;
+    let layer = sdf::Layer::open(p).map_err(|e| Error::msg(format!("cannot read layer: {e}")).in_file(path))?;
+    let data = layer
+        .data()
+        .get_field(&sdf::Path::abs_root(), "customLayerData")
+        .ok()
+        .map(|v| v.into_owned());
+    let Some(Value::Dictionary(d)) = data else {
+        return Ok(None);
+    };
+    let Some(Value::Dictionary(info)) = d.get("painterly") else {
+        return Ok(None);
+    };
+    let text = |k: &str| match info.get(k) {
+        Some(Value::String(s)) => Some(s.clone()),
+        _ => None,
+    };
+    let int = |k: &str| match info.get(k) {
+        Some(Value::Int(n)) => usize::try_from(*n).ok(),
+        Some(Value::Int64(n)) => usize::try_from(*n).ok(),
+        _ => None,
+    };
+    Ok(Some(Provenance {
+        input: text("input").unwrap_or_default(),
+        frames: text("frames").unwrap_or_default(),
+        version: text("version").unwrap_or_default(),
+        input_hash: text("inputHash"),
+        chunk: int("chunkIndex").zip(int("chunkCount")),
+        chunks: match (int("chunkSize"), info.get("chunks")) {
+            (Some(size), Some(Value::StringVec(names))) => Some((size, names.clone())),
+            _ => None,
+        },
+    }))
+}
+
+impl Provenance {
+    /// The baked frames as (first, last, step), when recorded.
+    pub fn frame_range(&self) -> Option<(f64, f64, f64)> {
+        let mut it = self.frames.split(':').map(|x| x.parse::<f64>());
+        match (it.next(), it.next(), it.next()) {
+            (Some(Ok(a)), Some(Ok(b)), Some(Ok(s))) => Some((a, b, s)),
+            _ => None,
+        }
+    }
+}
+
+/// A `customLayerData` entry value.
+#[derive(Debug, Clone, PartialEq)]
+pub enum DataValue {
+    Str(String),
+    Int(i64),
+    Strs(Vec<String>),
+}
+
+impl Provenance {
+    /// The entries of the `painterly` dictionary, sorted by key.
+    pub fn fields(&self) -> Vec<(&'static str, DataValue)> {
+        let mut f = vec![
+            ("frames", DataValue::Str(self.frames.clone())),
+            ("input", DataValue::Str(self.input.clone())),
+            ("version", DataValue::Str(self.version.clone())),
+        ];
+        if let Some(h) = &self.input_hash {
+            f.push(("inputHash", DataValue::Str(h.clone())));
+        }
+        if let Some((index, count)) = self.chunk {
+            f.push(("chunkIndex", DataValue::Int(index as i64)));
+            f.push(("chunkCount", DataValue::Int(count as i64)));
+        }
+        if let Some((size, names)) = &self.chunks {
+            f.push(("chunkSize", DataValue::Int(*size as i64)));
+            f.push(("chunks", DataValue::Strs(names.clone())));
+        }
+        f.sort_by_key(|(k, _)| *k);
+        f
+    }
+}
+
+/// The layer-metadata block of a usda layer written by painterly: the
+/// provenance, a doc string and the input's stage metadata.
+pub fn usda_header(meta: &StageMetadata, provenance: &Provenance, doc: &str) -> String {
+    let mut out = String::from("#usda 1.0\n(\n    customLayerData = {\n        dictionary painterly = {\n");
+    for (key, v) in provenance.fields() {
+        let _ = match v {
+            DataValue::Str(s) => writeln!(out, "            string {key} = {}", quoted(&s)),
+            DataValue::Int(i) => writeln!(out, "            int {key} = {i}"),
+            DataValue::Strs(v) => writeln!(
+                out,
+                "            string[] {key} = [{}]",
+                v.iter().map(|s| quoted(s)).collect::<Vec<_>>().join(", ")
+            ),
+        };
+    }
+    out.push_str("        }\n    }\n");
+    let _ = writeln!(out, "    doc = {}", quoted(doc));
+    for (key, v) in [
+        ("endTimeCode", meta.end_time_code),
+        ("framesPerSecond", meta.frames_per_second),
+        ("metersPerUnit", meta.meters_per_unit),
+        ("startTimeCode", meta.start_time_code),
+        ("timeCodesPerSecond", meta.time_codes_per_second),
+    ] {
+        if let Some(v) = v {
+            let _ = writeln!(out, "    {key} = {}", UsdaNumber(v));
+        }
+    }
+    if let Some(up) = &meta.up_axis {
+        let _ = writeln!(out, "    upAxis = {}", quoted(up));
+    }
+    out.push_str(")\n");
+    out
+}
+
+/// Everything about a bake layer except its samples.
+#[derive(Debug, Clone)]
+pub struct BakeLayout {
+    pub meta: StageMetadata,
+    pub attrs: Vec<BakeAttr>,
+    /// Prims whose `skel:skeleton` is blocked (baked skinned meshes).
+    pub blocked_skeletons: Vec<String>,
+    pub provenance: Provenance,
+}
+
+/// Receives a bake's frames in time order.
+pub trait FrameSink: Send {
+    /// One frame: a sample per declared attribute, in declaration order.
+    fn write_frame(&mut self, time: f64, samples: Vec<Sample>) -> Result<()>;
+    /// Writes what remains and puts the layer in place.
+    fn finish(self: Box<Self>) -> Result<()>;
+}
+
+/// A sink writing `layout` to `path`, in the format its extension names.
+pub fn create(path: &Path, layout: BakeLayout) -> Result<Box<dyn FrameSink>> {
+    Ok(match Format::from_path(path)? {
+        Format::Usda => Box::new(UsdaSink::new(path, layout)?),
+        Format::Usdc => Box::new(UsdcSink::new(path, layout)?),
+    })
+}
+
+pub const DOC: &str = "Baked by painterly: over specs only; sublayer above the input.";
+
+fn check_sample(attr: &BakeAttr, s: &Sample) -> Result<()> {
+    let ok = matches!(
+        (attr.kind, s),
+        (
+            SampleKind::Points | SampleKind::Extent | SampleKind::Normals,
+            Sample::Vec3s(_)
+        ) | (SampleKind::Floats, Sample::Floats(_))
+    );
+    if ok {
+        Ok(())
+    } else {
+        Err(Error::attr(&attr.prim, attr.name, "internal: sample of the wrong kind"))
+    }
+}
+
+/// Streams `.usdc`: each sample goes into a temporary crate file as it
+/// arrives and only its handle is kept; `finish` adds the specs and tables,
+/// then renames the file into place.
+struct UsdcSink {
+    path: PathBuf,
+    /// Registered with [`super::atomic`]: removed on failure and on signals.
+    tmp: Option<TempFile>,
+    layout: BakeLayout,
+    stream: Option<CrateStream<BufWriter<File>>>,
+    /// The frames written so far, shared by every attribute.
+    times: Vec<f64>,
+    /// Per attribute, in declaration order: a stored value per frame.
+    samples: Vec<Vec<ValueHandle>>,
+}
+
+impl UsdcSink {
+    fn new(path: &Path, layout: BakeLayout) -> Result<Self> {
+        let (tmp, file) = TempFile::create(path, "")?;
+        let n = layout.attrs.len();
+        // Owned by the sink from here, so an error below removes the file.
+        let mut sink = UsdcSink {
+            path: path.to_path_buf(),
+            tmp: Some(tmp),
+            layout,
+            stream: None,
+            times: Vec::new(),
+            samples: vec![Vec::new(); n],
+        };
+        sink.stream = Some(CrateStream::new(BufWriter::with_capacity(1 << 20, file)).map_err(|e| e.in_file(path))?);
+        Ok(sink)
+    }
+}
+
+impl FrameSink for UsdcSink {
+    fn write_frame(&mut self, time: f64, samples: Vec<Sample>) -> Result<()> {
+        let stream = self
+            .stream
+            .as_mut()
+            .ok_or_else(|| Error::msg("internal: bake already finished"))?;
+        for ((attr, out), s) in self.layout.attrs.iter().zip(&mut self.samples).zip(samples) {
+            check_sample(attr, &s)?;
+            let value = match s {
+                Sample::Vec3s(v) => Value::Vec3fVec(bytemuck::allocation::cast_vec(v)),
+                Sample::Floats(v) => Value::FloatVec(v),
+            };
+            let handle = stream
+                .write_value(&value)
+                .map_err(|e| Error::attr(&attr.prim, attr.name, e.message).in_file(&self.path))?;
+            // Grown by whole blocks, not doubled: these are the only per-frame
+            // memory a long bake keeps.
+            if out.len() == out.capacity() {
+                out.reserve_exact(1024);
+            }
+            out.push(handle);
+        }
+        self.times.push(time);
+        Ok(())
+    }
+
+    fn finish(mut self: Box<Self>) -> Result<()> {
+        let path = self.path.clone();
+        let mut stream = self
+            .stream
+            .take()
+            .ok_or_else(|| Error::msg("internal: bake already finished"))?;
+        let mut layer = OverLayer::new(self.layout.meta.clone());
+        layer.set_provenance(&self.layout.provenance);
+        let times: std::sync::Arc<[f64]> = std::mem::take(&mut self.times).into();
+        for (attr, values) in self.layout.attrs.iter().zip(std::mem::take(&mut self.samples)) {
+            let s = Stored {
+                times: times.clone(),
+                values,
+            };
+            let metadata = match attr.interpolation {
+                Some(i) => vec![("interpolation", Value::Token(i.into()))],
+                None => vec![],
+            };
+            layer.set_stored_samples(&attr.prim, attr.name, attr.kind.type_name(), s, metadata);
+        }
+        for prim in &self.layout.blocked_skeletons {
+            layer.block_relationship(prim, "skel:skeleton");
+        }
+        layer.write_to_stream(&mut stream).map_err(|e| e.in_file(&path))?;
+        let io = |e: std::io::Error| Error::msg(format!("cannot write output: {e}")).in_file(&path);
+        // No fsync: the rename makes the write atomic for readers and for a
+        // failed bake; durability across power loss is the filesystem's.
+        let file = stream
+            .finish()
+            .map_err(|e| e.in_file(&path))?
+            .into_inner()
+            .map_err(|e| io(e.into_error()))?;
+        drop(file);
+        // A bake that fails (or is dropped) before this leaves no file.
+        self.tmp
+            .take()
+            .ok_or_else(|| Error::msg("internal: bake already finished"))?
+            .persist(&path)
+    }
+}
+
+/// Streams `.usda`: each sample's text goes to a scratch file as it arrives;
+/// `finish` writes the layer, copying each attribute's samples in order.
+struct UsdaSink {
+    path: PathBuf,
+    layout: BakeLayout,
+    /// Registered with [`super::atomic`]: removed when dropped and on signals.
+    _scratch_file: TempFile,
+    scratch: BufWriter<File>,
+    written: u64,
+    /// Per attribute: (offset, length) of each sample's text in the scratch file.
+    index: Vec<Vec<(u64, u64)>>,
+    text: String,
+}
+
+impl UsdaSink {
+    fn new(path: &Path, layout: BakeLayout) -> Result<Self> {
+        let (scratch_file, file) = TempFile::create(path, ".samples")?;
+        let n = layout.attrs.len();
+        Ok(UsdaSink {
+            path: path.to_path_buf(),
+            layout,
+            _scratch_file: scratch_file,
+            scratch: BufWriter::with_capacity(1 << 20, file),
+            written: 0,
+            index: vec![Vec::new(); n],
+            text: String::new(),
+        })
+    }
+
+    fn io_error(&self, e: std::io::Error) -> Error {
+        Error::msg(format!("cannot write output: {e}")).in_file(&self.path)
+    }
+
+    /// The finished layer, assembled into `out`.
+    fn assemble(&mut self, out: &mut impl Write) -> std::io::Result<()> {
+        self.scratch.flush()?;
+        let file = self.scratch.get_mut();
+        let head = usda_header(&self.layout.meta, &self.layout.provenance, DOC);
+        out.write_all(head.as_bytes())?;
+
+        // Prims in namespace order with their attributes; ancestors as bare overs.
+        let tree = PrimTree::new(
+            self.layout
+                .attrs
+                .iter()
+                .map(|a| a.prim.as_str())
+                .chain(self.layout.blocked_skeletons.iter().map(String::as_str)),
+        );
+        let mut copy_buf = Vec::new();
+        let mut emit = |out: &mut dyn Write, prim: &str, depth: usize| -> std::io::Result<()> {
+            let pad = "    ".repeat(depth + 1);
+            for (i, attr) in self.layout.attrs.iter().enumerate().filter(|(_, a)| a.prim == prim) {
+                let ty = attr.kind.type_name();
+                if let Some(interp) = attr.interpolation {
+                    writeln!(
+                        out,
+                        "{pad}{ty} {} (\n{pad}    interpolation = \"{interp}\"\n{pad})",
+                        attr.name
+                    )?;
+                }
+                writeln!(out, "{pad}{ty} {}.timeSamples = {{", attr.name)?;
+                for &(offset, len) in &self.index[i] {
+                    copy_buf.resize(len as usize, 0);
+                    file.seek(SeekFrom::Start(offset))?;
+                    file.read_exact(&mut copy_buf)?;
+                    out.write_all(&copy_buf)?;
+                }
+                writeln!(out, "{pad}}}")?;
+            }
+            if self.layout.blocked_skeletons.iter().any(|p| p == prim) {
+                writeln!(out, "{pad}rel skel:skeleton = None")?;
+            }
+            Ok(())
+        };
+        tree.write(out, &mut emit)?;
+        file.seek(SeekFrom::End(0))?;
+        Ok(())
+    }
+}
+
+impl FrameSink for UsdaSink {
+    fn write_frame(&mut self, time: f64, samples: Vec<Sample>) -> Result<()> {
+        for (i, s) in samples.iter().enumerate() {
+            let attr = &self.layout.attrs[i];
+            check_sample(attr, s)?;
+            // Sample lines sit two levels inside their prim's block.
+            let pad = "    ".repeat(attr.prim.matches('/').count() + 1);
+            self.text.clear();
+            let _ = write!(self.text, "{pad}{}: [", UsdaNumber(time));
+            match s {
+                Sample::Vec3s(v) => {
+                    for (k, p) in v.iter().enumerate() {
+                        let sep = if k == 0 { "" } else { ", " };
+                        let _ = write!(self.text, "{sep}({}, {}, {})", p.x, p.y, p.z);
+                    }
+                }
+                Sample::Floats(v) => {
+                    for (k, x) in v.iter().enumerate() {
+                        let sep = if k == 0 { "" } else { ", " };
+                        let _ = write!(self.text, "{sep}{x}");
+                    }
+                }
+            }
+            self.text.push_str("],\n");
+            let len = self.text.len() as u64;
+            if let Err(e) = self.scratch.write_all(self.text.as_bytes()) {
+                return Err(self.io_error(e));
+            }
+            self.index[i].push((self.written, len));
+            self.written += len;
+        }
+        Ok(())
+    }
+
+    fn finish(mut self: Box<Self>) -> Result<()> {
+        let path = self.path.clone();
+        crate::usd_io::layer::write_atomic_with(&path, |out| self.assemble(out))
+    }
+}
+
+/// An f64 as usda writes it: integers without a fraction, others shortest.
+pub struct UsdaNumber(pub f64);
+
+impl std::fmt::Display for UsdaNumber {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}", self.0)
+    }
+}
+
+/// A usda string literal.
+pub fn quoted(s: &str) -> String {
+    let mut out = String::with_capacity(s.len() + 2);
+    out.push('"');
+    for c in s.chars() {
+        match c {
+            '"' => out.push_str("\\\""),
+            '\\' => out.push_str("\\\\"),
+            '\n' => out.push_str("\\n"),
+            '\r' => out.push_str("\\r"),
+            '\t' => out.push_str("\\t"),
+            c => out.push(c),
+        }
+    }
+    out.push('"');
+    out
+}
+
+/// Prim paths as a tree, for writing nested `over` blocks.
+pub struct PrimTree {
+    /// Path → children names, in the order they were first declared.
+    nodes: std::collections::HashMap<String, Vec<String>>,
+}
+
+impl PrimTree {
+    pub fn new<'a>(paths: impl Iterator<Item = &'a str>) -> Self {
+        let mut nodes: std::collections::HashMap<String, Vec<String>> = Default::default();
+        let mut seen = std::collections::HashSet::new();
+        for path in paths {
+            let mut cur = path.to_string();
+            while cur != "/" && seen.insert(cur.clone()) {
+                let (parent, name) = match cur.rsplit_once('/') {
+                    Some(("", name)) => ("/".to_string(), name.to_string()),
+                    Some((parent, name)) => (parent.to_string(), name.to_string()),
+                    None => break,
+                };
+                nodes.entry(parent.clone()).or_default().push(name);
+                cur = parent;
+            }
+        }
+        PrimTree { nodes }
+    }
+
+    /// Writes nested `over` blocks; `emit` writes each prim's contents.
+    pub fn write(
+        &self,
+        out: &mut dyn Write,
+        emit: &mut dyn FnMut(&mut dyn Write, &str, usize) -> std::io::Result<()>,
+    ) -> std::io::Result<()> {
+        self.write_with_meta(out, &mut |_| String::new(), emit)
+    }
+
+    /// Like [`PrimTree::write`]; `meta` gives each prim's metadata block
+    /// (written after its name, e.g. ` (\n    clips = {...}\n)`), or "".
+    pub fn write_with_meta(
+        &self,
+        out: &mut dyn Write,
+        meta: &mut dyn FnMut(&str) -> String,
+        emit: &mut dyn FnMut(&mut dyn Write, &str, usize) -> std::io::Result<()>,
+    ) -> std::io::Result<()> {
+        for name in self.nodes.get("/").map(Vec::as_slice).unwrap_or_default() {
+            writeln!(out)?;
+            self.write_prim(out, &format!("/{name}"), 0, meta, emit)?;
+        }
+        Ok(())
+    }
+
+    fn write_prim(
+        &self,
+        out: &mut dyn Write,
+        path: &str,
+        depth: usize,
+        meta: &mut dyn FnMut(&str) -> String,
+        emit: &mut dyn FnMut(&mut dyn Write, &str, usize) -> std::io::Result<()>,
+    ) -> std::io::Result<()> {
+        let pad = "    ".repeat(depth);
+        let name = path.rsplit('/').next().unwrap_or_default();
+        writeln!(out, "{pad}over \"{name}\"{}\n{pad}{{", meta(path))?;
+        emit(out, path, depth)?;
+        for (i, child) in self
+            .nodes
+            .get(path)
+            .map(Vec::as_slice)
+            .unwrap_or_default()
+            .iter()
+            .enumerate()
+        {
+            if i > 0 {
+                writeln!(out)?;
+            }
+            self.write_prim(out, &format!("{path}/{child}"), depth + 1, meta, emit)?;
+        }
+        writeln!(out, "{pad}}}")
+    }
+}

@@ -1,0 +1,423 @@
+//! Long bakes as USD value clips: the shot split into chunk layers of N
+//! frames, composed by a small clip-set layer.
+//!
+//! `painterly bake IN -o shot.usda --chunk N` writes
+//! - `shot.clips/shot.0000.1-10.usdc`, … : each chunk exactly what
+//!   `painterly bake --frames` writes for its frames (names sort by chunk
+//!   index and say their first and last frame);
+//! - `shot.clips/shot.manifest.usda`: the attributes the clips provide;
+//! - `shot.usda`: layer metadata as for a single-file bake, the attribute
+//!   declarations (types, primvar interpolation, blocked `skel:skeleton`),
+//!   and on every root prim a `painterly` clip set with explicit
+//!   `assetPaths`, `active` and `times` (identity mapping). Template clips
+//!   assume one file per frame, so they are not used.
+//!
+//! USD interpolates between the last sample of one clip and the first of the
+//! next (the `times` pairs mark each clip's first and last frame), so the
+//! clip set composes to the single-file bake at every time, fractional times
+//! across chunk boundaries included.
+
+use std::collections::BTreeSet;
+use std::fmt::Write as _;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use super::bake_layer::{
+    self, quoted, read_provenance, usda_header, BakeLayout, FrameSink, PrimTree, Provenance, Sample, UsdaNumber,
+};
+use super::layer::write_atomic_with;
+use super::stage::StageReader;
+use crate::error::{Error, Result};
+
+/// The clip set's name in `clips`/`clipSets`.
+pub const CLIP_SET: &str = "painterly";
+
+/// One chunk of a clip-set bake.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Chunk {
+    pub index: usize,
+    /// Indices into the bake's frame list: `start..end`.
+    pub start: usize,
+    pub end: usize,
+    /// File name inside the clips folder.
+    pub name: String,
+}
+
+/// The chunks of a clip-set bake written to `output`.
+#[derive(Debug, Clone)]
+pub struct ClipPlan {
+    pub output: PathBuf,
+    pub dir: PathBuf,
+    pub chunk_size: usize,
+    pub chunks: Vec<Chunk>,
+}
+
+impl ClipPlan {
+    /// Splits `times` into chunks of `chunk_size` frames for `output`.
+    pub fn new(output: &Path, times: &[f64], chunk_size: usize) -> Result<ClipPlan> {
+        if chunk_size == 0 {
+            return Err(Error::msg("--chunk must be at least 1"));
+        }
+        let stem = output
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .ok_or_else(|| Error::msg("output path has no file name").in_file(output))?;
+        let dir = output.with_file_name(format!("{stem}.clips"));
+        let count = times.len().div_ceil(chunk_size);
+        let width = (count.saturating_sub(1)).to_string().len().max(4);
+        let chunks = (0..count)
+            .map(|index| {
+                let start = index * chunk_size;
+                let end = (start + chunk_size).min(times.len());
+                Chunk {
+                    index,
+                    start,
+                    end,
+                    name: format!(
+                        "{stem}.{index:0width$}.{}-{}.usdc",
+                        UsdaNumber(times[start]),
+                        UsdaNumber(times[end - 1])
+                    ),
+                }
+            })
+            .collect();
+        Ok(ClipPlan {
+            output: output.to_path_buf(),
+            dir,
+            chunk_size,
+            chunks,
+        })
+    }
+
+    /// A chunk's layer path.
+    pub fn chunk_path(&self, chunk: &Chunk) -> PathBuf {
+        self.dir.join(&chunk.name)
+    }
+
+    /// The manifest layer's path.
+    pub fn manifest_path(&self) -> PathBuf {
+        let stem = self.output.file_stem().unwrap_or_default().to_string_lossy();
+        self.dir.join(format!("{stem}.manifest.usda"))
+    }
+
+    /// Relative path (from the clip-set layer's folder) of a file in the clips folder.
+    fn asset(&self, name: &str) -> String {
+        let dir = self.dir.file_name().unwrap_or_default().to_string_lossy();
+        format!("./{dir}/{name}")
+    }
+
+    /// Creates the clips folder.
+    pub fn create_dir(&self) -> Result<()> {
+        std::fs::create_dir_all(&self.dir)
+            .map_err(|e| Error::msg(format!("cannot create the clips folder: {e}")).in_file(&self.dir))
+    }
+}
+
+/// Writes chunk after chunk as frames arrive, then the clip set.
+pub struct ChunkedSink {
+    plan: ClipPlan,
+    layout: BakeLayout,
+    times: Vec<f64>,
+    current: Option<Box<dyn FrameSink>>,
+    written: usize,
+}
+
+impl ChunkedSink {
+    pub fn new(plan: ClipPlan, layout: BakeLayout, times: &[f64]) -> Result<ChunkedSink> {
+        plan.create_dir()?;
+        Ok(ChunkedSink {
+            plan,
+            layout,
+            times: times.to_vec(),
+            current: None,
+            written: 0,
+        })
+    }
+}
+
+/// The layout of one chunk: the bake's, with the chunk's provenance.
+pub fn chunk_layout(layout: &BakeLayout, plan: &ClipPlan, chunk: &Chunk, times: &[f64], step: f64) -> BakeLayout {
+    let mut l = layout.clone();
+    l.provenance.frames = format!("{}:{}:{}", times[chunk.start], times[chunk.end - 1], step);
+    l.provenance.chunk = Some((chunk.index, plan.chunks.len()));
+    l.provenance.chunks = None;
+    l
+}
+
+impl FrameSink for ChunkedSink {
+    fn write_frame(&mut self, time: f64, samples: Vec<Sample>) -> Result<()> {
+        let i = self.written;
+        let chunk = &self.plan.chunks[i / self.plan.chunk_size];
+        if i == chunk.start {
+            if let Some(done) = self.current.take() {
+                done.finish()?;
+            }
+            let step = frame_step(&self.times);
+            let layout = chunk_layout(&self.layout, &self.plan, chunk, &self.times, step);
+            self.current = Some(bake_layer::create(&self.plan.chunk_path(chunk), layout)?);
+        }
+        self.written += 1;
+        match &mut self.current {
+            Some(sink) => sink.write_frame(time, samples),
+            None => Err(Error::msg("internal: no chunk open")),
+        }
+    }
+
+    fn finish(mut self: Box<Self>) -> Result<()> {
+        if let Some(done) = self.current.take() {
+            done.finish()?;
+        }
+        write_clip_set(&self.plan, &self.layout, &self.times)
+    }
+}
+
+/// The step between baked frames (1 for a single frame).
+pub fn frame_step(times: &[f64]) -> f64 {
+    match times {
+        [a, b, ..] => b - a,
+        _ => 1.0,
+    }
+}
+
+/// Writes the manifest and the clip-set layer for `plan`.
+pub fn write_clip_set(plan: &ClipPlan, layout: &BakeLayout, times: &[f64]) -> Result<()> {
+    let manifest = plan.manifest_path();
+    let tree = PrimTree::new(layout.attrs.iter().map(|a| a.prim.as_str()));
+    write_atomic_with(&manifest, |out| {
+        out.write_all(b"#usda 1.0\n")?;
+        tree.write(out, &mut |out, prim, depth| {
+            declare_attrs(out, layout, prim, depth, false)
+        })
+    })?;
+
+    let mut provenance: Provenance = layout.provenance.clone();
+    provenance.chunks = Some((plan.chunk_size, plan.chunks.iter().map(|c| c.name.clone()).collect()));
+    let head = usda_header(&layout.meta, &provenance, bake_layer::DOC);
+    let roots: BTreeSet<&str> = layout
+        .attrs
+        .iter()
+        .map(|a| a.prim.as_str())
+        .chain(layout.blocked_skeletons.iter().map(String::as_str))
+        .filter_map(|p| p.split('/').nth(1))
+        .collect();
+    let full = PrimTree::new(
+        layout
+            .attrs
+            .iter()
+            .map(|a| a.prim.as_str())
+            .chain(layout.blocked_skeletons.iter().map(String::as_str)),
+    );
+    let clip_meta = |root: &str| -> String {
+        let mut active = Vec::new();
+        let mut map = Vec::new();
+        for c in &plan.chunks {
+            let (a, b) = (times[c.start], times[c.end - 1]);
+            active.push(format!("({}, {})", UsdaNumber(a), c.index));
+            map.push(format!("({0}, {0})", UsdaNumber(a)));
+            if b != a {
+                map.push(format!("({0}, {0})", UsdaNumber(b)));
+            }
+        }
+        let assets: Vec<String> = plan
+            .chunks
+            .iter()
+            .map(|c| format!("@{}@", plan.asset(&c.name)))
+            .collect();
+        let manifest_name = manifest.file_name().unwrap_or_default().to_string_lossy();
+        let mut m = String::new();
+        let _ = write!(
+            m,
+            " (\n    clips = {{\n        dictionary {CLIP_SET} = {{\n            double2[] active = [{}]\n            asset[] assetPaths = [{}]\n            asset manifestAssetPath = @{}@\n            string primPath = {}\n            double2[] times = [{}]\n        }}\n    }}\n    prepend clipSets = [{}]\n)",
+            active.join(", "),
+            assets.join(", "),
+            plan.asset(&manifest_name),
+            quoted(&format!("/{root}")),
+            map.join(", "),
+            quoted(CLIP_SET),
+        );
+        m
+    };
+    write_atomic_with(&plan.output, |out| {
+        out.write_all(head.as_bytes())?;
+        full.write_with_meta(
+            out,
+            &mut |prim| {
+                let is_root = prim.matches('/').count() == 1;
+                if is_root && roots.contains(&prim[1..]) {
+                    clip_meta(&prim[1..])
+                } else {
+                    String::new()
+                }
+            },
+            &mut |out, prim, depth| declare_attrs(out, layout, prim, depth, true),
+        )
+    })
+}
+
+/// Attribute declarations (no values) of `prim`; with `full`, also primvar
+/// interpolation and blocked relationships.
+fn declare_attrs(
+    out: &mut dyn Write,
+    layout: &BakeLayout,
+    prim: &str,
+    depth: usize,
+    full: bool,
+) -> std::io::Result<()> {
+    let pad = "    ".repeat(depth + 1);
+    for a in layout.attrs.iter().filter(|a| a.prim == prim) {
+        match (a.interpolation, full) {
+            (Some(i), true) => writeln!(
+                out,
+                "{pad}{} {} (\n{pad}    interpolation = \"{i}\"\n{pad})",
+                a.kind.type_name(),
+                a.name
+            )?,
+            _ => writeln!(out, "{pad}{} {}", a.kind.type_name(), a.name)?,
+        }
+    }
+    if full && layout.blocked_skeletons.iter().any(|p| p == prim) {
+        writeln!(out, "{pad}rel skel:skeleton = None")?;
+    }
+    Ok(())
+}
+
+/// A chunk layer's provenance; None when the file does not exist.
+fn read_stamp(path: &Path) -> Result<Option<Provenance>> {
+    if !path.is_file() {
+        return Ok(None);
+    }
+    Ok(Some(read_provenance(path)?.unwrap_or_default()))
+}
+
+/// SHA-256 over every layer file the stage used (sorted by path: name, then
+/// bytes), hex encoded. Packages (`.usdz`) are hashed as one file.
+pub fn input_hash(r: &StageReader) -> Result<String> {
+    use sha2::{Digest, Sha256};
+    let mut files: BTreeSet<PathBuf> = BTreeSet::new();
+    for id in r.stage.layer_identifiers() {
+        // "pkg.usdz[inner.usdc]" names a layer inside a package.
+        let file = id.split('[').next().unwrap_or(&id);
+        let path = PathBuf::from(file);
+        if path.is_file() {
+            files.insert(path.canonicalize().unwrap_or(path));
+        }
+    }
+    let mut h = Sha256::new();
+    for f in &files {
+        h.update(f.to_string_lossy().as_bytes());
+        h.update([0]);
+        let mut file = std::fs::File::open(f).map_err(|e| Error::msg(format!("cannot read: {e}")).in_file(f))?;
+        std::io::copy(&mut file, &mut h).map_err(|e| Error::msg(format!("cannot read: {e}")).in_file(f))?;
+    }
+    Ok(h.finalize().iter().map(|b| format!("{b:02x}")).collect())
+}
+
+/// Checks that every chunk of `plan` is on disk and was baked from an input
+/// with `hash` by this painterly, for its frames; the error lists every
+/// chunk that is missing or stale.
+pub fn check_chunks(plan: &ClipPlan, hash: &str, times: &[f64]) -> Result<()> {
+    let mut missing = Vec::new();
+    let mut stale = Vec::new();
+    for (c, state) in plan.chunks.iter().zip(chunk_states(plan, hash, times)?) {
+        match state {
+            ChunkState::Done => {}
+            ChunkState::Missing => missing.push(c.name.clone()),
+            ChunkState::Stale(why) => stale.push(format!("{} ({why})", c.name)),
+        }
+    }
+    if missing.is_empty() && stale.is_empty() {
+        return Ok(());
+    }
+    let mut msg = String::from("cannot assemble the clip set:");
+    if !missing.is_empty() {
+        let _ = write!(
+            msg,
+            " {} of {} chunks missing: {}",
+            missing.len(),
+            plan.chunks.len(),
+            missing.join(", ")
+        );
+    }
+    if !stale.is_empty() {
+        let _ = write!(
+            msg,
+            "{} {} stale: {}",
+            if missing.is_empty() { "" } else { ";" },
+            stale.len(),
+            stale.join(", ")
+        );
+    }
+    Err(Error::msg(msg).in_file(&plan.dir))
+}
+
+/// Whether a chunk layer is done.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ChunkState {
+    Done,
+    Missing,
+    /// On disk, but from another input, painterly version or frame range.
+    Stale(String),
+}
+
+/// The state of every chunk of `plan`, for an input with `hash`.
+pub fn chunk_states(plan: &ClipPlan, hash: &str, times: &[f64]) -> Result<Vec<ChunkState>> {
+    let step = frame_step(times);
+    plan.chunks
+        .iter()
+        .map(|c| {
+            let Some(stamp) = read_stamp(&plan.chunk_path(c))? else {
+                return Ok(ChunkState::Missing);
+            };
+            let frames = format!("{}:{}:{}", times[c.start], times[c.end - 1], step);
+            Ok(if stamp.input_hash.as_deref() != Some(hash) {
+                ChunkState::Stale("baked from a different input".into())
+            } else if stamp.version != env!("CARGO_PKG_VERSION") {
+                ChunkState::Stale(format!("baked by painterly {}", stamp.version))
+            } else if stamp.frames != frames {
+                ChunkState::Stale(format!("holds frames {}, expected {frames}", stamp.frames))
+            } else {
+                ChunkState::Done
+            })
+        })
+        .collect()
+}
+
+/// A clip-set layer's chunks and their state, for `inspect`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ClipSetStatus {
+    pub chunk_size: usize,
+    /// Chunk file names (in the clips folder) and their state.
+    pub chunks: Vec<(String, ChunkState)>,
+}
+
+/// When `path` is a clip-set layer written by `painterly bake --chunk`, the
+/// state of each of its chunks: on disk and stamped with the clip set's input
+/// hash and painterly version, missing, or stale.
+pub fn clip_set_status(path: &Path) -> Result<Option<ClipSetStatus>> {
+    let Ok(Some(clip_set)) = read_provenance(path) else {
+        return Ok(None);
+    };
+    let Some((size, names)) = &clip_set.chunks else {
+        return Ok(None);
+    };
+    let stem = path.file_stem().unwrap_or_default().to_string_lossy();
+    let dir = path.with_file_name(format!("{stem}.clips"));
+    let mut chunks = Vec::with_capacity(names.len());
+    for name in names {
+        let state = match read_stamp(&dir.join(name))? {
+            None => ChunkState::Missing,
+            Some(stamp) if stamp.input_hash != clip_set.input_hash => {
+                ChunkState::Stale("baked from a different input".into())
+            }
+            Some(stamp) if stamp.version != clip_set.version => {
+                ChunkState::Stale(format!("baked by painterly {}", stamp.version))
+            }
+            Some(_) => ChunkState::Done,
+        };
+        chunks.push((name.clone(), state));
+    }
+    Ok(Some(ClipSetStatus {
+        chunk_size: *size,
+        chunks,
+    }))
+}

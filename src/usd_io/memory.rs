@@ -1,0 +1,142 @@
+//! Stages whose root layer is handed over in memory.
+//!
+//! A pipeline script holds a layer usd-core has open (`Sdf.Layer`), perhaps
+//! edited and unsaved; C++ objects cannot cross into Rust, but its text
+//! (`ExportToString()`) can. openusd reads layer bytes through its asset
+//! resolver, so a resolver that serves those bytes for one path, and the
+//! filesystem for everything else, opens them as if they were that file:
+//! relative sublayers, references and clips anchor where the layer lives.
+
+use std::borrow::Cow;
+use std::io;
+use std::path::{Path, PathBuf};
+use std::time::SystemTime;
+
+use openusd::ar::{Asset, AssetBuffer, AssetInfo, DefaultResolver, ResolvedPath, Resolver};
+
+use super::stage::StageReader;
+use crate::error::{Error, Result};
+
+/// Serves one layer from memory at `identifier`; every other asset from the filesystem.
+struct MemoryResolver {
+    inner: DefaultResolver,
+    identifier: String,
+    bytes: Vec<u8>,
+}
+
+impl MemoryResolver {
+    fn is_ours(&self, path: &str) -> bool {
+        path == self.identifier
+    }
+}
+
+impl Resolver for MemoryResolver {
+    fn create_identifier(&self, asset_path: &str, anchor: Option<&ResolvedPath>) -> String {
+        self.inner.create_identifier(asset_path, anchor)
+    }
+
+    fn resolve(&self, asset_path: &str) -> Option<ResolvedPath> {
+        if self.is_ours(asset_path) {
+            return Some(ResolvedPath::new(&self.identifier));
+        }
+        self.inner.resolve(asset_path)
+    }
+
+    fn resolve_for_new_asset(&self, asset_path: &str) -> Option<ResolvedPath> {
+        self.inner.resolve_for_new_asset(asset_path)
+    }
+
+    fn open_asset(&self, resolved_path: &ResolvedPath) -> io::Result<Box<dyn Asset>> {
+        if self.is_ours(&resolved_path.to_string_lossy()) {
+            return Ok(Box::new(io::Cursor::new(AssetBuffer::Owned(self.bytes.clone()))));
+        }
+        self.inner.open_asset(resolved_path)
+    }
+
+    fn get_extension<'a>(&self, asset_path: &'a str) -> &'a str {
+        self.inner.get_extension(asset_path)
+    }
+
+    fn is_context_dependent_path(&self, asset_path: &str) -> bool {
+        self.inner.is_context_dependent_path(asset_path)
+    }
+
+    fn in_memory_identifier<'a>(&self, asset_path: &'a str) -> Cow<'a, str> {
+        self.inner.in_memory_identifier(asset_path)
+    }
+
+    fn get_asset_info(&self, asset_path: &str, resolved_path: &ResolvedPath) -> AssetInfo {
+        self.inner.get_asset_info(asset_path, resolved_path)
+    }
+
+    fn get_modification_timestamp(&self, asset_path: &str, resolved_path: &ResolvedPath) -> Option<SystemTime> {
+        if self.is_ours(&resolved_path.to_string_lossy()) {
+            return None;
+        }
+        self.inner.get_modification_timestamp(asset_path, resolved_path)
+    }
+
+    fn identity(&self) -> String {
+        format!("painterly-memory:{}", self.identifier)
+    }
+}
+
+/// Opens a stage whose root layer is `bytes` (usda text or crate bytes), as
+/// if it were the file at `path`. `path` should end in `.usda` (or `.usdc`
+/// for crate bytes): openusd picks the format by extension. Nothing is
+/// read from or written to `path` itself.
+pub fn open_bytes(bytes: Vec<u8>, path: &Path) -> Result<StageReader> {
+    let path = if path.is_absolute() {
+        path.to_path_buf()
+    } else {
+        std::env::current_dir()
+            .map_err(|e| Error::msg(format!("cannot read the working directory: {e}")))?
+            .join(path)
+    };
+    let path_str = path
+        .to_str()
+        .ok_or_else(|| Error::msg("layer path is not valid UTF-8").in_file(&path))?;
+    let inner = DefaultResolver::new();
+    let identifier = inner.create_identifier(path_str, None);
+    let resolver = MemoryResolver {
+        inner,
+        identifier: identifier.clone(),
+        bytes,
+    };
+    // The checks and composition of a file on disk (guard, watch, unresolved assets).
+    StageReader::compose(&PathBuf::from(path_str), &identifier, resolver)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn reads_text_as_if_at_a_path_with_relative_sublayers_from_disk() {
+        let dir = std::env::temp_dir().join(format!("painterly_memory_{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        std::fs::write(
+            dir.join("base.usda"),
+            "#usda 1.0\ndef Xform \"World\" { def Sphere \"Ball\" { double radius = 2 } }\n",
+        )
+        .unwrap();
+        let text = "#usda 1.0\n(\n    subLayers = [@./base.usda@]\n)\nover \"World\" { def Cube \"Box\" {} }\n";
+        // Not on disk: only its directory is.
+        let r = open_bytes(text.as_bytes().to_vec(), &dir.join("shot.usda")).unwrap();
+        let paths = r.prim_paths().unwrap();
+        assert_eq!(paths, ["/World", "/World/Ball", "/World/Box"]);
+        assert!(!dir.join("shot.usda").exists());
+        let ball = r.require_prim("/World/Ball").unwrap();
+        assert_eq!(
+            r.typed(&ball, "radius", None, "double", crate::usd_io::values::scalar)
+                .unwrap(),
+            Some(2.0)
+        );
+
+        let err = open_bytes(b"#usda 1.0\ndef Xform \"A\" {".to_vec(), &dir.join("bad.usda"))
+            .err()
+            .unwrap();
+        assert!(err.to_string().contains("bad.usda"), "{err}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}

@@ -1,0 +1,378 @@
+//! Posing a skeleton at a time for joint skinning: bind and rest
+//! transforms, the animation's joint transforms (ignored, as usd-core does,
+//! at times where its arrays do not fit its joints) and the mesh's own joint
+//! order.
+
+use glam::DMat4;
+use openusd::gf;
+use openusd::sdf::Value;
+use openusd::usd::{self, AttributeQuery, TimeCode};
+
+use super::inherited_attr;
+use super::mapper::OrderMap;
+use super::topology::{duplicates, quoted};
+use crate::error::{Error, Result};
+use crate::skel_deform::local_to_skel;
+use crate::usd_io::stage::StageReader;
+use crate::usd_io::values;
+
+/// How the skeleton is posed at a time, for a mesh skinned by joints.
+pub(super) struct JointPose {
+    skeleton: String,
+    parents: Vec<Option<usize>>,
+    /// `restTransforms`, when authored with one matrix per joint.
+    rest: Option<Vec<DMat4>>,
+    inverse_bind: Vec<DMat4>,
+    /// The animation's joint transforms and where they land in the skeleton,
+    /// when it drives any joint.
+    anim: Option<(AnimJoints, OrderMap)>,
+    /// Skeleton joints → mesh joints (`skel:joints`); None = skeleton order.
+    pub(super) mesh_map: Option<OrderMap>,
+}
+
+/// The joint-transform arrays of a SkelAnimation.
+pub(super) struct AnimJoints {
+    path: String,
+    joints: usize,
+    translations: AttributeQuery,
+    rotations: AttributeQuery,
+    scales: AttributeQuery,
+    /// Authored times of `scales`, for interpolating half-precision scales.
+    scale_times: Vec<f64>,
+}
+
+const TRS: [&str; 3] = ["translations", "rotations", "scales"];
+
+impl AnimJoints {
+    /// Joint-local transforms at `t`, or why usd-core ignores the animation
+    /// there (the attribute and the reason): an array missing, of another
+    /// type, or not one entry per joint.
+    fn local(&self, t: f64) -> Result<std::result::Result<Vec<DMat4>, (&'static str, String)>> {
+        let time = TimeCode::new(t);
+        let get = |q: &AttributeQuery, name: &str| -> Result<Option<Value>> {
+            let v = q
+                .get_at::<Value>(time)
+                .map_err(|e| Error::attr(&self.path, name, format!("cannot read at time {t}: {e}")))?;
+            Ok(v.filter(|v| !matches!(v, Value::None | Value::ValueBlock)))
+        };
+        let raw = [
+            get(&self.translations, TRS[0])?,
+            get(&self.rotations, TRS[1])?,
+            get(&self.scales, TRS[2])?,
+        ];
+        let n = self.joints;
+        let [Some(tr), Some(rot), Some(mut sc)] = raw else {
+            let i = raw.iter().position(|v| v.is_none()).unwrap_or(0);
+            return Ok(Err((TRS[i], format!("{} is not authored", TRS[i]))));
+        };
+        if let Some(h) = self.half_scales_between_samples(t)? {
+            sc = Value::Vec3hVec(h);
+        }
+        let kinds = [values::kind_name(&tr), values::kind_name(&rot), values::kind_name(&sc)];
+        let cast = (
+            tr.cast::<Vec<gf::Vec3f>>().ok(),
+            rot.cast::<Vec<gf::Quatf>>().ok(),
+            sc.cast::<Vec<gf::Vec3f>>().ok(),
+        );
+        let (Some(tr), Some(rot), Some(sc)) = cast else {
+            let ok = [cast.0.is_some(), cast.1.is_some(), cast.2.is_some()];
+            let i = ok.iter().position(|ok| !ok).unwrap_or(0);
+            let expected = ["float3[]", "quatf[]", "half3[]"][i];
+            return Ok(Err((
+                TRS[i],
+                format!("{} is {}, expected {expected}", TRS[i], kinds[i]),
+            )));
+        };
+        let lens = [tr.len(), rot.len(), sc.len()];
+        if let Some(i) = lens.iter().position(|&l| l != n) {
+            return Ok(Err((
+                TRS[i],
+                format!("{} has {} values for {n} joints", TRS[i], lens[i]),
+            )));
+        }
+        Ok(Ok(tr
+            .iter()
+            .zip(&rot)
+            .zip(&sc)
+            .map(|((t, r), s)| values::usd_matrix(&gf::Matrix4d::from_trs(*t, *r, *s)))
+            .collect()))
+    }
+}
+
+impl AnimJoints {
+    /// `half3[]` scales between two samples as usd-core interpolates them:
+    /// `(1 − α)·a + α·b` in GfVec3h arithmetic, each product and the sum
+    /// rounded to half (openusd rounds once; they differ by up to ~1e-4 of
+    /// the character). None where that does not apply.
+    fn half_scales_between_samples(&self, t: f64) -> Result<Option<Vec<gf::Vec3h>>> {
+        let Some(i) = self.scale_times.windows(2).position(|w| w[0] < t && t < w[1]) else {
+            return Ok(None);
+        };
+        let (t0, t1) = (self.scale_times[i], self.scale_times[i + 1]);
+        let sample = |at: f64| {
+            self.scales
+                .get_at::<Value>(TimeCode::new(at))
+                .map_err(|e| Error::attr(&self.path, "scales", format!("cannot read at time {at}: {e}")))
+        };
+        let (Some(Value::Vec3hVec(a)), Some(Value::Vec3hVec(b))) = (sample(t0)?, sample(t1)?) else {
+            return Ok(None);
+        };
+        if a.len() != b.len() {
+            return Ok(None);
+        }
+        let alpha = (t - t0) / (t1 - t0);
+        let half = |x: f64| gf::f16::from_f32(x as f32);
+        let lerp = |a: gf::f16, b: gf::f16| {
+            let (pa, pb) = (half(a.to_f64() * (1.0 - alpha)), half(b.to_f64() * alpha));
+            gf::f16::from_f32(pa.to_f32() + pb.to_f32())
+        };
+        Ok(Some(
+            a.iter()
+                .zip(&b)
+                .map(|(a, b)| gf::Vec3h {
+                    x: lerp(a.x, b.x),
+                    y: lerp(a.y, b.y),
+                    z: lerp(a.z, b.z),
+                })
+                .collect(),
+        ))
+    }
+}
+
+impl JointPose {
+    /// Skinning transforms in mesh joint order (column form: inverse bind,
+    /// then the posed joint in skeleton space).
+    pub(super) fn skinning(&self, t: f64) -> Result<Vec<DMat4>> {
+        let rest = || {
+            self.rest.clone().ok_or_else(|| {
+                Error::attr(
+                    &self.skeleton,
+                    "restTransforms",
+                    format!("needed at time {t} but not usable"),
+                )
+            })
+        };
+        let local = match &self.anim {
+            Some((anim, map)) => match anim.local(t)? {
+                Ok(xf) => {
+                    let mut local = if map.sparse { rest()? } else { Vec::new() };
+                    map.remap(&xf, &mut local, DMat4::IDENTITY);
+                    local
+                }
+                Err(_) => rest()?,
+            },
+            None => rest()?,
+        };
+        let skel = local_to_skel(&local, &self.parents);
+        let skinning: Vec<DMat4> = skel.iter().zip(&self.inverse_bind).map(|(s, ib)| *s * *ib).collect();
+        Ok(match &self.mesh_map {
+            None => skinning,
+            Some(map) => {
+                let mut out = Vec::new();
+                map.remap(&skinning, &mut out, DMat4::IDENTITY);
+                out
+            }
+        })
+    }
+}
+
+/// Bind and rest transforms, the animation's joint transforms and the mesh's
+/// joint order, checked as usd-core needs them for joint skinning.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn read_joint_pose(
+    r: &StageReader,
+    skel_prim: &usd::Prim,
+    skeleton: &str,
+    joints: &[String],
+    parents: Vec<Option<usize>>,
+    anim: Option<(&usd::Prim, &Vec<String>, OrderMap)>,
+    mesh: &usd::Prim,
+    notes: &mut Vec<String>,
+) -> Result<JointPose> {
+    let nj = joints.len();
+    let mats = |name: &str| -> Result<Option<Vec<DMat4>>> {
+        match r.value(skel_prim, name, None)? {
+            None => Ok(None),
+            Some(Value::Matrix4dVec(m)) => Ok(Some(m.iter().map(values::usd_matrix).collect())),
+            Some(v) => Err(Error::attr(
+                skeleton,
+                name,
+                format!("expected matrix4d[], found {}", values::kind_name(&v)),
+            )),
+        }
+    };
+    let bind = mats("bindTransforms")?.unwrap_or_default();
+    if bind.len() != nj {
+        return Err(Error::attr(
+            skeleton,
+            "bindTransforms",
+            format!(
+                "{} matrices for {nj} joints: usd-core cannot skin without one bind transform per joint",
+                bind.len()
+            ),
+        ));
+    }
+    let inverse_bind: Vec<DMat4> = bind
+        .iter()
+        .map(|m| {
+            if m.determinant().abs() > 0.0 {
+                m.inverse()
+            } else {
+                DMat4::IDENTITY
+            }
+        })
+        .collect();
+    let rest_all = mats("restTransforms")?;
+    let rest_len = rest_all.as_ref().map_or(0, |m| m.len());
+    let rest = rest_all.filter(|m| m.len() == nj);
+    let rest_problem = || {
+        if rest_len == 0 {
+            "has no restTransforms".to_string()
+        } else {
+            format!("has {rest_len} restTransforms for {nj} joints")
+        }
+    };
+
+    // The animation, where it drives any joint: at every authored time its
+    // arrays must fit its joints, or usd-core falls back on the rest pose.
+    let anim = match anim {
+        None => {
+            if rest.is_none() {
+                return Err(Error::attr(
+                    skeleton,
+                    "restTransforms",
+                    format!(
+                        "{rest_len} matrices for {nj} joints, and no animation drives the joints: usd-core cannot pose {skeleton}"
+                    ),
+                ));
+            }
+            None
+        }
+        Some((prim, anim_joints, map)) => {
+            let path = prim.path().as_str().to_string();
+            let aj = AnimJoints {
+                path: path.clone(),
+                joints: anim_joints.len(),
+                translations: AttributeQuery::new(&prim.attribute("translations")),
+                rotations: AttributeQuery::new(&prim.attribute("rotations")),
+                scales: AttributeQuery::new(&prim.attribute("scales")),
+                scale_times: r.sample_times(prim, "scales")?,
+            };
+            if map.sparse && rest.is_none() {
+                let driven = map.sources(anim_joints.len()).iter().filter(|s| s.is_some()).count();
+                return Err(Error::attr(
+                    skeleton,
+                    "restTransforms",
+                    format!(
+                        "{path} drives {driven} of the {nj} joints, so the others need the rest pose, but {skeleton} {}",
+                        rest_problem()
+                    ),
+                ));
+            }
+            let unknown: Vec<&str> = anim_joints
+                .iter()
+                .filter(|n| !joints.contains(n))
+                .map(|s| s.as_str())
+                .collect();
+            if !unknown.is_empty() {
+                notes.push(format!(
+                    "{path} animates {}, not joints of {skeleton}: ignored",
+                    quoted(&unknown)
+                ));
+            }
+            let mut times: Vec<f64> = Vec::new();
+            for name in TRS {
+                times.extend(r.sample_times(prim, name)?);
+            }
+            times.sort_by(f64::total_cmp);
+            times.dedup();
+            if times.is_empty() {
+                times.push(0.0);
+            }
+            let mut bad: Vec<(f64, &str, String)> = Vec::new();
+            for &t in &times {
+                if let Err((attr, why)) = aj.local(t)? {
+                    bad.push((t, attr, why));
+                }
+            }
+            if let Some((t, attr, why)) = bad.first() {
+                let when = if times.len() == 1 {
+                    String::new()
+                } else if bad.len() == times.len() {
+                    " at every time".to_string()
+                } else if bad.len() == 1 {
+                    format!(" at time {t}")
+                } else {
+                    let more: Vec<String> = bad[1..].iter().map(|(t, _, _)| t.to_string()).collect();
+                    format!(" at time {t} (and at {})", more.join(", "))
+                };
+                if rest.is_none() {
+                    return Err(Error::attr(
+                        &path,
+                        attr,
+                        format!(
+                            "{why}{when}: usd-core then poses {skeleton} at rest, but it {}",
+                            rest_problem()
+                        ),
+                    ));
+                }
+                notes.push(format!(
+                    "{path}: {why}{when}: usd-core ignores the animation there and poses {skeleton} at rest"
+                ));
+            }
+            if rest.is_none() && rest_len > 0 {
+                notes.push(format!(
+                    "{skeleton} {}: unused, the animation drives every joint",
+                    rest_problem()
+                ));
+            }
+            Some((aj, map))
+        }
+    };
+
+    // The mesh's own joint order.
+    let mesh_joints = match inherited_attr(r, mesh, "skel:joints")? {
+        Some(p) => {
+            let mj = r.typed(&p, "skel:joints", None, "token[]", values::token_array)?;
+            if mj.as_ref().is_some_and(|m| m.is_empty()) {
+                return Err(Error::attr(
+                    p.path(),
+                    "skel:joints",
+                    "is empty: no joint index can name a joint (usd-core does not skin the mesh)",
+                ));
+            }
+            mj
+        }
+        None => None,
+    };
+    let mesh_map = match &mesh_joints {
+        None => None,
+        Some(mj) => {
+            let unknown: Vec<&str> = mj.iter().filter(|n| !joints.contains(n)).map(|s| s.as_str()).collect();
+            if !unknown.is_empty() {
+                notes.push(format!(
+                    "{}.skel:joints names {}, not joints of {skeleton}: usd-core gives them the identity transform",
+                    mesh.path(),
+                    quoted(&unknown)
+                ));
+            }
+            let dups = duplicates(mj);
+            if !dups.is_empty() {
+                notes.push(format!(
+                    "{}.skel:joints lists {} more than once: only the last of them follows the joint, as in usd-core",
+                    mesh.path(),
+                    quoted(&dups)
+                ));
+            }
+            Some(OrderMap::new(joints, mj))
+        }
+    };
+    Ok(JointPose {
+        skeleton: skeleton.to_string(),
+        parents,
+        rest,
+        inverse_bind,
+        anim,
+        mesh_map,
+    })
+}

@@ -1,0 +1,28 @@
+//! Counts in words for summary lines: "1 frame", "2 frames", "1 mesh".
+
+/// `n` and `word`, plural unless `n` is 1 (`-es` after s, sh, ch and x).
+pub fn plural(n: usize, word: &str) -> String {
+    if n == 1 {
+        return format!("1 {word}");
+    }
+    if let Some(stem) = word.strip_suffix("vertex") {
+        return format!("{n} {stem}vertices");
+    }
+    let es = ["s", "sh", "ch", "x"].iter().any(|e| word.ends_with(e));
+    format!("{n} {word}{}", if es { "es" } else { "s" })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::plural;
+
+    #[test]
+    fn singular_and_plural() {
+        assert_eq!(plural(1, "frame"), "1 frame");
+        assert_eq!(plural(0, "frame"), "0 frames");
+        assert_eq!(plural(2, "mesh"), "2 meshes");
+        assert_eq!(plural(3, "view-dependent mesh"), "3 view-dependent meshes");
+        assert_eq!(plural(1, "curves prim"), "1 curves prim");
+        assert_eq!(plural(2, "proxy vertex"), "2 proxy vertices");
+    }
+}
