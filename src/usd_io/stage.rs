@@ -167,8 +167,16 @@ impl StageReader {
     /// Fails naming every missing sublayer, reference and payload: a bake
     /// or edit of a stage with a missing asset would silently differ from
     /// what its author sees.
+    /// A file that exists but lacks the referenced prim contributes
+    /// nothing, for usd-core too: that is not refused here (inspect lists it).
     pub fn require_resolved(&self) -> Result<()> {
-        match self.unresolved.as_slice() {
+        let missing: Vec<UnresolvedAsset> = self
+            .unresolved
+            .iter()
+            .filter(|u| u.reason == "not found" || u.reason.starts_with("cannot be read"))
+            .cloned()
+            .collect();
+        match missing.as_slice() {
             [] => Ok(()),
             [one] => Err(Error::msg(format!("missing asset: {}", one.describe()))),
             all => Err(Error::msg(format!(
