@@ -87,29 +87,9 @@ fn check_output_dir(input: &Path, output: &Path) -> Result<()> {
 }
 
 /// The frames to bake: the option, checked against the stage's range, or
-/// the stage's whole range.
+/// the stage's whole range (see [`crate::frames::resolve`]).
 pub fn resolve_frames(r: &StageReader, frames: Option<FrameRange>) -> Result<Vec<f64>> {
-    let meta = r.metadata();
-    let range = match (meta.start_time_code, meta.end_time_code) {
-        (Some(s), Some(e)) => Some((s, e)),
-        _ => None,
-    };
-    match (frames, range) {
-        (Some(f), Some((s, e))) => {
-            f.check_within(s, e)?;
-            Ok(f.times())
-        }
-        (Some(f), None) => Ok(f.times()),
-        (None, Some((s, e))) if e >= s => Ok(FrameRange {
-            start: s,
-            end: e,
-            step: 1.0,
-        }
-        .times()),
-        _ => Err(Error::msg(
-            "the stage has no startTimeCode/endTimeCode: pass --frames A:B",
-        )),
-    }
+    crate::frames::resolve(&r.metadata(), frames)
 }
 
 /// Bakes `input` into `output`. A stage with nothing to bake is an error.

@@ -178,10 +178,12 @@ impl Character {
     /// computes the rest data (one-rings, centroids, bindings).
     pub fn from_reader(reader: StageReader, camera: Option<&str>) -> Result<Character> {
         let started = std::time::Instant::now();
+        // A rig or strokes from a missing asset would bake something else.
+        reader.require_resolved()?;
         let scene = Scene::read(&reader)?;
         let view_meshes = read_view_meshes(&reader, &reader.prim_paths()?)?;
         if let Some(c) = camera {
-            check_camera(&reader, c, "--camera")?;
+            reader.require_camera(c, "--camera")?;
         }
         let mut views = Vec::with_capacity(view_meshes.len());
         let mut view_models = Vec::with_capacity(view_meshes.len());

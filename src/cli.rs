@@ -596,6 +596,9 @@ pub fn run(cli: Cli) -> i32 {
         } => {
             let result = (|| {
                 let session = open_session(&edit)?;
+                if let Some(c) = &camera {
+                    session.reader.require_camera(c, "--camera")?;
+                }
                 let kind = if sentinel {
                     KeyKind::Sentinel
                 } else if time_key {
@@ -695,5 +698,5 @@ pub fn run(cli: Cli) -> i32 {
 
 fn report(e: &Error) -> i32 {
     eprintln!("error: {e}");
-    1
+    e.exit_code()
 }
