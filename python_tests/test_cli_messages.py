@@ -102,3 +102,18 @@ def test_bind_and_key_json(painterly, tmp_path, repo_root):
     stage = Usd.Stage.Open(str(edit))
     key = stage.GetPrimAtPath(s["key"])
     assert key.IsValid() and key.GetParent().GetPath() == hair
+
+
+def test_a_closed_pipe_ends_quietly(painterly, repo_root):
+    import subprocess
+
+    from conftest import painterly_binary
+
+    # The reader closes the pipe after one byte; inspect --json has pages more to print.
+    proc = subprocess.run(
+        f"'{painterly_binary()}' inspect --json '{repo_root / 'fixtures' / 'blowfish.usda'}' | head -c 1 >/dev/null;"
+        " echo ${PIPESTATUS[0]}",
+        shell=True, executable="/bin/bash", capture_output=True, text=True, check=True,
+    )
+    assert proc.stderr == ""
+    assert proc.stdout.strip() in {"0", "141"}

@@ -16,6 +16,11 @@ fn main() {
             .map(|s| s.to_string())
             .or_else(|| info.payload().downcast_ref::<String>().cloned())
             .unwrap_or_else(|| "unknown".into());
+        // A reader that went away (`painterly inspect --json | head`) ends
+        // the run quietly, as SIGPIPE ends Unix tools: exit 128 + 13.
+        if msg.contains("failed printing to") && msg.contains("Broken pipe") {
+            std::process::exit(141);
+        }
         let at = info
             .location()
             .map(|l| format!(" at {}:{}", l.file(), l.line()))
