@@ -100,12 +100,19 @@ pub fn resolve_frames(r: &StageReader, frames: Option<FrameRange>) -> Result<Vec
             Ok(f.times())
         }
         (Some(f), None) => Ok(f.times()),
-        (None, Some((s, e))) if e >= s => Ok(FrameRange {
-            start: s,
-            end: e,
-            step: 1.0,
+        (None, Some((s, e))) if e >= s => {
+            let whole = FrameRange {
+                start: s,
+                end: e,
+                step: 1.0,
+            };
+            whole.check_count().map_err(|m| {
+                Error::msg(format!(
+                    "the stage's startTimeCode:endTimeCode {m}: pass --frames A:B"
+                ))
+            })?;
+            Ok(whole.times())
         }
-        .times()),
         _ => Err(Error::msg(
             "the stage has no startTimeCode/endTimeCode: pass --frames A:B",
         )),

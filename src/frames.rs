@@ -2,6 +2,10 @@
 
 use crate::error::{Error, Result};
 
+/// The most time codes one range may hold: far beyond any shot (11.5 hours
+/// at 24 fps), and small enough that listing them cannot exhaust memory.
+pub const MAX_TIME_CODES: f64 = 1_000_000.0;
+
 /// An inclusive range of time codes with a positive step.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FrameRange {
@@ -38,7 +42,9 @@ impl std::str::FromStr for FrameRange {
         if end < start {
             return Err(format!("end {end} is before start {start}"));
         }
-        Ok(FrameRange { start, end, step })
+        let range = FrameRange { start, end, step };
+        range.check_count()?;
+        Ok(range)
     }
 }
 
@@ -48,6 +54,20 @@ impl FrameRange {
     pub fn times(&self) -> Vec<f64> {
         let n = ((self.end - self.start) / self.step + 1e-9).floor() as usize + 1;
         (0..n).map(|k| self.start + k as f64 * self.step).collect()
+    }
+
+    /// Refuses a range of more than [`MAX_TIME_CODES`] time codes (a tiny
+    /// step or a huge span), before anything is allocated for it.
+    pub fn check_count(&self) -> std::result::Result<(), String> {
+        let count = (self.end - self.start) / self.step + 1.0;
+        if count.is_finite() && count <= MAX_TIME_CODES {
+            Ok(())
+        } else {
+            Err(format!(
+                "{}:{}:{} holds {count:.0} time codes; at most {MAX_TIME_CODES} are allowed (use a larger step or bake in parts)",
+                self.start, self.end, self.step
+            ))
+        }
     }
 
     /// Checks the range lies within the stage's authored [start, end].
@@ -72,7 +92,7 @@ mod tests {
         assert_eq!(r.times(), vec![1.0, 4.0, 7.0, 10.0]);
         assert_eq!("5".parse::<FrameRange>().unwrap().times(), vec![5.0]);
         assert_eq!("1:2:0.5".parse::<FrameRange>().unwrap().times(), vec![1.0, 1.5, 2.0]);
-        for bad in ["1:", "a:b", "5:1", "1:10:0", "1:2:3:4", "", "nan:3"] {
+        for bad in ["1:", "a:b", "5:1", "1:10:0", "1:2:3:4", "", "nan:3", "1:24:1e-9", "0:1e300"] {
             assert!(bad.parse::<FrameRange>().is_err(), "{bad}");
         }
     }

@@ -21,6 +21,14 @@ fn main() {
         );
     }));
     let cli = painterly::cli::Cli::parse();
-    let code = std::panic::catch_unwind(|| painterly::cli::run(cli)).unwrap_or(3);
+    let code = std::panic::catch_unwind(|| {
+        // The one way to reach exit code 3 on purpose: the contract tests
+        // check that a bug ends in this message and code (docs/testing.md).
+        if std::env::var_os("PAINTERLY_TEST_INTERNAL_ERROR").is_some() {
+            panic!("PAINTERLY_TEST_INTERNAL_ERROR is set");
+        }
+        painterly::cli::run(cli)
+    })
+    .unwrap_or(3);
     std::process::exit(code);
 }
