@@ -106,11 +106,9 @@ pub fn resolve_frames(r: &StageReader, frames: Option<FrameRange>) -> Result<Vec
                 end: e,
                 step: 1.0,
             };
-            whole.check_count().map_err(|m| {
-                Error::msg(format!(
-                    "the stage's startTimeCode:endTimeCode {m}: pass --frames A:B"
-                ))
-            })?;
+            whole
+                .check_count()
+                .map_err(|m| Error::msg(format!("the stage's startTimeCode:endTimeCode {m}: pass --frames A:B")))?;
             Ok(whole.times())
         }
         _ => Err(Error::msg(

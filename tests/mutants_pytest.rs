@@ -22,5 +22,9 @@ fn python_contract_tests_pass_against_this_build() {
         .env("PAINTERLY_BIN", env!("CARGO_BIN_EXE_painterly"))
         .status()
         .unwrap_or_else(|e| panic!("cannot run {python}: {e}"));
-    assert!(status.success(), "pytest {files} failed against {}", env!("CARGO_BIN_EXE_painterly"));
+    assert!(
+        status.success(),
+        "pytest {files} failed against {}",
+        env!("CARGO_BIN_EXE_painterly")
+    );
 }
