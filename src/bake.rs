@@ -157,7 +157,15 @@ fn open_for_bake_with(
         return Err(Error::msg("--chunk-index and --assemble need --chunk N"));
     }
     check_output(input, output)?;
-    let mut character = Character::from_reader(open()?, opts.camera.as_deref()).map_err(|e| e.in_file(input))?;
+    let started = Instant::now();
+    let reader = open()?;
+    crate::vlog!(
+        "opened {} ({}) in {:.3} s",
+        input.display(),
+        crate::words::plural(reader.stage.layer_identifiers().len(), "layer"),
+        started.elapsed().as_secs_f64()
+    );
+    let mut character = Character::from_reader(reader, opts.camera.as_deref()).map_err(|e| e.in_file(input))?;
     character.proxy_normals = opts.bake_proxy;
     if is_empty(&character.model, opts) {
         return Err(Error::msg(
