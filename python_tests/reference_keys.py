@@ -9,7 +9,8 @@ local-to-world transforms); pose keys are blended with reference_interp.py
 section 5, written out here segment by segment.
 
 The choices the SPEC leaves open, as painterly documents them:
-- axis value = scale x raw value; key coordinates live in that scaled space;
+- SPEC 1.1 section 4: axis values and key coordinates are in axis units
+  (before scale); interpolation runs on both multiplied by the axes' scales;
 - attribute: arrays pick `element` (0 when absent), vectors `component`
   (0 when absent), quaternions in (x, y, z, w) order, arrays of vectors by
   element then component; the relationship `source` targets the attribute;
@@ -252,8 +253,14 @@ def raw_axis_value(stage, axis_prim, frame):
 
 
 def axis_value(stage, axis_prim, frame):
-    """Scaled axis value (the configuration-space coordinate)."""
-    return float(authored(axis_prim, "scale", 1.0)) * raw_axis_value(stage, axis_prim, frame)
+    """Axis value in axis units (what key coordinates store)."""
+    return raw_axis_value(stage, axis_prim, frame)
+
+
+def axis_scales(axes):
+    """The axes' `scale`s: interpolation multiplies key coordinates and the
+    configuration by them."""
+    return np.array([float(authored(a, "scale", 1.0)) for a in axes], dtype=np.float64)
 
 
 def rig_axes(rig_prim):
@@ -293,11 +300,13 @@ def interpolation(layer_prim):
             float(authored(layer_prim, "painterly:rbfRadius", 1.0)))
 
 
-def blend_weights(method, radius, key_coords, configs):
-    """(m, n) weights of n keys at m configurations."""
+def blend_weights(method, radius, key_coords, configs, scales):
+    """(m, n) weights of n keys at m configurations, both in axis units,
+    interpolated over scaled coordinates."""
     keys = np.asarray(key_coords, dtype=np.float64).reshape(len(key_coords), -1)
     x = np.asarray(configs, dtype=np.float64).reshape(len(configs), keys.shape[1])
-    return RI.weights(method, keys, x, radius)
+    s = np.asarray(scales, dtype=np.float64).reshape(1, keys.shape[1])
+    return RI.weights(method, keys * s, x * s, radius)
 
 
 # ---------------------------------------------------------------------------
@@ -427,18 +436,19 @@ def expected_bake(input_path, frames, camera=None, posed_world=None):
             lp = stage.GetPrimAtPath(layer["path"])
             pos, op = pose_keys(lp)
             method, radius = interpolation(lp)
-            cfg = {}
+            cfg, scales = {}, None
             if pos or op:
                 axes = layer_axes(stage, rig_prim, lp)
+                scales = axis_scales(axes)
                 cfg = {t: np.array([av(a, t) for a in axes]) for t in frames}
             rest_cfg = {t: layer["rest"] for t in frames}
             op_cfg = {t: 1.0 for t in frames}
             if pos:
-                W = blend_weights(method, radius, [k[1] for k in pos], [cfg[t] for t in frames])
+                W = blend_weights(method, radius, [k[1] for k in pos], [cfg[t] for t in frames], scales)
                 for row, t in zip(W, frames):
                     rest_cfg[t] = sum(w * k[2] for w, k in zip(row, pos))
             if op:
-                W = blend_weights(method, radius, [k[1] for k in op], [cfg[t] for t in frames])
+                W = blend_weights(method, radius, [k[1] for k in op], [cfg[t] for t in frames], scales)
                 for row, t in zip(W, frames):
                     op_cfg[t] = float(sum(w * k[2] for w, k in zip(row, op)))
             sentinels, tpos, top = time_keys(lp)
@@ -462,7 +472,7 @@ def expected_bake(input_path, frames, camera=None, posed_world=None):
 
 
 def axis_values_over(input_path, axis_paths, frames, camera=None, posed_world=None):
-    """{axis path: [scaled value at each frame]} for the first rig of the input
+    """{axis path: [value in axis units at each frame]} for the first rig of the input
     (used to place keys where the configuration actually goes)."""
     from authoring import usdcore_world_points
 

@@ -5,7 +5,10 @@ Pinned details (SPEC section 3):
 - faces fan-triangulated from their first vertex: (v0, vk, vk+1);
 - binding: closest point on the rest-pose triangle set (exact point-triangle
   distance, region-based closest point, barycentrics clamped to the
-  triangle), that triangle's three vertices and barycentric weights;
+  triangle), that triangle's three vertices and barycentric weights; ties
+  (SPEC 1.1): among triangles whose closest points lie within 1e-6 x the
+  rest bounding-box diagonal of the smallest distance, the lowest triangle
+  index in fan order;
 - one-ring of v: v plus every vertex sharing an authored polygon edge;
 - per-vertex rigid motion M_v(x) = R (x - c) + c' (Procrustes / Kabsch,
   det R = +1, R = I when the rest one-ring's covariance has second singular
@@ -156,16 +159,27 @@ def _degenerate_fix(p, A, B, C, bary, bad):
     return out
 
 
+def tie_tolerance(rest_proxy):
+    """SPEC 1.1 section 3: 1e-6 x the rest bounding-box diagonal."""
+    P = np.asarray(rest_proxy, dtype=np.float64)
+    return 1e-6 * float(np.linalg.norm(P.max(0) - P.min(0))) if len(P) else 0.0
+
+
 def bind(rest_proxy, tris, points, chunk=128):
-    """Closest-point binding. Returns (vertices (N,3) int, weights (N,3))."""
+    """Closest-point binding with the SPEC 1.1 tie rule (lowest triangle
+    index within tie_tolerance of the smallest distance).
+    Returns (vertices (N,3) int, weights (N,3))."""
     P = np.asarray(rest_proxy, dtype=np.float64)
     A, B, C = P[tris[:, 0]], P[tris[:, 1]], P[tris[:, 2]]
     pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     verts = np.zeros((len(pts), 3), dtype=np.int64)
     weights = np.zeros((len(pts), 3))
+    tol = tie_tolerance(P)
     for s in range(0, len(pts), chunk):
         d2, bary = closest_on_triangles(pts[s:s + chunk], A, B, C)
-        best = np.argmin(d2, axis=1)
+        d = np.sqrt(np.maximum(d2, 0.0))
+        # first index (argmax of a boolean) among the tied triangles
+        best = np.argmax(d <= d.min(axis=1, keepdims=True) + tol, axis=1)
         verts[s:s + chunk] = tris[best]
         weights[s:s + chunk] = bary[np.arange(len(best)), best]
     return verts, weights

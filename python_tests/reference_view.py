@@ -21,8 +21,9 @@ Pieces (all float64 on top of the float32 values the stage holds):
   keys and the nearest points of the arcs between pairs of keys (the maximum
   of a linear function over a convex spherical region lies on its boundary,
   and every boundary arc is an arc between two keys); d = eye . p;
-  result = base * (max(0,d) + max(0,1-d)) + max(0,d) * sum w_i(p) offset_i;
-  with one key, exactly max(0,d) * deformed + max(0,1-d) * base;
+  result = base + max(0,d) * sum w_i(p) offset_i; with one key, exactly
+  max(0,d) * deformed + (1 - max(0,d)) * base (SPEC 1.1; 1.0 printed
+  max(0,1-d) for the base coefficient), so d <= 0 gives the base model;
 - uncovered, "base": not reproduced (the placement of the virtual keys is an
   implementation choice); tests check its invariants instead;
 - time: untimed key offset = key points - rest points (rest = default points,
@@ -218,7 +219,7 @@ class Sphere:
 def classify_eye(sphere, e):
     """Which case of the cosine rule an eye direction falls in: "inside" the
     covered region, nearest covered direction a "key" or a point inside an
-    "arc", or "behind" (d <= 0: only the base model, scaled by 1 - d)."""
+    "arc", or "behind" (d <= 0: exactly the base model)."""
     p, d, _ = sphere.nearest_covered(e)
     if d <= 0:
         return "behind"
@@ -231,12 +232,12 @@ def classify_eye(sphere, e):
 
 def cosine_blend(sphere, eye, alpha, base, offsets):
     """Every candidate result (one per triangulation choice) of the cosine
-    rule: base*(max(0,d)+max(0,1-d)) + max(0,d)*sum w_i offset_i."""
+    rule: max(0,d)*blend(p) + (1-max(0,d))*base = base + max(0,d)*sum w_i offset_i."""
     p, d, ws = sphere.nearest_covered(eye)
     out = []
     for b in ws:
         w = sharpen(b, alpha)
-        acc = base * (max(0.0, d) + max(0.0, 1.0 - d))
+        acc = base.copy()
         for i, wi in enumerate(w):
             if wi > 0:
                 acc = acc + max(0.0, d) * wi * offsets[i]

@@ -338,7 +338,7 @@ def axis_values(rig, t):
     proxy = RA.l2w(st, rig.mesh, t)
     inv = np.linalg.inv(proxy)
     out = {}
-    out["zKnob"] = 2.0 * float(st.GetPrimAtPath("/World/Controls").GetAttribute("knobs").Get(t)[1][2])
+    out["zKnob"] = float(st.GetPrimAtPath("/World/Controls").GetAttribute("knobs").Get(t)[1][2])
     anim = UsdSkel.Animation(st.GetPrimAtPath("/World/Character/Anim"))
     names = list(anim.GetBlendShapesAttr().Get())
     out["bulge"] = float(anim.GetBlendShapeWeightsAttr().Get(t)[names.index("bulge")])
@@ -356,7 +356,7 @@ def axis_values(rig, t):
     centre = (local.min(axis=0) + local.max(axis=0)) / 2
     cam = RA.transform_points(inv, RA.l2w(st, "/World/Cam", t)[:3, 3])[0]
     d = cam - centre
-    out["view"] = 0.5 * float(d[2] / np.linalg.norm(d))
+    out["view"] = float(d[2] / np.linalg.norm(d))
     return out
 
 
@@ -382,7 +382,7 @@ def test_key_pose_keys(painterly, keyed_rig, tmp_path):
     vals = axis_values(rig, t)
     assert abs(vals["bend"]) > 1e-3 and abs(vals["bulge"]) > 1e-3 and abs(vals["loc"]) > 1e-3
 
-    # default: a points key at the configuration at t (every axis, namespace order, scaled)
+    # default: a points key at the configuration at t (every axis, namespace order, in axis units: SPEC 1.1 section 4)
     edit(painterly, "key", rig.path, "--layer", L0, "--time", t, *CAM, layer=e)
     st = Usd.Stage.Open(str(e))
     k1 = key_prim(st, f"{L0}/key1")

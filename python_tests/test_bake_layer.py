@@ -1,7 +1,8 @@
 """SPEC section 7: the layer `painterly bake` writes.
 
 Only `over` specs plus copied layer metadata; samples exactly at the baked
-frames; extent = per-frame min/max of the points; displayOpacity = authored
+frames; extent = usd-core's UsdGeom.Curves.ComputeExtent of each frame's
+points and widths (test_extent.py checks it bit for bit); displayOpacity = authored
 (1 when absent) x painterly:opacity per curve; input bytes unchanged; the
 composed stage validates cleanly with UsdValidation; CLI reporting (--json,
 --quiet); a bake of the committed fixture.
@@ -64,6 +65,7 @@ def test_samples_exactly_at_baked_frames_and_extent(painterly, tmp_path, frames_
     extra = ["--quiet"] + (["--frames", frames_arg] if frames_arg else [])
     bake(painterly, rig.path, out, *extra)
     layer = Sdf.Layer.FindOrOpen(str(out))
+    src = Usd.Stage.Open(str(rig.path))
     for lp in rig.layers:
         pp = Sdf.Path(lp).AppendProperty("points")
         ep = Sdf.Path(lp).AppendProperty("extent")
@@ -72,12 +74,14 @@ def test_samples_exactly_at_baked_frames_and_extent(painterly, tmp_path, frames_
         dp = Sdf.Path(lp).AppendProperty("primvars:displayOpacity")
         if layer.GetAttributeAtPath(dp) and layer.GetNumTimeSamplesForPath(dp):
             assert list(layer.ListTimeSamplesForPath(dp)) == pytest.approx(frames)
+        widths = UsdGeom.BasisCurves(src.GetPrimAtPath(lp)).GetWidthsAttr().Get()
+        assert widths and max(widths) > 0
         for t in frames:
-            pts = np.array(layer.QueryTimeSample(pp, t), dtype=np.float64)
+            pts = layer.QueryTimeSample(pp, t)
             ext = np.array(layer.QueryTimeSample(ep, t), dtype=np.float64)
             assert ext.shape == (2, 3)
-            np.testing.assert_allclose(ext, [pts.min(0), pts.max(0)], atol=1e-6,
-                                       err_msg=f"{lp}.extent at t={t}")
+            want = np.array(UsdGeom.Curves.ComputeExtent(pts, widths), dtype=np.float64)
+            np.testing.assert_array_equal(ext, want, err_msg=f"{lp}.extent at t={t}")
 
 
 @pytest.mark.parametrize("frames_arg,frames", [(None, Au.frame_list(-4, 4)), ("--frames=-3:1:2", [-3.0, -1.0, 1.0])])

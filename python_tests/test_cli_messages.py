@@ -56,3 +56,49 @@ def test_verbose_logs_phases_on_stderr_only(painterly, tmp_path, repo_root):
 
 def test_interpolate_is_listed_in_help(painterly):
     assert "interpolate" in painterly("--help").stdout
+
+
+EDIT_FIELDS = {"command", "input", "written", "in_place", "layers", "points", "key", "message"}
+
+
+def _points(path, prim):
+    """A layer's rest points (painterly:restPoints, else points), as brushes edit them."""
+    import numpy as np
+    from pxr import Usd
+
+    stage = Usd.Stage.Open(str(path))
+    p = stage.GetPrimAtPath(prim)
+    rest = p.GetAttribute("painterly:restPoints")
+    return np.array((rest.Get() if rest.HasAuthoredValue() else None) or p.GetAttribute("points").Get(), dtype=float)
+
+
+@pytest.mark.parametrize("brush", ["smudge", "expand"])
+def test_brush_json_counts_the_points_usd_core_sees_moved(painterly, tmp_path, repo_root, brush):
+    import numpy as np
+
+    src, edit, hair = repo_root / "fixtures" / "blowfish.usda", tmp_path / "e.usda", "/Blowfish/Paint/Hair"
+    proc = painterly(brush, src, "--layer", hair, "--path", "3,6,-2 6,6,-1.5", "--radius", "1",
+                     "--strength", "0.2", "--edit-layer", edit, "--json")
+    s = json.loads(proc.stdout)
+    assert set(s) == EDIT_FIELDS and proc.stderr == ""
+    moved = int(np.count_nonzero(np.any(_points(edit, hair) != _points(src, hair), axis=1)))
+    assert moved > 0
+    assert s == {"command": brush, "input": str(src), "written": str(edit), "in_place": False, "layers": [hair],
+                 "points": moved, "key": None, "message": f"moved {moved} points of {hair} -> {edit}"}
+
+
+def test_bind_and_key_json(painterly, tmp_path, repo_root):
+    from pxr import Usd
+
+    src, edit, hair = repo_root / "fixtures" / "blowfish.usda", tmp_path / "e.usda", "/Blowfish/Paint/Hair"
+    s = json.loads(painterly("bind", src, "--layer", hair, "--time", "24", "--edit-layer", edit, "--json").stdout)
+    n = len(_points(src, hair))
+    assert s == {"command": "bind", "input": str(src), "written": str(edit), "in_place": False, "layers": [hair],
+                 "points": n, "key": None, "message": f"bound {n} points in 1 layer -> {edit}"}
+    s = json.loads(painterly("key", edit, "--layer", hair, "--time", "6", "--time-key", "--points", "--in-place",
+                             "--json").stdout)
+    assert set(s) == EDIT_FIELDS and s["in_place"] is True and s["written"] == str(edit)
+    assert s["command"] == "key" and s["layers"] == [hair] and s["points"] == 0
+    stage = Usd.Stage.Open(str(edit))
+    key = stage.GetPrimAtPath(s["key"])
+    assert key.IsValid() and key.GetParent().GetPath() == hair

@@ -404,6 +404,55 @@ def test_reference_axis_order_matters(multi_case):
     assert np.abs(W - W2).max() > 0.05
 
 
+def _scaled_axes_rig(path, scales):
+    """A usd-core rig whose one layer is keyed on two attribute axes with
+    the given scales; the keys sit exactly at the axis values (in axis
+    units) of frames 2, 6 and 10."""
+    rig = Au.build_skel_rig(path, frames=(1, 12), n_strokes=4)
+    stage = Usd.Stage.Open(str(rig.path))
+    knobs = stage.DefinePrim("/World/Knobs", "Scope")
+    a_vals = {t: float(t - 1) for t in range(1, 13)}
+    b_vals = dict(zip(range(1, 13), [0, 1.5, 3, 2, 0.5, -1, -2.5, -1, 0.5, 2, 3, 1]))
+    for name, vals in (("a", a_vals), ("b", b_vals)):
+        attr = knobs.CreateAttribute(name, Sdf.ValueTypeNames.Double, True)
+        for t, v in vals.items():
+            attr.Set(float(v), float(t))
+    axes = [AK.add_axis(stage, f"{rig.rig}/{n}", "attribute", source=f"/World/Knobs.{n}", scale=sc).GetPath()
+            for n, sc in zip("ab", scales)]
+    lp = rig.layers[0]
+    AK.set_layer_axes(stage, lp, axes)
+    rest = AK.layer_rest(stage, lp)
+    rng = np.random.default_rng(5)
+    for t in (2, 6, 10):
+        AK.add_pose_key(stage, lp, f"k{t}", [a_vals[t], b_vals[t]], points=AK.displaced(rest, rng, 0.2))
+    stage.GetRootLayer().Save()
+    rig.layers = [lp]
+    return rig
+
+
+def test_rescaling_an_axis_never_moves_its_keys(tmp_path):
+    """SPEC 1.1 section 4: key coordinates are in axis units, interpolation
+    runs on scaled coordinates. The same keys under scales (1, 1) and
+    (8, 0.25): both bakes match the reference; at the keys' frames both
+    show the keys (a key stored in scaled units would be missed by the
+    re-scaled one); between keys the scale reshapes the blend."""
+    cases = {}
+    for name, scales in (("unit", (1.0, 1.0)), ("scaled", (8.0, 0.25))):
+        d = tmp_path / name
+        d.mkdir()
+        cases[name] = bake_and_expect(_scaled_axes_rig(d / "rig.usda", scales), d, frames_arg="1:12:0.5",
+                                      frames=Au.frame_list(1, 12, 0.5))
+        _check(cases[name], None)
+    lp = cases["unit"]["rig"].layers[0]
+    comp = {n: Au.compose(c["rig"].path, c["out"]) for n, c in cases.items()}
+    diag = Au.bbox_diag(Au.local_points(comp["unit"], lp, 1.0))
+    diff = {t: float(np.abs(Au.local_points(comp["unit"], lp, t) - Au.local_points(comp["scaled"], lp, t)).max())
+            for t in Au.frame_list(1, 12, 0.5)}
+    for t in (2.0, 6.0, 10.0):
+        assert diff[t] <= 1e-6 * diag, f"the key at t={t} moved by {diff[t]} when the axes were re-scaled"
+    assert max(diff.values()) > 1e-3 * diag, "re-scaling the axes did not change the blend between keys"
+
+
 # ---------------------------------------------------------------------------
 # temporal keys
 

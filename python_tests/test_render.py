@@ -302,15 +302,16 @@ def test_bad_usage_exits_2(painterly, tmp_path, args, code, needle):
 def test_bad_outputs_and_inputs_exit_1(painterly, tmp_path):
     stage = author(tmp_path / "s.usda", camera={"translate": (0, 0, 10)})
 
-    def run(output, *extra, input=stage, frames="1"):
+    def run(output, *extra, input=stage, frames="1", code=1):
         p = painterly("render", input, "--camera", "/Cam", "--frames", frames, "-o", output, *extra, check=False)
-        assert p.returncode == 1 and "internal error" not in p.stderr, p.stderr
+        assert p.returncode == code and "internal error" not in p.stderr, p.stderr
         return p.stderr
 
     err = run(tmp_path / "nope" / "f.####.exr")
     assert "nope" in err and "does not exist" in err
-    assert "####" in run(tmp_path / "f.exr", frames="1:3")
-    assert ".exr" in run(tmp_path / "f.png")
+    # An output name that cannot work is a usage error (issue 11).
+    assert "####" in run(tmp_path / "f.exr", frames="1:3", code=2)
+    assert ".exr" in run(tmp_path / "f.png", code=2)
     assert "absent.usda" in run(tmp_path / "f.exr", input=tmp_path / "absent.usda")
     assert "b.png" in run(tmp_path / "f.exr", "--brush", tmp_path / "b.png")
     assert "bake.usdc" in run(tmp_path / "f.exr", "--bake", tmp_path / "bake.usdc")

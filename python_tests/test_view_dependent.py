@@ -7,8 +7,8 @@ spline) to within 1e-5 x the mesh's bounding-box diagonal:
   split either way), irregular random hulls (5-7 keys), alpha in {1, 3};
   eyes on an orbit that bobs across hull edges, exactly at key directions
   (the key deformation itself), at edge midpoints and face centroids;
-- uncovered "cosine": a single key (Rademacher's formula, including the
-  d < 0 side where 1 - d scales the base) and keys all on one side (an arc,
+- uncovered "cosine": a single key (SPEC 1.1's max(0,d)*deformed +
+  (1 - max(0,d))*base, exactly the base for d < 0) and keys all on one side (an arc,
   a triangle, a cap of five) with the nearest-covered-direction rule;
 - uncovered "base": invariants (keys reproduced, blend of at most three
   keys with weights in [0, 1], the base model opposite a single key,
@@ -200,8 +200,9 @@ def test_continuity_along_fine_camera_paths(painterly, tmp_path, setname, alpha,
 
 
 def test_single_key_cosine_formula(painterly, tmp_path):
-    """One key: max(0,d)*deformed + max(0,1-d)*base, d = key.eye, literally
-    (for d < 0 the base model is scaled by 1 - d)."""
+    """One key: max(0,d)*deformed + (1 - max(0,d))*base, d = key.eye
+    (SPEC 1.1 section 6): behind the key (d < 0) exactly the base model,
+    bit for bit (SPEC 1.0's max(0,1-d) scaled it up to 2x)."""
     k = RV.unit((0.3, -0.2, 1.0))
     eyes = RV.orbit_eyes(36, turns=1.0, tilt=0.1, wobble=0.5) + [k, -k, RV.unit(np.cross(k, (0, 1, 0)))]
     eyes = [RV.unit(e) for e in eyes]
@@ -215,13 +216,15 @@ def test_single_key_cosine_formula(painterly, tmp_path):
     for t, e in zip(vs.frames, vs.eyes):
         d = float(kd @ e)
         seen_negative |= d < -0.5
-        want = max(0.0, d) * key + max(0.0, 1.0 - d) * vs.rest
-        assert np.abs(got[t] - want).max() <= TOL * diag, f"t={t} d={d:.3f}: not Rademacher's formula"
+        want = max(0.0, d) * key + (1.0 - max(0.0, d)) * vs.rest
+        assert np.abs(got[t] - want).max() <= TOL * diag, f"t={t} d={d:.3f}: not the SPEC 1.1 cosine rule"
+        if d < 0:
+            assert np.array_equal(got[t], vs.rest.astype(np.float32)), f"t={t} d={d:.3f}: not exactly the base"
     assert seen_negative
-    # the three special eyes: the key, its antipode (2 x base), perpendicular (base)
+    # the three special eyes: the key, its antipode (base), perpendicular (base)
     n = len(vs.frames)
     assert np.abs(got[vs.frames[n - 3]] - key).max() <= 1e-6 * diag
-    assert np.abs(got[vs.frames[n - 2]] - 2.0 * vs.rest).max() <= TOL * diag
+    assert np.array_equal(got[vs.frames[n - 2]], vs.rest.astype(np.float32))
     assert np.abs(got[vs.frames[n - 1]] - vs.rest).max() <= TOL * diag
 
 
@@ -439,6 +442,50 @@ def test_rest_time_picks_the_rest_pose(painterly, tmp_path):
     right_offsets = [k[2] - sampled[1] for k in vs.keys]
     diff = max(np.abs(a - b).max() for a, b in zip(wrong_offsets, right_offsets))
     assert diff > 0.05 * Au.bbox_diag(vs.rest)
+
+
+def point_cache(rest, frames):
+    """A usd-core point cache: time samples at every frame, no default."""
+    return {t: wobble_points(rest, np.sin(0.4 * t)) + 0.05 * t for t in frames}
+
+
+def test_point_cache_with_timed_keys(painterly, tmp_path):
+    """issue 9 section 4: a base with only time-sampled points (no default,
+    no restTime: an Alembic-converted cache) needs no rest pose when every
+    key has a time (SPEC section 6: offsets from the base at each key's
+    time). It bakes, and matches the reference at every frame."""
+    rest, _, _ = RV.ball_mesh()
+    rest = RV.f32(rest)
+    frames = list(range(1, 17))
+    cache = point_cache(rest, frames)
+    rng = np.random.default_rng(11)
+    keys = [(d, sampled_base(cache, t) + RV.smooth_offsets(rest, rng, 0.3), t, None)
+            for d in OCTAHEDRON for t in (4.0, 12.0)]
+    vs = RV.build_view_stage(tmp_path / "v.usda", keys=keys, eyes=RV.orbit_eyes(16, wobble=0.5),
+                             sampled=cache, default_points=False)
+    st = Usd.Stage.Open(str(vs.path))
+    assert UsdGeom.Mesh(st.GetPrimAtPath(vs.mesh)).GetPointsAttr().Get(Usd.TimeCode.Default()) is None
+    got = assert_matches_reference(vs, bake(painterly, vs, tmp_path))
+    assert sorted(got) == [float(t) for t in frames]
+
+
+def test_point_cache_untimed_key_is_named(painterly, tmp_path):
+    """A key without `time` on a point cache would be an offset from a rest
+    pose the mesh does not have: an error naming that key (not a proxy or a
+    rig the user never made)."""
+    rest, _, _ = RV.ball_mesh()
+    rest = RV.f32(rest)
+    cache = point_cache(rest, range(1, 9))
+    keys = [(d, None, 5.0, None) for d in OCTAHEDRON]
+    keys[3] = (OCTAHEDRON[3], None, None, None)
+    vs = RV.build_view_stage(tmp_path / "v.usda", keys=keys, eyes=RV.orbit_eyes(8),
+                             sampled=cache, default_points=False)
+    out = tmp_path / "bake.usda"
+    proc = painterly("bake", vs.path, "-o", out, "--quiet", check=False)
+    assert proc.returncode == 1, proc.stderr
+    assert f"{vs.mesh}/Key3.time" in proc.stderr, proc.stderr
+    assert "point cache" in proc.stderr and "proxy" not in proc.stderr and "on the rig" not in proc.stderr
+    assert not out.exists()
 
 
 @pytest.mark.parametrize("n_times", [1, 2, 3])

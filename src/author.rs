@@ -247,7 +247,8 @@ pub struct KeyOptions {
 /// Sets a key on a layer; returns the key prim's path.
 ///
 /// Pose keys capture the configuration at `time` (every axis of the layer,
-/// scaled), time keys capture `time`; both capture the layer's current rest
+/// in axis units: SPEC 1.1 §4 stores coordinates before `scale`), time keys
+/// capture `time`; both capture the layer's current rest
 /// positions (`points`) and/or an `opacity`. A key whose coordinates (or time)
 /// coincide with an existing key of the same channel is refused unless
 /// `replace`, which then rewrites that key.

@@ -17,8 +17,8 @@ use glam::Vec3;
 
 use crate::character::{Character, FrameOutput, Model, RigModel};
 use crate::error::{Error, Result};
+use crate::extent::{curves_extent, point_based_extent};
 use crate::frames::FrameRange;
-use crate::mesh::bounds;
 use crate::usd_io::bake_layer::{self, BakeAttr, BakeLayout, FrameSink, Provenance, Sample, SampleKind};
 use crate::usd_io::clips::{self, ChunkedSink, ClipPlan};
 use crate::usd_io::layer::Format;
@@ -87,34 +87,9 @@ fn check_output_dir(input: &Path, output: &Path) -> Result<()> {
 }
 
 /// The frames to bake: the option, checked against the stage's range, or
-/// the stage's whole range.
+/// the stage's whole range (see [`crate::frames::resolve`]).
 pub fn resolve_frames(r: &StageReader, frames: Option<FrameRange>) -> Result<Vec<f64>> {
-    let meta = r.metadata();
-    let range = match (meta.start_time_code, meta.end_time_code) {
-        (Some(s), Some(e)) => Some((s, e)),
-        _ => None,
-    };
-    match (frames, range) {
-        (Some(f), Some((s, e))) => {
-            f.check_within(s, e)?;
-            Ok(f.times())
-        }
-        (Some(f), None) => Ok(f.times()),
-        (None, Some((s, e))) if e >= s => {
-            let whole = FrameRange {
-                start: s,
-                end: e,
-                step: 1.0,
-            };
-            whole
-                .check_count()
-                .map_err(|m| Error::msg(format!("the stage's startTimeCode:endTimeCode {m}: pass --frames A:B")))?;
-            Ok(whole.times())
-        }
-        _ => Err(Error::msg(
-            "the stage has no startTimeCode/endTimeCode: pass --frames A:B",
-        )),
-    }
+    crate::frames::resolve(&r.metadata(), frames)
 }
 
 /// Bakes `input` into `output`. A stage with nothing to bake is an error.
@@ -157,14 +132,9 @@ fn open_for_bake_with(
         return Err(Error::msg("--chunk-index and --assemble need --chunk N"));
     }
     check_output(input, output)?;
-    let started = Instant::now();
+    let opening = Instant::now();
     let reader = open()?;
-    crate::vlog!(
-        "opened {} ({}) in {:.3} s",
-        input.display(),
-        crate::words::plural(reader.stage.layer_identifiers().len(), "layer"),
-        started.elapsed().as_secs_f64()
-    );
+    crate::character::log_opened(input, &reader, opening);
     let mut character = Character::from_reader(reader, opts.camera.as_deref()).map_err(|e| e.in_file(input))?;
     character.proxy_normals = opts.bake_proxy;
     if is_empty(&character.model, opts) {
@@ -374,10 +344,10 @@ fn blocked_skeletons(model: &Model, bake_proxy: bool) -> Vec<String> {
 /// One frame's samples in [`layout_attrs`] order (extents computed here, on
 /// the worker thread).
 fn frame_samples(out: FrameOutput, baked_proxy: &[bool]) -> Vec<Sample> {
-    let extent = |p: &[Vec3]| Sample::Vec3s(bounds(p).unwrap_or([Vec3::ZERO; 2]).to_vec());
+    let extent = |p: &[Vec3]| Sample::Vec3s(point_based_extent(p).to_vec());
     let mut s = Vec::with_capacity(3 * out.layers.len() + 2 * (out.proxies.len() + out.views.len()));
     for l in out.layers {
-        let e = extent(&l.points);
+        let e = Sample::Vec3s(curves_extent(&l.points, l.max_width).to_vec());
         s.push(Sample::Vec3s(l.points));
         s.push(e);
         s.push(Sample::Floats(l.opacity));

@@ -2,15 +2,22 @@
 //!
 //! Bassett §3.2: "simply associating each stroke with the closest geometric
 //! primitive of the mesh has proven to be sufficient"; the barycentric
-//! coordinates of the closest point are the skinning weights. A BVH
-//! (parry's `TriMesh`) finds the closest triangle; the barycentrics are then
-//! recomputed here in f64 with clamping so degenerate triangles cannot produce
-//! NaNs.
+//! coordinates of the closest point are the skinning weights. SPEC §3 pins
+//! the result so that independent implementations agree: distances in f64
+//! by the region-based closest point below, and among triangles whose
+//! closest points lie within 1e-6 × the bounding-box diagonal of the
+//! smallest distance, the lowest triangle index (fan order) wins. Both sides
+//! of a split texture seam are such a tie.
+//!
+//! The search is a bounding-volume hierarchy over the triangles (median
+//! splits, f32 boxes rounded outwards so they always contain their f64
+//! triangles) queried per point in parallel. A query keeps every triangle
+//! within the tie tolerance of the best distance found so far and prunes
+//! only boxes farther than that (plus a rounding margin), so its answer is
+//! exactly the brute-force answer of [`bind_brute_force`].
 
 use glam::{DVec3, Vec3};
-use parry3d_f64::math::Point;
-use parry3d_f64::query::PointQueryWithLocation;
-use parry3d_f64::shape::TriMesh;
+use rayon::prelude::*;
 
 /// Per stroke point: its triangle's three proxy vertices and weights.
 ///
@@ -36,52 +43,446 @@ impl Binding {
     }
 }
 
+/// Triangles per BVH leaf.
+const LEAF_SIZE: usize = 4;
+
+/// A BVH node: an f32 box; a leaf holds `count` triangles from `first` in
+/// [`ClosestPoint::leaf_tris`], an inner node (`count == 0`) has children
+/// `first` and `first + 1`.
+#[derive(Clone, Copy, Debug)]
+struct Node {
+    lo: [f32; 3],
+    hi: [f32; 3],
+    first: u32,
+    count: u32,
+}
+
 /// A BVH over the rest-pose triangles, built once per proxy.
 pub struct ClosestPoint {
-    mesh: TriMesh,
     points: Vec<DVec3>,
     triangles: Vec<[u32; 3]>,
+    nodes: Vec<Node>,
+    /// The triangles in leaf order, with what prunes them cheaply.
+    leaf_tris: Vec<LeafTri>,
+    /// SPEC §3 tie tolerance (1e-6 × bounding-box diagonal).
+    tol: f64,
+    /// Absolute slack added to pruning distances: covers the rounding of
+    /// distances computed at coordinates of this size.
+    slack: f64,
+    /// How far an f32 plane distance may undershoot the true one.
+    plane_slack: f64,
+}
+
+/// A triangle as a leaf stores it: its index, its f32 box (rounded
+/// outwards) and its plane `n·x = d` in f32 (`n` unit, zero for a
+/// degenerate triangle). Box and plane distances are lower bounds of the
+/// distance to the triangle, checked before the exact f64 test; the plane
+/// prunes triangle soups whose boxes all overlap.
+#[derive(Clone, Copy, Debug)]
+struct LeafTri {
+    lo: [f32; 3],
+    hi: [f32; 3],
+    plane: [f32; 4],
+    index: u32,
+}
+
+/// Subtrees at least this large are split in parallel.
+const PAR_BUILD: usize = 1 << 14;
+
+/// The f32 value at or below `x` (at or above when `up`).
+fn round_f32(x: f64, up: bool) -> f32 {
+    let f = x as f32;
+    if up && (f as f64) < x {
+        f.next_up()
+    } else if !up && (f as f64) > x {
+        f.next_down()
+    } else {
+        f
+    }
 }
 
 impl ClosestPoint {
-    /// Builds the BVH. `triangles` must be non-empty and index into `points`
-    /// (callers validate: parry asserts on an empty mesh).
+    /// Builds the BVH. `triangles` must index into `points` (callers
+    /// validate); an empty triangle list gives a BVH that cannot bind.
     pub fn new(points: &[DVec3], triangles: &[[u32; 3]]) -> Self {
-        let verts = points.iter().map(|p| Point::new(p.x, p.y, p.z)).collect();
-        ClosestPoint {
-            mesh: TriMesh::new(verts, triangles.to_vec()),
+        let tol = tie_tolerance(points);
+        let extent = points.iter().fold(0.0f64, |m, p| m.max(p.length()));
+        let mut cp = ClosestPoint {
             points: points.to_vec(),
             triangles: triangles.to_vec(),
+            nodes: Vec::new(),
+            leaf_tris: Vec::new(),
+            tol,
+            slack: 1e-12 * (extent + tol * 1e6),
+            // Rounding n and d to f32 moves the plane by at most about
+            // 2⁻²⁴·(|x| + |d|) ≤ 2⁻²³·extent at any point x of the triangle.
+            plane_slack: 1e-6 * extent,
+        };
+        cp.build();
+        cp
+    }
+
+    fn leaf_tri(&self, t: u32) -> LeafTri {
+        let [a, b, c] = self.triangles[t as usize].map(|v| self.points[v as usize]);
+        let (lo, hi) = (a.min(b).min(c), a.max(b).max(c));
+        let n = (b - a).cross(c - a);
+        let len = n.length();
+        let plane = if len > 0.0 && len.is_finite() {
+            let n = n / len;
+            [n.x as f32, n.y as f32, n.z as f32, n.dot(a) as f32]
+        } else {
+            [0.0; 4]
+        };
+        LeafTri {
+            lo: [0, 1, 2].map(|k| round_f32(lo[k], false)),
+            hi: [0, 1, 2].map(|k| round_f32(hi[k], true)),
+            plane,
+            index: t,
         }
     }
 
-    /// Closest point on the triangle set: (triangle index, clamped barycentrics).
-    pub fn query(&self, p: DVec3) -> (usize, [f64; 3]) {
-        let (_, (tri, _)) = self
-            .mesh
-            .project_local_point_and_get_location(&Point::new(p.x, p.y, p.z), false);
-        let [a, b, c] = self.triangles[tri as usize];
-        let w = closest_point_barycentric(
-            p,
-            self.points[a as usize],
-            self.points[b as usize],
-            self.points[c as usize],
-        );
-        (tri as usize, w)
+    /// Median splits along the longest axis of the centroids' box (large
+    /// subtrees in parallel); then boxes bottom-up (children always follow
+    /// their parent).
+    fn build(&mut self) {
+        let n = self.triangles.len();
+        if n == 0 {
+            return;
+        }
+        let mut items: Vec<([f32; 3], u32)> = (0..n as u32)
+            .into_par_iter()
+            .map(|t| {
+                let [a, b, c] = self.triangles[t as usize].map(|v| self.points[v as usize]);
+                (((a + b + c) / 3.0).as_vec3().to_array(), t)
+            })
+            .collect();
+        let mut nodes = split(&mut items, 0);
+        self.leaf_tris = items.par_iter().map(|&(_, t)| self.leaf_tri(t)).collect();
+        for i in (0..nodes.len()).rev() {
+            let Node { first, count, .. } = nodes[i];
+            let (lo, hi) = if count > 0 {
+                self.leaf_tris[first as usize..(first + count) as usize]
+                    .iter()
+                    .map(|t| (t.lo, t.hi))
+                    .reduce(|(l0, h0), (l1, h1)| union(l0, h0, l1, h1))
+                    .expect("leaves are not empty")
+            } else {
+                let (a, b) = (nodes[first as usize], nodes[first as usize + 1]);
+                union(a.lo, a.hi, b.lo, b.hi)
+            };
+            nodes[i].lo = lo;
+            nodes[i].hi = hi;
+        }
+        self.nodes = nodes;
     }
 
-    /// Binds every point (must be finite) to its closest triangle.
-    pub fn bind(&self, points: &[Vec3]) -> Binding {
-        use rayon::prelude::*;
-        let (vertices, weights) = points
-            .par_iter()
-            .map(|p| {
-                let (tri, w) = self.query(p.as_dvec3());
-                (self.triangles[tri], [w[0] as f32, w[1] as f32, w[2] as f32])
-            })
-            .unzip();
-        Binding { vertices, weights }
+    /// Exact f64 distance from `p` to triangle `t` and the barycentrics of
+    /// its closest point.
+    fn distance(&self, p: DVec3, t: u32) -> (f64, [f64; 3]) {
+        let [a, b, c] = self.triangles[t as usize].map(|v| self.points[v as usize]);
+        triangle_distance(p, a, b, c)
     }
+
+    /// Closest point on the triangle set under the SPEC §3 tie rule:
+    /// (triangle index, barycentrics).
+    ///
+    /// # Panics
+    /// On an empty triangle set.
+    pub fn query(&self, p: DVec3) -> (usize, [f64; 3]) {
+        let mut scratch = Scratch::default();
+        self.query_with(p, None, &mut scratch)
+    }
+
+    /// [`Self::query`] starting from `hint`, a triangle likely to be close
+    /// (the previous point's), which only speeds the search up.
+    fn query_with(&self, p: DVec3, hint: Option<u32>, s: &mut Scratch) -> (usize, [f64; 3]) {
+        assert!(!self.nodes.is_empty(), "closest point on an empty triangle set");
+        s.found.clear();
+        s.stack.clear();
+        let mut best = f64::INFINITY;
+        if let Some(t) = hint {
+            let (d, w) = self.distance(p, t);
+            best = d;
+            s.found.push((t, d, w));
+        }
+        // Prune a box when its distance exceeds best + tol (+ rounding slack).
+        let limit = |best: f64| {
+            let b = best + self.tol + self.slack;
+            b * b
+        };
+        let mut limit2 = limit(best);
+        s.stack.push((0u32, box_distance2(&self.nodes[0], p)));
+        while let Some((ni, d2)) = s.stack.pop() {
+            if d2 > limit2 {
+                continue;
+            }
+            let node = &self.nodes[ni as usize];
+            if node.count > 0 {
+                for lt in &self.leaf_tris[node.first as usize..(node.first + node.count) as usize] {
+                    let t = lt.index;
+                    if Some(t) == hint {
+                        continue;
+                    }
+                    let bound = best + self.tol + self.slack;
+                    if lt_box_distance2(lt, p) > bound * bound {
+                        continue;
+                    }
+                    let [nx, ny, nz, nd] = lt.plane.map(f64::from);
+                    if (nx * p.x + ny * p.y + nz * p.z - nd).abs() - self.plane_slack > bound {
+                        continue;
+                    }
+                    let (d, w) = self.distance(p, t);
+                    if d <= best + self.tol {
+                        s.found.push((t, d, w));
+                        if d < best {
+                            best = d;
+                            limit2 = limit(best);
+                        }
+                    }
+                }
+            } else {
+                let (a, b) = (node.first, node.first + 1);
+                let da = box_distance2(&self.nodes[a as usize], p);
+                let db = box_distance2(&self.nodes[b as usize], p);
+                // Nearer child on top of the stack.
+                let ((n0, d0), (n1, d1)) = if da <= db {
+                    ((b, db), (a, da))
+                } else {
+                    ((a, da), (b, db))
+                };
+                if d0 <= limit2 {
+                    s.stack.push((n0, d0));
+                }
+                if d1 <= limit2 {
+                    s.stack.push((n1, d1));
+                }
+            }
+        }
+        let (t, _, w) = s
+            .found
+            .iter()
+            .filter(|f| f.1 <= best + self.tol)
+            .min_by_key(|f| f.0)
+            .copied()
+            .expect("the nearest triangle is always found");
+        (t as usize, w)
+    }
+
+    /// Binds every point (must be finite) to its closest triangle (SPEC §3),
+    /// in parallel over points.
+    ///
+    /// # Panics
+    /// On an empty triangle set with points to bind.
+    pub fn bind(&self, points: &[Vec3]) -> Binding {
+        // Queries in Morton order: neighbours in space are neighbours in
+        // the queue, so each starts from its predecessor's triangle and
+        // finds the BVH nodes it needs still in cache. Each result depends
+        // on its point only, so the order changes nothing but speed.
+        const CHUNK: usize = 256;
+        let order = self.morton_order(points);
+        let mut found = vec![(0u32, [0f32; 3]); points.len()];
+        let per_chunk: Vec<Vec<(u32, [f32; 3])>> = order
+            .par_chunks(CHUNK)
+            .map(|chunk| {
+                let mut s = Scratch::default();
+                let mut hint = None;
+                chunk
+                    .iter()
+                    .map(|&i| {
+                        let (t, w) = self.query_with(points[i as usize].as_dvec3(), hint, &mut s);
+                        hint = Some(t as u32);
+                        (t as u32, [w[0] as f32, w[1] as f32, w[2] as f32])
+                    })
+                    .collect()
+            })
+            .collect();
+        for (&i, r) in order.iter().zip(per_chunk.into_iter().flatten()) {
+            found[i as usize] = r;
+        }
+        Binding {
+            vertices: found.iter().map(|&(t, _)| self.triangles[t as usize]).collect(),
+            weights: found.into_iter().map(|(_, w)| w).collect(),
+        }
+    }
+
+    /// Indices of `points` sorted by the Morton code of their position in
+    /// the BVH's box (10 bits per axis; points outside are clamped to it).
+    fn morton_order(&self, points: &[Vec3]) -> Vec<u32> {
+        let Some(root) = self.nodes.first() else {
+            return (0..points.len() as u32).collect();
+        };
+        let (lo, hi) = (Vec3::from_array(root.lo), Vec3::from_array(root.hi));
+        let scale = Vec3::splat(1023.0) / (hi - lo).max(Vec3::splat(f32::MIN_POSITIVE));
+        let spread = |x: u32| {
+            // 10 bits to every third of 30.
+            let mut x = x & 0x3ff;
+            x = (x | (x << 16)) & 0x030000ff;
+            x = (x | (x << 8)) & 0x0300f00f;
+            x = (x | (x << 4)) & 0x030c30c3;
+            (x | (x << 2)) & 0x09249249
+        };
+        let mut keyed: Vec<(u32, u32)> = points
+            .par_iter()
+            .enumerate()
+            .map(|(i, p)| {
+                let q = ((*p - lo) * scale).clamp(Vec3::ZERO, Vec3::splat(1023.0));
+                let code = spread(q.x as u32) | (spread(q.y as u32) << 1) | (spread(q.z as u32) << 2);
+                (code, i as u32)
+            })
+            .collect();
+        keyed.par_sort_unstable();
+        keyed.into_iter().map(|(_, i)| i).collect()
+    }
+}
+
+/// Per-thread query buffers.
+#[derive(Default)]
+struct Scratch {
+    stack: Vec<(u32, f64)>,
+    /// (triangle, distance, barycentrics) within the tie tolerance of the
+    /// best distance at the time it was found.
+    found: Vec<(u32, f64, [f64; 3])>,
+}
+
+fn union(l0: [f32; 3], h0: [f32; 3], l1: [f32; 3], h1: [f32; 3]) -> ([f32; 3], [f32; 3]) {
+    ([0, 1, 2].map(|k| l0[k].min(l1[k])), [0, 1, 2].map(|k| h0[k].max(h1[k])))
+}
+
+/// Squared distance (f64) from `p` to a node's box.
+fn box_distance2(n: &Node, p: DVec3) -> f64 {
+    f32_box_distance2(&n.lo, &n.hi, p)
+}
+
+fn lt_box_distance2(t: &LeafTri, p: DVec3) -> f64 {
+    f32_box_distance2(&t.lo, &t.hi, p)
+}
+
+fn f32_box_distance2(lo: &[f32; 3], hi: &[f32; 3], p: DVec3) -> f64 {
+    let mut d2 = 0.0;
+    for k in 0..3 {
+        let (lo, hi) = (lo[k] as f64, hi[k] as f64);
+        let d = (lo - p[k]).max(p[k] - hi).max(0.0);
+        d2 += d * d;
+    }
+    d2
+}
+
+/// Splits `items` (centroid, triangle) into a BVH whose leaves index
+/// `items` from `start`; returns its nodes, root first.
+fn split(items: &mut [([f32; 3], u32)], start: usize) -> Vec<Node> {
+    let leaf = |first: usize, count: usize| Node {
+        lo: [0.0; 3],
+        hi: [0.0; 3],
+        first: first as u32,
+        count: count as u32,
+    };
+    if items.len() <= LEAF_SIZE {
+        return vec![leaf(start, items.len())];
+    }
+    if items.len() < PAR_BUILD {
+        // Sequential, in place: children pairs are appended.
+        let mut nodes = vec![leaf(0, 0)];
+        let mut stack = vec![(0usize, 0usize, items.len())];
+        while let Some((node, s, e)) = stack.pop() {
+            if e - s <= LEAF_SIZE {
+                nodes[node] = leaf(start + s, e - s);
+                continue;
+            }
+            let mid = s + median_split(&mut items[s..e]);
+            let left = nodes.len();
+            nodes.extend([leaf(0, 0), leaf(0, 0)]);
+            nodes[node].first = left as u32;
+            stack.push((left + 1, mid, e));
+            stack.push((left, s, mid));
+        }
+        return nodes;
+    }
+    let mid = median_split(items);
+    let (l, r) = items.split_at_mut(mid);
+    let (left, right) = rayon::join(|| split(l, start), || split(r, start + mid));
+    // Root, the two subtree roots, then the rest of each subtree: a node at
+    // index i ≥ 1 of the left subtree moves to i + 2, of the right subtree
+    // to i + 1 + left.len(); roots to 1 and 2.
+    let (nl, nr) = (left.len(), right.len());
+    let mut nodes = Vec::with_capacity(1 + nl + nr);
+    let remap = |n: &Node, first_base: usize| Node {
+        first: if n.count == 0 {
+            (n.first as usize + first_base) as u32
+        } else {
+            n.first
+        },
+        ..*n
+    };
+    let mut root = leaf(0, 0);
+    root.first = 1;
+    nodes.push(root);
+    nodes.push(remap(&left[0], 2));
+    nodes.push(remap(&right[0], 1 + nl));
+    nodes.extend(left[1..].iter().map(|n| remap(n, 2)));
+    nodes.extend(right[1..].iter().map(|n| remap(n, 1 + nl)));
+    nodes
+}
+
+/// Partitions `items` at their median along the longest axis of their
+/// centroids' box; returns the split index.
+fn median_split(items: &mut [([f32; 3], u32)]) -> usize {
+    let (lo, hi) = items
+        .iter()
+        .fold(([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]), |(lo, hi), (c, _)| {
+            ([0, 1, 2].map(|k| lo[k].min(c[k])), [0, 1, 2].map(|k| hi[k].max(c[k])))
+        });
+    let size = [0, 1, 2].map(|k| hi[k] - lo[k]);
+    let axis = if size[0] >= size[1] && size[0] >= size[2] {
+        0
+    } else if size[1] >= size[2] {
+        1
+    } else {
+        2
+    };
+    let mid = items.len() / 2;
+    items.select_nth_unstable_by(mid, |a, b| a.0[axis].total_cmp(&b.0[axis]).then(a.1.cmp(&b.1)));
+    mid
+}
+
+/// Distance from `p` to triangle (a, b, c) and the barycentrics of the
+/// closest point: the one f64 formula both the BVH and brute force use.
+pub fn triangle_distance(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> (f64, [f64; 3]) {
+    let w = closest_point_barycentric(p, a, b, c);
+    ((a * w[0] + b * w[1] + c * w[2] - p).length(), w)
+}
+
+/// The SPEC §3 binding of every point by brute force over all triangles:
+/// the closest point, ties (closest points within 1e-6 × the bounding-box
+/// diagonal of `points` of the smallest distance) to the lowest triangle
+/// index. O(points × triangles): the reference the BVH is tested against.
+///
+/// # Panics
+/// On an empty triangle set with points to bind.
+pub fn bind_brute_force(points: &[DVec3], triangles: &[[u32; 3]], queries: &[Vec3]) -> Binding {
+    let tol = tie_tolerance(points);
+    let (vertices, weights) = queries
+        .par_iter()
+        .map(|q| {
+            let p = q.as_dvec3();
+            let dist = |&[a, b, c]: &[u32; 3]| {
+                triangle_distance(p, points[a as usize], points[b as usize], points[c as usize])
+            };
+            let best = triangles.iter().map(|t| dist(t).0).fold(f64::INFINITY, f64::min);
+            let (t, w) = triangles
+                .iter()
+                .map(dist)
+                .enumerate()
+                .find(|(_, (d, _))| *d <= best + tol)
+                .map_or((0, [1.0, 0.0, 0.0]), |(t, (_, w))| (t, w));
+            (triangles[t], [w[0] as f32, w[1] as f32, w[2] as f32])
+        })
+        .unzip();
+    Binding { vertices, weights }
+}
+
+/// SPEC §3 tie tolerance: 1e-6 × the bounding-box diagonal of `points`.
+pub fn tie_tolerance(points: &[DVec3]) -> f64 {
+    crate::mesh::bounds_f64(points).map_or(0.0, |[lo, hi]| 1e-6 * (hi - lo).length())
 }
 
 /// Barycentric coordinates of the point of triangle (a, b, c) closest to `p`.
@@ -107,6 +508,10 @@ pub fn closest_point_barycentric(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> [f64
     let vc = d1 * d4 - d3 * d2;
     if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
         let v = d1 / (d1 - d3);
+        if !v.is_finite() {
+            // a == b: a zero-length edge.
+            return degenerate_barycentric(p, a, b, c);
+        }
         return [1.0 - v, v, 0.0];
     }
     let cp = p - c;
@@ -118,11 +523,17 @@ pub fn closest_point_barycentric(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> [f64
     let vb = d5 * d2 - d1 * d6;
     if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
         let w = d2 / (d2 - d6);
+        if !w.is_finite() {
+            return degenerate_barycentric(p, a, b, c);
+        }
         return [1.0 - w, 0.0, w];
     }
     let va = d3 * d6 - d5 * d4;
     if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
         let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+        if !w.is_finite() {
+            return degenerate_barycentric(p, a, b, c);
+        }
         return [0.0, 1.0 - w, w];
     }
     let denom = va + vb + vc;
@@ -146,15 +557,17 @@ fn degenerate_barycentric(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> [f64; 3] {
         };
         (t, (x + d * t - p).length_squared())
     };
+    // Edges in the order ab, ac, bc; ties keep the earlier edge (the
+    // numpy reference does the same, so weights on coincident vertices agree).
     let (t0, e0) = seg(a, b);
-    let (t1, e1) = seg(b, c);
-    let (t2, e2) = seg(a, c);
+    let (t1, e1) = seg(a, c);
+    let (t2, e2) = seg(b, c);
     if e0 <= e1 && e0 <= e2 {
         [1.0 - t0, t0, 0.0]
     } else if e1 <= e2 {
-        [0.0, 1.0 - t1, t1]
+        [1.0 - t1, 0.0, t1]
     } else {
-        [1.0 - t2, 0.0, t2]
+        [0.0, 1.0 - t2, t2]
     }
 }
 
@@ -196,6 +609,160 @@ mod tests {
         let w = closest_point_barycentric(DVec3::new(0.5, 1.0, 0.0), DVec3::ZERO, DVec3::X, DVec3::X * 2.0);
         assert!(w.iter().all(|x| x.is_finite()));
         assert!((w.iter().sum::<f64>() - 1.0).abs() < 1e-12);
+    }
+
+    /// A quad split along a texture seam, as glTF/FBX converters write it:
+    /// two copies of the seam vertices, so triangles on both sides touch
+    /// the seam at the same positions.
+    fn seam_mesh() -> (Vec<DVec3>, Vec<[u32; 3]>) {
+        let pts = vec![
+            DVec3::new(0.0, 0.0, 0.0),
+            DVec3::new(1.0, 0.0, 0.0),
+            DVec3::new(1.0, 1.0, 0.0),
+            DVec3::new(0.0, 1.0, 0.0),
+            // right half: seam vertices 1 and 2 again (5, 6)
+            DVec3::new(2.0, 0.0, 0.0),
+            DVec3::new(1.0, 0.0, 0.0),
+            DVec3::new(1.0, 1.0, 0.0),
+            DVec3::new(2.0, 1.0, 0.0),
+        ];
+        // Right half first in fan order, so the lowest index is not the
+        // first triangle a left-to-right search would meet.
+        let tris = vec![[5, 4, 7], [5, 7, 6], [0, 1, 2], [0, 2, 3]];
+        (pts, tris)
+    }
+
+    #[test]
+    fn seam_ties_go_to_the_lowest_triangle_index() {
+        let (pts, tris) = seam_mesh();
+        let cp = ClosestPoint::new(&pts, &tris);
+        // On the seam (x = 1), above it, and within the 1e-6 × diagonal
+        // tolerance on the left side: triangle 1 ([5, 7, 6]) holds the seam
+        // edge 5–6 and has the lowest index among the tied triangles.
+        let diag = (pts[7] - pts[0]).length();
+        for q in [
+            DVec3::new(1.0, 0.5, 0.0),
+            DVec3::new(1.0, 0.5, 0.3),
+            DVec3::new(1.0 - 0.4e-6 * diag, 0.5, 0.2),
+        ] {
+            let (t, w) = cp.query(q);
+            assert_eq!(t, 1, "{q}");
+            let [a, b, c] = tris[t];
+            let at = pts[a as usize] * w[0] + pts[b as usize] * w[1] + pts[c as usize] * w[2];
+            assert!((at - DVec3::new(1.0, 0.5, 0.0)).length() < 1.0 * diag * 1e-6, "{at}");
+        }
+        // Beyond the tolerance the left triangle wins on distance alone.
+        let (t, _) = cp.query(DVec3::new(1.0 - 3e-6 * diag, 0.5, 0.0));
+        assert_eq!(t, 2);
+        // The shared corner (1, 0): every triangle touching it ties.
+        assert_eq!(cp.query(DVec3::new(1.0, -0.5, 0.1)).0, 0);
+        let b = cp.bind(&[Vec3::new(1.0, 0.5, 0.0), Vec3::new(0.2, 0.7, -1.0)]);
+        assert_eq!(b.vertices, vec![[5, 7, 6], [0, 2, 3]]);
+        assert_eq!(
+            b,
+            bind_brute_force(&pts, &tris, &[Vec3::new(1.0, 0.5, 0.0), Vec3::new(0.2, 0.7, -1.0)])
+        );
+    }
+
+    /// Tiny LCG: reproducible meshes without a rand crate.
+    struct Lcg(u64);
+    impl Lcg {
+        fn unit(&mut self) -> f64 {
+            self.0 = self
+                .0
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (self.0 >> 11) as f64 / (1u64 << 53) as f64
+        }
+        fn vec(&mut self) -> DVec3 {
+            DVec3::new(self.unit(), self.unit(), self.unit())
+        }
+    }
+
+    #[test]
+    fn bvh_equals_brute_force_on_hard_meshes() {
+        let mut rng = Lcg(7);
+        // A grid with every vertex duplicated per quad (seams everywhere),
+        // f32-rounded like stage data; a soup of overlapping triangles with
+        // degenerate ones; both queried on and off the surface.
+        let n = 12;
+        let mut pts = Vec::new();
+        let mut tris = Vec::new();
+        for j in 0..n {
+            for i in 0..n {
+                let v = pts.len() as u32;
+                for (di, dj) in [(0, 0), (1, 0), (1, 1), (0, 1)] {
+                    let (x, y) = ((i + di) as f64 * 0.1, (j + dj) as f64 * 0.1);
+                    pts.push(DVec3::new(x, y, 0.05 * (7.0 * x).sin()).as_vec3().as_dvec3());
+                }
+                tris.push([v, v + 1, v + 2]);
+                tris.push([v, v + 2, v + 3]);
+            }
+        }
+        let mut queries: Vec<Vec3> = (0..400)
+            .map(|k| {
+                if k % 4 == 0 {
+                    // exactly on a grid line
+                    let i = (rng.unit() * n as f64).floor() * 0.1;
+                    DVec3::new(i, rng.unit() * 1.2, rng.unit() * 0.2 - 0.1).as_vec3()
+                } else {
+                    (rng.vec() * 1.4 - 0.2).as_vec3()
+                }
+            })
+            .collect();
+        let cp = ClosestPoint::new(&pts, &tris);
+        assert_eq!(cp.bind(&queries), bind_brute_force(&pts, &tris, &queries));
+
+        let mut pts: Vec<DVec3> = (0..300).map(|_| rng.vec()).collect();
+        pts.push(pts[3]);
+        let mut tris: Vec<[u32; 3]> = (0..500)
+            .map(|_| [0, 1, 2].map(|_| (rng.unit() * 300.0) as u32))
+            .collect();
+        tris.push([5, 5, 5]);
+        tris.push([3, 300, 7]);
+        queries.extend(pts.iter().map(|p| p.as_vec3()));
+        let cp = ClosestPoint::new(&pts, &tris);
+        assert_eq!(cp.bind(&queries), bind_brute_force(&pts, &tris, &queries));
+    }
+
+    #[test]
+    fn parallel_build_equals_brute_force() {
+        // Enough triangles for the parallel split (PAR_BUILD), on a wavy
+        // sheet with every vertex shared.
+        let n = 150;
+        let pts: Vec<DVec3> = (0..n * n)
+            .map(|k| {
+                let (x, y) = ((k % n) as f64 / n as f64, (k / n) as f64 / n as f64);
+                DVec3::new(x, y, 0.1 * (9.0 * x).sin() * (4.0 * y).cos())
+            })
+            .collect();
+        let counts = vec![4u32; (n - 1) * (n - 1)];
+        let idx: Vec<u32> = (0..(n - 1) * (n - 1))
+            .flat_map(|q| {
+                let v = (q / (n - 1) * n + q % (n - 1)) as u32;
+                [v, v + 1, v + 1 + n as u32, v + n as u32]
+            })
+            .collect();
+        let tris = crate::mesh::fan_triangulate(&counts, &idx);
+        assert!(tris.len() > 2 * PAR_BUILD);
+        let mut rng = Lcg(3);
+        let queries: Vec<Vec3> = (0..300).map(|_| (rng.vec() * 1.2 - 0.1).as_vec3()).collect();
+        let cp = ClosestPoint::new(&pts, &tris);
+        assert_eq!(cp.bind(&queries), bind_brute_force(&pts, &tris, &queries));
+        // Every triangle is in exactly one leaf.
+        let mut seen: Vec<u32> = cp.leaf_tris.iter().map(|t| t.index).collect();
+        seen.sort_unstable();
+        assert_eq!(seen, (0..tris.len() as u32).collect::<Vec<_>>());
+    }
+
+    #[test]
+    fn single_triangle_and_far_points() {
+        let pts = [DVec3::ZERO, DVec3::X, DVec3::Y];
+        let cp = ClosestPoint::new(&pts, &[[0, 1, 2]]);
+        let q = [Vec3::new(1e30, -1e30, 3.0), Vec3::new(0.2, 0.2, 0.0)];
+        let b = cp.bind(&q);
+        assert_eq!(b, bind_brute_force(&pts, &[[0, 1, 2]], &q));
+        assert_eq!(b.weights[1], [0.6, 0.2, 0.2]);
     }
 
     #[test]

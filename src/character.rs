@@ -110,8 +110,9 @@ pub struct RigFrame {
     /// Every axis of the rig (indices as `Rig::axes`); 0 for axes no keyed
     /// layer needs, unless read with [`Character::configuration`].
     pub axis_values: Vec<f64>,
-    /// Per layer: proxy-local → stroke-local transform and `painterly:opacity`.
-    pub layers: Vec<(Affine3A, f32)>,
+    /// Per layer: proxy-local → stroke-local transform, `painterly:opacity`
+    /// and the largest `widths` value (for the extent).
+    pub layers: Vec<(Affine3A, f32, f32)>,
 }
 
 /// One view-dependent mesh at one frame, as read from the stage.
@@ -135,6 +136,9 @@ pub struct LayerFrame {
     pub points: Vec<Vec3>,
     /// Per curve: authored displayOpacity × layer opacity × keyed opacity.
     pub opacity: Vec<f32>,
+    /// The largest `widths` value at this time: the extent's padding
+    /// ([`crate::extent::curves_extent`]).
+    pub max_width: f32,
 }
 
 /// One frame's results.
@@ -150,17 +154,22 @@ pub struct FrameOutput {
     pub views: Vec<Vec<Vec3>>,
 }
 
+/// The `-v` line for a stage opened from `path` since `started`.
+pub(crate) fn log_opened(path: &Path, reader: &StageReader, started: std::time::Instant) {
+    crate::vlog!(
+        "opened {} ({}) in {:.3} s",
+        path.display(),
+        plural(reader.stage.layer_identifiers().len(), "layer"),
+        started.elapsed().as_secs_f64()
+    );
+}
+
 impl Character {
     /// Opens `path` and resolves everything that does not change per frame.
     pub fn open(path: &Path, camera: Option<&str>) -> Result<Character> {
         let started = std::time::Instant::now();
         let reader = StageReader::open(path)?;
-        crate::vlog!(
-            "opened {} ({}) in {:.3} s",
-            path.display(),
-            plural(reader.stage.layer_identifiers().len(), "layer"),
-            started.elapsed().as_secs_f64()
-        );
+        log_opened(path, &reader, started);
         Character::from_reader(reader, camera).map_err(|e| e.in_file(path))
     }
 
@@ -169,10 +178,12 @@ impl Character {
     /// computes the rest data (one-rings, centroids, bindings).
     pub fn from_reader(reader: StageReader, camera: Option<&str>) -> Result<Character> {
         let started = std::time::Instant::now();
+        // A rig or strokes from a missing asset would bake something else.
+        reader.require_resolved()?;
         let scene = Scene::read(&reader)?;
         let view_meshes = read_view_meshes(&reader, &reader.prim_paths()?)?;
         if let Some(c) = camera {
-            check_camera(&reader, c, "--camera")?;
+            reader.require_camera(c, "--camera")?;
         }
         let mut views = Vec::with_capacity(view_meshes.len());
         let mut view_models = Vec::with_capacity(view_meshes.len());
@@ -270,7 +281,7 @@ impl Character {
             let mut layers = Vec::with_capacity(rig.layers.len());
             for layer in &rig.layers {
                 let frame = Affine3A::from_mat4((layer.local_to_world(r, t)?.inverse() * proxy_l2w).as_mat4());
-                layers.push((frame, layer.opacity_at(r, t)?));
+                layers.push((frame, layer.opacity_at(r, t)?, layer.max_width_at(t)));
             }
             rigs.push(RigFrame {
                 posed,
@@ -382,7 +393,7 @@ impl Model {
         let mut proxy_normals = Vec::with_capacity(self.rigs.len());
         for (rig, rf) in self.rigs.iter().zip(input.rigs) {
             let motions = to_f32(&rig.skin.vertex_motions(&rf.posed));
-            for (layer, (frame, opacity)) in rig.layers.iter().zip(rf.layers) {
+            for (layer, (frame, opacity, max_width)) in rig.layers.iter().zip(rf.layers) {
                 let rest = &layer.rest_points;
                 let (keyed, keyed_opacity) = keyed_state(&layer.keys, rest, &rf.axis_values, t);
                 let mut points = vec![Vec3::ZERO; rest.len()];
@@ -403,6 +414,7 @@ impl Model {
                 layers.push(LayerFrame {
                     points,
                     opacity: layer.display_opacity.iter().map(|d| d * o).collect(),
+                    max_width,
                 });
             }
             proxies.push(with_proxies.then(|| rf.posed.iter().map(|p| p.as_vec3()).collect()));
@@ -544,8 +556,7 @@ type Terms = Vec<(f64, Source)>;
 /// The blend terms of a layer's two channels at one configuration and time:
 /// (position terms, opacity terms).
 fn key_terms(k: &LayerKeys, axis_values: &[f64], t: f64) -> (Terms, Terms) {
-    let x: Vec<f64> = k.axes.iter().map(|&a| axis_values[a]).collect();
-    let x = if x.is_empty() { vec![0.0] } else { x };
+    let x = k.configuration(axis_values);
     let pose_w = k.pose_points.as_ref().map(|c| c.interp.weights(&x));
     let time_w = k.time_points.as_ref().map(|c| c.interp.weights(t));
     let points = combine(pose_w.as_ref(), time_w.as_ref());

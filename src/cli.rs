@@ -281,6 +281,25 @@ pub struct EditArgs {
     /// Print nothing on success.
     #[arg(short, long)]
     pub quiet: bool,
+    /// Print a JSON summary on stdout instead of the text line: command,
+    /// input, written (the layer saved), in_place, layers (stroke layers
+    /// changed), points (points bound or moved; 0 for key), key (the key
+    /// prim set, key only), message (the text line).
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// What an authoring command changed, as `--json` prints it.
+#[derive(Debug, serde::Serialize)]
+pub struct EditSummary {
+    pub command: &'static str,
+    pub input: PathBuf,
+    pub written: PathBuf,
+    pub in_place: bool,
+    pub layers: Vec<String>,
+    pub points: usize,
+    pub key: Option<String>,
+    pub message: String,
 }
 
 /// Options shared by smudge and expand.
@@ -359,7 +378,7 @@ fn open_session(e: &EditArgs) -> Result<EditSession, Error> {
     EditSession::open(&e.input, &target)
 }
 
-fn run_brush(edit: &EditArgs, b: &BrushArgs, which: Brush) -> Result<String, Error> {
+fn run_brush(edit: &EditArgs, b: &BrushArgs, which: Brush) -> Result<EditSummary, Error> {
     let session = open_session(edit)?;
     let start = session.reader.metadata().start_time_code.unwrap_or(0.0);
     let path = match &b.path_prim {
@@ -404,23 +423,59 @@ fn run_brush(edit: &EditArgs, b: &BrushArgs, which: Brush) -> Result<String, Err
     }
     let target = session.target().to_path_buf();
     session.save()?;
-    Ok(format!(
+    let message = format!(
         "moved {} of {} -> {}",
         plural(moved, "point"),
         b.layer,
         target.display()
+    );
+    let command = match which {
+        Brush::Smudge => "smudge",
+        Brush::Expand => "expand",
+    };
+    Ok(summary(
+        edit,
+        command,
+        target,
+        vec![b.layer.clone()],
+        moved,
+        None,
+        message,
     ))
 }
 
-fn finish(result: Result<String, Error>, quiet: bool, input: &std::path::Path) -> i32 {
+fn summary(
+    edit: &EditArgs,
+    command: &'static str,
+    written: PathBuf,
+    layers: Vec<String>,
+    points: usize,
+    key: Option<String>,
+    message: String,
+) -> EditSummary {
+    EditSummary {
+        command,
+        input: edit.input.clone(),
+        written,
+        in_place: edit.in_place,
+        layers,
+        points,
+        key,
+        message,
+    }
+}
+
+fn finish(result: Result<EditSummary, Error>, edit: &EditArgs) -> i32 {
     match result {
-        Ok(msg) => {
-            if !quiet {
-                println!("{msg}");
+        Ok(s) => {
+            if edit.json {
+                println!("{}", serde_json::to_string(&s).unwrap_or_default());
+            } else if !edit.quiet {
+                println!("{}", s.message);
             }
             0
         }
-        Err(e) => report(&e.in_file(input)),
+        Err(e) => report(&e.in_file(&edit.input)),
     }
 }
 
@@ -511,14 +566,23 @@ pub fn run(cli: Cli) -> i32 {
                 let target = session.target().to_path_buf();
                 session.save()?;
                 let n: usize = report.iter().map(|r| r.1).sum();
-                Ok(format!(
+                let message = format!(
                     "bound {} in {} -> {}",
                     plural(n, "point"),
                     plural(report.len(), "layer"),
                     target.display()
+                );
+                Ok(summary(
+                    &edit,
+                    "bind",
+                    target,
+                    report.into_iter().map(|r| r.0).collect(),
+                    n,
+                    None,
+                    message,
                 ))
             })();
-            finish(result, edit.quiet, &edit.input)
+            finish(result, &edit)
         }
         Command::Key {
             edit,
@@ -534,6 +598,9 @@ pub fn run(cli: Cli) -> i32 {
         } => {
             let result = (|| {
                 let session = open_session(&edit)?;
+                if let Some(c) = &camera {
+                    session.reader.require_camera(c, "--camera")?;
+                }
                 let kind = if sentinel {
                     KeyKind::Sentinel
                 } else if time_key {
@@ -541,6 +608,7 @@ pub fn run(cli: Cli) -> i32 {
                 } else {
                     KeyKind::Pose
                 };
+                let layer_path = layer.clone();
                 let path = author::key(
                     &session,
                     &KeyOptions {
@@ -556,12 +624,13 @@ pub fn run(cli: Cli) -> i32 {
                 )?;
                 let target = session.target().to_path_buf();
                 session.save()?;
-                Ok(format!("set {path} -> {}", target.display()))
+                let message = format!("set {path} -> {}", target.display());
+                Ok(summary(&edit, "key", target, vec![layer_path], 0, Some(path), message))
             })();
-            finish(result, edit.quiet, &edit.input)
+            finish(result, &edit)
         }
-        Command::Smudge { edit, brush } => finish(run_brush(&edit, &brush, Brush::Smudge), edit.quiet, &edit.input),
-        Command::Expand { edit, brush } => finish(run_brush(&edit, &brush, Brush::Expand), edit.quiet, &edit.input),
+        Command::Smudge { edit, brush } => finish(run_brush(&edit, &brush, Brush::Smudge), &edit),
+        Command::Expand { edit, brush } => finish(run_brush(&edit, &brush, Brush::Expand), &edit),
         Command::Render(args) => match crate::render::run(&args) {
             Ok(summary) => {
                 if !args.quiet {
@@ -631,5 +700,5 @@ pub fn run(cli: Cli) -> i32 {
 
 fn report(e: &Error) -> i32 {
     eprintln!("error: {e}");
-    1
+    e.exit_code()
 }

@@ -20,6 +20,9 @@ pub struct Error {
     pub attribute: Option<String>,
     /// What is wrong, in words a TD can act on.
     pub message: String,
+    /// A command-line usage error (exit 2), e.g. an output path with the
+    /// wrong extension, found after argument parsing.
+    pub usage: bool,
     /// The schema rule this breaks, for problems `inspect` reports.
     pub rule: Option<Rule>,
 }
@@ -35,7 +38,25 @@ impl Error {
             prim: None,
             attribute: None,
             message: message.into(),
+            usage: false,
             rule: None,
+        }
+    }
+
+    /// A usage error: the command line asks for something impossible (exit 2).
+    pub fn usage(message: impl Into<String>) -> Self {
+        Error {
+            usage: true,
+            ..Error::msg(message)
+        }
+    }
+
+    /// The process exit code for this error: 2 for usage, else 1.
+    pub fn exit_code(&self) -> i32 {
+        if self.usage {
+            2
+        } else {
+            1
         }
     }
 

@@ -1,10 +1,19 @@
-//! Frame ranges: `A`, `A:B` or `A:B:STEP`, in the stage's time codes.
+//! Frame ranges: `A`, `A:B` or `A:B:STEP`, in the stage's time codes, and
+//! the frames a command runs over (the option, or the stage's range).
+//!
+//! A run covers at most [`MAX_FRAMES`] time codes. The count is computed and
+//! checked before anything is allocated, so `--frames 1:12:1e-18` or an
+//! `endTimeCode` of 1e19 fail at once with a message instead of exhausting
+//! memory.
 
 use crate::error::{Error, Result};
+use crate::usd_io::stage::StageMetadata;
 
-/// The most time codes one range may hold: far beyond any shot (11.5 hours
-/// at 24 fps), and small enough that listing them cannot exhaust memory.
-pub const MAX_TIME_CODES: f64 = 1_000_000.0;
+/// Most time codes one bake or render covers: a two-hour feature at 24 fps
+/// is 172,800 frames, so this fits a whole film with two samples per frame,
+/// while the list of times itself stays at 4 MB. Longer ranges are split
+/// into several runs (farm chunks), which is how they are baked anyway.
+pub const MAX_FRAMES: usize = 500_000;
 
 /// An inclusive range of time codes with a positive step.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -36,38 +45,56 @@ impl std::str::FromStr for FrameRange {
             [a, b, c] => (num(a)?, num(b)?, num(c)?),
             _ => return Err(format!("{s:?} is not a frame range (expected A, A:B or A:B:STEP)")),
         };
+        let range = FrameRange { start, end, step };
+        range.count()?;
+        Ok(range)
+    }
+}
+
+impl FrameRange {
+    /// How many time codes the range holds, or why it is not a usable range:
+    /// non-finite bounds, a step that is not positive or too small to move
+    /// the time codes at their magnitude, end before start, or more than
+    /// [`MAX_FRAMES`] time codes.
+    pub fn count(&self) -> std::result::Result<usize, String> {
+        let FrameRange { start, end, step } = *self;
+        if !(start.is_finite() && end.is_finite() && step.is_finite()) {
+            return Err(format!("{start}:{end}:{step} is not a finite range"));
+        }
         if step <= 0.0 {
             return Err(format!("step {step} must be positive"));
         }
         if end < start {
             return Err(format!("end {end} is before start {start}"));
         }
-        let range = FrameRange { start, end, step };
-        range.check_count()?;
-        Ok(range)
-    }
-}
-
-impl FrameRange {
-    /// The time codes of the range, start first; the end is included when the
-    /// step lands on it (within 1e-9).
-    pub fn times(&self) -> Vec<f64> {
-        let n = ((self.end - self.start) / self.step + 1e-9).floor() as usize + 1;
-        (0..n).map(|k| self.start + k as f64 * self.step).collect()
-    }
-
-    /// Refuses a range of more than [`MAX_TIME_CODES`] time codes (a tiny
-    /// step or a huge span), before anything is allocated for it.
-    pub fn check_count(&self) -> std::result::Result<(), String> {
-        let count = (self.end - self.start) / self.step + 1.0;
-        if count.is_finite() && count <= MAX_TIME_CODES {
-            Ok(())
-        } else {
-            Err(format!(
-                "{}:{}:{} holds {count:.0} time codes; at most {MAX_TIME_CODES} are allowed (use a larger step or bake in parts)",
-                self.start, self.end, self.step
-            ))
+        let n = ((end - start) / step + 1e-9).floor() + 1.0;
+        if !(n.is_finite() && n <= MAX_FRAMES as f64) {
+            return Err(format!(
+                "{start}:{end} with step {step} is {n:.3e} time codes; painterly covers at most \
+                 {MAX_FRAMES} per run (split the range into chunks)"
+            ));
         }
+        // Every time code must differ from the previous one in f64.
+        let top = start.abs().max(end.abs());
+        if n > 1.0 && top + step == top {
+            return Err(format!("step {step} is too small to separate time codes near {top}"));
+        }
+        Ok(n as usize)
+    }
+
+    /// The time codes of the range, start first; the end is included when the
+    /// step lands on it (within 1e-9). Never more than [`MAX_FRAMES`]; call
+    /// [`count`](Self::count) first to reject ranges that are too long.
+    pub fn times(&self) -> Vec<f64> {
+        let n = self.count().unwrap_or_else(|_| {
+            let n = (self.end - self.start) / self.step;
+            if n.is_finite() && n >= 0.0 {
+                ((n + 1e-9).floor() + 1.0).min(MAX_FRAMES as f64) as usize
+            } else {
+                0
+            }
+        });
+        (0..n).map(|k| self.start + k as f64 * self.step).collect()
     }
 
     /// Checks the range lies within the stage's authored [start, end].
@@ -82,9 +109,62 @@ impl FrameRange {
     }
 }
 
+/// The frames to run over: `frames` when given (checked against the stage's
+/// range when it has one), else the stage's startTimeCode..endTimeCode.
+/// Stage metadata problems (non-finite values, start after end, a range too
+/// long) are errors naming the field; a bad `frames` is a usage error.
+pub fn resolve(meta: &StageMetadata, frames: Option<FrameRange>) -> Result<Vec<f64>> {
+    meta.validate()?;
+    if let Some(f) = frames {
+        f.count().map_err(|m| Error::usage(format!("--frames: {m}")))?;
+    }
+    let range = match (meta.start_time_code, meta.end_time_code) {
+        (Some(s), Some(e)) if s > e => {
+            return Err(Error::msg(format!(
+                "the stage's startTimeCode {s} is after its endTimeCode {e}"
+            )))
+        }
+        (Some(s), Some(e)) => Some((s, e)),
+        _ => None,
+    };
+    match (frames, range) {
+        (Some(f), Some((s, e))) => {
+            f.check_within(s, e)?;
+            Ok(f.times())
+        }
+        (Some(f), None) => Ok(f.times()),
+        (None, Some((s, e))) => {
+            let r = FrameRange {
+                start: s,
+                end: e,
+                step: 1.0,
+            };
+            r.count().map_err(|m| {
+                Error::msg(format!(
+                    "the stage's range (startTimeCode:endTimeCode) {m}; pass --frames A:B"
+                ))
+            })?;
+            Ok(r.times())
+        }
+        (None, None) => Err(Error::msg(match (meta.start_time_code, meta.end_time_code) {
+            (Some(_), None) => "the stage has a startTimeCode but no endTimeCode: pass --frames A:B",
+            (None, Some(_)) => "the stage has an endTimeCode but no startTimeCode: pass --frames A:B",
+            _ => "the stage has no startTimeCode/endTimeCode: pass --frames A:B",
+        })),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn meta(start: Option<f64>, end: Option<f64>) -> StageMetadata {
+        StageMetadata {
+            start_time_code: start,
+            end_time_code: end,
+            ..Default::default()
+        }
+    }
 
     #[test]
     fn parses_forms_and_rejects_bad_ones() {
@@ -100,10 +180,47 @@ mod tests {
             "1:2:3:4",
             "",
             "nan:3",
-            "1:24:1e-9",
-            "0:1e300",
+            "1:inf",
+            "1:12:1e-18",
+            "1:12:1e-9",
         ] {
             assert!(bad.parse::<FrameRange>().is_err(), "{bad}");
         }
+        // Too small a step for the magnitude of the time codes.
+        assert!("1e17:1e17:1".parse::<FrameRange>().is_ok());
+        assert!("1e17:100000000000000016:1".parse::<FrameRange>().is_err());
+    }
+
+    #[test]
+    fn frame_limit_is_exact() {
+        let max = MAX_FRAMES as f64;
+        let r: FrameRange = format!("1:{max}").parse().unwrap();
+        assert_eq!(r.count(), Ok(MAX_FRAMES));
+        assert!(format!("1:{}", max + 1.0).parse::<FrameRange>().is_err());
+        assert!("0:1:0.00001".parse::<FrameRange>().is_ok());
+        assert!("0:10:0.00001".parse::<FrameRange>().is_err());
+    }
+
+    #[test]
+    fn resolves_against_the_stage() {
+        assert_eq!(resolve(&meta(Some(1.0), Some(3.0)), None).unwrap(), vec![1.0, 2.0, 3.0]);
+        let e = resolve(&meta(Some(5.0), Some(1.0)), None).unwrap_err();
+        assert!(e.message.contains("after its endTimeCode"), "{e}");
+        let e = resolve(&meta(Some(1.0), Some(1e19)), None).unwrap_err();
+        assert!(e.message.contains("at most 500000"), "{e}");
+        assert_eq!(e.exit_code(), 1);
+        let e = resolve(&meta(Some(1.0), Some(f64::INFINITY)), None).unwrap_err();
+        assert!(e.message.contains("endTimeCode") && e.message.contains("inf"), "{e}");
+        let e = resolve(&meta(Some(f64::NAN), Some(3.0)), None).unwrap_err();
+        assert!(e.message.contains("startTimeCode"), "{e}");
+        let e = resolve(&meta(Some(1.0), None), None).unwrap_err();
+        assert!(e.message.contains("no endTimeCode"), "{e}");
+        let f = FrameRange {
+            start: 1.0,
+            end: 12.0,
+            step: 1e-19,
+        };
+        assert_eq!(resolve(&meta(None, None), Some(f)).unwrap_err().exit_code(), 2);
+        assert_eq!(f.times().len(), MAX_FRAMES);
     }
 }

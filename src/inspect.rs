@@ -14,7 +14,7 @@ use crate::error::{Error, Result};
 use crate::rule::Rule;
 use crate::usd_io::clips::{clip_set_status, ChunkState};
 use crate::usd_io::scene::{ProxyMotion, Scene};
-use crate::usd_io::stage::StageReader;
+use crate::usd_io::stage::{StageReader, UnresolvedAsset};
 use crate::usd_io::view_mesh::read_view_meshes_lenient;
 
 #[derive(Debug, Serialize)]
@@ -27,6 +27,9 @@ pub struct Report {
     pub rigs: Vec<RigReport>,
     pub axes: Vec<AxisReport>,
     pub view_dependent_meshes: Vec<ViewMeshReport>,
+    /// Sublayers, references and payloads that did not resolve (each is
+    /// also a problem: bake refuses such a stage).
+    pub unresolved_assets: Vec<UnresolvedAsset>,
     /// For a clip-set layer written by `bake --chunk`: its chunks.
     pub clip_set: Option<ClipSetReport>,
     pub problems: Vec<Problem>,
@@ -183,6 +186,24 @@ pub fn inspect_stage(r: &StageReader) -> Result<Report> {
         .map(|e| Problem::new(e, Rule::Unreadable))
         .collect();
     let meta = r.metadata();
+    // What bake checks before reading anything: assets, stage metadata and
+    // the default frame range.
+    for u in &r.unresolved {
+        let e = Error {
+            prim: u.prim.clone(),
+            ..Error::msg(format!("missing asset: {}", u.describe_asset()))
+        };
+        problems.push(Problem::new(e, Rule::Unreadable));
+    }
+    let has_range = meta.start_time_code.is_some() || meta.end_time_code.is_some();
+    if let Err(e) = meta.validate() {
+        problems.push(Problem::new(e, Rule::Unreadable));
+    } else if has_range {
+        // A stage without a range is fine: bake then needs --frames.
+        if let Err(e) = crate::frames::resolve(&meta, None) {
+            problems.push(Problem::new(e, Rule::Unreadable));
+        }
+    }
     let mut rigs = Vec::new();
     for rig in &scene.rigs {
         let (skeleton, animation_source, notes) = match &rig.proxy.motion {
@@ -272,6 +293,7 @@ pub fn inspect_stage(r: &StageReader) -> Result<Report> {
         rigs,
         axes,
         view_dependent_meshes: view_meshes,
+        unresolved_assets: r.unresolved.clone(),
         clip_set,
         problems,
     })
@@ -403,6 +425,9 @@ impl Report {
                 let [x, y, z] = k.direction;
                 let _ = writeln!(s, "  ({x:.3}, {y:.3}, {z:.3}): {}", k.keys.join(", "));
             }
+        }
+        for u in &self.unresolved_assets {
+            let _ = writeln!(s, "unresolved {}", u.describe());
         }
         if let Some(c) = &self.clip_set {
             let count = |state: &str| c.chunks.iter().filter(|k| k.state == state).count();

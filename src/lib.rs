@@ -9,6 +9,7 @@
 //! | module | concept |
 //! |---|---|
 //! | [`mesh`] | proxy topology: fan triangulation, one-rings |
+//! | [`extent`] | extents as usd-core computes them (points, curve widths) |
 //! | [`bind`] | closest-point binding of stroke points (BVH) |
 //! | [`skinning`] | per-vertex Procrustes motions and their blend (Bassett eq. 1) |
 //! | [`skel_deform`] | UsdSkel blend shapes, LBS and DQS |
@@ -31,6 +32,7 @@ pub mod bind;
 pub mod character;
 pub mod cli;
 pub mod error;
+pub mod extent;
 pub mod farm;
 pub mod frames;
 pub mod inspect;

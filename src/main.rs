@@ -6,6 +6,10 @@ fn main() {
     // A bug must still end in a clear message and a non-zero exit, not a
     // Rust backtrace in a farm log.
     std::panic::set_hook(Box::new(|info| {
+        // A panic inside openusd while composing is reported as an input error.
+        if painterly::usd_io::compose_watch::is_active() {
+            return;
+        }
         let msg = info
             .payload()
             .downcast_ref::<&str>()
@@ -20,6 +24,8 @@ fn main() {
             "error: internal error{at}: {msg} (this is a bug in painterly; please report it with the input file)"
         );
     }));
+    // SIGTERM/SIGINT/SIGHUP remove this run's temporary files, then exit 128+signo.
+    painterly::usd_io::atomic::install_signal_cleanup();
     let cli = painterly::cli::Cli::parse();
     let code = std::panic::catch_unwind(|| {
         // The one way to reach exit code 3 on purpose: the contract tests

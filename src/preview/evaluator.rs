@@ -162,7 +162,7 @@ impl State {
                 }
                 check_bake(input, b, &[start, end], &mut warnings)?;
                 let tmp = TempDir::new()?;
-                let root = write_root(&tmp.0, input, Some(b))?;
+                let root = write_root(tmp.path(), input, Some(b))?;
                 let reader = StageReader::open(&root).map_err(|e| e.in_file(b))?;
                 Some((tmp, reader))
             }

@@ -20,7 +20,7 @@ use glam::Vec3;
 
 use super::composite::{Brush, Frame};
 use crate::error::{Error, Result};
-use crate::usd_io::layer::write_atomic;
+use crate::usd_io::atomic::write_atomic;
 
 /// Linear → sRGB transfer function (IEC 61966-2-1), input clamped to [0, 1].
 pub fn srgb_encode(x: f32) -> f32 {

@@ -41,6 +41,8 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use crate::bake::{bake_if_any, BakeOptions};
 use crate::error::{Error, Result};
 use crate::frames::FrameRange;
+use crate::usd_io::atomic::write_atomic;
+pub(crate) use crate::usd_io::atomic::TempDir;
 use crate::usd_io::bake_layer::read_provenance;
 use crate::usd_io::render_scene::{layer_timing, RenderScene};
 use crate::usd_io::stage::StageReader;
@@ -193,28 +195,6 @@ pub fn sheet_path(pattern: &Path) -> PathBuf {
     pattern.with_file_name(format!("{base}.sheet.png"))
 }
 
-/// Removes a temporary folder when dropped.
-pub(crate) struct TempDir(pub(crate) PathBuf);
-
-impl TempDir {
-    pub(crate) fn new() -> Result<TempDir> {
-        let nanos = std::time::SystemTime::now()
-            .duration_since(std::time::UNIX_EPOCH)
-            .map(|d| d.as_nanos())
-            .unwrap_or(0);
-        let dir = std::env::temp_dir().join(format!("painterly-render-{}-{nanos}", std::process::id()));
-        std::fs::create_dir_all(&dir)
-            .map_err(|e| Error::msg(format!("cannot create a temporary folder: {e}")).in_file(&dir))?;
-        Ok(TempDir(dir))
-    }
-}
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
-
 fn check_args(args: &RenderArgs) -> Result<Vec<f64>> {
     let out = &args.output;
     let ext_ok = out
@@ -222,7 +202,7 @@ fn check_args(args: &RenderArgs) -> Result<Vec<f64>> {
         .is_some_and(|e| e.to_string_lossy().eq_ignore_ascii_case("exr"));
     if !ext_ok {
         return Err(
-            Error::msg("output must be an .exr path (PNG previews are written beside it with --png)").in_file(out),
+            Error::usage("output must be an .exr path (PNG previews are written beside it with --png)").in_file(out),
         );
     }
     let dir = match out.parent() {
@@ -235,7 +215,7 @@ fn check_args(args: &RenderArgs) -> Result<Vec<f64>> {
     let times = args.frames.times();
     let has_hash = out.file_name().is_some_and(|n| n.to_string_lossy().contains('#'));
     if times.len() > 1 && !has_hash {
-        return Err(Error::msg(format!(
+        return Err(Error::usage(format!(
             "{} frames would all write one file: put #### in the output name for the frame number",
             times.len()
         ))
@@ -279,7 +259,7 @@ pub(crate) fn write_root(dir: &Path, input: &Path, bake_layer: Option<&Path>) ->
         layers.join(",\n")
     );
     let root = dir.join("render_root.usda");
-    std::fs::write(&root, text).map_err(|e| Error::msg(format!("cannot write: {e}")).in_file(&root))?;
+    write_atomic(&root, text.as_bytes())?;
     Ok(root)
 }
 
@@ -390,7 +370,7 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary> {
     let bake_layer = match &args.bake {
         Some(b) => Some(b.clone()),
         None => {
-            let out = tmp.0.join("bake.usdc");
+            let out = tmp.path().join("bake.usdc");
             let opts = BakeOptions {
                 frames: Some(args.frames),
                 camera: Some(args.camera.clone()),
@@ -400,7 +380,7 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary> {
             bake_if_any(&args.input, &out, &opts)?.map(|_| out)
         }
     };
-    let root = write_root(&tmp.0, &args.input, bake_layer.as_deref())?;
+    let root = write_root(tmp.path(), &args.input, bake_layer.as_deref())?;
     let input = args.input.clone();
     let name_input = |mut e: Error| {
         if e.file.as_deref() == Some(root.as_path()) || e.file.is_none() {
@@ -409,6 +389,7 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary> {
         e
     };
     let r = StageReader::open(&root).map_err(name_input)?;
+    r.require_resolved().map_err(name_input)?;
     let scene = RenderScene::discover(&r, &args.camera).map_err(name_input)?;
 
     let bar = ProgressBar::hidden();

@@ -1,9 +1,12 @@
 //! Configuration axes (SPEC §4): `PainterlyAxis` prims read from the stage and
 //! evaluated at each baked time.
 //!
-//! Each axis yields one scalar coordinate, multiplied by its `scale`
-//! (Bassett requirement 5: axes are scaled by their importance). Pose keys'
-//! `coordinates` live in that same scaled configuration space.
+//! Each axis yields one scalar coordinate in axis units, as the source
+//! reads it. Pose keys' `coordinates` are stored in those units (SPEC 1.1
+//! §4); `scale` (Bassett requirement 5: axes are scaled by their
+//! importance) multiplies both sides only where keys are interpolated
+//! ([`crate::usd_io::scene::LayerKeys::configuration`]), so re-scaling an
+//! axis never moves its keys.
 
 use glam::{DMat4, DQuat, DVec3};
 use openusd::sdf::Value;
@@ -46,6 +49,8 @@ pub struct Axis {
     pub source: AxisSource,
     pub element: i64,
     pub component: i64,
+    /// `scale`: the axis's importance; multiplies coordinates where keys
+    /// are interpolated, never what is stored.
     pub scale: f64,
 }
 
@@ -215,7 +220,7 @@ impl Axis {
         })
     }
 
-    /// The scaled coordinate at a frame.
+    /// The coordinate at a frame, in axis units (before `scale`).
     pub fn value(&self, r: &StageReader, f: &AxisFrame) -> Result<f64> {
         let t = f.time;
         let raw = match &self.source {
@@ -288,7 +293,7 @@ impl Axis {
                 format!("value at time {t} is not finite"),
             ));
         }
-        Ok(raw * self.scale)
+        Ok(raw)
     }
 }
 

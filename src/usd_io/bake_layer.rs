@@ -18,6 +18,7 @@ use std::path::{Path, PathBuf};
 use glam::Vec3;
 use openusd::sdf::Value;
 
+use super::atomic::TempFile;
 use super::layer::{Format, OverLayer};
 use super::stage::StageMetadata;
 use super::usdc::{CrateStream, Stored, ValueHandle};
@@ -253,7 +254,8 @@ fn check_sample(attr: &BakeAttr, s: &Sample) -> Result<()> {
 /// then renames the file into place.
 struct UsdcSink {
     path: PathBuf,
-    tmp: PathBuf,
+    /// Registered with [`super::atomic`]: removed on failure and on signals.
+    tmp: Option<TempFile>,
     layout: BakeLayout,
     stream: Option<CrateStream<BufWriter<File>>>,
     /// The frames written so far, shared by every attribute.
@@ -264,24 +266,12 @@ struct UsdcSink {
 
 impl UsdcSink {
     fn new(path: &Path, layout: BakeLayout) -> Result<Self> {
-        let dir = match path.parent() {
-            Some(d) if !d.as_os_str().is_empty() => d,
-            _ => Path::new("."),
-        };
-        let name = path
-            .file_name()
-            .ok_or_else(|| Error::msg("output path has no file name").in_file(path))?;
-        let tmp = dir.join(format!(
-            ".{}.painterly-{}.tmp",
-            name.to_string_lossy(),
-            std::process::id()
-        ));
-        let file = File::create(&tmp).map_err(|e| Error::msg(format!("cannot write output: {e}")).in_file(path))?;
+        let (tmp, file) = TempFile::create(path, "")?;
         let n = layout.attrs.len();
         // Owned by the sink from here, so an error below removes the file.
         let mut sink = UsdcSink {
             path: path.to_path_buf(),
-            tmp,
+            tmp: Some(tmp),
             layout,
             stream: None,
             times: Vec::new(),
@@ -289,13 +279,6 @@ impl UsdcSink {
         };
         sink.stream = Some(CrateStream::new(BufWriter::with_capacity(1 << 20, file)).map_err(|e| e.in_file(path))?);
         Ok(sink)
-    }
-}
-
-impl Drop for UsdcSink {
-    /// A bake that fails (or is dropped) before `finish` leaves no file.
-    fn drop(&mut self) {
-        let _ = std::fs::remove_file(&self.tmp);
     }
 }
 
@@ -358,7 +341,11 @@ impl FrameSink for UsdcSink {
             .into_inner()
             .map_err(|e| io(e.into_error()))?;
         drop(file);
-        std::fs::rename(&self.tmp, &path).map_err(io)
+        // A bake that fails (or is dropped) before this leaves no file.
+        self.tmp
+            .take()
+            .ok_or_else(|| Error::msg("internal: bake already finished"))?
+            .persist(&path)
     }
 }
 
@@ -367,7 +354,8 @@ impl FrameSink for UsdcSink {
 struct UsdaSink {
     path: PathBuf,
     layout: BakeLayout,
-    scratch_path: PathBuf,
+    /// Registered with [`super::atomic`]: removed when dropped and on signals.
+    _scratch_file: TempFile,
     scratch: BufWriter<File>,
     written: u64,
     /// Per attribute: (offset, length) of each sample's text in the scratch file.
@@ -377,24 +365,12 @@ struct UsdaSink {
 
 impl UsdaSink {
     fn new(path: &Path, layout: BakeLayout) -> Result<Self> {
-        let dir = match path.parent() {
-            Some(d) if !d.as_os_str().is_empty() => d,
-            _ => Path::new("."),
-        };
-        let name = path.file_name().map(|n| n.to_string_lossy()).unwrap_or_default();
-        let scratch_path = dir.join(format!(".{name}.painterly-{}.samples.tmp", std::process::id()));
-        let file = File::options()
-            .read(true)
-            .write(true)
-            .create(true)
-            .truncate(true)
-            .open(&scratch_path)
-            .map_err(|e| Error::msg(format!("cannot create scratch file: {e}")).in_file(path))?;
+        let (scratch_file, file) = TempFile::create(path, ".samples")?;
         let n = layout.attrs.len();
         Ok(UsdaSink {
             path: path.to_path_buf(),
             layout,
-            scratch_path,
+            _scratch_file: scratch_file,
             scratch: BufWriter::with_capacity(1 << 20, file),
             written: 0,
             index: vec![Vec::new(); n],
@@ -450,12 +426,6 @@ impl UsdaSink {
         tree.write(out, &mut emit)?;
         file.seek(SeekFrom::End(0))?;
         Ok(())
-    }
-}
-
-impl Drop for UsdaSink {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_file(&self.scratch_path);
     }
 }
 

@@ -5,13 +5,23 @@
 //! input (created if missing), so opening the edit layer shows the edited
 //! character and the input is untouched. `--in-place` edits the input's root
 //! layer instead. Every write is atomic (temporary file, then rename).
+//!
+//! A `.usda` target is never re-serialised: the specs the session authored
+//! are spliced into the file's own text ([`super::usda_splice`]), so every
+//! other spec, field, comment and byte stays as it was. The result is parsed
+//! again and compared, spec by spec and field by field, with the edited layer;
+//! if anything else would change, the edit is refused and the file is left
+//! untouched.
 
+use std::cell::RefCell;
 use std::path::{Path, PathBuf};
 
-use openusd::sdf::{self, Value};
+use openusd::sdf::{self, AbstractData, Value};
 
-use super::layer::{write_atomic, Format};
+use super::atomic::{write_atomic, ScratchFile};
+use super::layer::Format;
 use super::stage::{StageMetadata, StageReader};
+use super::usda_splice;
 use crate::error::{Error, Result};
 
 /// Where an edit session writes.
@@ -31,16 +41,14 @@ pub struct EditSession {
     /// metadata may be missing, and the input's range is what `--time` means.
     pub input_meta: StageMetadata,
     target: PathBuf,
-    /// A temporary header written to open a new edit layer; removed on drop.
-    scratch: Option<PathBuf>,
-}
-
-impl Drop for EditSession {
-    fn drop(&mut self) {
-        if let Some(s) = &self.scratch {
-            let _ = std::fs::remove_file(s);
-        }
-    }
+    /// The target's text before editing (the new header for a new layer),
+    /// when the target is usda text; None for crate files.
+    original_text: Option<String>,
+    /// The header a new edit layer is opened from; removed on drop.
+    _scratch: Option<ScratchFile>,
+    /// Prim specs defined, and attribute specs set, in order.
+    prims: RefCell<Vec<String>>,
+    attrs: RefCell<Vec<(String, String)>>,
 }
 
 /// The path to write in `subLayers` for `input`, seen from `edit_dir`:
@@ -56,23 +64,44 @@ fn sublayer_path(input: &Path, edit_dir: &Path) -> Result<String> {
     })
 }
 
+/// The file's text when it is usda (by content, whatever the extension),
+/// None for crate files.
+fn read_text(path: &Path) -> Result<Option<String>> {
+    let bytes = std::fs::read(path).map_err(|e| Error::msg(format!("cannot read: {e}")).in_file(path))?;
+    if !bytes.starts_with(b"#usda") {
+        return Ok(None);
+    }
+    String::from_utf8(bytes)
+        .map(Some)
+        .map_err(|_| Error::msg("the usda text is not valid UTF-8; cannot edit it").in_file(path))
+}
+
 impl EditSession {
     /// Opens `input` for editing into `target`.
     pub fn open(input: &Path, target: &EditTarget) -> Result<EditSession> {
         // Reading the input first gives its own errors (missing, unreadable).
-        let input_meta = StageReader::open(input)?.metadata();
+        let input_reader = StageReader::open(input)?;
+        // Edits are computed from the composed character: a missing asset
+        // would change what they capture.
+        input_reader.require_resolved().map_err(|e| e.in_file(input))?;
+        let input_meta = input_reader.metadata();
+        let session = |reader, target: &Path, original_text, scratch| EditSession {
+            reader,
+            input_meta: input_meta.clone(),
+            target: target.to_path_buf(),
+            original_text,
+            _scratch: scratch,
+            prims: RefCell::new(Vec::new()),
+            attrs: RefCell::new(Vec::new()),
+        };
         match target {
             EditTarget::InPlace => {
                 let ext = input.extension().and_then(|e| e.to_str()).unwrap_or("");
                 if ext == "usdz" {
                     return Err(Error::msg("cannot edit a .usdz package in place; use --edit-layer").in_file(input));
                 }
-                Ok(EditSession {
-                    reader: StageReader::open(input)?,
-                    input_meta,
-                    target: input.to_path_buf(),
-                    scratch: None,
-                })
+                let text = read_text(input)?;
+                Ok(session(input_reader, input, text, None))
             }
             EditTarget::Layer(edit) => {
                 Format::from_path(edit)?;
@@ -85,12 +114,8 @@ impl EditSession {
                     }
                 }
                 if edit.exists() {
-                    return Ok(EditSession {
-                        reader: StageReader::open(edit)?,
-                        input_meta,
-                        target: edit.to_path_buf(),
-                        scratch: None,
-                    });
+                    let text = read_text(edit)?;
+                    return Ok(session(StageReader::open(edit)?, edit, text, None));
                 }
                 let dir = match edit.parent() {
                     Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
@@ -101,15 +126,20 @@ impl EditSession {
                         Error::msg(format!("edit layer directory {} does not exist", dir.display())).in_file(edit),
                     );
                 }
+                // The new layer copies the input's stage metadata: usd-core
+                // cannot open a layer holding a nan or inf there.
+                input_meta.validate().map_err(|e| e.in_file(input))?;
                 let sub = sublayer_path(input, &dir)?;
-                let name = edit
-                    .file_name()
-                    .map(|n| n.to_string_lossy().into_owned())
-                    .unwrap_or_default();
-                let scratch = dir.join(format!(".{name}.painterly-new-{}.usda", std::process::id()));
+                if sub.contains('@') {
+                    return Err(Error::msg("paths containing '@' cannot be sublayered").in_file(input));
+                }
                 // Stage metadata comes from the root layer: copy the input's, or
                 // opening the edit layer would retime and re-orient the input.
-                let mut header = format!("#usda 1.0\n(\n    doc = \"painterly edit layer over {sub}\"\n");
+                let mut header = format!(
+                    "#usda 1.0\n(\n    doc = {}\n",
+                    usda_splice::format_value(&Value::String(format!("painterly edit layer over {sub}")))
+                        .unwrap_or_default()
+                );
                 let m = &input_meta;
                 for (key, v) in [
                     ("startTimeCode", m.start_time_code),
@@ -123,24 +153,25 @@ impl EditSession {
                     }
                 }
                 if let Some(up) = &m.up_axis {
-                    header.push_str(&format!("    upAxis = \"{up}\"\n"));
+                    header.push_str(&format!(
+                        "    upAxis = {}\n",
+                        usda_splice::format_value(&Value::Token(up.as_str().into())).unwrap_or_default()
+                    ));
                 }
-                if let Some(dp) = StageReader::open(input)?.stage.default_prim() {
-                    header.push_str(&format!("    defaultPrim = \"{}\"\n", dp.as_str()));
+                if let Some(dp) = input_reader.stage.default_prim() {
+                    header.push_str(&format!(
+                        "    defaultPrim = {}\n",
+                        usda_splice::format_value(&Value::Token(dp.as_str().into())).unwrap_or_default()
+                    ));
                 }
-                header.push_str(&format!("    subLayers = [@{sub}@]\n)\n"));
-                std::fs::write(&scratch, header)
-                    .map_err(|e| Error::msg(format!("cannot create edit layer: {e}")).in_file(edit))?;
-                let session = EditSession {
-                    input_meta,
-                    reader: StageReader {
-                        stage: StageReader::open(&scratch)?.stage,
-                        file: edit.to_path_buf(),
-                    },
-                    target: edit.to_path_buf(),
-                    scratch: Some(scratch),
+                header.push_str(&format!("    subLayers = [\n        @{sub}@\n    ]\n)\n\n"));
+                let scratch = ScratchFile::create(edit, header.as_bytes())?;
+                let reader = StageReader {
+                    file: edit.to_path_buf(),
+                    ..StageReader::open(scratch.path())?
                 };
-                Ok(session)
+                let text = (Format::from_path(edit)? == Format::Usda).then_some(header);
+                Ok(session(reader, edit, text, Some(scratch)))
             }
         }
     }
@@ -165,7 +196,9 @@ impl EditSession {
             .set(value)
             .build()
             .map(|_| ())
-            .map_err(|e| Error::attr(prim, name, format!("cannot author: {e}")))
+            .map_err(|e| Error::attr(prim, name, format!("cannot author: {e}")))?;
+        self.attrs.borrow_mut().push((prim.to_string(), name.to_string()));
+        Ok(())
     }
 
     /// Defines a typed prim (or re-specifies an existing one's type).
@@ -175,22 +208,117 @@ impl EditSession {
             .define_prim(path)
             .and_then(|p| p.set_type_name(type_name))
             .map(|_| ())
-            .map_err(|e| Error::prim(path, format!("cannot define {type_name}: {e}")))
+            .map_err(|e| Error::prim(path, format!("cannot define {type_name}: {e}")))?;
+        self.prims.borrow_mut().push(path.to_string());
+        Ok(())
     }
 
-    /// Writes the root layer to the target, atomically.
-    pub fn save(self) -> Result<()> {
-        let format = Format::from_path(&self.target)?;
-        let root = self.reader.stage.root_layer();
-        match format {
-            Format::Usda => {
-                let bytes = openusd::usda::TextWriter::write_to_string(root.data())
-                    .map(String::into_bytes)
-                    .map_err(|e| Error::msg(format!("cannot serialise edit layer: {e}")))?;
-                drop(root);
-                write_atomic(&self.target, &bytes)
+    /// Every prim spec the session may have created or changed: defined
+    /// prims, their ancestors, and the prims of set attributes, shallowest
+    /// first.
+    fn touched_prims(&self) -> Vec<String> {
+        let mut out: Vec<String> = Vec::new();
+        let explicit = self.prims.borrow();
+        let attrs = self.attrs.borrow();
+        for p in explicit.iter().chain(attrs.iter().map(|(p, _)| p)) {
+            let mut cur = p.as_str();
+            loop {
+                if !out.iter().any(|q| q == cur) {
+                    out.push(cur.to_string());
+                }
+                match cur.rsplit_once('/') {
+                    Some(("", _)) | None => break,
+                    Some((parent, _)) => cur = parent,
+                }
             }
-            Format::Usdc => super::usdc::write_layer_file(&self.target, root.data()),
+        }
+        out.sort_by_key(|p| p.matches('/').count());
+        out
+    }
+
+    /// Writes the root layer to the target, atomically. A usda target gets
+    /// only the edited statements spliced into its text (see the module
+    /// docs); an edit that cannot be written without changing anything else
+    /// is refused and the file is left untouched.
+    pub fn save(self) -> Result<()> {
+        let root = self.reader.stage.root_layer();
+        let Some(text) = &self.original_text else {
+            // Not a usda target: a crate file, from painterly's crate writer.
+            let written = super::usdc::write_layer_file(&self.target, root.data());
+            drop(root);
+            return written;
+        };
+        let data = root.data();
+        let prims: Vec<String> = self
+            .touched_prims()
+            .into_iter()
+            .filter(|p| sdf::Path::new(p).is_ok_and(|sp| data.has_spec(&sp)))
+            .collect();
+        let defined = self.prims.borrow().clone();
+        let attrs = self.attrs.borrow().clone();
+        let refuse = |why: String| {
+            Error::msg(format!(
+                "cannot save the edit without changing other content ({why}); the file is unchanged"
+            ))
+            .in_file(&self.target)
+        };
+        let out = usda_splice::splice(text, data, &prims, &defined, &attrs).map_err(refuse)?;
+        check_round_trip(&out, data).map_err(refuse)?;
+        drop(root);
+        write_atomic(&self.target, out.as_bytes())
+    }
+}
+
+/// Fields whose absence means their fallback.
+fn is_fallback(field: &str, v: &Value) -> bool {
+    matches!(
+        (field, v),
+        ("custom", Value::Bool(false)) | ("variability", Value::Variability(sdf::Variability::Varying))
+    )
+}
+
+fn same_value(a: &Value, b: &Value) -> bool {
+    // NaN != NaN: compare their printed form when == says no.
+    a == b || format!("{a:?}") == format!("{b:?}")
+}
+
+/// Parses the spliced text and checks it holds exactly the edited layer:
+/// the same specs, and the same fields with the same values on each.
+fn check_round_trip(text: &str, expected: &dyn AbstractData) -> std::result::Result<(), String> {
+    let got = sdf::LayerRegistry::read_bytes(openusd::ar::AssetBuffer::Owned(text.as_bytes().to_vec()), "edit.usda")
+        .map_err(|e| format!("the spliced text does not parse: {e}"))?;
+    let (a, b) = (expected.spec_paths(), got.spec_paths());
+    if a != b {
+        let missing = a.iter().find(|p| !b.contains(p));
+        let extra = b.iter().find(|p| !a.contains(p));
+        return Err(match (missing, extra) {
+            (Some(p), _) => format!("spec {p} would be lost"),
+            (_, Some(p)) => format!("spec {p} would appear"),
+            _ => "spec order differs".into(),
+        });
+    }
+    for p in &a {
+        if expected.spec_type(p) != got.spec_type(p) {
+            return Err(format!("spec {p} would change type"));
+        }
+        let mut fields = expected.list_fields(p).unwrap_or_default();
+        for f in got.list_fields(p).unwrap_or_default() {
+            if !fields.contains(&f) {
+                fields.push(f);
+            }
+        }
+        for f in fields {
+            let va = expected.try_field(p, &f).ok().flatten();
+            let vb = got.try_field(p, &f).ok().flatten();
+            let same = match (va.as_deref(), vb.as_deref()) {
+                (Some(x), Some(y)) => same_value(x, y),
+                (Some(x), None) | (None, Some(x)) => is_fallback(&f, x),
+                (None, None) => true,
+            };
+            if !same {
+                return Err(format!("field {f} of {p} would change"));
+            }
         }
     }
+    Ok(())
 }

@@ -6,11 +6,12 @@
 //! buffered.
 
 use std::collections::BTreeMap;
-use std::io::{Cursor, Write};
+use std::io::Cursor;
 use std::path::Path;
 
 use openusd::sdf::{self, ChildrenKey, FieldKey, SpecType, Specifier, Value, Variability};
 
+pub use super::atomic::{write_atomic, write_atomic_with};
 use super::stage::StageMetadata;
 use super::usdc::{self, CrateStream, Stored};
 use crate::error::{Error, Result};
@@ -58,7 +59,7 @@ impl Format {
         match path.extension().and_then(|e| e.to_str()) {
             Some("usda") => Ok(Format::Usda),
             Some("usdc") | Some("usd") => Ok(Format::Usdc),
-            _ => Err(Error::msg("output must end in .usdc, .usd or .usda").in_file(path)),
+            _ => Err(Error::usage("output must end in .usdc, .usd or .usda").in_file(path)),
         }
     }
 }
@@ -307,43 +308,4 @@ impl OverLayer {
             Format::Usda => write_atomic(path, &self.into_bytes(Format::Usda)?),
         }
     }
-}
-
-/// Writes `bytes` to a temporary sibling of `path` and renames it into place.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    write_atomic_with(path, |f| f.write_all(bytes))
-}
-
-/// Writes through `write` into a temporary sibling of `path` (buffered) and
-/// renames it into place; on any failure the temporary is removed.
-pub fn write_atomic_with(
-    path: &Path,
-    write: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> std::io::Result<()>,
-) -> Result<()> {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    let name = path
-        .file_name()
-        .ok_or_else(|| Error::msg("output path has no file name").in_file(path))?;
-    let tmp = dir.join(format!(
-        ".{}.painterly-{}.tmp",
-        name.to_string_lossy(),
-        std::process::id()
-    ));
-    let result = (|| -> std::io::Result<()> {
-        let mut f = std::io::BufWriter::with_capacity(1 << 20, std::fs::File::create(&tmp)?);
-        // No fsync: the rename makes the write atomic for readers and for a
-        // failed bake; durability across power loss is the filesystem's.
-        write(&mut f)?;
-        f.flush()?;
-        drop(f);
-        std::fs::rename(&tmp, path)
-    })();
-    if let Err(e) = result {
-        let _ = std::fs::remove_file(&tmp);
-        return Err(Error::msg(format!("cannot write output: {e}")).in_file(path));
-    }
-    Ok(())
 }

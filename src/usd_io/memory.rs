@@ -13,7 +13,6 @@ use std::path::{Path, PathBuf};
 use std::time::SystemTime;
 
 use openusd::ar::{Asset, AssetBuffer, AssetInfo, DefaultResolver, ResolvedPath, Resolver};
-use openusd::usd;
 
 use super::stage::StageReader;
 use crate::error::{Error, Result};
@@ -104,18 +103,8 @@ pub fn open_bytes(bytes: Vec<u8>, path: &Path) -> Result<StageReader> {
         identifier: identifier.clone(),
         bytes,
     };
-    let fail = |e: openusd::Error| Error::msg(format!("cannot read USD layer: {e}")).in_file(&path);
-    let stage = usd::Stage::builder()
-        .resolver(resolver)
-        .schema_registry(openusd_schemas::schema_registry())
-        .open(&identifier)
-        .map_err(fail)?;
-    // As in `StageReader::open`: a broken layer may open lazily and only fail here.
-    stage.traverse(usd::PrimPredicate::DEFAULT, |_| {}).map_err(fail)?;
-    Ok(StageReader {
-        stage,
-        file: PathBuf::from(path_str),
-    })
+    // The checks and composition of a file on disk (guard, watch, unresolved assets).
+    StageReader::compose(&PathBuf::from(path_str), &identifier, resolver)
 }
 
 #[cfg(test)]

@@ -4,16 +4,21 @@
 //! arrays, the math modules evaluate, and [`layer`] writes an override layer.
 
 pub mod assembly;
+pub mod atomic;
 pub mod axes;
 pub mod bake_layer;
 pub mod clips;
+pub mod compose_watch;
 pub mod edit;
+pub mod guard;
 pub mod layer;
 pub mod memory;
 pub mod render_scene;
 pub mod scene;
 pub mod skel;
 pub mod stage;
+pub mod usda_splice;
+pub mod usda_text;
 pub mod usdc;
 pub mod values;
 pub mod view_mesh;

@@ -585,15 +585,22 @@ impl RenderScene {
 /// Timing metadata of one layer file, for a root layer that sublayers it
 /// without rescaling time: (timeCodesPerSecond, framesPerSecond, start, end).
 pub fn layer_timing(path: &Path) -> Result<(f64, f64, Option<f64>, Option<f64>)> {
-    let s = path
-        .to_str()
-        .ok_or_else(|| Error::msg("path is not valid UTF-8").in_file(path))?;
-    let layer =
-        openusd::sdf::Layer::open(s).map_err(|e| Error::msg(format!("cannot read USD file: {e}")).in_file(path))?;
-    Ok((
+    let layer = super::guard::open_layer(path)?;
+    let timing = (
         layer.time_codes_per_second(),
         layer.frames_per_second(),
         layer.has_start_time_code().then(|| layer.start_time_code()),
         layer.has_end_time_code().then(|| layer.end_time_code()),
-    ))
+    );
+    // Written into the render's root layer: usd-core and openusd refuse nan.
+    super::stage::StageMetadata {
+        time_codes_per_second: Some(timing.0),
+        frames_per_second: Some(timing.1),
+        start_time_code: timing.2,
+        end_time_code: timing.3,
+        ..Default::default()
+    }
+    .validate()
+    .map_err(|e| e.in_file(path))?;
+    Ok(timing)
 }

@@ -103,9 +103,87 @@ pub struct StrokeLayer {
     pub opacity: f32,
     /// Authored `primvars:displayOpacity` per curve (1 when absent).
     pub display_opacity: Vec<f32>,
+    /// `widths`, as far as the extent needs them (see [`StrokeLayer::max_width_at`]).
+    widths: Widths,
     /// Pose and time keys (SPEC §4–5).
     pub keys: LayerKeys,
     prim: usd::Prim,
+}
+
+/// A stroke layer's `widths` for its extent (`UsdGeom.Curves.ComputeExtent`
+/// pads by half the largest width, whatever the interpolation).
+enum Widths {
+    /// Not time-sampled: the largest width (0 when there are none).
+    Constant(f32),
+    /// Time samples (None: a value block), in time order.
+    Sampled(Vec<(f64, Option<Vec<f32>>)>),
+}
+
+impl Widths {
+    /// The largest width at `t` of widths interpolated as usd-core does
+    /// (`Usd_Interpolate`): held outside the samples and next to a block
+    /// or a size change, else `(1 − α)·lower + α·upper` per element in
+    /// double precision, rounded to float.
+    fn max_at(&self, t: f64) -> f32 {
+        let samples = match self {
+            Widths::Constant(w) => return *w,
+            Widths::Sampled(s) => s,
+        };
+        let value = |w: &Option<Vec<f32>>| w.as_ref().map_or(0.0, |w| crate::extent::max_width(w.iter().copied()));
+        let upper = samples.partition_point(|(st, _)| *st <= t);
+        if upper == 0 {
+            return value(&samples[0].1);
+        }
+        let (t0, lower) = &samples[upper - 1];
+        let Some((t1, next)) = samples.get(upper) else {
+            return value(lower);
+        };
+        let alpha = (t - t0) / (t1 - t0);
+        match (lower, next) {
+            (Some(a), Some(b)) if a.len() == b.len() && (t1 - t0).abs() > 1e-6 && alpha != 0.0 => {
+                if alpha == 1.0 {
+                    return crate::extent::max_width(b.iter().copied());
+                }
+                let lerp = a
+                    .iter()
+                    .zip(b)
+                    .map(|(&a, &b)| ((1.0 - alpha) * a as f64 + alpha * b as f64) as f32);
+                crate::extent::max_width(lerp)
+            }
+            _ => value(lower),
+        }
+    }
+}
+
+/// Reads `widths`, checking every value (every sample) is finite.
+fn read_widths(r: &StageReader, prim: &usd::Prim, path: &str) -> Result<Widths> {
+    let check = |w: &[f32], t: Option<f64>| -> Result<()> {
+        match w.iter().position(|w| !w.is_finite()) {
+            None => Ok(()),
+            Some(i) => {
+                let at = t.map_or(String::new(), |t| format!(" at time {t}"));
+                Err(Error::attr(path, "widths", format!("width {i} is not finite{at}")).rule(Rule::NonFinite))
+            }
+        }
+    };
+    let times = r.sample_times(prim, "widths")?;
+    if times.is_empty() {
+        let w = r
+            .typed(prim, "widths", None, "float[]", values::f32_array)?
+            .unwrap_or_default();
+        check(&w, None)?;
+        return Ok(Widths::Constant(crate::extent::max_width(w)));
+    }
+    let mut samples = Vec::with_capacity(times.len());
+    for t in times {
+        let w = r.typed(prim, "widths", Some(t), "float[]", values::f32_array)?;
+        if let Some(w) = &w {
+            check(w, Some(t))?;
+        }
+        samples.push((t, w));
+    }
+    samples.sort_by(|a, b| a.0.total_cmp(&b.0));
+    Ok(Widths::Sampled(samples))
 }
 
 /// A channel's keys: the precomputed interpolant, the key prims, their values.
@@ -120,6 +198,10 @@ pub struct Channel<C, V> {
 pub struct LayerKeys {
     /// The layer's axes, as indices into [`Rig::axes`], in coordinate order.
     pub axes: Vec<usize>,
+    /// Each of those axes' `scale`. Key coordinates are authored in axis
+    /// units; the pose channels interpolate over scaled coordinates (SPEC
+    /// 1.1 §4), see [`LayerKeys::configuration`].
+    pub scales: Vec<f64>,
     /// Interpolation method (`painterly:interpolation`).
     pub method: Option<Method>,
     pub pose_points: Option<Channel<PoseChannel, Vec<Vec3>>>,
@@ -134,6 +216,22 @@ impl LayerKeys {
     /// Whether any pose key needs axis values.
     pub fn uses_axes(&self) -> bool {
         self.pose_points.is_some() || self.pose_opacity.is_some()
+    }
+
+    /// The point in configuration space where the pose channels are
+    /// evaluated: this layer's axis values (in axis units, indexed by rig
+    /// axis) each multiplied by its axis's `scale`, as the keys'
+    /// coordinates were. A layer without axes sits at the origin of a 1-D
+    /// space.
+    pub fn configuration(&self, axis_values: &[f64]) -> Vec<f64> {
+        if self.axes.is_empty() {
+            return vec![0.0];
+        }
+        self.axes
+            .iter()
+            .zip(&self.scales)
+            .map(|(&a, &s)| axis_values[a] * s)
+            .collect()
     }
 }
 
@@ -563,6 +661,7 @@ fn read_layer(r: &StageReader, path: &str, proxy_points: usize) -> Result<Stroke
         return Err(Error::attr(path, "painterly:opacity", "opacity is not finite").rule(Rule::NonFinite));
     }
     let display_opacity = read_display_opacity(r, &prim, path, &counts).map_err(|e| e.or_rule(Rule::DisplayOpacity))?;
+    let widths = read_widths(r, &prim, path)?;
     Ok(StrokeLayer {
         path: path.to_string(),
         curve_counts: counts.iter().map(|&c| c as u32).collect(),
@@ -571,6 +670,7 @@ fn read_layer(r: &StageReader, path: &str, proxy_points: usize) -> Result<Stroke
         cached_binding,
         opacity,
         display_opacity,
+        widths,
         keys: LayerKeys::default(),
         prim,
     })
@@ -605,17 +705,36 @@ fn duplicate_error(paths: &[String], e: InterpError, channel: &str) -> Error {
     }
 }
 
+/// A pose channel over keys whose coordinates are in axis units: the
+/// interpolant is built on the coordinates times `scales` (SPEC 1.1 §4).
 fn pose_channel<V>(
     method: Method,
-    dim: usize,
+    scales: &[f64],
     keys: Vec<(String, Vec<f64>, V)>,
     channel: &str,
 ) -> Result<Option<Channel<PoseChannel, V>>> {
     if keys.is_empty() {
         return Ok(None);
     }
+    let dim = scales.len();
     let paths: Vec<String> = keys.iter().map(|k| k.0.clone()).collect();
-    let coords: Vec<f64> = keys.iter().flat_map(|k| k.1.iter().copied()).collect();
+    let coords: Vec<f64> = keys
+        .iter()
+        .flat_map(|k| k.1.iter().zip(scales).map(|(c, s)| c * s))
+        .collect();
+    // Keys apart in axis units can meet once scaled (an axis with scale 0).
+    let scaled_together = |e: InterpError| match e {
+        InterpError::DuplicateKeys { first, second } if keys[first].1 != keys[second].1 => Error::attr(
+            &paths[first],
+            "coordinates",
+            format!(
+                "{} has the same coordinates once each axis is multiplied by its scale \
+                 (an axis with scale 0?): two {channel} keys at one configuration",
+                paths[second]
+            ),
+        ),
+        e => duplicate_error(&paths, e, channel),
+    };
     let interp = if dim == 0 {
         // No axes: one key is a constant; two would sit at the same point.
         if keys.len() > 1 {
@@ -627,7 +746,7 @@ fn pose_channel<V>(
         }
         PoseChannel::new(method, 1, &[0.0]).map_err(|e| duplicate_error(&paths, e, channel))?
     } else {
-        PoseChannel::new(method, dim, &coords).map_err(|e| duplicate_error(&paths, e, channel))?
+        PoseChannel::new(method, dim, &coords).map_err(scaled_together)?
     };
     Ok(Some(Channel {
         interp,
@@ -816,11 +935,13 @@ fn read_keys(r: &StageReader, all_paths: &[String], rig: &mut Rig, layer: &Strok
             );
         }
     }
+    let scales: Vec<f64> = axes.iter().map(|&a| rig.axes[a].scale).collect();
     Ok(LayerKeys {
         axes,
         method: Some(method),
-        pose_points: pose_channel(method, dim, pose_pts, "position")?,
-        pose_opacity: pose_channel(method, dim, pose_opa, "opacity")?,
+        pose_points: pose_channel(method, &scales, pose_pts, "position")?,
+        pose_opacity: pose_channel(method, &scales, pose_opa, "opacity")?,
+        scales,
         time_points: time_channel(time_pts, &sentinels)?,
         time_opacity: time_channel(time_opa, &sentinels)?,
         sentinels: sentinels.len(),
@@ -965,8 +1086,41 @@ impl StrokeLayer {
         Ok(o)
     }
 
+    /// The largest `widths` value at `t` (0 when none), what the baked
+    /// extent is padded by ([`crate::extent::curves_extent`]). Widths are
+    /// not baked: they come from the input at every time, possibly
+    /// time-sampled (read once, interpolated here as usd-core does).
+    pub fn max_width_at(&self, t: f64) -> f32 {
+        self.widths.max_at(t)
+    }
+
     /// Number of points.
     pub fn num_points(&self) -> usize {
         self.rest_points.len()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Widths;
+
+    #[test]
+    fn sampled_widths_interpolate_like_usd_core() {
+        let w = Widths::Sampled(vec![
+            (2.0, Some(vec![0.1, 0.2])),
+            (4.0, Some(vec![0.3, 0.6])),
+            (6.0, None),
+            (8.0, Some(vec![1.0])),
+            (10.0, Some(vec![2.0, 3.0])),
+        ]);
+        assert_eq!(w.max_at(0.0), 0.2); // held before the first sample
+        assert_eq!(w.max_at(2.0), 0.2);
+        assert_eq!(w.max_at(3.0), ((0.5 * 0.2f32 as f64) + 0.5 * 0.6f32 as f64) as f32);
+        assert_eq!(w.max_at(4.0), 0.6);
+        assert_eq!(w.max_at(5.0), 0.6); // the upper sample is a block: held
+        assert_eq!(w.max_at(7.0), 0.0); // the lower sample is a block
+        assert_eq!(w.max_at(9.0), 1.0); // sizes differ: held
+        assert_eq!(w.max_at(11.0), 3.0); // held after the last sample
+        assert_eq!(Widths::Constant(0.5).max_at(3.0), 0.5);
     }
 }

@@ -11,6 +11,8 @@ use openusd::sdf::Value;
 use openusd::usd::{self, TimeCode};
 use openusd_schemas::geom::XformCache;
 
+use super::compose_watch;
+use super::guard::Guard;
 use super::values;
 use crate::error::{Error, Result};
 
@@ -23,10 +25,41 @@ pub struct StageReader {
     pub stage: usd::Stage,
     /// The root layer's path, as given by the user.
     pub file: PathBuf,
+    /// Sublayers, references and payloads that did not resolve or could not
+    /// be read (usd-core warns and composes without them).
+    pub unresolved: Vec<UnresolvedAsset>,
+}
+
+/// A sublayer, reference or payload whose asset (or target prim) is missing.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct UnresolvedAsset {
+    /// The asset path as authored.
+    pub asset: String,
+    /// `sublayer`, `reference` or `payload`.
+    pub arc: String,
+    /// The prim that authors the arc (None for sublayers).
+    pub prim: Option<String>,
+    /// The layer that authors it.
+    pub layer: String,
+    /// Why it did not resolve.
+    pub reason: String,
+}
+
+impl UnresolvedAsset {
+    /// One line for messages: `reference @a.usda@ on /Char (in shot.usda): not found`.
+    pub fn describe(&self) -> String {
+        let on = self.prim.as_deref().map(|p| format!(" on {p}")).unwrap_or_default();
+        format!("{} @{}@{on} (in {}): {}", self.arc, self.asset, self.layer, self.reason)
+    }
+
+    /// The same without the prim (for messages that name it already).
+    pub fn describe_asset(&self) -> String {
+        format!("{} @{}@ (in {}): {}", self.arc, self.asset, self.layer, self.reason)
+    }
 }
 
 /// Stage-level metadata a bake copies into its output layer.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct StageMetadata {
     pub start_time_code: Option<f64>,
     pub end_time_code: Option<f64>,
@@ -34,6 +67,47 @@ pub struct StageMetadata {
     pub frames_per_second: Option<f64>,
     pub up_axis: Option<String>,
     pub meters_per_unit: Option<f64>,
+    /// Fields that are authored but are not numbers (their names).
+    pub malformed: Vec<String>,
+}
+
+impl StageMetadata {
+    /// Checks the values painterly uses and copies into what it writes:
+    /// finite time codes and rates, positive rates, a finite metersPerUnit.
+    /// usd-core cannot open a layer holding `nan` or `inf` there.
+    pub fn validate(&self) -> Result<()> {
+        if let Some(k) = self.malformed.first() {
+            return Err(Error::msg(format!("the stage's {k} is not a number")));
+        }
+        let finite = [
+            ("startTimeCode", self.start_time_code),
+            ("endTimeCode", self.end_time_code),
+            ("timeCodesPerSecond", self.time_codes_per_second),
+            ("framesPerSecond", self.frames_per_second),
+            ("metersPerUnit", self.meters_per_unit),
+        ];
+        for (k, v) in finite {
+            if let Some(v) = v {
+                if !v.is_finite() {
+                    return Err(Error::msg(format!(
+                        "the stage's {k} is {v}; it must be a finite number"
+                    )));
+                }
+            }
+        }
+        for (k, v) in [
+            ("timeCodesPerSecond", self.time_codes_per_second),
+            ("framesPerSecond", self.frames_per_second),
+            ("metersPerUnit", self.meters_per_unit),
+        ] {
+            if let Some(v) = v {
+                if v <= 0.0 {
+                    return Err(Error::msg(format!("the stage's {k} is {v}; it must be positive")));
+                }
+            }
+        }
+        Ok(())
+    }
 }
 
 impl StageReader {
@@ -46,21 +120,71 @@ impl StageReader {
         let path_str = path
             .to_str()
             .ok_or_else(|| Error::msg("input path is not valid UTF-8").in_file(path))?;
-        let stage = usd::Stage::builder()
-            .schema_registry(openusd_schemas::schema_registry())
-            .open(path_str)
-            .map_err(|e| Error::msg(format!("cannot read USD file: {e}")).in_file(path))?;
-        let reader = StageReader {
+        Self::compose(path, path_str, openusd::ar::DefaultResolver::new())
+    }
+
+    /// Opens and composes the layer `identifier` through `resolver` (see
+    /// [`super::memory`]), with the checks of [`StageReader::open`]; errors
+    /// name `path`.
+    pub fn compose<R: openusd::ar::Resolver + 'static>(path: &Path, identifier: &str, resolver: R) -> Result<Self> {
+        // Every layer passes the composition guard (nesting, namespace depth,
+        // inherit cycles) before openusd parses or composes it, and openusd
+        // runs under watch (panics, crashes, time limit).
+        let guard = Guard::default();
+        let first_problem = |e: Error| guard.problems().into_iter().next().unwrap_or(e).in_file(path);
+        let stage = compose_watch::watched(path, || {
+            let stage = usd::Stage::builder()
+                .schema_registry(openusd_schemas::schema_registry())
+                .resolver(guard.resolver_over(resolver))
+                .open(identifier)
+                .map_err(|e| first_problem(Error::msg(format!("cannot read USD file: {e}"))))?;
+            // The root layer stack is parsed but nothing is composed yet.
+            for id in stage.layer_identifiers() {
+                if let Some(layer) = stage.layer(&id) {
+                    guard.check_layer(&id, layer.data()).map_err(|e| e.in_file(path))?;
+                }
+            }
+            guard.start_composing();
+            // Compose every prim now (inactive and abstract ones too), so every
+            // referenced layer is loaded, and checked, here. The pseudo-root must
+            // be readable; a truncated crate file can open lazily and only fail here.
+            stage
+                .traverse(usd::PrimPredicate::ALL, |_| {})
+                .map_err(|e| first_problem(Error::msg(format!("cannot read USD file: {e}"))))?;
+            Ok(stage)
+        })?;
+        if let Some(e) = guard.problems().into_iter().next() {
+            return Err(e.in_file(path));
+        }
+        let unresolved = unresolved_assets(&stage);
+        Ok(StageReader {
             stage,
             file: path.to_path_buf(),
-        };
-        // The pseudo-root must be readable; a truncated crate file can open
-        // lazily and only fail here.
-        reader
-            .stage
-            .traverse(usd::PrimPredicate::DEFAULT, |_| {})
-            .map_err(|e| Error::msg(format!("cannot read USD file: {e}")).in_file(path))?;
-        Ok(reader)
+            unresolved,
+        })
+    }
+
+    /// Fails naming every missing sublayer, reference and payload: a bake
+    /// or edit of a stage with a missing asset would silently differ from
+    /// what its author sees.
+    /// A file that exists but lacks the referenced prim contributes
+    /// nothing, for usd-core too: that is not refused here (inspect lists it).
+    pub fn require_resolved(&self) -> Result<()> {
+        let missing: Vec<UnresolvedAsset> = self
+            .unresolved
+            .iter()
+            .filter(|u| u.reason == "not found" || u.reason.starts_with("cannot be read"))
+            .cloned()
+            .collect();
+        match missing.as_slice() {
+            [] => Ok(()),
+            [one] => Err(Error::msg(format!("missing asset: {}", one.describe()))),
+            all => Err(Error::msg(format!(
+                "{} missing assets: {}",
+                all.len(),
+                all.iter().map(UnresolvedAsset::describe).collect::<Vec<_>>().join("; ")
+            ))),
+        }
     }
 
     /// Every prim path in namespace (depth-first) order.
@@ -88,6 +212,22 @@ impl StageReader {
     /// The prim at `path`, or an error saying it is missing.
     pub fn require_prim(&self, path: &str) -> Result<usd::Prim> {
         self.prim(path)?.ok_or_else(|| Error::prim(path, "prim does not exist"))
+    }
+
+    /// Checks that `path` names a `Camera` prim (the `--camera` of bake,
+    /// render and key): a Mesh or an Xform there is a mistake, not a camera.
+    pub fn require_camera(&self, path: &str, origin: &str) -> Result<()> {
+        let prim = self
+            .prim(path)?
+            .ok_or_else(|| Error::prim(path, format!("the camera named by {origin} does not exist")))?;
+        match self.type_name(&prim)?.as_str() {
+            "Camera" => Ok(()),
+            "" => Err(Error::prim(
+                path,
+                format!("{origin} names an untyped prim, not a Camera"),
+            )),
+            ty => Err(Error::prim(path, format!("{origin} names a {ty} prim, not a Camera"))),
+        }
     }
 
     /// The composed type name ("" when untyped).
@@ -193,13 +333,112 @@ impl StageReader {
     /// Stage metadata that bakes copy.
     pub fn metadata(&self) -> StageMetadata {
         let get = |k: &str| self.stage.stage_metadata(k).ok().flatten();
+        let mut malformed = Vec::new();
+        let mut num = |k: &str| {
+            let v = get(k)?;
+            let x = values::scalar(&v);
+            if x.is_none() && !matches!(v, Value::None | Value::ValueBlock) {
+                malformed.push(k.to_string());
+            }
+            x
+        };
         StageMetadata {
-            start_time_code: get("startTimeCode").as_ref().and_then(values::scalar),
-            end_time_code: get("endTimeCode").as_ref().and_then(values::scalar),
-            time_codes_per_second: get("timeCodesPerSecond").as_ref().and_then(values::scalar),
-            frames_per_second: get("framesPerSecond").as_ref().and_then(values::scalar),
+            start_time_code: num("startTimeCode"),
+            end_time_code: num("endTimeCode"),
+            time_codes_per_second: num("timeCodesPerSecond"),
+            frames_per_second: num("framesPerSecond"),
+            meters_per_unit: num("metersPerUnit"),
             up_axis: get("upAxis").as_ref().and_then(values::token),
-            meters_per_unit: get("metersPerUnit").as_ref().and_then(values::scalar),
+            malformed,
         }
     }
+}
+
+/// The stage's missing sublayers, references and payloads, from
+/// composition's diagnostics.
+fn unresolved_assets(stage: &usd::Stage) -> Vec<UnresolvedAsset> {
+    use openusd::pcp::CompositionDiagnostic as D;
+    let arc = |a: &dyn std::fmt::Debug| format!("{a:?}").to_lowercase();
+    let mut out: Vec<UnresolvedAsset> = Vec::new();
+    for d in stage.composition_errors() {
+        let item = match d {
+            D::UnresolvedLayer {
+                asset_path,
+                arc: a,
+                introduced_by,
+                site_path,
+            } => UnresolvedAsset {
+                asset: asset_path,
+                arc: arc(&a),
+                prim: Some(site_path.as_str().to_string()),
+                layer: introduced_by,
+                reason: "not found".into(),
+            },
+            D::MalformedLayer {
+                asset_path,
+                arc: a,
+                introduced_by,
+                site_path,
+                reason,
+            } => UnresolvedAsset {
+                asset: asset_path,
+                arc: arc(&a),
+                prim: Some(site_path.as_str().to_string()),
+                layer: introduced_by,
+                reason: format!("cannot be read: {reason}"),
+            },
+            D::UnresolvedPrimPath {
+                arc: a,
+                target_layer,
+                prim_path,
+                introduced_by,
+                site_path,
+            } => UnresolvedAsset {
+                asset: target_layer,
+                arc: arc(&a),
+                prim: Some(site_path.as_str().to_string()),
+                layer: introduced_by,
+                reason: format!("it has no prim <{}>", prim_path.as_str()),
+            },
+            D::UnresolvedDefaultPrim {
+                layer_id,
+                arc: a,
+                site_path,
+            } => UnresolvedAsset {
+                asset: layer_id,
+                arc: arc(&a),
+                prim: Some(site_path.as_str().to_string()),
+                layer: String::new(),
+                reason: "its defaultPrim does not name a prim".into(),
+            },
+            D::UnresolvedSublayer {
+                asset_path,
+                introduced_by,
+            } => UnresolvedAsset {
+                asset: asset_path,
+                arc: "sublayer".into(),
+                prim: None,
+                layer: introduced_by,
+                reason: "not found".into(),
+            },
+            D::MalformedSublayer {
+                asset_path,
+                introduced_by,
+                reason,
+            } => UnresolvedAsset {
+                asset: asset_path,
+                arc: "sublayer".into(),
+                prim: None,
+                layer: introduced_by,
+                reason: format!("cannot be read: {reason}"),
+            },
+            _ => continue,
+        };
+        if !out.contains(&item) {
+            out.push(item);
+        }
+    }
+    // Composition reports them in hash order.
+    out.sort_by(|a, b| (&a.layer, &a.prim, &a.asset).cmp(&(&b.layer, &b.prim, &b.asset)));
+    out
 }

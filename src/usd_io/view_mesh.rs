@@ -148,7 +148,10 @@ fn read_view_mesh(r: &StageReader, prim: usd::Prim) -> Result<ViewMesh> {
     })?;
     let camera = r.targets(&prim, "painterly:camera")?.into_iter().next();
     let rest_time = r.typed(&prim, "painterly:restTime", None, "double", values::scalar)?;
-    let mesh = read_mesh(r, prim.clone(), rest_time)?;
+    let cache_time = point_cache_time(r, &prim, rest_time)?;
+    // A point cache has no rest pose; its first sample only gives the
+    // topology's point count (and keys must all have a time, below).
+    let mesh = read_mesh(r, prim.clone(), rest_time.or(cache_time))?;
     let n = mesh.rest.len();
 
     // Keys.
@@ -265,6 +268,18 @@ fn read_view_mesh(r: &StageReader, prim: usd::Prim) -> Result<ViewMesh> {
         let mut offsets = Vec::with_capacity(g.len());
         for &i in &g {
             let base: Vec<Vec3> = match keys[i].time {
+                None if cache_time.is_some() => {
+                    return Err(Error::attr(
+                        &keys[i].path,
+                        "time",
+                        format!(
+                            "a key without `time` is an offset from the rest pose, but {path} has only \
+                             time-sampled points (a point cache) and no rest pose: give this key a `time` \
+                             (its offset is then taken from the base at that time), or author a default \
+                             `points` or `painterly:restTime` on {path}"
+                        ),
+                    ))
+                }
                 None => mesh.rest.iter().map(|p| p.as_vec3()).collect(),
                 Some(t) => mesh.posed_points(r, t)?.iter().map(|p| p.as_vec3()).collect(),
             };
@@ -307,6 +322,20 @@ fn read_view_mesh(r: &StageReader, prim: usd::Prim) -> Result<ViewMesh> {
         uncovered,
         sharpness,
     })
+}
+
+/// For a point cache (a mesh that is not skinned, whose `points` are only
+/// time samples, without `painterly:restTime`): its first sample time.
+/// Such a mesh has no rest pose, and SPEC §6 needs none when every key has
+/// a time (offsets from the base at each key's time).
+fn point_cache_time(r: &StageReader, prim: &usd::Prim, rest_time: Option<f64>) -> Result<Option<f64>> {
+    if rest_time.is_some() || r.value(prim, "points", None)?.is_some() {
+        return Ok(None);
+    }
+    if super::skel::skeleton_binding(r, prim)?.is_some() {
+        return Ok(None);
+    }
+    Ok(r.sample_times(prim, "points")?.first().copied())
 }
 
 /// Checks that `path` names an existing prim with a transform; `origin`

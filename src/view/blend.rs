@@ -29,18 +29,18 @@ pub enum Uncovered {
     /// Let `p` be the covered direction nearest to the eye `e` and
     /// `d = cos∠(e, p)`: `d` is the largest `e·q` over covered unit
     /// directions `q` (so `d = 1` inside the covered region). The result is
-    /// `max(0,d)·blend(p) + max(0,1−d)·base`, where `blend(p)` is the hull
-    /// blend at `p` (barycentric weights on the covered border, sharpened
-    /// by α). With one key, `p` is the key and this is exactly Rademacher's
-    /// formula `max(0,d)·deformed + max(0,1−d)·base` with `d = key·eye`.
-    /// It is continuous in the eye direction: `d` is a cosine of a distance,
-    /// and the nearest covered direction is unique wherever `d > 0` because
-    /// the covered region is convex.
+    /// `max(0,d)·blend(p) + (1 − max(0,d))·base`, where `blend(p)` is the
+    /// hull blend at `p` (barycentric weights on the covered border,
+    /// sharpened by α). With one key, `p` is the key and this is exactly
+    /// SPEC 1.1 §6's `max(0,d)·deformed + (1 − max(0,d))·base` with
+    /// `d = key·eye`. It is continuous in the eye direction: `d` is a cosine
+    /// of a distance, and the nearest covered direction is unique wherever
+    /// `d > 0` because the covered region is convex.
     ///
-    /// As written by Rademacher, the base coefficient `1−d` exceeds one when
-    /// the eye is more than 90° from every covered direction (`d < 0`): the
-    /// weights then sum to `1−d` and the base model is scaled by it (see
-    /// [`ViewWeights::base_scale`]).
+    /// The weights always sum to one: the base model is reached 90° from
+    /// the covered region and held beyond it (`d ≤ 0` gives exactly the
+    /// base). SPEC 1.0 printed the base coefficient as `max(0,1−d)`, which
+    /// scaled the base model by up to 2 behind the keys.
     #[default]
     Cosine,
     /// Close the hull with copies of the base model (token `"base"`):
@@ -95,10 +95,10 @@ impl Uncovered {
 ///
 /// The blended shape is `base · base_model + Σ w_k · key_points_k`, which in
 /// offsets (`offset_k = key_points_k − base_model`) is
-/// `base_scale() · base_model + Σ w_k · offset_k`. In the covered region and
-/// in `Base` mode the weights sum to one, so `base_scale() == 1` and the
-/// result is `base_model + Σ w_k · offset_k`. Only keys with non-zero weight
-/// are listed.
+/// `base_scale() · base_model + Σ w_k · offset_k`. The weights sum to one
+/// in every mode, so `base_scale() == 1` and the result is
+/// `base_model + Σ w_k · offset_k`. Only keys with non-zero weight are
+/// listed.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ViewWeights {
     entries: [(usize, f64); 3],
@@ -132,9 +132,8 @@ impl ViewWeights {
     }
 
     /// Coefficient of the base model when blending offsets:
-    /// `base() + Σ w_k`. It is one except in `Cosine` mode more than 90°
-    /// from every covered direction, where Rademacher's `max(0, 1−d)`
-    /// scales the base model.
+    /// `base() + Σ w_k`, one in every mode (weights are a partition of
+    /// unity), up to rounding.
     pub fn base_scale(&self) -> f64 {
         self.base + self.keys().iter().map(|(_, w)| w).sum::<f64>()
     }
@@ -271,7 +270,7 @@ impl ViewBlender {
     }
 
     /// Nearest covered direction `p` over all arcs and keys, `d = cos∠(e,p)`,
-    /// then `max(0,d)·blend(p)` and base `max(0,1−d)`.
+    /// then `max(0,d)·blend(p)` and base `1 − max(0,d)`.
     fn cosine_falloff(&self, e: &Vector3<f64>) -> ViewWeights {
         // Best candidate: (d, keys, coefficients).
         let mut best_d = f64::NEG_INFINITY;
@@ -305,13 +304,13 @@ impl ViewBlender {
         let d = best_d;
         let (keys, coef, n) = best;
         if n == 1 {
-            // A single key: exactly max(0,d)·key + max(0,1−d)·base.
+            // A single key: exactly max(0,d)·key + (1 − max(0,d))·base.
             let mut w = ViewWeights::base_only();
-            w.base = (1.0 - d).max(0.0);
+            w.base = 1.0 - d.max(0.0);
             w.push(keys[0], d.max(0.0));
             return w;
         }
-        self.finish(&keys[..n], [coef[0], coef[1], 0.0], d.max(0.0), (1.0 - d).max(0.0))
+        self.finish(&keys[..n], [coef[0], coef[1], 0.0], d.max(0.0), 1.0 - d.max(0.0))
     }
 
     /// Turns cone coefficients into sharpened barycentric weights, scales
@@ -359,10 +358,10 @@ impl ViewBlender {
 /// `offsets[k][p] = key_points_k[p] − base[p]` (the key deformation as an
 /// offset from the base, possibly interpolated over time for an animated
 /// base, Rademacher §4.2) and `base_scale` is
-/// [`ViewWeights::base_scale`] (one except in `Cosine` mode far from every
-/// key). Blending offsets is identical to blending absolute key shapes when
-/// the weights sum to one; when they do not, it is what Rademacher's cosine
-/// formula `max(0,d)·deformed + max(0,1−d)·base` means.
+/// [`ViewWeights::base_scale`] (one: the weights sum to one in every mode).
+/// Blending offsets is then identical to blending absolute key shapes, and
+/// the cosine fallback `max(0,d)·deformed + (1 − max(0,d))·base` is
+/// `base + max(0,d)·offset`.
 ///
 /// `offsets` is indexed by key index; keys with zero weight are not read.
 ///
@@ -579,12 +578,16 @@ mod tests {
             let d = key[0] * en[0] + key[1] * en[1] + key[2] * en[2];
             let w = vb.weights(e);
             assert!((w.weight_of(0) - d.max(0.0)).abs() < 1e-15);
-            assert!((w.base() - (1.0 - d).max(0.0)).abs() < 1e-15);
+            assert!((w.base() - (1.0 - d.max(0.0))).abs() < 1e-15);
         }
-        // Behind the key the base coefficient reaches 2, as written.
-        let w = vb.weights([-0.3, 0.2, -0.9]);
-        assert!((w.base() - 2.0).abs() < 1e-15);
-        assert!(w.keys().is_empty());
+        // Behind the key (d < 0) exactly the base model (SPEC 1.1 §6; 1.0
+        // scaled it by 1 − d, up to 2).
+        for e in [[-0.3, 0.2, -0.9], [-0.2, 0.1, -0.1], [0.0, 1.0, 0.2]] {
+            let w = vb.weights(e);
+            assert_eq!(w.base(), 1.0, "{e:?}");
+            assert!(w.keys().is_empty());
+            assert_eq!(w.base_scale(), 1.0);
+        }
     }
 
     #[test]
@@ -639,7 +642,8 @@ mod tests {
             let w = vb.weights([t.sin(), 0.0, t.cos()]);
             let d = (t - std::f64::consts::FRAC_PI_4).cos();
             assert!((w.weight_of(0) - d.max(0.0)).abs() < 1e-12, "{deg} {w:?}");
-            assert!((w.base() - (1.0 - d).max(0.0)).abs() < 1e-12);
+            assert!((w.base() - (1.0 - d.max(0.0))).abs() < 1e-12);
+            assert!((w.base_scale() - 1.0).abs() < 1e-15);
         }
         // Between two rim keys (azimuth 45°), out of the cap: the nearest
         // covered direction is on the rim arc between keys 0 and 1 (in the
@@ -789,7 +793,8 @@ mod tests {
         let e = norm([-1.0, -2.0, -2.0]);
         let w = vb.weights(e);
         assert!(w.keys().is_empty());
-        assert!((w.base() - (1.0 + 1.0 / 3.0)).abs() < 1e-12);
+        // SPEC 1.1: 1 − max(0, d), exactly the base (v1's 1 − d gave 4/3).
+        assert_eq!(w.base(), 1.0);
         // Three keys on a great circle, 120° apart: every in-plane
         // direction is covered, the poles are 90° away.
         let third = 2.0 * std::f64::consts::PI / 3.0;
@@ -852,11 +857,12 @@ mod tests {
         blend_offsets(&base, &offsets, &w, &mut out);
         assert_eq!(out[0], Vec3::new(1.25, 2.0, 6.0));
         assert_eq!(out[1], Vec3::new(0.5, 2.0, 2.5));
-        // One key, eye behind it: Rademacher's formula gives (1−d)·base.
+        // One key, eye behind it: SPEC 1.1's (1 − max(0,d))·base is
+        // exactly the base (v1's (1−d)·base doubled it).
         let vb = ViewBlender::new(&[[0.0, 0.0, 1.0]], 1.0, Uncovered::Cosine).unwrap();
         let w = vb.weights([0.0, 0.0, -1.0]);
         blend_offsets(&base, &offsets, &w, &mut out);
-        assert_eq!(out[0], base[0] * 2.0);
+        assert_eq!(out, base);
         // d = 0.6: 0.6·(base + o0) + 0.4·base.
         let w = vb.weights([0.8, 0.0, 0.6]);
         blend_offsets(&base, &offsets, &w, &mut out);
@@ -1041,13 +1047,8 @@ mod tests {
             for mode in [Uncovered::Cosine, Uncovered::Base] {
                 let vb = ViewBlender::new(&dirs, alpha, mode).unwrap();
                 let w = vb.weights(e);
-                let total = sum(&w);
-                if vb.encloses() || mode == Uncovered::Base {
-                    prop_assert!((total - 1.0).abs() < 1e-9, "{:?}", w);
-                } else {
-                    let keys: f64 = w.keys().iter().map(|k| k.1).sum();
-                    prop_assert!((keys - (1.0 - w.base()).max(0.0)).abs() < 1e-9, "{:?}", w);
-                }
+                // Every mode: a partition of unity (SPEC 1.1 §6).
+                prop_assert!((sum(&w) - 1.0).abs() < 1e-9, "{:?}", w);
                 assert_continuous(&vb, &dirs, e, step, h, bound)?;
                 for (k, d) in dirs.iter().enumerate() {
                     let wk = vb.weights(*d);
@@ -1070,16 +1071,10 @@ mod tests {
                     prop_assert!(k < dirs.len());
                     prop_assert!(wk > 0.0 && wk <= 1.0 + 1e-12);
                 }
-                prop_assert!(w.base() >= 0.0 && w.base() <= 2.0 + 1e-12);
-                let total = sum(&w);
-                if vb.encloses() || mode == Uncovered::Base {
-                    prop_assert!((total - 1.0).abs() < 1e-9, "{:?}", w);
-                } else {
-                    // Cosine: keys sum to max(0,d), base max(0,1−d).
-                    let keys: f64 = w.keys().iter().map(|k| k.1).sum();
-                    let d = 1.0 - w.base();
-                    prop_assert!((keys - d.max(0.0)).abs() < 1e-9, "{:?}", w);
-                }
+                prop_assert!(w.base() >= 0.0 && w.base() <= 1.0 + 1e-12);
+                // Every mode: a partition of unity (cosine: keys sum to
+                // max(0,d), base 1 − max(0,d)).
+                prop_assert!((sum(&w) - 1.0).abs() < 1e-9, "{:?}", w);
                 // Exact at every key direction.
                 for (k, d) in dirs.iter().enumerate() {
                     let wk = vb.weights(*d);

@@ -16,7 +16,7 @@
 //! Blends are blends of *offsets* from the base: for key `k`,
 //! `offset_k = key_points_k − base`, and the blended shape is
 //! `base_scale · base + Σ w_k · offset_k` (see [`ViewWeights::base_scale`]).
-//! When the weights sum to one this is identical to blending the absolute
+//! The weights sum to one, so this is identical to blending the absolute
 //! key shapes, and it is what lets the same weights drive an animated base
 //! (Rademacher §4.2 adds interpolated offsets to the moving base).
 

@@ -132,19 +132,8 @@ pub fn write_layer_file(path: &Path, data: &dyn AbstractData) -> Result<()> {
 }
 
 /// Runs `write` on a buffered temporary file that becomes `path` only if it
-/// succeeds ([`super::layer::write_atomic_with`]), keeping `write`'s own
+/// succeeds ([`super::atomic::write_atomic_with`]), keeping `write`'s own
 /// error (which names the spec and field) rather than an I/O one.
 pub fn write_atomically(path: &Path, write: impl FnOnce(&mut BufWriter<File>) -> Result<()>) -> Result<()> {
-    let mut failure = None;
-    let written = super::layer::write_atomic_with(path, |out| {
-        write(out).map_err(|e| {
-            let io = std::io::Error::other(e.message.clone());
-            failure = Some(e);
-            io
-        })
-    });
-    match failure {
-        Some(e) => Err(e.in_file(path)),
-        None => written,
-    }
+    super::atomic::write_atomic_with(path, write)
 }

@@ -1,0 +1,508 @@
+//! Every file painterly writes goes through here: bakes, edit layers, the
+//! scratch header of a new edit layer, rendered EXR/PNG frames and the
+//! render's temporary folder.
+//!
+//! A write goes to a temporary sibling of the target, named
+//! `.<name>.painterly-<host>-<pid>.tmp`, and is renamed into place once
+//! complete, so readers and failed runs never see a partial file. Live
+//! temporaries are registered here so that:
+//!
+//! - a failed write removes its temporary;
+//! - SIGTERM, SIGINT and SIGHUP (farm schedulers stop tasks with SIGTERM)
+//!   remove every registered temporary and exit with 128 + the signal number;
+//! - after a `kill -9`, the next painterly run writing into the same folder
+//!   removes temporaries whose process no longer exists. The host name in
+//!   the temporary's name keeps a run from touching another machine's live
+//!   files on a shared (NFS) folder; the check reads `/proc`, so it runs on
+//!   Linux only.
+//!
+//! SIGXFSZ is caught too, so a write past `ulimit -f` fails with an error
+//! (EFBIG) that is reported and cleaned up instead of killing the process.
+
+use std::collections::HashSet;
+use std::fs::File;
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
+use std::sync::{Mutex, MutexGuard, Once, OnceLock};
+
+use crate::error::{Error, Result};
+
+/// Marker in every temporary's name, before `<host>-<pid>`.
+const MARK: &str = ".painterly-";
+/// Suffix of a temporary file.
+const TMP_SUFFIX: &str = ".tmp";
+/// Suffix of a scratch layer (openusd picks the format by extension).
+const SCRATCH_SUFFIX: &str = ".scratch.usda";
+/// Prefix of a render's temporary folder in the system temp dir.
+const RENDER_DIR_PREFIX: &str = "painterly-render-";
+
+/// Registered live temporaries (files and folders), and the folders already
+/// swept for stale ones.
+struct Registry {
+    live: Vec<PathBuf>,
+    swept: HashSet<PathBuf>,
+}
+
+fn registry() -> MutexGuard<'static, Registry> {
+    static REG: OnceLock<Mutex<Registry>> = OnceLock::new();
+    REG.get_or_init(|| {
+        Mutex::new(Registry {
+            live: Vec::new(),
+            swept: HashSet::new(),
+        })
+    })
+    .lock()
+    // A panic while holding the lock leaves the list intact; keep using it.
+    .unwrap_or_else(|e| e.into_inner())
+}
+
+/// This machine's name as used in temporaries (`[A-Za-z0-9._]` only).
+fn host() -> &'static str {
+    static HOST: OnceLock<String> = OnceLock::new();
+    HOST.get_or_init(|| {
+        let raw = std::fs::read_to_string("/proc/sys/kernel/hostname")
+            .or_else(|_| std::env::var("HOSTNAME"))
+            .unwrap_or_default();
+        let clean: String = raw
+            .trim()
+            .chars()
+            .map(|c| if c.is_ascii_alphanumeric() || c == '.' { c } else { '_' })
+            .collect();
+        if clean.is_empty() {
+            "localhost".into()
+        } else {
+            clean
+        }
+    })
+}
+
+/// Installs the SIGTERM/SIGINT/SIGHUP cleanup and catches SIGXFSZ. Called
+/// once from `main`; harmless to call again. Library users who install their
+/// own handlers can skip it: temporaries are still removed on every error.
+pub fn install_signal_cleanup() {
+    static ONCE: Once = Once::new();
+    ONCE.call_once(|| {
+        super::compose_watch::install_crash_handlers();
+        use signal_hook::consts::signal::{SIGHUP, SIGINT, SIGTERM, SIGXFSZ};
+        // A handler that only sets a flag: write() then fails with EFBIG.
+        static FSIZE: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+        let _ = signal_hook::flag::register(SIGXFSZ, &FSIZE);
+        let Ok(mut signals) = signal_hook::iterator::Signals::new([SIGTERM, SIGINT, SIGHUP]) else {
+            return;
+        };
+        let _ = std::thread::Builder::new()
+            .name("painterly-signals".into())
+            .spawn(move || {
+                if let Some(sig) = signals.forever().next() {
+                    // Holding the lock until exit: no temporary can be created
+                    // or renamed after the sweep.
+                    let mut reg = registry();
+                    for p in reg.live.drain(..) {
+                        remove_any(&p);
+                    }
+                    eprintln!("painterly: stopped by signal {sig}; temporary files removed");
+                    std::process::exit(128 + sig);
+                }
+            });
+    });
+}
+
+/// Removes every registered temporary (before an exit that skips destructors).
+pub fn remove_all_temporaries() {
+    let mut reg = registry();
+    for p in reg.live.drain(..) {
+        remove_any(&p);
+    }
+}
+
+fn remove_any(p: &Path) {
+    if p.is_dir() {
+        let _ = std::fs::remove_dir_all(p);
+    } else {
+        let _ = std::fs::remove_file(p);
+    }
+}
+
+fn dir_of(path: &Path) -> &Path {
+    match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    }
+}
+
+/// The temporary sibling of `path` with `suffix`, for this process.
+fn temp_path(path: &Path, suffix: &str) -> Result<PathBuf> {
+    let name = path
+        .file_name()
+        .ok_or_else(|| Error::msg("output path has no file name").in_file(path))?
+        .to_string_lossy();
+    let tail = format!("{MARK}{}-{}{suffix}", host(), std::process::id());
+    // Keep within the usual 255-byte name limit.
+    let mut keep = name.len().min(255usize.saturating_sub(tail.len() + 1));
+    while !name.is_char_boundary(keep) {
+        keep -= 1;
+    }
+    Ok(dir_of(path).join(format!(".{}{tail}", &name[..keep])))
+}
+
+/// `(host, pid)` of a temporary's file name, if it is one of ours.
+fn parse_temp_name(name: &str) -> Option<(&str, u32)> {
+    let name = name.strip_prefix('.')?;
+    let rest = name
+        .strip_suffix(TMP_SUFFIX)
+        .or_else(|| name.strip_suffix(SCRATCH_SUFFIX))?;
+    let (_, owner) = rest.rsplit_once(MARK)?;
+    let (host, pid) = owner.rsplit_once('-')?;
+    if host.is_empty() || pid.is_empty() || !pid.bytes().all(|b| b.is_ascii_digit()) {
+        return None;
+    }
+    Some((host, pid.parse().ok()?))
+}
+
+/// Whether process `pid` is gone (Linux only: None where /proc is missing).
+fn process_gone(pid: u32) -> Option<bool> {
+    if !Path::new("/proc/self").exists() {
+        return None;
+    }
+    Some(!Path::new(&format!("/proc/{pid}")).exists())
+}
+
+/// Removes, once per folder and process, temporaries left in `dir` by
+/// painterly processes of this host that no longer exist (killed with -9).
+/// Returns the paths removed.
+pub fn sweep_stale(dir: &Path) -> Vec<PathBuf> {
+    let key = dir.canonicalize().unwrap_or_else(|_| dir.to_path_buf());
+    {
+        let mut reg = registry();
+        if !reg.swept.insert(key) {
+            return Vec::new();
+        }
+    }
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return Vec::new();
+    };
+    let me = std::process::id();
+    let mut removed = Vec::new();
+    for entry in entries.flatten() {
+        let name = entry.file_name();
+        let Some(name) = name.to_str() else { continue };
+        let stale = match parse_temp_name(name) {
+            Some((h, pid)) if h == host() && pid != me => process_gone(pid) == Some(true),
+            // Our own pid: a previous process that had it died; ours are registered.
+            Some((h, pid)) if h == host() && pid == me => {
+                let p = entry.path();
+                !registry().live.contains(&p)
+            }
+            _ => false,
+        };
+        let is_file = entry.file_type().map(|t| t.is_file()).unwrap_or(false);
+        if stale && is_file {
+            let p = entry.path();
+            if std::fs::remove_file(&p).is_ok() {
+                removed.push(p);
+            }
+        }
+    }
+    removed
+}
+
+/// Creates `tmp` (read-write) and registers it, under the registry lock, so
+/// a signal never finds it created but unregistered.
+fn create_registered(tmp: &Path) -> std::io::Result<File> {
+    let mut reg = registry();
+    // A leftover with our own pid belongs to a dead process (pid reuse).
+    if tmp.exists() && !reg.live.iter().any(|p| p == tmp) {
+        let _ = std::fs::remove_file(tmp);
+    }
+    let f = File::options()
+        .read(true)
+        .write(true)
+        .create(true)
+        .truncate(true)
+        .open(tmp)?;
+    reg.live.push(tmp.to_path_buf());
+    Ok(f)
+}
+
+fn unregister(reg: &mut Registry, p: &Path) {
+    reg.live.retain(|q| q != p);
+}
+
+/// Removes a registered temporary and forgets it.
+fn discard(tmp: &Path) {
+    let mut reg = registry();
+    let _ = std::fs::remove_file(tmp);
+    unregister(&mut reg, tmp);
+}
+
+/// What a write callback may fail with: an I/O error (reported as "cannot
+/// write output") or a painterly error kept as it is.
+pub trait WriteFailure {
+    /// The error to report.
+    fn report(self) -> Error;
+}
+
+impl WriteFailure for std::io::Error {
+    fn report(self) -> Error {
+        Error::msg(format!("cannot write output: {self}"))
+    }
+}
+
+impl WriteFailure for Error {
+    fn report(self) -> Error {
+        self
+    }
+}
+
+/// A registered temporary file beside a target, for writes that stream
+/// into it over a while (a bake's frames): removed when dropped, on signals,
+/// and by the next run after a `kill -9`; [`TempFile::persist`] renames it
+/// into place.
+pub struct TempFile {
+    path: PathBuf,
+    persisted: bool,
+}
+
+impl TempFile {
+    /// Creates `.<target name><tag>.painterly-<host>-<pid>.tmp` beside
+    /// `target` (`tag` tells several temporaries of one target apart, e.g.
+    /// `.samples`), read-write, after sweeping the folder's stale ones.
+    pub fn create(target: &Path, tag: &str) -> Result<(TempFile, File)> {
+        sweep_stale(dir_of(target));
+        let named = if tag.is_empty() {
+            target.to_path_buf()
+        } else {
+            let name = target
+                .file_name()
+                .ok_or_else(|| Error::msg("output path has no file name").in_file(target))?;
+            target.with_file_name(format!("{}{tag}", name.to_string_lossy()))
+        };
+        let path = temp_path(&named, TMP_SUFFIX)?;
+        match create_registered(&path) {
+            Ok(f) => Ok((TempFile { path, persisted: false }, f)),
+            Err(e) => {
+                discard(&path);
+                Err(e.report().in_file(target))
+            }
+        }
+    }
+
+    /// Where the temporary is.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Renames the temporary to `target` (its file must be closed); on
+    /// failure it is removed.
+    pub fn persist(mut self, target: &Path) -> Result<()> {
+        let mut reg = registry();
+        let renamed = std::fs::rename(&self.path, target);
+        unregister(&mut reg, &self.path);
+        drop(reg);
+        match renamed {
+            Ok(()) => {
+                self.persisted = true;
+                Ok(())
+            }
+            Err(e) => Err(e.report().in_file(target)),
+        }
+    }
+}
+
+impl Drop for TempFile {
+    fn drop(&mut self) {
+        if !self.persisted {
+            discard(&self.path);
+        }
+    }
+}
+
+/// Writes `bytes` to a temporary sibling of `path` and renames it into place.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    write_atomic_with(path, |out| out.write_all(bytes))
+}
+
+/// Runs `write` on a buffered temporary sibling of `path` and renames it into
+/// place once `write` succeeds; on failure the temporary file is removed and
+/// `path` is untouched. `write` fails with an I/O error or a painterly one
+/// (kept as it is, e.g. naming a spec).
+pub fn write_atomic_with<E: WriteFailure>(
+    path: &Path,
+    write: impl FnOnce(&mut BufWriter<File>) -> std::result::Result<(), E>,
+) -> Result<()> {
+    let (tmp, file) = TempFile::create(path, "")?;
+    let mut out = BufWriter::with_capacity(1 << 20, file);
+    write(&mut out).map_err(|e| e.report().in_file(path))?;
+    // No fsync: the rename makes the write atomic for readers and for a
+    // failed run; durability across power loss is the filesystem's.
+    out.into_inner()
+        .map_err(|e| e.into_error().report().in_file(path))
+        .map(drop)?;
+    tmp.persist(path)
+}
+
+/// A scratch file beside `target` (e.g. the header a new edit layer is
+/// opened from), removed when dropped, on failure and on signals.
+pub struct ScratchFile {
+    path: PathBuf,
+}
+
+impl ScratchFile {
+    /// Writes `contents` to `.<target name>.painterly-<host>-<pid>.scratch.usda`
+    /// beside `target`. Nothing is left behind when the write fails.
+    pub fn create(target: &Path, contents: &[u8]) -> Result<ScratchFile> {
+        sweep_stale(dir_of(target));
+        let path = temp_path(target, SCRATCH_SUFFIX)?;
+        let result = create_registered(&path).and_then(|mut f| f.write_all(contents));
+        if let Err(e) = result {
+            discard(&path);
+            return Err(Error::msg(format!("cannot create a scratch file: {e}")).in_file(target));
+        }
+        Ok(ScratchFile { path })
+    }
+
+    /// Where the scratch file is.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+}
+
+impl Drop for ScratchFile {
+    fn drop(&mut self) {
+        discard(&self.path);
+    }
+}
+
+/// A temporary folder under the system temp dir, removed when dropped and on
+/// signals; stale ones of dead processes are removed when the next is made.
+pub struct TempDir {
+    path: PathBuf,
+}
+
+impl TempDir {
+    /// Creates `painterly-render-<host>-<pid>-<n>` in the system temp dir.
+    pub fn new() -> Result<TempDir> {
+        let base = std::env::temp_dir();
+        sweep_stale_dirs(&base);
+        let nanos = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map(|d| d.as_nanos())
+            .unwrap_or(0);
+        let path = base.join(format!("{RENDER_DIR_PREFIX}{}-{}-{nanos}", host(), std::process::id()));
+        let mut reg = registry();
+        std::fs::create_dir_all(&path)
+            .map_err(|e| Error::msg(format!("cannot create a temporary folder: {e}")).in_file(&path))?;
+        reg.live.push(path.clone());
+        Ok(TempDir { path })
+    }
+
+    /// The folder.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+}
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        let mut reg = registry();
+        let _ = std::fs::remove_dir_all(&self.path);
+        unregister(&mut reg, &self.path);
+    }
+}
+
+/// Removes render folders of dead processes of this host from `base`.
+fn sweep_stale_dirs(base: &Path) {
+    let key = base.join(RENDER_DIR_PREFIX);
+    {
+        let mut reg = registry();
+        if !reg.swept.insert(key) {
+            return;
+        }
+    }
+    let Ok(entries) = std::fs::read_dir(base) else { return };
+    for entry in entries.flatten() {
+        let name = entry.file_name();
+        let Some(rest) = name.to_str().and_then(|n| n.strip_prefix(RENDER_DIR_PREFIX)) else {
+            continue;
+        };
+        // <host>-<pid>-<nanos>
+        let mut parts = rest.rsplitn(3, '-');
+        let (Some(_nanos), Some(pid), Some(h)) = (parts.next(), parts.next(), parts.next()) else {
+            continue;
+        };
+        let Ok(pid) = pid.parse::<u32>() else { continue };
+        if h == host() && pid != std::process::id() && process_gone(pid) == Some(true) {
+            let _ = std::fs::remove_dir_all(entry.path());
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn temp_names_round_trip() {
+        let t = temp_path(Path::new("/x/out.usdc"), TMP_SUFFIX).unwrap();
+        let name = t.file_name().unwrap().to_str().unwrap();
+        assert_eq!(parse_temp_name(name), Some((host(), std::process::id())));
+        let s = temp_path(Path::new("e.usda"), SCRATCH_SUFFIX).unwrap();
+        assert_eq!(
+            parse_temp_name(s.file_name().unwrap().to_str().unwrap()),
+            Some((host(), std::process::id()))
+        );
+        for other in [
+            ".out.usdc.tmp",
+            "out.usdc",
+            ".a.painterly-h-x.tmp",
+            ".a.painterly--12.tmp",
+        ] {
+            assert_eq!(parse_temp_name(other), None, "{other}");
+        }
+        assert_eq!(parse_temp_name(".a-b.painterly-my-host-12.tmp"), Some(("my-host", 12)));
+        let long = "n".repeat(300) + ".usdc";
+        let t = temp_path(Path::new(&long), TMP_SUFFIX).unwrap();
+        assert!(t.file_name().unwrap().len() <= 255);
+    }
+
+    #[test]
+    fn sweep_removes_only_dead_local_temporaries() {
+        let dir = std::env::temp_dir().join(format!("painterly-atomic-test-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        // pid_max on Linux is at most 2^22: this pid cannot be running.
+        let dead = dir.join(format!(".a.usdc{MARK}{}-4194305{TMP_SUFFIX}", host()));
+        let alive = dir.join(format!(".b.usdc{MARK}{}-1{TMP_SUFFIX}", host()));
+        let remote = dir.join(format!(".c.usdc{MARK}otherhost-4194305{TMP_SUFFIX}"));
+        let user = dir.join("notes.tmp");
+        for p in [&dead, &alive, &remote, &user] {
+            std::fs::write(p, b"x").unwrap();
+        }
+        let removed = sweep_stale(&dir);
+        if Path::new("/proc/self").exists() {
+            assert_eq!(removed, vec![dead.clone()]);
+            assert!(!dead.exists());
+        }
+        assert!(alive.exists() && remote.exists() && user.exists());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn failed_write_leaves_nothing() {
+        let dir = std::env::temp_dir().join(format!("painterly-atomic-fail-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let out = dir.join("out.usda");
+        let e = write_atomic_with(&out, |w| {
+            w.write_all(b"partial").unwrap();
+            Err(Error::msg("serialiser failed"))
+        })
+        .unwrap_err();
+        assert!(e.to_string().contains("serialiser failed"));
+        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 0);
+        write_atomic(&out, b"ok").unwrap();
+        assert_eq!(std::fs::read(&out).unwrap(), b"ok");
+        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}

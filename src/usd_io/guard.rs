@@ -1,0 +1,408 @@
+//! Composition guards: what painterly checks so that openusd 0.8 never
+//! overflows the stack or runs for hours on a file usd-core would open.
+//!
+//! Measured on openusd 0.8 (see README, "Limits"):
+//!
+//! - its `.usda` parser recurses once per nesting level and overflows the
+//!   main thread's 8 MB stack near 10,000 nested blocks;
+//! - composing a chain of nested prims costs O(depth³) (500 levels 0.3–1.3 s,
+//!   2,000 levels a minute);
+//! - `IndexCache::precache_inherit_targets` follows inherit/specialize
+//!   targets recursively without a visited set, so two classes inheriting
+//!   each other (or a class inheriting itself) recurse until the stack
+//!   overflows. usd-core reports such cycles as composition errors.
+//!
+//! The guard sits in front of openusd as an [`ar::Resolver`] that sees the
+//! bytes of every layer before openusd parses it, so it checks every layer
+//! the stage opens (root, sublayers, references, payloads, package entries)
+//! exactly as openusd resolves them:
+//!
+//! 1. text nesting deeper than [`MAX_TEXT_NESTING`] is refused before parsing;
+//! 2. a namespace deeper than [`MAX_NAMESPACE_DEPTH`] is refused before
+//!    composition;
+//! 3. inherit/specialize arcs of all layers are collected into one graph; a
+//!    cycle is refused before composition. Whatever else openusd cannot
+//!    compose is caught while composing by [`super::compose_watch`].
+//!
+//! Root-stack layers are checked from the stage's own parse (between
+//! `Stage::open` and the first traversal); layers loaded later by
+//! composition are parsed once more here before openusd composes them, and
+//! are withheld from the stage (the load fails) when they break a rule. The
+//! problem is recorded and reported by [`super::stage::StageReader::open`].
+
+use std::cell::RefCell;
+use std::collections::{HashMap, HashSet};
+use std::io;
+use std::rc::Rc;
+
+use openusd::ar::{self, Asset, AssetBuffer, ResolvedPath};
+use openusd::sdf::{self, AbstractData, Value};
+
+use super::usda_text;
+use crate::error::Error;
+
+/// Deepest prim namespace painterly composes (prims below the root: `/A/B`
+/// is depth 2). A 256-deep chain composes in about 0.4 s; real assets stay
+/// well under 50.
+pub const MAX_NAMESPACE_DEPTH: usize = 256;
+
+/// Deepest bracket nesting (`(`, `[`, `{`) accepted in `.usda` text. Room for
+/// [`MAX_NAMESPACE_DEPTH`] prims inside variant sets (3 brackets per level)
+/// and far below the ~10,000 levels where openusd's parser overflows.
+pub const MAX_TEXT_NESTING: usize = 1000;
+
+/// What the guard has seen and found.
+#[derive(Default)]
+struct State {
+    /// Set once the root stack is checked: later layers come from composition
+    /// and are parsed here before openusd uses them.
+    composing: bool,
+    /// Problems found, in order.
+    problems: Vec<Error>,
+    /// Inherit/specialize targets authored at each prim path (variant
+    /// selections stripped), with the layer that authors them.
+    targets: HashMap<String, Vec<(String, String)>>,
+    /// Layers already scanned (by identifier).
+    scanned: HashSet<String>,
+}
+
+/// Shared handle to the guard's findings.
+#[derive(Clone, Default)]
+pub struct Guard {
+    state: Rc<RefCell<State>>,
+}
+
+impl Guard {
+    /// A resolver (the default one, guarded) reporting into this guard.
+    pub fn resolver(&self) -> GuardedResolver {
+        self.resolver_over(ar::DefaultResolver::new())
+    }
+
+    /// `inner` (e.g. the resolver of a layer handed over in memory),
+    /// guarded, reporting into this guard.
+    pub fn resolver_over<R: ar::Resolver>(&self, inner: R) -> GuardedResolver<R> {
+        GuardedResolver {
+            inner,
+            guard: self.clone(),
+        }
+    }
+
+    /// Problems found so far.
+    pub fn problems(&self) -> Vec<Error> {
+        self.state.borrow().problems.clone()
+    }
+
+    /// Marks the root stack as checked: layers opened from now on are
+    /// composition's (references, payloads) and are checked when opened.
+    pub fn start_composing(&self) {
+        self.state.borrow_mut().composing = true;
+    }
+
+    fn record(&self, e: Error) {
+        let mut st = self.state.borrow_mut();
+        if !st.problems.contains(&e) {
+            st.problems.push(e);
+        }
+    }
+
+    /// Checks one parsed layer (depth, arcs); records and returns a problem.
+    pub fn check_layer(&self, id: &str, data: &dyn AbstractData) -> Result<(), Error> {
+        if !self.state.borrow_mut().scanned.insert(id.to_string()) {
+            return Ok(());
+        }
+        let result = self.check_layer_inner(id, data);
+        if let Err(e) = &result {
+            self.record(e.clone());
+        }
+        result
+    }
+
+    fn check_layer_inner(&self, id: &str, data: &dyn AbstractData) -> Result<(), Error> {
+        let mut deepest: Option<(usize, sdf::Path)> = None;
+        let mut found: Vec<(String, String)> = Vec::new();
+        for path in data.spec_paths() {
+            if path.is_property_path() || path.is_abs_root() {
+                continue;
+            }
+            let prim = path.strip_all_variant_selections();
+            let depth = prim.prim_element_count();
+            if deepest.as_ref().is_none_or(|(d, _)| depth > *d) {
+                deepest = Some((depth, prim.clone()));
+            }
+            for field in ["inheritPaths", "specializes"] {
+                let Ok(Some(v)) = data.try_field(&path, field) else {
+                    continue;
+                };
+                let Value::PathListOp(op) = v.as_ref() else { continue };
+                for t in op
+                    .explicit_items
+                    .iter()
+                    .chain(&op.added_items)
+                    .chain(&op.prepended_items)
+                    .chain(&op.appended_items)
+                {
+                    let abs = prim.make_absolute(t).strip_all_variant_selections();
+                    found.push((prim.as_str().to_string(), abs.as_str().to_string()));
+                }
+            }
+        }
+        if let Some((depth, path)) = deepest {
+            if depth > MAX_NAMESPACE_DEPTH {
+                return Err(Error::msg(format!(
+                    "namespace {depth} prims deep (at {}); painterly composes at most {MAX_NAMESPACE_DEPTH} levels \
+                     (composition time grows with the cube of the depth)",
+                    shorten(path.as_str())
+                ))
+                .in_file(std::path::Path::new(id)));
+            }
+        }
+        if found.is_empty() {
+            return Ok(());
+        }
+        {
+            let mut st = self.state.borrow_mut();
+            for (at, target) in found {
+                st.targets.entry(at).or_default().push((target, id.to_string()));
+            }
+        }
+        match self.find_cycle() {
+            Some(cycle) => Err(Error::msg(format!(
+                "inherit/specialize cycle: {} (usd-core reports it as a composition error; \
+                 openusd 0.8 cannot compose it)",
+                cycle.join(" -> ")
+            ))
+            .in_file(std::path::Path::new(id))),
+            None => Ok(()),
+        }
+    }
+
+    /// A cycle of inherit/specialize arcs (each path inheriting or
+    /// specializing the next), if any. Such a cycle is a composition error
+    /// for usd-core and endless recursion for openusd 0.8. Cycles that only
+    /// form through namespace mapping are left to [`super::compose_watch`]:
+    /// modelling them needs Pcp itself, and a closer model refused valid
+    /// hierarchies.
+    fn find_cycle(&self) -> Option<Vec<String>> {
+        let st = self.state.borrow();
+        let next = |x: &str| -> Vec<String> {
+            st.targets
+                .get(x)
+                .map(|ts| ts.iter().map(|(t, _)| t.clone()).collect())
+                .unwrap_or_default()
+        };
+        // Iterative DFS with colours over every target path.
+        let mut starts: Vec<String> = st.targets.values().flatten().map(|(t, _)| t.clone()).collect();
+        starts.sort();
+        starts.dedup();
+        let mut colour: HashMap<String, u8> = HashMap::new(); // 1 on stack, 2 done
+        for s in starts {
+            if colour.contains_key(&s) {
+                continue;
+            }
+            let mut stack: Vec<(String, Vec<String>)> = vec![(s.clone(), next(&s))];
+            colour.insert(s, 1);
+            while let Some((node, succ)) = stack.last_mut() {
+                match succ.pop() {
+                    Some(n) => match colour.get(&n) {
+                        Some(1) => {
+                            let mut cycle: Vec<String> = stack.iter().map(|(p, _)| p.clone()).collect();
+                            let from = cycle.iter().position(|p| *p == n).unwrap_or(0);
+                            cycle.drain(..from);
+                            cycle.push(n);
+                            return Some(cycle);
+                        }
+                        Some(_) => {}
+                        None => {
+                            colour.insert(n.clone(), 1);
+                            let s = next(&n);
+                            stack.push((n, s));
+                        }
+                    },
+                    None => {
+                        colour.insert(node.clone(), 2);
+                        stack.pop();
+                    }
+                }
+            }
+        }
+        None
+    }
+
+    /// Checks raw layer bytes before openusd parses them.
+    fn check_bytes(&self, resolved: &ResolvedPath, bytes: &[u8]) -> Result<(), Error> {
+        let file = std::path::Path::new(resolved.to_str().unwrap_or_default());
+        if bytes.starts_with(b"#usda") {
+            let (depth, at) = usda_text::max_nesting(bytes);
+            if depth > MAX_TEXT_NESTING {
+                let e = Error::msg(format!(
+                    "brackets nested {depth} deep (line {}); painterly reads at most {MAX_TEXT_NESTING} levels",
+                    usda_text::line_of(bytes, at)
+                ))
+                .in_file(file);
+                self.record(e.clone());
+                return Err(e);
+            }
+        }
+        let composing = self.state.borrow().composing;
+        // usdz packages are read entry by entry through this resolver.
+        if composing && !bytes.starts_with(b"PK") {
+            let id = resolved.to_str().unwrap_or_default().to_string();
+            if self.state.borrow().scanned.contains(&id) {
+                return Ok(());
+            }
+            // Unparseable bytes are openusd's to report.
+            if let Ok(data) = sdf::LayerRegistry::read_bytes(AssetBuffer::Owned(bytes.to_vec()), &id) {
+                self.check_layer(&id, &data)?;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Opens one layer without composing it, through the guard and under
+/// [`super::compose_watch`].
+pub fn open_layer(path: &std::path::Path) -> Result<sdf::Layer, Error> {
+    let s = path
+        .to_str()
+        .ok_or_else(|| Error::msg("path is not valid UTF-8").in_file(path))?;
+    let guard = Guard::default();
+    super::compose_watch::watched(path, || {
+        let layer = sdf::Layer::open_with(guard.resolver(), s).map_err(|e| {
+            guard
+                .problems()
+                .into_iter()
+                .next()
+                .unwrap_or_else(|| Error::msg(format!("cannot read USD file: {e}")))
+                .in_file(path)
+        })?;
+        guard.check_layer(s, layer.data())?;
+        Ok(layer)
+    })
+}
+
+/// A long path, cut for messages.
+fn shorten(p: &str) -> String {
+    if p.len() <= 120 {
+        p.to_string()
+    } else {
+        let mut cut = 100;
+        while !p.is_char_boundary(cut) {
+            cut -= 1;
+        }
+        format!("{}…", &p[..cut])
+    }
+}
+
+/// A resolver (by default the default one) checking each layer's bytes
+/// before openusd does.
+pub struct GuardedResolver<R = ar::DefaultResolver> {
+    inner: R,
+    guard: Guard,
+}
+
+impl<R: ar::Resolver> ar::Resolver for GuardedResolver<R> {
+    fn create_identifier(&self, asset_path: &str, anchor: Option<&ResolvedPath>) -> String {
+        self.inner.create_identifier(asset_path, anchor)
+    }
+
+    fn resolve(&self, asset_path: &str) -> Option<ResolvedPath> {
+        self.inner.resolve(asset_path)
+    }
+
+    fn resolve_for_new_asset(&self, asset_path: &str) -> Option<ResolvedPath> {
+        self.inner.resolve_for_new_asset(asset_path)
+    }
+
+    fn open_asset(&self, resolved_path: &ResolvedPath) -> io::Result<Box<dyn Asset>> {
+        let buffer = self.inner.open_asset(resolved_path)?.into_buffer()?;
+        if let Err(e) = self.guard.check_bytes(resolved_path, &buffer) {
+            return Err(io::Error::new(io::ErrorKind::InvalidData, e.message));
+        }
+        Ok(Box::new(io::Cursor::new(buffer)))
+    }
+
+    fn get_extension<'a>(&self, asset_path: &'a str) -> &'a str {
+        self.inner.get_extension(asset_path)
+    }
+
+    fn is_context_dependent_path(&self, asset_path: &str) -> bool {
+        self.inner.is_context_dependent_path(asset_path)
+    }
+
+    fn in_memory_identifier<'a>(&self, asset_path: &'a str) -> std::borrow::Cow<'a, str> {
+        self.inner.in_memory_identifier(asset_path)
+    }
+
+    fn get_asset_info(&self, asset_path: &str, resolved_path: &ResolvedPath) -> ar::AssetInfo {
+        self.inner.get_asset_info(asset_path, resolved_path)
+    }
+
+    fn get_modification_timestamp(
+        &self,
+        asset_path: &str,
+        resolved_path: &ResolvedPath,
+    ) -> Option<std::time::SystemTime> {
+        self.inner.get_modification_timestamp(asset_path, resolved_path)
+    }
+
+    fn identity(&self) -> String {
+        self.inner.identity()
+    }
+
+    fn cache_id(&self) -> Option<u64> {
+        self.inner.cache_id()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn layer(text: &str) -> sdf::LayerData {
+        sdf::LayerRegistry::read_bytes(AssetBuffer::Owned(text.as_bytes().to_vec()), "t.usda").unwrap()
+    }
+
+    #[test]
+    fn finds_inherit_cycles_and_passes_hierarchies() {
+        let cyc = "#usda 1.0\nclass \"A\" (inherits = </B>)\n{\n}\nclass \"B\" (specializes = </A>)\n{\n}\n";
+        let g = Guard::default();
+        let e = g.check_layer("c.usda", &layer(cyc)).unwrap_err();
+        assert!(e.message.contains("cycle"), "{e}");
+        assert_eq!(g.problems().len(), 1);
+
+        let own = "#usda 1.0\nclass \"A\" (inherits = </A>)\n{\n}\n";
+        assert!(Guard::default().check_layer("s.usda", &layer(own)).is_err());
+
+        // Not a cycle for usd-core: /A inherits /B, /B inherits /A's child.
+        let par = "#usda 1.0\ndef \"A\" (inherits = </B>)\n{\n    def \"X\"\n    {\n    }\n}\nclass \"B\" (inherits = </A/X>)\n{\n}\n";
+        Guard::default().check_layer("p.usda", &layer(par)).unwrap();
+
+        let ok = "#usda 1.0\nclass \"Base\"\n{\n}\nclass \"Mid\" (inherits = </Base>)\n{\n}\ndef \"C\" (inherits = </Mid>)\n{\n    def \"D\" (specializes = </Base>)\n    {\n    }\n}\n";
+        Guard::default().check_layer("ok.usda", &layer(ok)).unwrap();
+    }
+
+    #[test]
+    fn cycles_across_layers_of_one_stack() {
+        let g = Guard::default();
+        g.check_layer("a.usda", &layer("#usda 1.0\nclass \"A\" (inherits = </B>)\n{\n}\n"))
+            .unwrap();
+        let e = g
+            .check_layer("b.usda", &layer("#usda 1.0\nclass \"B\" (inherits = </A>)\n{\n}\n"))
+            .unwrap_err();
+        assert!(
+            e.to_string().contains("/A -> /B -> /A") || e.to_string().contains("/B -> /A -> /B"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn namespace_depth_limit() {
+        let n = MAX_NAMESPACE_DEPTH + 1;
+        let text = format!("#usda 1.0\n{}{}", "def \"P\" {\n".repeat(n), "}\n".repeat(n));
+        let e = Guard::default().check_layer("d.usda", &layer(&text)).unwrap_err();
+        assert!(e.message.contains(&format!("{n} prims deep")), "{e}");
+        let n = MAX_NAMESPACE_DEPTH;
+        let text = format!("#usda 1.0\n{}{}", "def \"P\" {\n".repeat(n), "}\n".repeat(n));
+        Guard::default().check_layer("d.usda", &layer(&text)).unwrap();
+    }
+}

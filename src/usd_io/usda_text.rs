@@ -1,0 +1,292 @@
+//! A lexer for `.usda` text and a scanner of its block structure.
+//!
+//! Two jobs need usda text without openusd's parser:
+//!
+//! - the composition guard measures bracket nesting *before* openusd parses
+//!   (its parser recurses once per level and overflows the stack near 10,000);
+//! - in-place edits splice the edited statements into the original text, so
+//!   everything else stays byte for byte (see [`super::usda_splice`]).
+//!
+//! Token rules follow openusd 0.8's lexer: whitespace, `#` line comments and
+//! `/* */` block comments are skipped; strings are `"…"`/`'…'` with
+//! backslash escapes or `"""…"""`/`'''…'''`; `<…>` is a path, `@…@` and
+//! `@@@…@@@` are asset paths; identifiers may hold `:` namespaces.
+
+use std::ops::Range;
+
+/// The kind of a token.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Kind {
+    /// A name or keyword (`def`, `float3`, `primvars:displayColor`).
+    Ident,
+    /// A quoted string, quotes included in the span.
+    Str,
+    /// A number.
+    Num,
+    /// `<path>`.
+    PathRef,
+    /// `@asset@` or `@@@asset@@@`.
+    Asset,
+    /// One punctuation character.
+    Punct(u8),
+}
+
+/// A token: its kind and byte range in the text.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Token {
+    pub kind: Kind,
+    pub span: Range<usize>,
+}
+
+/// A lexing failure: byte offset and what was found.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct LexError {
+    pub offset: usize,
+    pub message: &'static str,
+}
+
+/// Streams the tokens of usda text.
+pub struct Lexer<'a> {
+    s: &'a [u8],
+    i: usize,
+}
+
+impl<'a> Lexer<'a> {
+    pub fn new(text: &'a [u8]) -> Self {
+        Lexer { s: text, i: 0 }
+    }
+
+    fn skip_trivia(&mut self) {
+        let s = self.s;
+        loop {
+            while self.i < s.len() && matches!(s[self.i], b' ' | b'\t' | b'\r' | b'\n' | 0x0c) {
+                self.i += 1;
+            }
+            if self.i < s.len() && s[self.i] == b'#' {
+                while self.i < s.len() && s[self.i] != b'\n' && s[self.i] != b'\r' {
+                    self.i += 1;
+                }
+                continue;
+            }
+            if s[self.i..].starts_with(b"/*") {
+                match find(&s[self.i + 2..], b"*/") {
+                    Some(k) => {
+                        self.i += 2 + k + 2;
+                        continue;
+                    }
+                    // An unclosed block comment is not a comment for openusd
+                    // either; leave it to be reported as an unexpected '/'.
+                    None => return,
+                }
+            }
+            return;
+        }
+    }
+}
+
+fn find(hay: &[u8], needle: &[u8]) -> Option<usize> {
+    hay.windows(needle.len()).position(|w| w == needle)
+}
+
+fn is_ident_start(c: u8) -> bool {
+    c.is_ascii_alphabetic() || c == b'_'
+}
+
+fn is_ident(c: u8) -> bool {
+    c.is_ascii_alphanumeric() || c == b'_'
+}
+
+impl Iterator for Lexer<'_> {
+    type Item = Result<Token, LexError>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        self.skip_trivia();
+        let s = self.s;
+        let start = self.i;
+        if start >= s.len() {
+            return None;
+        }
+        let err = |message| Some(Err(LexError { offset: start, message }));
+        let c = s[start];
+        let tok = |this: &mut Self, kind, end: usize| {
+            this.i = end;
+            Some(Ok(Token { kind, span: start..end }))
+        };
+        match c {
+            b'"' | b'\'' => {
+                let triple = [c, c, c];
+                if s[start..].starts_with(&triple) {
+                    return match find(&s[start + 3..], &triple) {
+                        Some(k) => tok(self, Kind::Str, start + 3 + k + 3),
+                        None => err("unterminated string"),
+                    };
+                }
+                let mut j = start + 1;
+                while j < s.len() {
+                    match s[j] {
+                        b'\\' => j += 2,
+                        x if x == c => return tok(self, Kind::Str, j + 1),
+                        _ => j += 1,
+                    }
+                }
+                err("unterminated string")
+            }
+            b'<' => match s[start + 1..].iter().position(|&x| x == b'>') {
+                Some(k) => tok(self, Kind::PathRef, start + 1 + k + 1),
+                None => err("unterminated path"),
+            },
+            b'@' => {
+                if s[start..].starts_with(b"@@@") {
+                    return match find(&s[start + 3..], b"@@@") {
+                        Some(k) => tok(self, Kind::Asset, start + 3 + k + 3),
+                        None => err("unterminated asset path"),
+                    };
+                }
+                match s[start + 1..].iter().position(|&x| x == b'@') {
+                    Some(k) => tok(self, Kind::Asset, start + 1 + k + 1),
+                    None => err("unterminated asset path"),
+                }
+            }
+            b'0'..=b'9' => tok(self, Kind::Num, number_end(s, start)),
+            b'+' | b'-' if s.get(start + 1).is_some_and(|&d| d.is_ascii_digit() || d == b'.') => {
+                let end = number_end(s, start + 1);
+                if end > start + 1 {
+                    tok(self, Kind::Num, end)
+                } else {
+                    tok(self, Kind::Punct(c), start + 1)
+                }
+            }
+            b'=' | b',' | b':' | b';' | b'&' | b'.' | b'(' | b')' | b'{' | b'}' | b'[' | b']' | b'+' | b'-' => {
+                tok(self, Kind::Punct(c), start + 1)
+            }
+            c if is_ident_start(c) => {
+                let mut j = start + 1;
+                while j < s.len() && is_ident(s[j]) {
+                    j += 1;
+                }
+                if j < s.len() && s[j] == b':' {
+                    j += 1;
+                    while j < s.len() && (is_ident(s[j]) || s[j] == b':') {
+                        j += 1;
+                    }
+                }
+                tok(self, Kind::Ident, j)
+            }
+            _ => err("unexpected character"),
+        }
+    }
+}
+
+/// End of a number starting at `i` (digits, optional fraction and exponent;
+/// a leading '.' fraction is allowed after a sign).
+fn number_end(s: &[u8], mut i: usize) -> usize {
+    let digits = |s: &[u8], mut i: usize| {
+        while i < s.len() && s[i].is_ascii_digit() {
+            i += 1;
+        }
+        i
+    };
+    i = digits(s, i);
+    if i + 1 < s.len() && s[i] == b'.' && s[i + 1].is_ascii_digit() {
+        i = digits(s, i + 1);
+    }
+    if i < s.len() && (s[i] == b'e' || s[i] == b'E') {
+        let mut j = i + 1;
+        if j < s.len() && (s[j] == b'+' || s[j] == b'-') {
+            j += 1;
+        }
+        if j < s.len() && s[j].is_ascii_digit() {
+            i = digits(s, j);
+        }
+    }
+    i
+}
+
+/// The deepest bracket nesting (`(`, `[`, `{`) of usda text and the byte
+/// offset where it is first reached. Lexing errors end the scan (openusd
+/// reports them itself); brackets inside strings and comments do not count.
+pub fn max_nesting(text: &[u8]) -> (usize, usize) {
+    let (mut depth, mut max, mut at) = (0usize, 0usize, 0usize);
+    for t in Lexer::new(text) {
+        let Ok(t) = t else { break };
+        match t.kind {
+            Kind::Punct(b'(' | b'[' | b'{') => {
+                depth += 1;
+                if depth > max {
+                    max = depth;
+                    at = t.span.start;
+                }
+            }
+            Kind::Punct(b')' | b']' | b'}') => depth = depth.saturating_sub(1),
+            _ => {}
+        }
+    }
+    (max, at)
+}
+
+/// 1-based line number of byte `offset`.
+pub fn line_of(text: &[u8], offset: usize) -> usize {
+    text[..offset.min(text.len())].iter().filter(|&&c| c == b'\n').count() + 1
+}
+
+/// The unquoted content of a string token (escapes resolved for `\"`, `\\`,
+/// `\n`, `\t`; other escapes kept as written).
+pub fn unquote(raw: &str) -> String {
+    let inner = if raw.len() >= 6 && (raw.starts_with("\"\"\"") || raw.starts_with("'''")) {
+        &raw[3..raw.len() - 3]
+    } else if raw.len() >= 2 {
+        &raw[1..raw.len() - 1]
+    } else {
+        return String::new();
+    };
+    let mut out = String::with_capacity(inner.len());
+    let mut chars = inner.chars();
+    while let Some(c) = chars.next() {
+        if c != '\\' {
+            out.push(c);
+            continue;
+        }
+        match chars.next() {
+            Some('n') => out.push('\n'),
+            Some('t') => out.push('\t'),
+            Some('r') => out.push('\r'),
+            Some(o) => out.push(o),
+            None => out.push('\\'),
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn kinds(s: &str) -> Vec<(Kind, String)> {
+        Lexer::new(s.as_bytes())
+            .map(|t| t.unwrap())
+            .map(|t| (t.kind, s[t.span].to_string()))
+            .collect()
+    }
+
+    #[test]
+    fn lexes_usda_tokens() {
+        let s = "#usda 1.0\n( doc = \"\"\"a { b\"\"\" )\ndef Xform \"A\" (\n    prepend inherits = </_cls> # { not counted\n)\n{\n    float3[] x:y = [(1, -2.5e-3, .5)] /* } */\n    asset a = @@@x@y@@@\n}\n";
+        let k = kinds(s);
+        assert_eq!(k[0], (Kind::Punct(b'('), "(".into()));
+        assert_eq!(k[3], (Kind::Str, "\"\"\"a { b\"\"\"".into()));
+        assert!(k.contains(&(Kind::PathRef, "</_cls>".into())));
+        assert!(k.contains(&(Kind::Ident, "x:y".into())));
+        assert!(k.contains(&(Kind::Num, "-2.5e-3".into())));
+        assert!(k.contains(&(Kind::Asset, "@@@x@y@@@".into())));
+        assert_eq!(max_nesting(s.as_bytes()).0, 3);
+        assert!(Lexer::new(b"\"open").any(|t| t.is_err()));
+    }
+
+    #[test]
+    fn nesting_of_deep_prims() {
+        let n = 50;
+        let text = format!("#usda 1.0\n{}{}", "def \"P\" {\n".repeat(n), "}\n".repeat(n));
+        assert_eq!(max_nesting(text.as_bytes()).0, n);
+        assert_eq!(unquote("\"a\\\"b\""), "a\"b");
+    }
+}
