@@ -12,6 +12,7 @@ import math
 import pathlib
 
 import jsonschema
+import numpy as np
 import pytest
 from pxr import Sdf, Usd, UsdGeom
 
@@ -55,7 +56,7 @@ def test_every_schema_is_strict():
     """Every object in every schema requires all its properties and allows no others."""
     names = sorted(p.name for p in SCHEMAS.glob("*.schema.json"))
     assert names == [
-        f"{n}.schema.json" for n in ["bake", "farm_status", "farm_submit", "inspect", "interpolate", "render", "view"]
+        f"{n}.schema.json" for n in ["author", "bake", "farm_status", "farm_submit", "inspect", "interpolate", "render", "view"]
     ]
 
     def walk(node, where):
@@ -313,3 +314,35 @@ def test_readme_lists_every_bake_and_inspect_field():
         assert listing in readme, f"README does not list {name} --json fields as {listing}"
     rig = list(schema("inspect")["properties"]["rigs"]["items"]["properties"])
     assert "{" + ",".join(f'"{p}"' for p in rig) + "}" in readme
+
+
+def rest_points(path, layer):
+    stage = Usd.Stage.Open(str(path))
+    return np.array(stage.GetPrimAtPath(layer).GetAttribute("painterly:restPoints").Get(), dtype=float)
+
+
+def test_author_json(painterly, tmp_path):
+    fish = FIXTURES / "blowfish.usda"
+    hair, spikes = "/Blowfish/Paint/Hair", "/Blowfish/Paint/Spikes"
+    brush = ["--layer", hair, "--path", "3,6,-2 6,6,-1.5", "--radius", "1"]
+    bind = tmp_path / "bind.usda"
+    doc = validate("author", json.loads(painterly("bind", fish, "--layer", hair, "--time", 24, "--edit-layer", bind, "--json").stdout))
+    fish_stage = Usd.Stage.Open(str(fish))
+    hair_points = len(UsdGeom.BasisCurves(fish_stage.GetPrimAtPath(hair)).GetPointsAttr().Get())
+    assert (doc["command"], doc["input"], doc["written"], doc["in_place"]) == ("bind", str(fish), str(bind), False)
+    assert (doc["layers"], doc["points"], doc["key"]) == ([hair], hair_points, None)
+    assert doc["message"].startswith("bound ")
+
+    key = tmp_path / "key.usda"
+    doc = validate("author", json.loads(painterly("key", fish, "--layer", spikes, "--time", 15, "--points", "--edit-layer", key, "--json").stdout))
+    assert (doc["command"], doc["layers"], doc["points"]) == ("key", [spikes], 0)
+    key_stage = Usd.Stage.Open(str(key))
+    prim = key_stage.GetPrimAtPath(doc["key"])
+    assert prim and prim.GetTypeName() == "PainterlyPoseKey" and str(prim.GetParent().GetPath()) == spikes
+
+    for command, strength in [("smudge", "0.2"), ("expand", "0.1")]:
+        out = tmp_path / f"{command}.usda"
+        doc = validate("author", json.loads(painterly(command, fish, *brush, "--strength", strength, "--edit-layer", out, "--json").stdout))
+        moved = np.abs(rest_points(out, hair) - rest_points(fish, hair)).max(axis=1) > 0
+        assert (doc["command"], doc["layers"], doc["written"]) == (command, [hair], str(out))
+        assert doc["points"] == int(moved.sum()) > 0
