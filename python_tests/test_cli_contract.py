@@ -40,7 +40,7 @@ def cases(tmp):
         ("bake-missing-input", ["bake", missing, "-o", tmp / "b.usdc"], None, 1),
         ("bake-unparsable-input", ["bake", garbage, "-o", tmp / "b.usdc"], None, 1),
         ("bake-output-folder-missing", ["bake", TUBE, "-o", tmp / "no" / "b.usdc"], None, 1),
-        ("bake-output-bad-extension", ["bake", TUBE, "-o", tmp / "b.txt"], None, 1),
+        ("bake-output-bad-extension", ["bake", TUBE, "-o", tmp / "b.txt"], None, 2),  # a name that cannot work: usage
         ("bake-frames-outside-stage", ["bake", TUBE, "-o", tmp / "b.usdc", "--frames", "0:1000"], None, 1),
         ("bake-camera-missing", ["bake", TUBE, "-o", tmp / "b.usdc", "--camera", "/NoCam"], None, 1),
         ("bake-no-output", ["bake", TUBE], None, 2),

@@ -180,6 +180,7 @@ def test_inspect_json_matches_usd_core(painterly):
             for vp in v["key_viewpoints"]:
                 assert math.fsum(c * c for c in vp["direction"]) == pytest.approx(1.0, abs=1e-9)
         assert doc["clip_set"] is None
+        assert doc["unresolved_assets"] == []
         assert doc["problems"] == []
         assert proc.returncode == 0
 
