@@ -26,7 +26,7 @@ import authoring as Au
 import authoring_keys as AK
 import reference_interp as RI
 import reference_keys as RK
-from conftest import run_painterly
+from conftest import REPO, run_painterly
 
 POINT_TOL = 1e-5      # x bbox diagonal of the posed proxy (stroke space)
 OPACITY_TOL = 1e-5
@@ -635,3 +635,13 @@ def test_reference_temporal_rules():
     v1 = RK.temporal_value(1.5, cfg, g, [3.0])
     v2 = RK.temporal_value(1.5, cfg, g[:2], [])
     assert v1 == pytest.approx(v2)
+
+
+def test_every_axis_kind_the_schema_allows_is_baked_here():
+    """README lists axes of every kind; test_single_axis_layer bakes one layer
+    per kind (a refused kind fails it). A kind added to the schema without a
+    case here fails this test."""
+    layer = Sdf.Layer.FindOrOpen(str(REPO / "schemas" / "painterly" / "schema.usda"))
+    allowed = set(layer.GetPropertyAtPath("/PainterlyAxis.kind").GetInfo("allowedTokens"))
+    assert allowed == {"attribute", "blendShape", "jointRotation", "position", "viewDirection"}
+    assert {spec["kind"] for spec in AXIS_SPECS.values()} == allowed

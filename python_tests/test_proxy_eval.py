@@ -149,10 +149,10 @@ def test_real_asset_proxy_fractional_frames(painterly, tmp_path, real_assets, na
     check_proxy_matches_usd_core(rig, out, Au.frame_list(10, 13, 0.25))
 
 
-def test_dual_quaternion_matches_or_refuses(painterly, tmp_path):
-    """skel:skinningMethod = "dualQuaternion": either usd-core's DQS result or
-    a clear error (exit 1 naming the prim and skel:skinningMethod), never a
-    silent linear-blend result."""
+def test_dual_quaternion_matches_usd_core(painterly, tmp_path):
+    """skel:skinningMethod = "dualQuaternion" (README: the proxy may be
+    skinned "linear or dual-quaternion"): usd-core's DQS result, never a
+    refusal and never a silent linear-blend result."""
     rig = Au.build_skel_rig(tmp_path / "dq.usda", skinning_method="dualQuaternion", twist=True)
     frames = rig.frames
     dq = Au.usdcore_world_points(rig.path, [rig.mesh], frames)[rig.mesh]
@@ -165,14 +165,7 @@ def test_dual_quaternion_matches_or_refuses(painterly, tmp_path):
     before = Au.file_hash(rig.path)
     proc = painterly("bake", rig.path, "-o", out, "--bake-proxy", "--quiet", check=False)
     assert Au.file_hash(rig.path) == before
-    assert "panicked" not in proc.stderr
-    if proc.returncode != 0:
-        assert proc.returncode == 1, proc.stderr
-        assert "error" in proc.stderr.lower()
-        assert rig.mesh in proc.stderr, f"error does not name the mesh {rig.mesh}:\n{proc.stderr}"
-        assert "skel:skinningMethod" in proc.stderr, proc.stderr
-        assert not out.exists(), "failed bake left an output file"
-        return
+    assert (proc.returncode, proc.stdout, proc.stderr) == (0, "", ""), "a dualQuaternion proxy was refused"
     comp = Au.compose(rig.path, out)
     err_dq = max(np.abs(Au.world_points(comp, rig.mesh, t) - dq[t]).max() for t in frames) / diag
     err_lbs = max(np.abs(Au.world_points(comp, rig.mesh, t) - lbs[t]).max() for t in frames) / diag

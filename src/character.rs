@@ -759,4 +759,70 @@ def Xform "World" {
             .unwrap();
         assert!(e.message.contains("not finite"), "{e}");
     }
+
+    /// Two curves with authored per-curve displayOpacity, an animated
+    /// `painterly:opacity` and opacity keys on the knob (SPEC §4: the baked
+    /// opacity is their product, per curve).
+    const OPACITY: &str = r#"#usda 1.0
+(
+    startTimeCode = 1
+    endTimeCode = 11
+)
+def Xform "World" {
+    def Scope "Controls" {
+        double knob.timeSamples = { 1: 0, 11: 1 }
+    }
+    def Mesh "Proxy" {
+        int[] faceVertexCounts = [4]
+        int[] faceVertexIndices = [0, 1, 2, 3]
+        point3f[] points = [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)]
+    }
+    def Xform "Paint" (prepend apiSchemas = ["PainterlyRigAPI"]) {
+        rel painterly:proxy = </World/Proxy>
+        def PainterlyAxis "knob" {
+            uniform token kind = "attribute"
+            rel source = </World/Controls.knob>
+        }
+        def BasisCurves "Hair" (prepend apiSchemas = ["PainterlyStrokeLayerAPI"]) {
+            int[] curveVertexCounts = [2, 2]
+            point3f[] points = [(0.25, 0.25, 0), (0.5, 0.5, 0), (0.5, 0.25, 0), (0.75, 0.5, 0)]
+            float[] primvars:displayOpacity = [0.5, 0.8] (interpolation = "uniform")
+            float painterly:opacity.timeSamples = { 1: 0.5, 11: 0.25 }
+            def PainterlyPoseKey "faint" {
+                float[] coordinates = [0]
+                float opacity = 0.4
+            }
+            def PainterlyPoseKey "full" {
+                float[] coordinates = [1]
+                float opacity = 1
+            }
+        }
+    }
+}
+"#;
+
+    #[test]
+    fn baked_opacity_is_display_times_layer_times_keyed() {
+        let path = std::env::temp_dir().join("painterly_opacity_test.usda");
+        let ch = Character::from_reader(open_bytes(OPACITY.as_bytes().to_vec(), &path).unwrap(), None).unwrap();
+        // At a key the keyed opacity is that key's (smooth Voronoi
+        // interpolates); painterly:opacity is USD-interpolated linearly.
+        for (t, layer, keyed) in [(1.0, 0.5, 0.4), (11.0, 0.25, 1.0)] {
+            let out = ch.evaluate(t, false).unwrap();
+            let got = &out.layers[0].opacity;
+            let want = [0.5 * layer * keyed, 0.8 * layer * keyed];
+            assert_eq!(got.len(), 2);
+            for (g, w) in got.iter().zip(want) {
+                assert!((*g as f64 - w).abs() < 1e-6, "t {t}: {got:?} != {want:?}");
+            }
+        }
+        // Halfway the layer opacity is (0.5 + 0.25) / 2 and the keyed one
+        // lies strictly between the keys': the product still scales both
+        // curves alike.
+        let mid = ch.evaluate(6.0, false).unwrap();
+        let o = &mid.layers[0].opacity;
+        let keyed = o[0] as f64 / (0.5 * 0.375);
+        assert!(keyed > 0.4 && keyed < 1.0, "{o:?}");
+        assert!((o[1] as f64 - 0.8 * 0.375 * keyed).abs() < 1e-6, "{o:?}");
+    }
 }

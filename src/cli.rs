@@ -112,7 +112,7 @@ pub enum Command {
     /// painterly:restPoints, painterly:bindVertices and painterly:bindWeights.
     /// Baking at --time then gives back the painted positions.
     ///
-    /// Example: painterly bind fish.usda --time 24 --edit-layer fish_edits.usda
+    /// Example: painterly bind fixtures/blowfish.usda --layer /Blowfish/Paint/Hair --time 24 --edit-layer fish_edits.usda
     Bind {
         #[command(flatten)]
         edit: EditArgs,
@@ -132,7 +132,7 @@ pub enum Command {
     /// coordinates (or time) as an existing key of the same channel, or with
     /// an existing name, is refused unless --replace.
     ///
-    /// Example: painterly key fish.usda --layer /Fish/Paint/Spikes --time 30 --points --edit-layer edits.usda
+    /// Example: painterly key fixtures/blowfish.usda --layer /Blowfish/Paint/Spikes --time 15 --points --edit-layer edits.usda
     Key {
         #[command(flatten)]
         edit: EditArgs,
@@ -169,7 +169,7 @@ pub enum Command {
     /// Points within --radius of the path move along its unit tangent at
     /// their closest path point by --strength × falloff(distance / radius).
     ///
-    /// Example: painterly smudge fish.usda --layer /Fish/Paint/Hair --path "0,1,0 1,1.2,0" --radius 0.5 --strength 0.2 --edit-layer e.usda
+    /// Example: painterly smudge fixtures/blowfish.usda --layer /Blowfish/Paint/Hair --path "3,6,-2 6,6,-1.5" --radius 1 --strength 0.2 --edit-layer brush.usda
     Smudge {
         #[command(flatten)]
         edit: EditArgs,
@@ -181,7 +181,7 @@ pub enum Command {
     /// Points within --radius of the path move along the proxy's normal at
     /// their bound position by --strength × falloff(distance / radius).
     ///
-    /// Example: painterly expand fish.usda --layer /Fish/Paint/Hair --path "0,1,0 1,1,0" --radius 1 --strength 0.1 --edit-layer e.usda
+    /// Example: painterly expand fixtures/blowfish.usda --layer /Blowfish/Paint/Hair --path "3,6,-2 6,6,-1.5" --radius 1 --strength 0.1 --edit-layer brush.usda
     Expand {
         #[command(flatten)]
         edit: EditArgs,
@@ -199,7 +199,7 @@ pub enum Command {
     /// displayOpacity) composited back to front, and every non-guide Mesh
     /// with Rademacher's warm/cool shading and silhouette lines.
     ///
-    /// Example: painterly render shot.usda --camera /World/Cam --frames 1:48 -o out/shot.####.exr --png --sheet
+    /// Example: painterly render fixtures/apple.usda --camera /Apple/Camera --frames 1:48:4 -o /tmp/apple.####.exr --png --sheet
     Render(crate::render::RenderArgs),
     /// Live preview in the browser: drag the configuration, scrub the
     /// timeline, orbit the camera and see the paint move.
@@ -223,7 +223,7 @@ pub enum Command {
     /// right frames and UsdValidation finds nothing to report. A bake made
     /// from another input is refused.
     ///
-    /// Example: painterly view fixtures/blowfish.usda --bake /tmp/fish_bake.usdc -o /tmp/fish_view.usda
+    /// Example: painterly view fixtures/blowfish.usda --bake /tmp/blowfish_bake.usdc -o /tmp/fish_view.usda
     View {
         /// The input the bake was made from.
         input: PathBuf,
@@ -248,7 +248,7 @@ pub enum Command {
     /// sbatch; Open Job Description templates are written for `openjd run`
     /// or a farm that takes them. `farm status` tells where a bake is.
     ///
-    /// Example: painterly farm submit shot.usda -o bake/shot.usda --chunk 24 --scheduler slurm
+    /// Example: painterly farm submit fixtures/blowfish.usda -o /tmp/shot.usda --chunk 12 --scheduler openjd
     #[command(subcommand)]
     Farm(crate::farm::FarmCommand),
     /// Interpolation weights for keys and query points, JSON on stdin.
@@ -256,6 +256,8 @@ pub enum Command {
     /// Input: {"method": "smoothVoronoi"|"rbf"|"shepard", "radius": 1.0,
     /// "keys": [[...], ...], "points": [[...], ...]}. Output:
     /// {"weights": [[w_0, ..., w_n-1] per point]}. For tests and plots.
+    ///
+    /// Example: echo '{"method": "smoothVoronoi", "keys": [[0], [1], [3]], "points": [[0.5], [2]]}' | painterly interpolate
     Interpolate,
 }
 

@@ -32,6 +32,14 @@ fn main() {
     // SIGTERM/SIGINT/SIGHUP remove this run's temporary files, then exit 128+signo.
     painterly::usd_io::atomic::install_signal_cleanup();
     let cli = painterly::cli::Cli::parse();
-    let code = std::panic::catch_unwind(|| painterly::cli::run(cli)).unwrap_or(3);
+    let code = std::panic::catch_unwind(|| {
+        // The one way to reach exit code 3 on purpose: the contract tests
+        // check that a bug ends in this message and code (docs/testing.md).
+        if std::env::var_os("PAINTERLY_TEST_INTERNAL_ERROR").is_some() {
+            panic!("PAINTERLY_TEST_INTERNAL_ERROR is set");
+        }
+        painterly::cli::run(cli)
+    })
+    .unwrap_or(3);
     std::process::exit(code);
 }

@@ -41,7 +41,7 @@ pub enum FarmCommand {
     /// missing or stale. The plan (commands, job ids per chunk) is written
     /// to `<stem>.clips/farm/plan.json`.
     ///
-    /// Example: painterly farm submit shot.usda -o bake/shot.usda --chunk 24 --scheduler slurm --partition bake
+    /// Example: painterly farm submit fixtures/blowfish.usda -o /tmp/slurm_shot.usda --chunk 24 --scheduler slurm --partition bake
     Submit(SubmitArgs),
     /// Tell which chunks are done, running, pending, failed, missing or
     /// stale, and whether the clip set is assembled.
@@ -51,7 +51,7 @@ pub enum FarmCommand {
     /// 0 when every chunk is done and the clip set is assembled, 1
     /// otherwise (or on an error).
     ///
-    /// Example: painterly farm status bake/shot.usda --json
+    /// Example: painterly farm status /tmp/shot.usda --json
     Status(StatusArgs),
 }
 

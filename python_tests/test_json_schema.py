@@ -1,0 +1,349 @@
+"""Every `--json` output against its documented JSON Schema (docs/schemas/).
+
+The schemas list every field as required with `additionalProperties: false`,
+so a renamed, missing or extra field fails here. Values are then checked
+against what usd-core (or the file system) says independently: the number
+of prims with PainterlyRigAPI, the stroke and point counts read from the
+BasisCurves, the frames of the range, the files written.
+"""
+
+import json
+import math
+import pathlib
+
+import jsonschema
+import numpy as np
+import pytest
+from pxr import Sdf, Usd, UsdGeom
+
+from conftest import REPO
+
+SCHEMAS = REPO / "docs" / "schemas"
+FIXTURES = REPO / "fixtures"
+
+
+def schema(name):
+    s = json.loads((SCHEMAS / f"{name}.schema.json").read_text())
+    jsonschema.Draft202012Validator.check_schema(s)
+    return s
+
+
+def validate(name, doc):
+    jsonschema.Draft202012Validator(schema(name)).validate(doc)
+    return doc
+
+
+def applied(stage, api):
+    return [p for p in stage.Traverse() if api in p.GetAppliedSchemas()]
+
+
+def usd_counts(path):
+    """What usd-core counts in a painted file: rigs, view meshes, layers, strokes, points."""
+    stage = Usd.Stage.Open(str(path))
+    layers = applied(stage, "PainterlyStrokeLayerAPI")
+    curves = [UsdGeom.BasisCurves(p) for p in layers]
+    return {
+        "rigs": len(applied(stage, "PainterlyRigAPI")),
+        "view_meshes": len(applied(stage, "PainterlyViewDependentAPI")),
+        "layers": len(layers),
+        "strokes": sum(len(c.GetCurveVertexCountsAttr().Get()) for c in curves),
+        "points": sum(len(c.GetPointsAttr().Get()) for c in curves),
+        "stage": stage,
+    }
+
+
+def test_every_schema_is_strict():
+    """Every object in every schema requires all its properties and allows no others."""
+    names = sorted(p.name for p in SCHEMAS.glob("*.schema.json"))
+    assert names == [
+        f"{n}.schema.json" for n in ["author", "bake", "farm_status", "farm_submit", "inspect", "interpolate", "render", "view"]
+    ]
+
+    def walk(node, where):
+        if isinstance(node, dict):
+            if node.get("type") == "object" or "properties" in node:
+                assert node.get("additionalProperties") is False, where
+                assert sorted(node["required"]) == sorted(node["properties"]), where
+                for k, v in node["properties"].items():
+                    assert v.get("description") or v.get("anyOf"), f"{where}.{k} has no description"
+            for k, v in node.items():
+                walk(v, f"{where}/{k}")
+        elif isinstance(node, list):
+            for i, v in enumerate(node):
+                walk(v, f"{where}[{i}]")
+
+    for n in names:
+        walk(schema(n.split(".")[0]), n)
+
+
+def test_schema_rejects_renamed_missing_and_extra_fields():
+    good = {
+        "input": "a.usda", "output": "b.usdc", "frames": 1, "rigs": 1, "view_meshes": 0,
+        "layers": 1, "strokes": 1, "points": 2, "seconds": 0.1, "chunks": [],
+    }
+    validate("bake", good)
+    renamed = dict(good)
+    renamed["rig"] = renamed.pop("rigs")
+    missing = {k: v for k, v in good.items() if k != "points"}
+    extra = dict(good, total=3)
+    wrong_type = dict(good, frames="1")
+    for bad in (renamed, missing, extra, wrong_type):
+        with pytest.raises(jsonschema.ValidationError):
+            validate("bake", bad)
+
+
+@pytest.mark.parametrize(
+    "fixture,frames,count",
+    [("tube.usda", "1:24:0.5", 47), ("fig4.usda", None, 1), ("head.usda", "1:12", 12), ("building.usda", "5:9:2", 3)],
+)
+def test_bake_json(painterly, tmp_path, fixture, frames, count):
+    out = tmp_path / "bake.usda"
+    args = ["bake", FIXTURES / fixture, "-o", out, "--json"] + (["--frames", frames] if frames else [])
+    proc = painterly(*args)
+    assert proc.stderr == ""
+    assert proc.stdout.count("\n") == 1
+    doc = validate("bake", json.loads(proc.stdout))
+    ref = usd_counts(FIXTURES / fixture)
+    assert doc["input"] == str(FIXTURES / fixture)
+    assert doc["output"] == str(out)
+    assert doc["frames"] == count
+    for k in ["rigs", "view_meshes", "layers", "strokes", "points"]:
+        assert doc[k] == ref[k], k
+    assert doc["chunks"] == []
+    assert 0 <= doc["seconds"] < 600
+    # Every baked prim has one points sample per frame reported.
+    layer = Sdf.Layer.FindOrOpen(str(out))
+    stage = ref["stage"]
+    baked = applied(stage, "PainterlyStrokeLayerAPI") + applied(stage, "PainterlyViewDependentAPI")
+    assert baked
+    for prim in baked:
+        assert len(layer.ListTimeSamplesForPath(prim.GetPath().AppendProperty("points"))) == count
+
+
+def test_bake_json_chunks_are_the_files_written(painterly, tmp_path):
+    out = tmp_path / "shot.usda"
+    doc = validate("bake", json.loads(painterly("bake", FIXTURES / "tube.usda", "-o", out, "--chunk", 10, "--json").stdout))
+    written = sorted(p.name for p in (tmp_path / "shot.clips").glob("*.usdc"))
+    assert written == ["shot.0000.1-10.usdc", "shot.0001.11-20.usdc", "shot.0002.21-24.usdc"]
+    assert sorted(pathlib.Path(c).name for c in doc["chunks"]) == written
+    assert all((tmp_path / c).exists() or pathlib.Path(c).exists() for c in doc["chunks"])
+    assert doc["frames"] == 24
+
+
+def test_inspect_json_matches_usd_core(painterly):
+    for fixture in ["blowfish.usda", "fig4.usda", "head.usda", "building.usda", "wave.usda"]:
+        proc = painterly("inspect", FIXTURES / fixture, "--json")
+        doc = validate("inspect", json.loads(proc.stdout))
+        ref = usd_counts(FIXTURES / fixture)
+        stage = ref["stage"]
+        assert doc["file"] == str(FIXTURES / fixture)
+        assert doc["start_time_code"] == stage.GetStartTimeCode()
+        assert doc["end_time_code"] == stage.GetEndTimeCode()
+        assert doc["time_codes_per_second"] == stage.GetTimeCodesPerSecond()
+        assert doc["up_axis"] == UsdGeom.GetStageUpAxis(stage)
+        rigs = applied(stage, "PainterlyRigAPI")
+        assert sorted(r["path"] for r in doc["rigs"]) == sorted(str(p.GetPath()) for p in rigs)
+        for r in doc["rigs"]:
+            prim = stage.GetPrimAtPath(r["path"])
+            proxy = prim.GetRelationship("painterly:proxy").GetTargets()
+            assert [r["proxy"]] == [str(t) for t in proxy]
+            mesh = UsdGeom.Mesh(stage.GetPrimAtPath(proxy[0]))
+            assert r["proxy_points"] == len(mesh.GetPointsAttr().Get())
+            assert r["proxy_faces"] == len(mesh.GetFaceVertexCountsAttr().Get())
+            layers = [p for p in Usd.PrimRange(prim) if "PainterlyStrokeLayerAPI" in p.GetAppliedSchemas()]
+            assert sorted(x["path"] for x in r["layers"]) == sorted(str(p.GetPath()) for p in layers)
+            for x in r["layers"]:
+                layer = stage.GetPrimAtPath(x["path"])
+                curves = UsdGeom.BasisCurves(layer)
+                assert x["strokes"] == len(curves.GetCurveVertexCountsAttr().Get())
+                assert x["points"] == len(curves.GetPointsAttr().Get())
+                kids = list(layer.GetChildren())
+                pose = [k for k in kids if k.GetTypeName() == "PainterlyPoseKey"]
+                time = [k for k in kids if k.GetTypeName() == "PainterlyTimeKey"]
+                assert x["pose_position_keys"] == sum(k.GetAttribute("points").HasAuthoredValue() for k in pose)
+                assert x["pose_opacity_keys"] == sum(k.GetAttribute("opacity").HasAuthoredValue() for k in pose)
+                sentinels = sum(bool(k.GetAttribute("sentinel").Get()) for k in time)
+                assert x["sentinels"] == sentinels
+                assert x["time_keys"] == len(time) - sentinels
+                op = layer.GetAttribute("painterly:opacity")
+                want = op.Get() if op and op.HasAuthoredValue() else 1.0
+                assert x["opacity"] == pytest.approx(want, abs=1e-6)
+        axes = [p for p in stage.Traverse() if p.GetTypeName() == "PainterlyAxis"]
+        assert sorted((a["path"], a["kind"]) for a in doc["axes"]) == sorted(
+            (str(p.GetPath()), p.GetAttribute("kind").Get()) for p in axes
+        )
+        vms = applied(stage, "PainterlyViewDependentAPI")
+        assert sorted(v["path"] for v in doc["view_dependent_meshes"]) == sorted(str(p.GetPath()) for p in vms)
+        for v in doc["view_dependent_meshes"]:
+            keys = [k for k in stage.GetPrimAtPath(v["path"]).GetChildren() if k.GetTypeName() == "PainterlyViewKey"]
+            assert sorted(k for vp in v["key_viewpoints"] for k in vp["keys"]) == sorted(str(k.GetPath()) for k in keys)
+            for vp in v["key_viewpoints"]:
+                assert math.fsum(c * c for c in vp["direction"]) == pytest.approx(1.0, abs=1e-9)
+        assert doc["clip_set"] is None
+        assert doc["unresolved_assets"] == []
+        assert doc["problems"] == []
+        assert proc.returncode == 0
+
+
+def test_inspect_json_problems_and_clip_set(painterly, tmp_path):
+    broken = tmp_path / "broken.usda"
+    text = (FIXTURES / "tube.usda").read_text()
+    # Point the rig's proxy at nothing: the missing-proxy rule.
+    stage = Usd.Stage.Open(str(FIXTURES / "tube.usda"))
+    rig = applied(stage, "PainterlyRigAPI")[0]
+    proxy = str(rig.GetRelationship("painterly:proxy").GetTargets()[0])
+    broken.write_text(text.replace(f"<{proxy}>", "</Nowhere>"))
+    proc = painterly("inspect", broken, "--json", check=False)
+    assert proc.returncode == 1
+    doc = validate("inspect", json.loads(proc.stdout))
+    assert [(p["rule"], p["prim"], p["attribute"]) for p in doc["problems"]] == [
+        ("missing-proxy", str(rig.GetPath()), "painterly:proxy")
+    ]
+
+    out = tmp_path / "shot.usda"
+    painterly("bake", FIXTURES / "tube.usda", "-o", out, "--chunk", 12, "-q")
+    (tmp_path / "shot.clips" / "shot.0001.13-24.usdc").unlink()
+    proc = painterly("inspect", out, "--json", check=False)
+    doc = validate("inspect", json.loads(proc.stdout))
+    assert doc["clip_set"]["chunk_size"] == 12
+    assert [(pathlib.Path(c["path"]).name, c["state"]) for c in doc["clip_set"]["chunks"]] == [
+        ("shot.0000.1-12.usdc", "done"),
+        ("shot.0001.13-24.usdc", "missing"),
+    ]
+    assert [p["rule"] for p in doc["problems"]] == ["chunks"]
+    assert proc.returncode == 1
+
+
+def test_render_json(painterly, tmp_path):
+    out = tmp_path / "fr" / "apple.####.exr"
+    out.parent.mkdir()
+    proc = painterly(
+        "render", FIXTURES / "apple.usda", "--camera", "/Apple/Camera", "--frames", "1:9:4", "-o", out,
+        "--size", "64x40", "--png", "--sheet", "--json",
+    )
+    doc = validate("render", json.loads(proc.stdout))
+    ref = usd_counts(FIXTURES / "apple.usda")
+    assert doc["input"] == str(FIXTURES / "apple.usda")
+    assert doc["output"] == str(out)
+    assert (doc["frames"], doc["width"], doc["height"]) == (3, 64, 40)
+    assert sorted(p.name for p in out.parent.glob("*.exr")) == ["apple.0001.exr", "apple.0005.exr", "apple.0009.exr"]
+    assert pathlib.Path(doc["sheet"]).exists() and doc["sheet"].endswith(".png")
+    # The apple's only curves are its stroke layers; its meshes are guides.
+    assert doc["curves"] == ref["layers"]
+    assert doc["strokes"] == ref["strokes"]
+    assert (doc["meshes"], doc["triangles"]) == (0, 0)
+    assert doc["empty_frames"] == [] and doc["warnings"] == []
+    assert 0 < doc["median_frame_seconds"] <= doc["seconds"]
+    no_sheet = validate("render", json.loads(painterly(
+        "render", FIXTURES / "apple.usda", "--camera", "/Apple/Camera", "--frames", "1", "-o", tmp_path / "x.####.exr",
+        "--size", "16x16", "--json").stdout))
+    assert no_sheet["sheet"] is None
+
+
+def test_view_json(painterly, tmp_path):
+    bake = tmp_path / "b.usdc"
+    painterly("bake", FIXTURES / "tube.usda", "-o", bake, "--frames", "3:9", "-q")
+    out = tmp_path / "v.usda"
+    doc = validate("view", json.loads(painterly("view", FIXTURES / "tube.usda", "--bake", bake, "-o", out, "--json").stdout))
+    written = Usd.Stage.Open(str(out))
+    assert (doc["input"], doc["bake"], doc["output"]) == (str(FIXTURES / "tube.usda"), str(bake), str(out))
+    assert (doc["start_time_code"], doc["end_time_code"]) == (3.0, 9.0)
+    assert (written.GetStartTimeCode(), written.GetEndTimeCode()) == (3.0, 9.0)
+    assert doc["default_prim"] == Usd.Stage.Open(str(FIXTURES / "tube.usda")).GetDefaultPrim().GetName()
+    assert doc["default_prim"] == written.GetDefaultPrim().GetName()
+    assert doc["warnings"] == []
+
+
+def test_farm_submit_and_status_json(painterly, tmp_path):
+    out = tmp_path / "shot.usda"
+    proc = painterly("farm", "submit", FIXTURES / "tube.usda", "-o", out, "--chunk", 10, "--scheduler", "openjd", "--json")
+    sub = validate("farm_submit", json.loads(proc.stdout))
+    assert sub["scheduler"] == "openjd"
+    assert (sub["input"], sub["output"]) == (str(FIXTURES / "tube.usda"), str(out))
+    assert pathlib.Path(sub["plan"]) == tmp_path / "shot.clips" / "farm" / "plan.json"
+    assert pathlib.Path(sub["plan"]).exists()
+    assert (sub["chunk_size"], sub["chunks"]) == (10, math.ceil(24 / 10))
+    assert (sub["submitted"], sub["skipped"], sub["job"]) == ([0, 1, 2], [], None)
+    assert sub["tasks"] == [{"chunk": k, "task": f"BakeChunks[Chunk={k}]"} for k in range(3)]
+    assert sub["assemble_job"] == "Assemble"
+    assert all(pathlib.Path(f).is_file() for f in sub["files"]) and len(sub["files"]) == 2
+    assert sub["next"].startswith("openjd run ")
+
+    proc = painterly("farm", "status", out, "--json", check=False)
+    assert proc.returncode == 1
+    st = validate("farm_status", json.loads(proc.stdout))
+    assert (st["scheduler"], st["scheduler_queried"], st["input_changed"]) == ("openjd", False, False)
+    assert [c["state"] for c in st["chunks"]] == ["missing"] * 3
+    assert [c["frames"] for c in st["chunks"]] == ["1:10:1", "11:20:1", "21:24:1"]
+    assert st["counts"] == {"done": 0, "running": 0, "pending": 0, "failed": 0, "missing": 3, "stale": 0}
+    assert (st["assembly"]["state"], st["assembled"], st["complete"]) == ("missing", False, False)
+
+    # Run the tasks as the template would: every chunk, then the assembly.
+    for k in range(3):
+        painterly("bake", FIXTURES / "tube.usda", "-o", out, "--chunk", 10, "--chunk-index", k, "-q")
+    painterly("bake", FIXTURES / "tube.usda", "-o", out, "--chunk", 10, "--assemble", "-q")
+    proc = painterly("farm", "status", out, "--json")
+    st = validate("farm_status", json.loads(proc.stdout))
+    assert [c["state"] for c in st["chunks"]] == ["done"] * 3
+    assert all(pathlib.Path(c["path"]).exists() for c in st["chunks"])
+    assert st["counts"]["done"] == 3
+    assert (st["assembly"]["state"], st["assembled"], st["complete"]) == ("done", True, True)
+
+    # Re-submitting skips what is done.
+    sub = validate("farm_submit", json.loads(painterly(
+        "farm", "submit", FIXTURES / "tube.usda", "-o", out, "--chunk", 10, "--scheduler", "openjd", "--json").stdout))
+    assert (sub["submitted"], sub["skipped"], sub["tasks"]) == ([], [0, 1, 2], [])
+
+
+def test_interpolate_json(painterly):
+    req = {"method": "smoothVoronoi", "keys": [[0.0], [1.0], [3.0]], "points": [[0.0], [0.5], [2.0], [3.0]]}
+    doc = validate("interpolate", json.loads(painterly("interpolate", input=json.dumps(req)).stdout))
+    assert len(doc["weights"]) == 4 and all(len(w) == 3 for w in doc["weights"])
+    for w in doc["weights"]:
+        assert math.fsum(w) == pytest.approx(1.0, abs=1e-9)
+    # At a key, that key alone (Bassett eq. 7's interpolation property).
+    assert doc["weights"][0] == pytest.approx([1, 0, 0], abs=1e-12)
+    assert doc["weights"][3] == pytest.approx([0, 0, 1], abs=1e-12)
+
+
+def test_readme_lists_every_bake_and_inspect_field():
+    """README's documented field lists are the schemas' property lists."""
+    readme = (REPO / "README.md").read_text()
+    for name in ["bake", "inspect"]:
+        props = list(schema(name)["properties"])
+        listing = "{" + ",".join(f'"{p}"' for p in props) + "}"
+        assert listing in readme, f"README does not list {name} --json fields as {listing}"
+    rig = list(schema("inspect")["properties"]["rigs"]["items"]["properties"])
+    assert "{" + ",".join(f'"{p}"' for p in rig) + "}" in readme
+
+
+def rest_points(path, layer):
+    stage = Usd.Stage.Open(str(path))
+    return np.array(stage.GetPrimAtPath(layer).GetAttribute("painterly:restPoints").Get(), dtype=float)
+
+
+def test_author_json(painterly, tmp_path):
+    fish = FIXTURES / "blowfish.usda"
+    hair, spikes = "/Blowfish/Paint/Hair", "/Blowfish/Paint/Spikes"
+    brush = ["--layer", hair, "--path", "3,6,-2 6,6,-1.5", "--radius", "1"]
+    bind = tmp_path / "bind.usda"
+    doc = validate("author", json.loads(painterly("bind", fish, "--layer", hair, "--time", 24, "--edit-layer", bind, "--json").stdout))
+    fish_stage = Usd.Stage.Open(str(fish))
+    hair_points = len(UsdGeom.BasisCurves(fish_stage.GetPrimAtPath(hair)).GetPointsAttr().Get())
+    assert (doc["command"], doc["input"], doc["written"], doc["in_place"]) == ("bind", str(fish), str(bind), False)
+    assert (doc["layers"], doc["points"], doc["key"]) == ([hair], hair_points, None)
+    assert doc["message"].startswith("bound ")
+
+    key = tmp_path / "key.usda"
+    doc = validate("author", json.loads(painterly("key", fish, "--layer", spikes, "--time", 15, "--points", "--edit-layer", key, "--json").stdout))
+    assert (doc["command"], doc["layers"], doc["points"]) == ("key", [spikes], 0)
+    key_stage = Usd.Stage.Open(str(key))
+    prim = key_stage.GetPrimAtPath(doc["key"])
+    assert prim and prim.GetTypeName() == "PainterlyPoseKey" and str(prim.GetParent().GetPath()) == spikes
+
+    for command, strength in [("smudge", "0.2"), ("expand", "0.1")]:
+        out = tmp_path / f"{command}.usda"
+        doc = validate("author", json.loads(painterly(command, fish, *brush, "--strength", strength, "--edit-layer", out, "--json").stdout))
+        moved = np.abs(rest_points(out, hair) - rest_points(fish, hair)).max(axis=1) > 0
+        assert (doc["command"], doc["layers"], doc["written"]) == (command, [hair], str(out))
+        assert doc["points"] == int(moved.sum()) > 0

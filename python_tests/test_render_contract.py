@@ -1,0 +1,271 @@
+"""Renders checked for what users see, on scenes usd-core writes.
+
+Expected colours come from what was authored (displayColor, displayOpacity)
+and the formulas docs/render.md documents (premultiplied *over*;
+Rademacher's warm/cool shading with its constants), evaluated here with
+numpy; pixel positions from usd-core's own camera frustum. Nothing is
+copied from painterly's output.
+"""
+
+import numpy as np
+import OpenEXR
+import pytest
+from PIL import Image
+from pxr import Gf, Usd, UsdGeom, Vt
+from scipy.spatial import ConvexHull
+
+W, H = 200, 160
+CAM_Z = 15.0
+
+# docs/render.md, "Meshes": Rademacher §3.2.4 with the paper's constants.
+K_A = 0.9
+WARM = np.array([0.95, 0.62, 0.30])
+COOL = np.array([0.18, 0.26, 0.55])
+L_WARM = np.array([-0.5, 0.6, 0.62]) / np.linalg.norm([-0.5, 0.6, 0.62])
+SILHOUETTE = np.array([0.02, 0.02, 0.03])
+
+
+def warm_cool(base, n_cam):
+    """Shaded colour of a surface of colour `base` whose camera-space normal is `n_cam`."""
+    n = np.asarray(n_cam, float) / np.linalg.norm(n_cam)
+    base = np.asarray(base, float)
+    return K_A * base + max(0.0, L_WARM @ n) * (WARM - base) + max(0.0, -L_WARM @ n) * (COOL - base)
+
+
+def read_exr(path):
+    with OpenEXR.File(str(path), separate_channels=True) as f:
+        return {k: np.array(v.pixels, dtype=np.float64) for k, v in f.channels().items()}
+
+
+def new_stage(path, end=1):
+    stage = Usd.Stage.CreateNew(str(path))
+    stage.SetStartTimeCode(1)
+    stage.SetEndTimeCode(end)
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y)
+    cam = UsdGeom.Camera.Define(stage, "/Cam")
+    cam.CreateClippingRangeAttr(Gf.Vec2f(0.1, 100))
+    cam.AddTranslateOp().Set(Gf.Vec3d(0, 0, CAM_Z))
+    return stage
+
+
+def quad(stage, path, center, half, color, z=0.0):
+    m = UsdGeom.Mesh.Define(stage, path)
+    cx, cy = center
+    m.CreatePointsAttr([Gf.Vec3f(cx - half, cy - half, z), Gf.Vec3f(cx + half, cy - half, z),
+                        Gf.Vec3f(cx + half, cy + half, z), Gf.Vec3f(cx - half, cy + half, z)])
+    m.CreateFaceVertexCountsAttr([4])
+    m.CreateFaceVertexIndicesAttr([0, 1, 2, 3])
+    m.CreateSubdivisionSchemeAttr("none")
+    m.CreateDisplayColorPrimvar(UsdGeom.Tokens.constant).Set([Gf.Vec3f(*color)])
+    return m
+
+
+def stroke(stage, path, a, b, color, opacity, width=0.6, z=0.5):
+    c = UsdGeom.BasisCurves.Define(stage, path)
+    c.CreateTypeAttr("linear")
+    c.CreateCurveVertexCountsAttr([2])
+    c.CreatePointsAttr([Gf.Vec3f(a[0], a[1], z), Gf.Vec3f(b[0], b[1], z)])
+    c.CreateWidthsAttr([width])
+    c.SetWidthsInterpolation(UsdGeom.Tokens.constant)
+    c.CreateDisplayColorPrimvar(UsdGeom.Tokens.constant).Set([Gf.Vec3f(*color)])
+    c.CreateDisplayOpacityPrimvar(UsdGeom.Tokens.constant).Set([opacity])
+    return c
+
+
+def pixel(stage_path, world, time=1):
+    """(column, row) of a world point, by usd-core's frustum (square pixels: keep the horizontal extent)."""
+    stage = Usd.Stage.Open(str(stage_path))
+    frustum = UsdGeom.Camera(stage.GetPrimAtPath("/Cam")).GetCamera(time).frustum
+    win = frustum.window
+    cy = 0.5 * (win.min[1] + win.max[1])
+    half = 0.5 * (win.max[0] - win.min[0]) * H / W
+    frustum.window = Gf.Range2d(Gf.Vec2d(win.min[0], cy - half), Gf.Vec2d(win.max[0], cy + half))
+    ndc = (frustum.ComputeViewMatrix() * frustum.ComputeProjectionMatrix()).Transform(Gf.Vec3d(*world))
+    return int((ndc[0] + 1) / 2 * W), int((1 - ndc[1]) / 2 * H)
+
+
+def render(painterly, stage_path, out_dir, frames="1", *extra):
+    painterly("render", stage_path, "--camera", "/Cam", "--frames", frames, "-o", out_dir / "f.####.exr",
+              "--size", f"{W}x{H}", "--png", *extra)
+
+
+# Four flat quads and two strokes: colours, opacity, visibility and purpose.
+RED = (0.8, 0.1, 0.1)
+GREEN = (0.1, 0.7, 0.2)
+BLUE_STROKE = (0.1, 0.2, 0.9)
+YELLOW_STROKE = (0.9, 0.8, 0.1)
+
+
+@pytest.fixture
+def scene(tmp_path):
+    path = tmp_path / "scene.usda"
+    stage = new_stage(path, end=2)
+    quad(stage, "/Red", (-2.0, 1.0), 0.8, RED)
+    quad(stage, "/Green", (2.0, 1.0), 0.8, GREEN)
+    # Hidden: an invisible quad; a guide under a render-purpose-less Xform;
+    # a stroke whose parent is invisible; a quad invisible only at frame 2.
+    hidden = quad(stage, "/Hidden", (0.0, 1.0), 0.8, (1, 1, 1))
+    hidden.CreateVisibilityAttr(UsdGeom.Tokens.invisible)
+    UsdGeom.Xform.Define(stage, "/Guides").CreatePurposeAttr(UsdGeom.Tokens.guide)
+    quad(stage, "/Guides/Quad", (0.0, -1.8), 0.6, (1, 1, 1))
+    UsdGeom.Xform.Define(stage, "/Off").CreateVisibilityAttr(UsdGeom.Tokens.invisible)
+    stroke(stage, "/Off/Stroke", (-3.0, -1.8), (-1.0, -1.8), (1, 1, 1), 1.0)
+    blink = quad(stage, "/Blink", (2.0, -1.8), 0.6, GREEN)
+    vis = blink.CreateVisibilityAttr()
+    vis.Set(UsdGeom.Tokens.inherited, 1)
+    vis.Set(UsdGeom.Tokens.invisible, 2)
+    # A half-opaque blue stroke on nothing; a 40 % yellow stroke over the red quad.
+    stroke(stage, "/Blue", (-3.0, -0.6), (3.0, -0.6), BLUE_STROKE, 0.5)
+    stroke(stage, "/Yellow", (-2.6, 1.0), (-1.4, 1.0), YELLOW_STROKE, 0.4)
+    stage.GetRootLayer().Save()
+    return path
+
+
+def test_colours_opacity_visibility_and_purpose(painterly, tmp_path, scene):
+    render(painterly, scene, tmp_path, "1:2")
+    exr = read_exr(tmp_path / "f.0001.exr")
+    rgb = np.stack([exr["R"], exr["G"], exr["B"]], axis=-1)
+    a = exr["A"]
+    facing = (0.0, 0.0, 1.0)  # every quad faces the camera
+
+    def at(world):
+        x, y = pixel(scene, world)
+        return rgb[y, x], a[y, x]
+
+    # Meshes: opaque, warm/cool shaded from their displayColor.
+    for centre, colour in [((-2.0, 1.5), RED), ((2.0, 1.0), GREEN)]:
+        c, alpha = at((*centre, 0.0))
+        assert alpha == pytest.approx(1.0)
+        np.testing.assert_allclose(c, warm_cool(colour, facing), atol=2e-3)
+    # A stroke on nothing: premultiplied colour × opacity, alpha = opacity.
+    c, alpha = at((0.0, -0.6, 0.5))
+    assert alpha == pytest.approx(0.5, abs=2e-3)
+    np.testing.assert_allclose(c, 0.5 * np.array(BLUE_STROKE), atol=2e-3)
+    # A stroke over a mesh: α·c + (1 − α)·mesh.
+    c, alpha = at((-2.0, 1.0, 0.5))
+    assert alpha == pytest.approx(1.0)
+    np.testing.assert_allclose(c, 0.4 * np.array(YELLOW_STROKE) + 0.6 * warm_cool(RED, facing), atol=2e-3)
+    # Nothing hidden is drawn: invisible prims, guides, children of invisible prims.
+    for hidden in [(0.0, 1.0, 0.0), (0.0, -1.8, 0.0), (-2.0, -1.8, 0.5)]:
+        c, alpha = at(hidden)
+        assert alpha == 0.0 and not c.any(), hidden
+    # Time-sampled visibility: drawn at frame 1, gone at frame 2.
+    assert at((2.0, -1.8, 0.0))[1] == pytest.approx(1.0)
+    second = read_exr(tmp_path / "f.0002.exr")
+    x, y = pixel(scene, (2.0, -1.8, 0.0), time=2)
+    assert second["A"][y, x] == 0.0
+    # The sRGB PNG says the same (straight alpha, sRGB transfer).
+    png = np.asarray(Image.open(tmp_path / "f.0001.png").convert("RGBA"), dtype=float) / 255
+    x, y = pixel(scene, (2.0, 1.0, 0.0))
+    expected = warm_cool(GREEN, facing)
+    srgb = np.where(expected <= 0.0031308, 12.92 * expected, 1.055 * expected ** (1 / 2.4) - 0.055)
+    np.testing.assert_allclose(png[y, x, :3], srgb, atol=1.5 / 255)
+    assert png[y, x, 3] == 1.0
+
+
+def rotation(rx, ry):
+    return Gf.Matrix3d(Gf.Rotation(Gf.Vec3d(1, 0, 0), rx)) * Gf.Matrix3d(Gf.Rotation(Gf.Vec3d(0, 1, 0), ry))
+
+
+def test_warm_cool_faces_and_silhouette_of_a_cube(painterly, tmp_path):
+    """A rotated cube: each visible face shaded by its own normal; its outline drawn dark."""
+    path = tmp_path / "cube.usda"
+    stage = new_stage(path)
+    base = (0.6, 0.6, 0.6)
+    corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
+    faces = {  # outward normal -> corner indices, counter-clockwise seen from outside
+        (1, 0, 0): [4, 6, 7, 5], (-1, 0, 0): [0, 1, 3, 2], (0, 1, 0): [2, 3, 7, 6],
+        (0, -1, 0): [0, 4, 5, 1], (0, 0, 1): [1, 5, 7, 3], (0, 0, -1): [0, 2, 6, 4],
+    }
+    m = UsdGeom.Mesh.Define(stage, "/Cube")
+    m.CreatePointsAttr(Vt.Vec3fArray([Gf.Vec3f(*c) for c in corners]))
+    m.CreateFaceVertexCountsAttr([4] * 6)
+    m.CreateFaceVertexIndicesAttr([i for f in faces.values() for i in f])
+    m.CreateSubdivisionSchemeAttr("none")
+    m.CreateDisplayColorPrimvar(UsdGeom.Tokens.constant).Set([Gf.Vec3f(*base)])
+    rot = m.AddRotateXYZOp()
+    rot.Set(Gf.Vec3f(25, 35, 0))
+    stage.GetRootLayer().Save()
+    render(painterly, path, tmp_path)
+    exr = read_exr(tmp_path / "f.0001.exr")
+    rgb = np.stack([exr["R"], exr["G"], exr["B"]], axis=-1)
+    xf = np.array(UsdGeom.Xformable(m).ComputeLocalToWorldTransform(1))  # row vectors: p' = p @ M
+    world = corners @ xf[:3, :3] + xf[3, :3]
+    seen = 0
+    for normal, idx in faces.items():
+        n = np.array(normal, float) @ xf[:3, :3]
+        centre = world[idx].mean(axis=0)
+        to_eye = np.array([0, 0, CAM_Z]) - centre
+        if n @ to_eye <= 0.2 * np.linalg.norm(to_eye):
+            continue  # back-facing or nearly edge-on
+        seen += 1
+        x, y = pixel(path, centre)
+        # The camera only translates: camera space has world's axes.
+        np.testing.assert_allclose(rgb[y, x], warm_cool(base, n), atol=3e-3, err_msg=str(normal))
+    assert seen == 3
+    # Silhouette: the hull of the projected corners; the middle of each hull
+    # edge is dark, a few pixels inside it is not.
+    px = np.array([pixel(path, p) for p in world], float)
+    hull = ConvexHull(px)
+    inside = px[hull.vertices].mean(axis=0)
+    alpha = exr["A"]
+    for i, j in hull.simplices:
+        mid = 0.5 * (px[i] + px[j])
+        rows = slice(int(mid[1]) - 1, int(mid[1]) + 2)
+        cols = slice(int(mid[0]) - 1, int(mid[0]) + 2)
+        a, c = alpha[rows, cols], rgb[rows, cols]
+        # Un-premultiplied brightness of the well-covered pixels: the line's
+        # (0.07) where it is drawn, a face's (at least 0.8 here) where not.
+        straight = c.sum(axis=-1)[a > 0.5] / a[a > 0.5]
+        assert straight.size and straight.min() < 0.6, (mid, c, a)
+        probe = mid + 6 * (inside - mid) / np.linalg.norm(inside - mid)
+        assert rgb[int(probe[1]), int(probe[0])].sum() > 0.8
+
+
+def test_contact_sheet_grid_and_labels(painterly, tmp_path):
+    """Each frame appears once in the sheet, on a grid in frame order, a label under each."""
+    path = tmp_path / "sweep.usda"
+    frames = 7
+    stage = new_stage(path, end=frames)
+    c = stroke(stage, "/Sweep", (-3.0, 0.0), (-1.0, 0.0), BLUE_STROKE, 1.0, width=0.8, z=0.0)
+    op = UsdGeom.Xformable(c).AddTranslateOp()
+    for t in range(1, frames + 1):
+        op.Set(Gf.Vec3d(0.6 * (t - 1), 0.4 * ((t - 1) % 3 - 1), 0), t)
+    stage.GetRootLayer().Save()
+    bg = "#ffffff"
+    render(painterly, path, tmp_path, f"1:{frames}", "--sheet", "--background", bg)
+    sheet = np.asarray(Image.open(tmp_path / "f.sheet.png").convert("RGB"), dtype=np.int32)
+    tiles = [np.asarray(Image.open(tmp_path / f"f.{t:04d}.png").convert("RGB"), dtype=np.int32) for t in range(1, frames + 1)]
+    # At this size no reduction applies: each frame is in the sheet pixel for
+    # pixel (within one 8-bit step: the sheet and the PNG round separately).
+    sh, sw, _ = sheet.shape
+    positions = []
+    for tile in tiles:
+        # Anchor on the tile's first pixel that is not background (a stroke edge).
+        ay, ax = np.argwhere((tile < 250).any(axis=-1))[0]
+        window = sheet[ay: sh - H + 1 + ay, ax: sw - W + 1 + ax]
+        cand = np.argwhere((np.abs(window - tile[ay, ax]) <= 1).all(axis=-1))
+        hits = [(int(y), int(x)) for y, x in cand if np.abs(sheet[y: y + H, x: x + W] - tile).max() <= 1]
+        assert len(hits) == 1, f"a frame appears {len(hits)} times in the sheet"
+        positions.append(hits[0])
+    ys = sorted({y for y, _ in positions})
+    xs = sorted({x for _, x in positions})
+    cols = len(xs)
+    assert len(ys) == -(-frames // cols)  # rows
+    # Reading order: left to right, then top to bottom, equal spacing.
+    assert positions == [(ys[k // cols], xs[k % cols]) for k in range(frames)]
+    assert len({b - a for a, b in zip(xs, xs[1:])}) <= 1 and len({b - a for a, b in zip(ys, ys[1:])}) <= 1
+    # About 16:10 (docs/render.md): the grid's aspect is the closest a column count gives.
+    grid_aspect = lambda n: n * W / (-(-frames // n) * H)  # noqa: E731
+    best = min(range(1, frames + 1), key=lambda n: abs(np.log(grid_aspect(n) / 1.6)))
+    assert abs(np.log(grid_aspect(cols) / 1.6)) <= abs(np.log(grid_aspect(best) / 1.6)) + 1e-9
+    # A label under each frame: ink in the strip below the tile, within its width,
+    # and different numbers look different.
+    step_y = ys[1] - ys[0] if len(ys) > 1 else sh - ys[0]
+    labels = []
+    for y, x in positions:
+        strip = sheet[y + H: y + step_y, x: x + W]
+        ink = (np.abs(strip - 255).sum(axis=-1) > 60)
+        assert ink.any(), "no label under a frame"
+        labels.append(ink)
+    assert len({lab.tobytes() for lab in labels}) == frames
