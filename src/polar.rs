@@ -57,11 +57,11 @@ pub fn fast_rotation(h: &DMat3, spread: f64) -> Option<DMat3> {
         let l2 = lambda * lambda;
         let p = (l2 + c2) * l2 + c1 * lambda + c0;
         let dp = (4.0 * l2 + 2.0 * c2) * lambda + c1;
-        if !(dp > 0.0) {
+        if dp.is_nan() || dp <= 0.0 {
             break;
         }
         let next = lambda - p / dp;
-        if !(next < lambda) {
+        if next.is_nan() || next >= lambda {
             break; // converged to rounding noise
         }
         let step = lambda - next;
@@ -78,7 +78,7 @@ pub fn fast_rotation(h: &DMat3, spread: f64) -> Option<DMat3> {
     let diag = [0, 1, 2, 3].map(|j| cofactor(&m, j, j));
     let trace: f64 = diag.iter().sum();
     // −trace = g₂ g₃ g₄ (the gaps to the other eigenvalues, each ≤ 4).
-    if !(-trace >= MIN_CONDITIONING) {
+    if trace.is_nan() || -trace < MIN_CONDITIONING {
         return None;
     }
     let j = (0..4)
@@ -102,7 +102,7 @@ fn cofactor(m: &[[f64; 4]; 4], r: usize, c: usize) -> f64 {
     let a = |i: usize, k: usize| m[rows[i]][cols[k]];
     let d = a(0, 0) * (a(1, 1) * a(2, 2) - a(1, 2) * a(2, 1)) - a(0, 1) * (a(1, 0) * a(2, 2) - a(1, 2) * a(2, 0))
         + a(0, 2) * (a(1, 0) * a(2, 1) - a(1, 1) * a(2, 0));
-    if (r + c) % 2 == 0 {
+    if (r + c).is_multiple_of(2) {
         d
     } else {
         -d
