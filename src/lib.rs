@@ -11,6 +11,7 @@
 //! | [`mesh`] | proxy topology: fan triangulation, one-rings |
 //! | [`extent`] | extents as usd-core computes them (points, curve widths) |
 //! | [`bind`] | closest-point binding of stroke points (BVH) |
+//! | [`polar`] | the rotation of a 3×3 Procrustes fit without an SVD (Horn's quaternion) |
 //! | [`skinning`] | per-vertex Procrustes motions and their blend (Bassett eq. 1) |
 //! | [`skel_deform`] | UsdSkel blend shapes, LBS and DQS |
 //! | [`frames`] | frame ranges |
@@ -40,6 +41,7 @@ pub mod interp;
 pub mod keys;
 pub mod log;
 pub mod mesh;
+pub mod polar;
 pub mod preview;
 pub mod render;
 pub mod rule;

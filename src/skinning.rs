@@ -69,18 +69,40 @@ impl SkinningRest {
 
     /// The rigid motion of one vertex's one-ring.
     pub fn vertex_motion(&self, v: usize, posed: &[DVec3]) -> DAffine3 {
+        let (h, spread, c_posed) = self.cross_covariance(v, posed);
+        let r = crate::polar::fast_rotation(&h, spread).unwrap_or_else(|| svd_rotation(&h));
+        // x ↦ R (x − c) + c'
+        DAffine3::from_mat3_translation(r, c_posed - r * self.centroids[v])
+    }
+
+    /// Vertex `v`'s Procrustes problem in `posed`: H = Σ p qᵀ over its
+    /// centred (rest, posed) ring pairs, Σ |p|² + |q|², and the posed centroid.
+    pub fn cross_covariance(&self, v: usize, posed: &[DVec3]) -> (DMat3, f64, DVec3) {
         let ring = self.rings.ring(v);
         let rest_centred = &self.centred[self.offsets[v]..self.offsets[v + 1]];
         let c_posed = centroid(ring.iter().map(|&i| posed[i as usize]), ring.len());
-        let r = procrustes_rotation(
+        let (h, spread) = cross_covariance(
             rest_centred
                 .iter()
                 .zip(ring)
                 .map(|(&p, &i)| (p, posed[i as usize] - c_posed)),
         );
-        // x ↦ R (x − c) + c'
-        DAffine3::from_mat3_translation(r, c_posed - r * self.centroids[v])
+        (h, spread, c_posed)
     }
+}
+
+/// H = Σ p qᵀ and Σ |p|² + |q|² over pairs.
+fn cross_covariance(pairs: impl Iterator<Item = (DVec3, DVec3)>) -> (DMat3, f64) {
+    let mut h = DMat3::ZERO;
+    let mut spread = 0.0;
+    for (p, q) in pairs {
+        // H_ij = Σ p_i q_j; column j is Σ p q_j.
+        h.x_axis += p * q.x;
+        h.y_axis += p * q.y;
+        h.z_axis += p * q.z;
+        spread += p.length_squared() + q.length_squared();
+    }
+    (h, spread)
 }
 
 fn centroid(points: impl Iterator<Item = DVec3>, n: usize) -> DVec3 {
@@ -92,12 +114,17 @@ fn centroid(points: impl Iterator<Item = DVec3>, n: usize) -> DVec3 {
 /// Kabsch: with H = Σ p qᵀ = U Σ Vᵀ, R = V diag(1, 1, sign det(V Uᵀ)) Uᵀ; the
 /// sign term excludes reflections. Returns I when the rest set is degenerate
 /// (second singular value < 1e-9 × the first), where the rotation is not
-/// determined.
+/// determined. The same rotation is found without an SVD where that is
+/// well-conditioned ([`crate::polar`]); the SVD decides the rest.
 pub fn procrustes_rotation(pairs: impl Iterator<Item = (DVec3, DVec3)>) -> DMat3 {
-    let mut h = Matrix3::<f64>::zeros();
-    for (p, q) in pairs {
-        h += nalgebra::Vector3::new(p.x, p.y, p.z) * nalgebra::RowVector3::new(q.x, q.y, q.z);
-    }
+    let (h, spread) = cross_covariance(pairs);
+    crate::polar::fast_rotation(&h, spread).unwrap_or_else(|| svd_rotation(&h))
+}
+
+/// [`procrustes_rotation`] of a cross-covariance H by its SVD: the reference,
+/// and the fallback for ill-conditioned fits.
+pub fn svd_rotation(h: &DMat3) -> DMat3 {
+    let h = Matrix3::from_column_slice(&h.to_cols_array());
     let svd = h.svd(true, true);
     let mut s = [svd.singular_values[0], svd.singular_values[1], svd.singular_values[2]];
     s.sort_by(|a, b| b.total_cmp(a));
