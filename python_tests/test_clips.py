@@ -149,3 +149,22 @@ def test_inspect_reports_chunks(painterly, tmp_path, repo_root):
     assert chunks[2]["detail"] == "baked from a different input"
     text = painterly("inspect", shot, check=False).stdout
     assert "1 done, 1 missing, 1 stale" in text and "shot.0001.11-20.usdc is missing" in text
+
+
+@pytest.mark.parametrize("ext", ["usdc", "usda"])
+def test_a_long_bake_spilling_its_sample_index_matches_unspilled_chunks(painterly, tmp_path, repo_root, ext):
+    """Past 1,024 frames a single-file bake keeps its per-frame sample
+    handles (offsets for .usda) in a scratch file, not in memory (flat memory,
+    issue 10); chunks of 1,000 frames never do. Both must compose to the
+    same values, around the 1,024-frame block edges too, and the scratch
+    file must be gone."""
+    src = repo_root / "fixtures" / "static.usda"
+    single, shot = tmp_path / f"single.{ext}", tmp_path / "shot.usda"
+    frames = "1:12:0.005"  # 2,201 frames: two full blocks and a partial one
+    painterly("bake", src, "-o", single, "--frames", frames, "--quiet")
+    painterly("bake", src, "-o", shot, "--frames", frames, "--chunk", "1000", "--quiet")
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([single.name, "shot.usda", "shot.clips"])
+    times = [1 + 0.005 * k for k in range(2201)]
+    assert Sdf.Layer.FindOrOpen(str(single)).ListAllTimeSamples() == pytest.approx(times, abs=1e-9)
+    picked = sorted({0, 1, 999, 1000, 1023, 1024, 1025, 2047, 2048, 2049, 2200, *range(0, 2201, 97)})
+    compare(single, shot, src, [times[k] for k in picked], exact=True)

@@ -196,6 +196,43 @@ def test_invalid_stage_timing_is_named(tmp_path, meta, named):
     assert run("inspect", src).returncode == 1
 
 
+# ---------------------------------------------------------------------------
+# sizes (README "Limits")
+
+
+def test_too_many_stroke_points_fail_before_the_points_are_read(tmp_path):
+    """curveVertexCounts promising 20,000,001 points is refused from the
+    counts alone (the limit is checked before points are decoded)."""
+    src = tmp_path / "rig.usda"
+    shutil.copy(REPO / "fixtures" / "static.usda", src)
+    stage = Usd.Stage.Open(str(src))
+    stage.GetPrimAtPath("/Static/Paint/Dabs").GetAttribute("curveVertexCounts").Set([20_000_001])
+    stage.GetRootLayer().Save()
+    bake_fails(tmp_path, src, "/Static/Paint/Dabs", "curveVertexCounts", "20000001 stroke points", "at most 20000000")
+    proc = run("inspect", src)
+    assert proc.returncode == 1 and "at most 20000000" in proc.stdout + proc.stderr
+
+
+def test_a_proxy_over_the_point_limit_is_refused(tmp_path):
+    """A 10,000,001-point proxy (a 120 MB crate file from usd-core) fails
+    fast naming the proxy instead of binding for minutes."""
+    import numpy as np
+    from pxr import Vt
+
+    src = tmp_path / "rig.usdc"
+    layer = Sdf.Layer.FindOrOpen(str(REPO / "fixtures" / "static.usda"))
+    layer.Export(str(src))
+    stage = Usd.Stage.Open(str(src))
+    pts = np.zeros((10_000_001, 3), dtype=np.float32)
+    pts[:, 0] = np.arange(pts.shape[0], dtype=np.float32) * 1e-3
+    stage.GetPrimAtPath("/Static/Rig/Proxy").GetAttribute("points").Set(Vt.Vec3fArray.FromNumpy(pts))
+    stage.GetRootLayer().Save()
+    del stage, pts
+    started = time.monotonic()
+    bake_fails(tmp_path, src, "/Static/Rig/Proxy", "10000001 points", "at most 10000000")
+    assert time.monotonic() - started < 20
+
+
 @pytest.mark.parametrize("frames", ["1:12:1e-18", "1:12:1e-9", "1:12:0.00001", "1:12:1e-19"])
 def test_tiny_frame_step_is_a_usage_error(tmp_path, frames):
     proc = bake_fails(tmp_path, BLOWFISH, "at most 500000", code=2, extra=["--frames", frames])
@@ -222,6 +259,48 @@ def test_missing_reference_fails_bake_and_is_listed_by_inspect(tmp_path):
     assert len(assets) == 1 and assets[0]["asset"].endswith("missing_rig.usda"), assets
     assert assets[0]["prim"] == "/Blowfish" and assets[0]["arc"] == "reference", assets
     assert any("missing_rig.usda" in p["message"] for p in report["problems"])
+
+
+def non_finite_at_a_frame(tmp_path, fixture, prim, attr, good, bad):
+    """`fixture` with `prim`.`attr` sampled `good` at frame 1 and `bad` (not
+    finite) from frame 6 on, written by usd-core: every static check passes,
+    only evaluating frame 6 finds it."""
+    src = tmp_path / fixture
+    shutil.copy(REPO / "fixtures" / fixture, src)
+    stage = Usd.Stage.Open(str(src))
+    a = stage.GetPrimAtPath(prim).GetAttribute(attr)
+    assert a.IsValid(), (prim, attr)
+    a.Set(good, 1.0)
+    a.Set(bad, 6.0)
+    stage.GetRootLayer().Save()
+    return src
+
+
+@pytest.mark.parametrize(
+    "fixture, prim, attr, good, bad",
+    [
+        # A camera that leaves the world at frame 6: view-dependent blending
+        # and the camera axis cannot be evaluated there.
+        ("building.usda", "/Building/Camera", "xformOp:translate", (0, 0, 50), (float("nan"), 0, 0)),
+        # A proxy whose transform is not finite from frame 6.
+        ("static.usda", "/Static/Rig/Proxy", "xformOp:translate", (0.5, 1, 0), (float("inf"), 1, 0)),
+    ],
+)
+def test_inspect_evaluates_every_frame_bake_would(tmp_path, fixture, prim, attr, good, bad):
+    """inspect exit 0 means the default bake succeeds: it evaluates each
+    frame (writing nothing) and reports what bake would fail on."""
+    src = non_finite_at_a_frame(tmp_path, fixture, prim, attr, good, bad)
+    proc = bake_fails(tmp_path, src, prim)
+    assert "not finite" in proc.stderr, proc.stderr
+    proc = run("inspect", src, "--json")
+    assert proc.returncode == 1, proc.stdout + proc.stderr
+    import json
+
+    problems = json.loads(proc.stdout)["problems"]
+    assert len(problems) == 1, problems
+    assert problems[0]["prim"] == prim and "not finite" in problems[0]["message"], problems
+    # The untouched fixture passes both.
+    assert run("inspect", REPO / "fixtures" / fixture).returncode == 0
 
 
 def test_camera_naming_a_mesh_is_refused(tmp_path):

@@ -13,11 +13,12 @@ process under a 60 s timeout and an address-space limit. A case fails when:
 - a run exits outside {0, 1} (usage errors cannot come from a file);
 - a run leaves a temporary (`.painterly-`) file, or changes its input.
 
-"inspect exits 0 but bake fails" (inspect must check what bake checks) is
-counted and kept as a trust failure; it fails the run only with --trust
-(known gaps: transforms and fields that fail only when evaluated per
-frame). A stage with nothing to bake is not one: inspect has nothing to
-report on it.
+- inspect exits 0 but the default bake (no --frames) fails: inspect
+  evaluates every frame of that bake, so it must find what bake finds (a
+  "trust" failure). A stage without a complete frame range is baked with
+  --frames 1:3 and not judged so: inspect has no frames to evaluate there;
+  nor is a stage with nothing painterly in it (inspect finds nothing wrong,
+  bake says "nothing to bake").
 
 Usage: python3 scripts/fuzz.py --cases N --seed S [--jobs J] [--keep DIR]
 Failing inputs are copied to --keep (default target/fuzz-failures) with
@@ -152,12 +153,17 @@ def check(exe, seed, k, seed_files, work):
     judge("inspect", rc_i, err_i)
     rc_b, err_b, t_b = None, "", 0.0
     if rc_i == 0 or k % 4 == 0:
-        rc_b, err_b, t_b = run(exe, ["bake", name, "-o", "out.usdc", "--frames", "1:3", "-q"], d)
-        if rc_b in (1, 2) and ("is outside the stage's" in err_b or "--frames" in err_b):
-            # The stage's range does not hold 1:3: bake the default range instead.
-            rc_b, err_b, t_b = run(exe, ["bake", name, "-o", "out.usdc", "-q"], d)
+        # The default bake (the stage's range) is what inspect vouches for.
+        rc_b, err_b, t_b = run(exe, ["bake", name, "-o", "out.usdc", "-q"], d)
+        vouched = True
+        if rc_b == 1 and "pass --frames" in err_b:
+            # No complete range: bake needs --frames, and inspect evaluated no frame.
+            rc_b, err_b, t_b = run(exe, ["bake", name, "-o", "out.usdc", "--frames", "1:3", "-q"], d)
+            vouched = False
         judge("bake", rc_b, err_b)
-        if rc_i == 0 and rc_b not in (0, None) and rc_b != "timeout" and "nothing to bake" not in err_b:
+        # A stage with nothing painterly in it is not wrong (inspect passes),
+        # but bake refuses it: "nothing to bake".
+        if vouched and rc_i == 0 and rc_b not in (0, None) and rc_b != "timeout" and "nothing to bake" not in err_b:
             first = err_b.strip().splitlines()[:1]
             trust.append(f"inspect passed but bake exited {rc_b}: {first}")
     left = [n for n in os.listdir(d) if ".painterly-" in n]
@@ -175,7 +181,6 @@ def main():
     ap.add_argument("--cases", type=int, default=1000)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--jobs", type=int, default=os.cpu_count() or 2)
-    ap.add_argument("--trust", action="store_true", help="inspect 0 / bake 1 fails the run too")
     ap.add_argument("--keep", default=str(REPO / "target" / "fuzz-failures"))
     ap.add_argument("--bin", default=os.environ.get("PAINTERLY_BIN", str(REPO / "target/release/painterly")))
     a = ap.parse_args()
@@ -193,20 +198,15 @@ def main():
                 exits[(rc_i, rc_b)] = exits.get((rc_i, rc_b), 0) + 1
                 if trust:
                     trusts.append(k)
-                    if a.trust:
-                        problems = problems + trust
-                    else:
-                        print(f"trust: case {k} ({name}): {'; '.join(trust)}", flush=True)
-                if problems or trust:
-                    if problems:
-                        failures.append(k)
+                    problems = problems + trust
+                if problems:
+                    failures.append(k)
                     keep = pathlib.Path(a.keep) / f"seed{a.seed}-case{k}"
                     keep.mkdir(parents=True, exist_ok=True)
                     (keep / name).write_bytes(data)
                     (keep / "stderr.txt").write_text(err)
-                    (keep / "problems.txt").write_text("\n".join(problems + trust) + "\n")
-                    if problems:
-                        print(f"FAIL case {k} ({name}): {'; '.join(problems)}", flush=True)
+                    (keep / "problems.txt").write_text("\n".join(problems) + "\n")
+                    print(f"FAIL case {k} ({name}): {'; '.join(problems)}", flush=True)
                 if n % 1000 == 0:
                     print(f"{n}/{a.cases} cases, {len(failures)} failures, {len(trusts)} trust, "
                           f"{time.monotonic() - started:.0f} s", flush=True)

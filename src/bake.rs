@@ -146,6 +146,37 @@ fn open_for_bake_with(
     Ok(character)
 }
 
+/// Evaluates every frame that `bake` without `--frames` would bake, and
+/// writes nothing: what `inspect` runs so that its exit 0 means such a bake
+/// succeeds (camera transforms, posed points and opacities can fail only at
+/// a frame). Returns how many frames were evaluated: none for a stage with
+/// nothing to bake or without a complete frame range (bake then needs
+/// `--frames`).
+pub fn evaluate_every_frame(reader: StageReader) -> Result<usize> {
+    let meta = reader.metadata();
+    let ch = Character::from_reader(reader, None)?;
+    if is_empty(&ch.model, &BakeOptions::default()) || meta.start_time_code.is_none() || meta.end_time_code.is_none()
+    {
+        return Ok(0);
+    }
+    let times = resolve_frames(&ch.reader, None)?;
+    stream(&ch, &times, false, Box::new(DiscardSink), &|_, _| {})?;
+    Ok(times.len())
+}
+
+/// A sink that drops every frame: evaluation without output.
+struct DiscardSink;
+
+impl FrameSink for DiscardSink {
+    fn write_frame(&mut self, _time: f64, _samples: Vec<Sample>) -> Result<()> {
+        Ok(())
+    }
+
+    fn finish(self: Box<Self>) -> Result<()> {
+        Ok(())
+    }
+}
+
 /// Like [`bake`], but a stage with nothing to bake writes nothing and
 /// returns None (a render of a plain scene needs no bake).
 pub fn bake_if_any(input: &Path, output: &Path, opts: &BakeOptions) -> Result<Option<BakeSummary>> {

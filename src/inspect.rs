@@ -173,7 +173,23 @@ fn count_keys(r: &StageReader, layer: &str, problems: &mut Vec<Problem>) -> Resu
 
 /// Builds the report. Fails only when the file cannot be opened at all.
 pub fn inspect(path: &Path) -> Result<Report> {
-    inspect_stage(&StageReader::open(path)?)
+    let reader = StageReader::open(path)?;
+    let mut report = inspect_stage(&reader)?;
+    check_every_frame(reader, &mut report);
+    Ok(report)
+}
+
+/// When the report has no problem yet, evaluates every frame a default
+/// `bake` would (writing nothing) and reports the first failure, so that
+/// inspect passing means bake succeeds: some inputs fail only when
+/// evaluated at a frame (a camera transform, a non-finite posed point).
+pub fn check_every_frame(reader: StageReader, report: &mut Report) {
+    if !report.problems.is_empty() {
+        return;
+    }
+    if let Err(e) = crate::bake::evaluate_every_frame(reader) {
+        report.problems.push(Problem::new(e, Rule::Unreadable));
+    }
 }
 
 /// Builds the report of an opened stage (a file, or a layer handed over in

@@ -239,12 +239,13 @@ fn inspect(py: Python<'_>, input: &Bound<'_, PyAny>) -> PyResult<Py<PyAny>> {
     let src = Source::from_py(input)?;
     let report = py.detach(|| {
         let r = src.open()?;
-        painterly::inspect::inspect_stage(&r).map(|mut rep| {
-            if src.text.is_some() {
-                rep.file = PathBuf::from(&src.name);
-            }
-            rep
-        })
+        let mut rep = painterly::inspect::inspect_stage(&r)?;
+        // As the CLI: passing means a default bake succeeds.
+        painterly::inspect::check_every_frame(r, &mut rep);
+        if src.text.is_some() {
+            rep.file = PathBuf::from(&src.name);
+        }
+        Ok(rep)
     });
     let report = report.map_err(|e| to_py(py, src.name_in(e)))?;
     Ok(json_to_py(py, &report)?.unbind())

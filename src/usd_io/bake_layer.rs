@@ -20,6 +20,7 @@ use openusd::sdf::Value;
 
 use super::atomic::TempFile;
 use super::layer::{Format, OverLayer};
+use super::spill::ColumnSpill;
 use super::stage::StageMetadata;
 use super::usdc::{CrateStream, Stored, ValueHandle};
 use crate::error::{Error, Result};
@@ -260,8 +261,11 @@ struct UsdcSink {
     stream: Option<CrateStream<BufWriter<File>>>,
     /// The frames written so far, shared by every attribute.
     times: Vec<f64>,
-    /// Per attribute, in declaration order: a stored value per frame.
-    samples: Vec<Vec<ValueHandle>>,
+    /// Per attribute (a column, in declaration order): the handle of its
+    /// value at each frame, spilled to disk a block of frames at a time.
+    handles: ColumnSpill<u64>,
+    /// One frame's handles (reused).
+    row: Vec<u64>,
 }
 
 impl UsdcSink {
@@ -275,7 +279,8 @@ impl UsdcSink {
             layout,
             stream: None,
             times: Vec::new(),
-            samples: vec![Vec::new(); n],
+            handles: ColumnSpill::new(path, n),
+            row: Vec::with_capacity(n),
         };
         sink.stream = Some(CrateStream::new(BufWriter::with_capacity(1 << 20, file)).map_err(|e| e.in_file(path))?);
         Ok(sink)
@@ -288,7 +293,8 @@ impl FrameSink for UsdcSink {
             .stream
             .as_mut()
             .ok_or_else(|| Error::msg("internal: bake already finished"))?;
-        for ((attr, out), s) in self.layout.attrs.iter().zip(&mut self.samples).zip(samples) {
+        self.row.clear();
+        for (attr, s) in self.layout.attrs.iter().zip(samples) {
             check_sample(attr, &s)?;
             let value = match s {
                 Sample::Vec3s(v) => Value::Vec3fVec(bytemuck::allocation::cast_vec(v)),
@@ -297,13 +303,9 @@ impl FrameSink for UsdcSink {
             let handle = stream
                 .write_value(&value)
                 .map_err(|e| Error::attr(&attr.prim, attr.name, e.message).in_file(&self.path))?;
-            // Grown by whole blocks, not doubled: these are the only per-frame
-            // memory a long bake keeps.
-            if out.len() == out.capacity() {
-                out.reserve_exact(1024);
-            }
-            out.push(handle);
+            self.row.push(handle.to_bits());
         }
+        self.handles.push_row(&self.row)?;
         self.times.push(time);
         Ok(())
     }
@@ -317,21 +319,26 @@ impl FrameSink for UsdcSink {
         let mut layer = OverLayer::new(self.layout.meta.clone());
         layer.set_provenance(&self.layout.provenance);
         let times: std::sync::Arc<[f64]> = std::mem::take(&mut self.times).into();
-        for (attr, values) in self.layout.attrs.iter().zip(std::mem::take(&mut self.samples)) {
-            let s = Stored {
-                times: times.clone(),
-                values,
-            };
+        for (column, attr) in self.layout.attrs.iter().enumerate() {
             let metadata = match attr.interpolation {
                 Some(i) => vec![("interpolation", Value::Token(i.into()))],
                 None => vec![],
             };
-            layer.set_stored_samples(&attr.prim, attr.name, attr.kind.type_name(), s, metadata);
+            layer.set_streamed_samples(&attr.prim, attr.name, attr.kind.type_name(), column, metadata);
         }
         for prim in &self.layout.blocked_skeletons {
             layer.block_relationship(prim, "skel:skeleton");
         }
-        layer.write_to_stream(&mut stream).map_err(|e| e.in_file(&path))?;
+        // One attribute's handles in memory at a time.
+        let handles = &self.handles;
+        let mut samples = |column: usize| -> Result<Stored> {
+            let values = handles.column(column)?.into_iter().map(ValueHandle::from_bits).collect();
+            Ok(Stored {
+                times: times.clone(),
+                values,
+            })
+        };
+        layer.write_to_stream(&mut stream, &mut samples).map_err(|e| e.in_file(&path))?;
         let io = |e: std::io::Error| Error::msg(format!("cannot write output: {e}")).in_file(&path);
         // No fsync: the rename makes the write atomic for readers and for a
         // failed bake; durability across power loss is the filesystem's.
@@ -358,8 +365,10 @@ struct UsdaSink {
     _scratch_file: TempFile,
     scratch: BufWriter<File>,
     written: u64,
-    /// Per attribute: (offset, length) of each sample's text in the scratch file.
-    index: Vec<Vec<(u64, u64)>>,
+    /// Per attribute (a column): [offset, length] of each sample's text in
+    /// the scratch file, spilled to disk a block of frames at a time.
+    index: ColumnSpill<[u64; 2]>,
+    row: Vec<[u64; 2]>,
     text: String,
 }
 
@@ -373,7 +382,8 @@ impl UsdaSink {
             _scratch_file: scratch_file,
             scratch: BufWriter::with_capacity(1 << 20, file),
             written: 0,
-            index: vec![Vec::new(); n],
+            index: ColumnSpill::new(path, n),
+            row: Vec::with_capacity(n),
             text: String::new(),
         })
     }
@@ -410,7 +420,8 @@ impl UsdaSink {
                     )?;
                 }
                 writeln!(out, "{pad}{ty} {}.timeSamples = {{", attr.name)?;
-                for &(offset, len) in &self.index[i] {
+                let column = self.index.column(i).map_err(|e| std::io::Error::other(e.to_string()))?;
+                for [offset, len] in column {
                     copy_buf.resize(len as usize, 0);
                     file.seek(SeekFrom::Start(offset))?;
                     file.read_exact(&mut copy_buf)?;
@@ -431,6 +442,7 @@ impl UsdaSink {
 
 impl FrameSink for UsdaSink {
     fn write_frame(&mut self, time: f64, samples: Vec<Sample>) -> Result<()> {
+        self.row.clear();
         for (i, s) in samples.iter().enumerate() {
             let attr = &self.layout.attrs[i];
             check_sample(attr, s)?;
@@ -457,10 +469,10 @@ impl FrameSink for UsdaSink {
             if let Err(e) = self.scratch.write_all(self.text.as_bytes()) {
                 return Err(self.io_error(e));
             }
-            self.index[i].push((self.written, len));
+            self.row.push([self.written, len]);
             self.written += len;
         }
-        Ok(())
+        self.index.push_row(&self.row)
     }
 
     fn finish(mut self: Box<Self>) -> Result<()> {

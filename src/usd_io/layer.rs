@@ -24,14 +24,15 @@ struct AttrOut {
 }
 
 /// An attribute's time samples: values in memory, or values a crate stream
-/// already wrote (a streamed bake keeps only their handles).
+/// already wrote, whose handles the writer asks for by this number when it
+/// writes the attribute (a streamed bake keeps them out of memory).
 enum Samples {
     Values(Vec<(f64, Value)>),
-    Stored(Stored),
+    Streamed(usize),
 }
 
-/// Stored samples by attribute path, for [`usdc::add_layer_specs`].
-type StoredSamples = std::collections::HashMap<String, Stored>;
+/// Streamed samples' numbers by attribute path, for [`usdc::add_layer_specs`].
+type StreamedSamples = std::collections::HashMap<String, usize>;
 
 #[derive(Default)]
 struct PrimOut {
@@ -112,21 +113,22 @@ impl OverLayer {
         );
     }
 
-    /// Authors time samples whose values `stream` already wrote (see
-    /// [`write_to_stream`](Self::write_to_stream)).
-    pub fn set_stored_samples(
+    /// Authors time samples whose values a crate stream already wrote; `key`
+    /// is what [`write_to_stream`](Self::write_to_stream) asks for their
+    /// handles by.
+    pub fn set_streamed_samples(
         &mut self,
         prim: &str,
         attr: &str,
         type_name: &'static str,
-        samples: Stored,
+        key: usize,
         metadata: Vec<(&'static str, Value)>,
     ) {
         self.prims.entry(prim.to_string()).or_default().attrs.insert(
             attr.to_string(),
             AttrOut {
                 type_name,
-                samples: Samples::Stored(samples),
+                samples: Samples::Streamed(key),
                 metadata,
             },
         );
@@ -153,15 +155,22 @@ impl OverLayer {
     }
 
     /// Writes the layer's specs to the crate stream that stored its samples;
-    /// the caller finishes the stream.
-    pub fn write_to_stream<W: std::io::Write + std::io::Seek>(self, stream: &mut CrateStream<W>) -> Result<()> {
-        let (data, stored) = self.into_parts()?;
-        usdc::add_layer_specs(stream, &data, &|p| stored.get(p.as_str()))
+    /// `samples(key)` gives the handles of the samples set with `key`, one
+    /// attribute at a time. The caller finishes the stream.
+    pub fn write_to_stream<W: std::io::Write + std::io::Seek>(
+        self,
+        stream: &mut CrateStream<W>,
+        samples: &mut dyn FnMut(usize) -> Result<Stored>,
+    ) -> Result<()> {
+        let (data, streamed) = self.into_parts()?;
+        usdc::add_layer_specs(stream, &data, &mut |p| {
+            streamed.get(p.as_str()).map(|&key| samples(key)).transpose()
+        })
     }
 
-    /// The Sdf data, and the stored samples it leaves out (by attribute path).
-    fn into_parts(self) -> Result<(sdf::Data, StoredSamples)> {
-        let mut stored = StoredSamples::new();
+    /// The Sdf data, and the streamed samples it leaves out (by attribute path).
+    fn into_parts(self) -> Result<(sdf::Data, StreamedSamples)> {
+        let mut stored = StreamedSamples::new();
         let mut data = sdf::Data::new();
         // Every prim path that needs a spec, with its children names in order.
         let mut children: BTreeMap<String, Vec<String>> = BTreeMap::new();
@@ -268,8 +277,8 @@ impl OverLayer {
                 match a.samples {
                     // Moved, not cloned: bakes hold hundreds of MB of samples.
                     Samples::Values(v) => spec.add(FieldKey::TimeSamples, Value::TimeSamples(v)),
-                    Samples::Stored(h) => {
-                        stored.insert(format!("{prim_path}.{name}"), h);
+                    Samples::Streamed(key) => {
+                        stored.insert(format!("{prim_path}.{name}"), key);
                     }
                 }
             }

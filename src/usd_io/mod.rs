@@ -16,6 +16,7 @@ pub mod memory;
 pub mod render_scene;
 pub mod scene;
 pub mod skel;
+pub mod spill;
 pub mod stage;
 pub mod usda_splice;
 pub mod usda_text;

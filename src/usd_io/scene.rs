@@ -10,6 +10,7 @@ use glam::{DMat4, DVec3, Vec3};
 use openusd::usd;
 
 use super::axes::Axis;
+use super::guard::{MAX_PROXY_POINTS, MAX_STROKE_POINTS};
 use super::skel::{skeleton_binding, SkelProxy};
 use super::stage::StageReader;
 use super::values;
@@ -280,6 +281,7 @@ impl Scene {
             }
         }
         let mut rigs = Vec::new();
+        let mut stroke_points = 0usize;
         for rp in &rig_paths {
             let prim = r.require_prim(rp)?;
             match read_proxy(r, &prim) {
@@ -315,12 +317,23 @@ impl Scene {
                 Ok(layer)
             });
             match layer {
-                Ok(layer) => owner.layers.push(layer),
+                Ok(layer) => {
+                    stroke_points += layer.num_points();
+                    if stroke_points > MAX_STROKE_POINTS {
+                        // Checked as layers are read, so memory stays bounded.
+                        return Err(Error::prim(lp, stroke_points_limit(stroke_points as i64)));
+                    }
+                    owner.layers.push(layer)
+                }
                 Err(e) => problems.push(e.or_rule(Rule::Unreadable)),
             }
         }
         Ok((Scene { rigs }, problems))
     }
+}
+
+fn stroke_points_limit(n: i64) -> String {
+    format!("{n} stroke points; painterly bakes at most {MAX_STROKE_POINTS} in one run (bake the character's stroke layers in several runs)")
 }
 
 fn is_descendant(path: &str, ancestor: &str) -> bool {
@@ -437,6 +450,17 @@ pub fn read_mesh(r: &StageReader, prim: usd::Prim, rest_time: Option<f64>) -> Re
             return Err(Error::attr(&proxy_path, "points", why).rule(Rule::Mesh));
         }
     };
+    if rest_pts.len() > MAX_PROXY_POINTS {
+        return Err(Error::attr(
+            &proxy_path,
+            "points",
+            format!(
+                "{} points; painterly binds to proxies of at most {MAX_PROXY_POINTS} points (use a lighter proxy mesh)",
+                rest_pts.len()
+            ),
+        )
+        .rule(Rule::Mesh));
+    }
     check_finite(&rest_pts, &proxy_path, "points")?;
     let n = rest_pts.len();
     if let Some(bad) = indices.iter().find(|&&i| i < 0 || i as usize >= n) {
@@ -604,6 +628,9 @@ fn read_layer(r: &StageReader, path: &str, proxy_points: usize) -> Result<Stroke
         return Err(Error::attr(path, "curveVertexCounts", format!("negative count {bad}")).rule(Rule::PointCounts));
     }
     let total: i64 = counts.iter().sum();
+    if total > MAX_STROKE_POINTS as i64 {
+        return Err(Error::attr(path, "curveVertexCounts", stroke_points_limit(total)).rule(Rule::PointCounts));
+    }
     let points = r.typed(&prim, "points", None, "point3f[]", values::vec3_array)?;
     let rest = r.typed(&prim, "painterly:restPoints", None, "point3f[]", values::vec3_array)?;
     if let Some(p) = &points {

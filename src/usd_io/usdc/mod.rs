@@ -84,17 +84,18 @@ use crate::error::{Error, Result};
 /// layer's order. Values openusd read lazily are decoded one spec at a time.
 pub fn write_layer<W: Write + Seek>(data: &dyn AbstractData, out: W) -> Result<W> {
     let mut stream = CrateStream::new(out)?;
-    add_layer_specs(&mut stream, data, &|_| None)?;
+    add_layer_specs(&mut stream, data, &mut |_| Ok(None))?;
     stream.finish()
 }
 
 /// Adds every spec of `data` to `stream`; an attribute for which `stored`
 /// gives samples (written earlier with [`CrateStream::write_value`]) gets
-/// them as its `timeSamples`, after its other fields.
-pub fn add_layer_specs<'s, W: Write + Seek>(
+/// them as its `timeSamples`, after its other fields. `stored` is asked once
+/// per attribute, as its spec is written, so it can load the handles then.
+pub fn add_layer_specs<W: Write + Seek>(
     stream: &mut CrateStream<W>,
     data: &dyn AbstractData,
-    stored: &dyn Fn(&sdf::Path) -> Option<&'s Stored>,
+    stored: &mut dyn FnMut(&sdf::Path) -> Result<Option<Stored>>,
 ) -> Result<()> {
     for path in data.spec_paths() {
         let ty = data
@@ -111,7 +112,8 @@ pub fn add_layer_specs<'s, W: Write + Seek>(
             }
         }
         let mut fields: Vec<(&str, Field<'_>)> = values.iter().map(|(n, v)| (*n, Field::Value(v.as_ref()))).collect();
-        if let Some(s) = stored(&path) {
+        let samples = stored(&path)?;
+        if let Some(s) = &samples {
             fields.push((
                 "timeSamples",
                 Field::TimeSamples {

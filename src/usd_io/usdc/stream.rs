@@ -33,6 +33,19 @@ const TAG_MASK: u64 = 0xF << TAG_SHIFT;
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct ValueHandle(u64);
 
+impl ValueHandle {
+    /// The handle as a plain word, to keep it outside memory (a scratch file).
+    pub fn to_bits(self) -> u64 {
+        self.0
+    }
+
+    /// A handle back from [`to_bits`](Self::to_bits); a word that was not a
+    /// handle of the stream it is given to is refused there.
+    pub fn from_bits(bits: u64) -> Self {
+        ValueHandle(bits)
+    }
+}
+
 /// One field of a spec.
 #[derive(Debug, Clone, Copy)]
 pub enum Field<'a> {
