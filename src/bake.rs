@@ -155,8 +155,7 @@ fn open_for_bake_with(
 pub fn evaluate_every_frame(reader: StageReader) -> Result<usize> {
     let meta = reader.metadata();
     let ch = Character::from_reader(reader, None)?;
-    if is_empty(&ch.model, &BakeOptions::default()) || meta.start_time_code.is_none() || meta.end_time_code.is_none()
-    {
+    if is_empty(&ch.model, &BakeOptions::default()) || meta.start_time_code.is_none() || meta.end_time_code.is_none() {
         return Ok(0);
     }
     let times = resolve_frames(&ch.reader, None)?;

@@ -3,6 +3,7 @@
 use clap::Parser;
 
 fn main() {
+    tune_malloc();
     // A bug must still end in a clear message and a non-zero exit, not a
     // Rust backtrace in a farm log.
     std::panic::set_hook(Box::new(|info| {
@@ -43,3 +44,20 @@ fn main() {
     .unwrap_or(3);
     std::process::exit(code);
 }
+
+/// One malloc arena, trimmed above 1 MiB. glibc otherwise keeps freed frame
+/// buffers cached per thread, and a bake's peak RSS crept up with its length
+/// though its live heap does not (heaptrack, Dog bench: 28.7 MiB at 48
+/// frames, 29.9 MiB at 471; RSS 39 and 45 MiB). Set before any thread starts.
+#[cfg(all(target_os = "linux", target_env = "gnu"))]
+fn tune_malloc() {
+    // SAFETY: mallopt only sets allocator parameters; called on the main
+    // thread before any other thread exists.
+    unsafe {
+        libc::mallopt(libc::M_ARENA_MAX, 1);
+        libc::mallopt(libc::M_TRIM_THRESHOLD, 1 << 20);
+    }
+}
+
+#[cfg(not(all(target_os = "linux", target_env = "gnu")))]
+fn tune_malloc() {}

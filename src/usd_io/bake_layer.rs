@@ -332,13 +332,19 @@ impl FrameSink for UsdcSink {
         // One attribute's handles in memory at a time.
         let handles = &self.handles;
         let mut samples = |column: usize| -> Result<Stored> {
-            let values = handles.column(column)?.into_iter().map(ValueHandle::from_bits).collect();
+            let values = handles
+                .column(column)?
+                .into_iter()
+                .map(ValueHandle::from_bits)
+                .collect();
             Ok(Stored {
                 times: times.clone(),
                 values,
             })
         };
-        layer.write_to_stream(&mut stream, &mut samples).map_err(|e| e.in_file(&path))?;
+        layer
+            .write_to_stream(&mut stream, &mut samples)
+            .map_err(|e| e.in_file(&path))?;
         let io = |e: std::io::Error| Error::msg(format!("cannot write output: {e}")).in_file(&path);
         // No fsync: the rename makes the write atomic for readers and for a
         // failed bake; durability across power loss is the filesystem's.
