@@ -111,7 +111,7 @@ def bake_and_expect(rig, d, frames_arg=FRAMES_ARG, frames=FRAMES, camera=None, n
     assert out.exists(), "bake reported success but wrote no file"
     assert Au.file_hash(rig.path) == before, "bake modified its input"
     expected, posed = RK.expected_bake(rig.path, frames, camera=camera)
-    return dict(rig=rig, out=out, expected=expected, posed=posed, frames=frames)
+    return dict(rig=rig, out=out, expected=expected, posed=posed, frames=frames, camera=camera)
 
 
 def _check(case, layers):
@@ -567,7 +567,10 @@ def test_time_keys_at_whole_frames_only(tmp_path):
 def test_inspect_counts(request, which):
     case = request.getfixturevalue(f"{which}_case")
     rig = case["rig"]
-    proc = run_painterly("inspect", rig.path, "--json")
+    # inspect vouches for the bake with the same --camera (a viewDirection
+    # axis without a source needs one).
+    camera = ["--camera", case["camera"]] if case["camera"] else []
+    proc = run_painterly("inspect", rig.path, "--json", *camera)
     report = json.loads(proc.stdout)
     got = {l["path"]: l for r in report["rigs"] for l in r["layers"]}
     stage = Usd.Stage.Open(str(rig.path))

@@ -20,7 +20,7 @@ process under a 60 s timeout and an address-space limit. A case fails when:
   nor is a stage with nothing painterly in it (inspect finds nothing wrong,
   bake says "nothing to bake").
 
-Usage: python3 scripts/fuzz.py --cases N --seed S [--jobs J] [--keep DIR]
+Usage: python3 scripts/fuzz.py --cases N --seed S [--first K] [--jobs J] [--keep DIR]
 Failing inputs are copied to --keep (default target/fuzz-failures) with
 their stderr; the exit status is the number of failures (capped at 100).
 Cases are reproducible from (seed, case index).
@@ -179,6 +179,8 @@ def check(exe, seed, k, seed_files, work):
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--cases", type=int, default=1000)
+    ap.add_argument("--first", type=int, default=0,
+                    help="index of the first case (a long run can be split: --first 40000 continues one)")
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--jobs", type=int, default=os.cpu_count() or 2)
     ap.add_argument("--keep", default=str(REPO / "target" / "fuzz-failures"))
@@ -191,7 +193,7 @@ def main():
         seed_files = seeds(work)
         failures, trusts, slowest, exits = [], [], 0.0, {}
         with cf.ThreadPoolExecutor(a.jobs) as pool:
-            futs = [pool.submit(check, exe, a.seed, k, seed_files, work) for k in range(a.cases)]
+            futs = [pool.submit(check, exe, a.seed, k, seed_files, work) for k in range(a.first, a.first + a.cases)]
             for n, f in enumerate(cf.as_completed(futs), 1):
                 k, name, rc_i, rc_b, t, problems, trust, err, data = f.result()
                 slowest = max(slowest, t)
@@ -212,7 +214,7 @@ def main():
                           f"{time.monotonic() - started:.0f} s", flush=True)
     took = time.monotonic() - started
     summary = ", ".join(f"inspect {i}/bake {b}: {c}" for (i, b), c in sorted(exits.items(), key=str))
-    print(f"fuzz: {a.cases} cases (seed {a.seed}, {a.jobs} jobs) in {took:.1f} s; "
+    print(f"fuzz: {a.cases} cases ({a.first}..{a.first + a.cases - 1} of seed {a.seed}, {a.jobs} jobs) in {took:.1f} s; "
           f"{len(failures)} failures; {len(trusts)} inspect-0/bake-1 (trust); slowest run {slowest:.2f} s")
     print(f"exit codes: {summary}")
     sys.exit(min(len(failures), 100))

@@ -146,15 +146,15 @@ fn open_for_bake_with(
     Ok(character)
 }
 
-/// Evaluates every frame that `bake` without `--frames` would bake, and
-/// writes nothing: what `inspect` runs so that its exit 0 means such a bake
-/// succeeds (camera transforms, posed points and opacities can fail only at
-/// a frame). Returns how many frames were evaluated: none for a stage with
-/// nothing to bake or without a complete frame range (bake then needs
-/// `--frames`).
-pub fn evaluate_every_frame(reader: StageReader) -> Result<usize> {
+/// Evaluates every frame that `bake` without `--frames` (with `camera` as
+/// `--camera`) would bake, and writes nothing: what `inspect` runs so that
+/// its exit 0 means such a bake succeeds (camera transforms, posed points
+/// and opacities can fail only at a frame). Returns how many frames were
+/// evaluated: none for a stage with nothing to bake or without a complete
+/// frame range (bake then needs `--frames`).
+pub fn evaluate_every_frame(reader: StageReader, camera: Option<&str>) -> Result<usize> {
     let meta = reader.metadata();
-    let ch = Character::from_reader(reader, None)?;
+    let ch = Character::from_reader(reader, camera)?;
     if is_empty(&ch.model, &BakeOptions::default()) || meta.start_time_code.is_none() || meta.end_time_code.is_none() {
         return Ok(0);
     }

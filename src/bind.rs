@@ -664,24 +664,16 @@ mod tests {
         );
     }
 
-    /// Tiny LCG: reproducible meshes without a rand crate.
-    struct Lcg(u64);
-    impl Lcg {
-        fn unit(&mut self) -> f64 {
-            self.0 = self
-                .0
-                .wrapping_mul(6_364_136_223_846_793_005)
-                .wrapping_add(1_442_695_040_888_963_407);
-            (self.0 >> 11) as f64 / (1u64 << 53) as f64
-        }
-        fn vec(&mut self) -> DVec3 {
-            DVec3::new(self.unit(), self.unit(), self.unit())
-        }
+    use crate::interp::testutil::Lcg;
+
+    /// A point uniform in the unit cube.
+    fn unit_vec(rng: &mut Lcg) -> DVec3 {
+        DVec3::new(rng.unit(), rng.unit(), rng.unit())
     }
 
     #[test]
     fn bvh_equals_brute_force_on_hard_meshes() {
-        let mut rng = Lcg(7);
+        let mut rng = Lcg::new(7);
         // A grid with every vertex duplicated per quad (seams everywhere),
         // f32-rounded like stage data; a soup of overlapping triangles with
         // degenerate ones; both queried on and off the surface.
@@ -706,14 +698,14 @@ mod tests {
                     let i = (rng.unit() * n as f64).floor() * 0.1;
                     DVec3::new(i, rng.unit() * 1.2, rng.unit() * 0.2 - 0.1).as_vec3()
                 } else {
-                    (rng.vec() * 1.4 - 0.2).as_vec3()
+                    (unit_vec(&mut rng) * 1.4 - 0.2).as_vec3()
                 }
             })
             .collect();
         let cp = ClosestPoint::new(&pts, &tris);
         assert_eq!(cp.bind(&queries), bind_brute_force(&pts, &tris, &queries));
 
-        let mut pts: Vec<DVec3> = (0..300).map(|_| rng.vec()).collect();
+        let mut pts: Vec<DVec3> = (0..300).map(|_| unit_vec(&mut rng)).collect();
         pts.push(pts[3]);
         let mut tris: Vec<[u32; 3]> = (0..500)
             .map(|_| [0, 1, 2].map(|_| (rng.unit() * 300.0) as u32))
@@ -745,8 +737,8 @@ mod tests {
             .collect();
         let tris = crate::mesh::fan_triangulate(&counts, &idx);
         assert!(tris.len() > 2 * PAR_BUILD);
-        let mut rng = Lcg(3);
-        let queries: Vec<Vec3> = (0..300).map(|_| (rng.vec() * 1.2 - 0.1).as_vec3()).collect();
+        let mut rng = Lcg::new(3);
+        let queries: Vec<Vec3> = (0..300).map(|_| (unit_vec(&mut rng) * 1.2 - 0.1).as_vec3()).collect();
         let cp = ClosestPoint::new(&pts, &tris);
         assert_eq!(cp.bind(&queries), bind_brute_force(&pts, &tris, &queries));
         // Every triangle is in exactly one leaf.

@@ -96,6 +96,10 @@ pub enum Command {
     /// List rigs, proxies, axes, stroke layers (Table I columns), view-dependent
     /// meshes and every problem found. Exits 1 when there are problems.
     ///
+    /// When nothing else is wrong, every frame of the stage's range is
+    /// evaluated as `bake` would (nothing is written): exit 0 means that
+    /// `painterly bake` (with the same --camera) succeeds.
+    ///
     /// Example: painterly inspect fixtures/blowfish.usda
     Inspect {
         /// The USD file to inspect.
@@ -103,6 +107,11 @@ pub enum Command {
         /// Print the report as JSON.
         #[arg(long)]
         json: bool,
+        /// Check the bake `painterly bake --camera PRIM` would make (for
+        /// viewDirection axes without a source, view-dependent meshes
+        /// without painterly:camera).
+        #[arg(long, value_name = "PRIM")]
+        camera: Option<String>,
     },
     /// Bind strokes painted in a pose: store their rest positions and binding.
     ///
@@ -544,7 +553,7 @@ pub fn run(cli: Cli) -> i32 {
                 Err(e) => report(&e),
             }
         }
-        Command::Inspect { input, json } => match inspect(&input) {
+        Command::Inspect { input, json, camera } => match inspect(&input, camera.as_deref()) {
             Ok(rep) => {
                 if json {
                     println!("{}", serde_json::to_string_pretty(&rep).unwrap_or_default());

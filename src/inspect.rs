@@ -172,22 +172,26 @@ fn count_keys(r: &StageReader, layer: &str, problems: &mut Vec<Problem>) -> Resu
 }
 
 /// Builds the report. Fails only when the file cannot be opened at all.
-pub fn inspect(path: &Path) -> Result<Report> {
+///
+/// `camera` is what `bake --camera` would be given: the report then vouches
+/// for that bake.
+pub fn inspect(path: &Path, camera: Option<&str>) -> Result<Report> {
     let reader = StageReader::open(path)?;
     let mut report = inspect_stage(&reader)?;
-    check_every_frame(reader, &mut report);
+    check_every_frame(reader, camera, &mut report);
     Ok(report)
 }
 
-/// When the report has no problem yet, evaluates every frame a default
-/// `bake` would (writing nothing) and reports the first failure, so that
-/// inspect passing means bake succeeds: some inputs fail only when
-/// evaluated at a frame (a camera transform, a non-finite posed point).
-pub fn check_every_frame(reader: StageReader, report: &mut Report) {
+/// When the report has no problem yet, evaluates every frame `bake` (with
+/// `camera` as `--camera`, no `--frames`) would, writing nothing, and
+/// reports the first failure, so that inspect passing means that bake
+/// succeeds: some inputs fail only when evaluated at a frame (a camera
+/// transform, a non-finite posed point).
+pub fn check_every_frame(reader: StageReader, camera: Option<&str>, report: &mut Report) {
     if !report.problems.is_empty() {
         return;
     }
-    if let Err(e) = crate::bake::evaluate_every_frame(reader) {
+    if let Err(e) = crate::bake::evaluate_every_frame(reader, camera) {
         report.problems.push(Problem::new(e, Rule::Unreadable));
     }
 }

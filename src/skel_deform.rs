@@ -325,6 +325,18 @@ struct DqJoints {
 }
 
 impl DqJoints {
+    /// Joints from their rigid and stretch parts; `has_stretch` follows.
+    fn from_parts(rigid: Vec<DualQuat>, stretch: Vec<DMat3>) -> Self {
+        let has_stretch = stretch
+            .iter()
+            .any(|s| (*s - DMat3::IDENTITY).to_cols_array().iter().any(|d| d.abs() > 1e-6));
+        DqJoints {
+            rigid,
+            stretch,
+            has_stretch,
+        }
+    }
+
     fn new(skinning: &[DMat4]) -> Self {
         let mut rigid = Vec::with_capacity(skinning.len());
         let mut stretch = Vec::with_capacity(skinning.len());
@@ -346,14 +358,7 @@ impl DqJoints {
             rigid.push(DualQuat { real, dual });
             stretch.push(s);
         }
-        let has_stretch = stretch
-            .iter()
-            .any(|s| (*s - DMat3::IDENTITY).to_cols_array().iter().any(|d| d.abs() > 1e-6));
-        DqJoints {
-            rigid,
-            stretch,
-            has_stretch,
-        }
+        DqJoints::from_parts(rigid, stretch)
     }
 
     /// For normals: each joint's normal matrix (inverse transpose) split as
@@ -377,14 +382,7 @@ impl DqJoints {
             };
             stretch.push(s);
         }
-        let has_stretch = stretch
-            .iter()
-            .any(|s| (*s - DMat3::IDENTITY).to_cols_array().iter().any(|d| d.abs() > 1e-6));
-        DqJoints {
-            rigid,
-            stretch,
-            has_stretch,
-        }
+        DqJoints::from_parts(rigid, stretch)
     }
 
     /// One point. The pivot (the rotation every other joint's is brought

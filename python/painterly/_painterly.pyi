@@ -44,9 +44,11 @@ def bake(
     thread as frames are written; an exception it raises is re-raised after
     the bake. The GIL is released while baking."""
 
-def inspect(input: Input) -> dict[str, Any]:
-    """The ``painterly inspect --json`` report; ``"problems"`` lists every
-    problem with ``prim``, ``attribute``, ``message`` and ``rule``."""
+def inspect(input: Input, camera: str | None = None) -> dict[str, Any]:
+    """The ``painterly inspect --json [--camera CAMERA]`` report; ``"problems"``
+    lists every problem with ``prim``, ``attribute``, ``message`` and
+    ``rule``. Without problems, every frame a default bake (with ``camera``)
+    would bake evaluates."""
 
 def _interpolate(
     keys: npt.NDArray[np.float64],

@@ -235,13 +235,14 @@ fn bake(
 
 /// The `inspect --json` report of `input` (a path or an `Sdf.Layer`) as a dict.
 #[pyfunction]
-fn inspect(py: Python<'_>, input: &Bound<'_, PyAny>) -> PyResult<Py<PyAny>> {
+#[pyo3(signature = (input, camera=None))]
+fn inspect(py: Python<'_>, input: &Bound<'_, PyAny>, camera: Option<String>) -> PyResult<Py<PyAny>> {
     let src = Source::from_py(input)?;
     let report = py.detach(|| {
         let r = src.open()?;
         let mut rep = painterly::inspect::inspect_stage(&r)?;
         // As the CLI: passing means a default bake succeeds.
-        painterly::inspect::check_every_frame(r, &mut rep);
+        painterly::inspect::check_every_frame(r, camera.as_deref(), &mut rep);
         if src.text.is_some() {
             rep.file = PathBuf::from(&src.name);
         }

@@ -29,7 +29,7 @@ mod shepard;
 mod smooth_voronoi;
 mod step;
 #[cfg(test)]
-mod testutil;
+pub(crate) mod testutil;
 
 pub use step::{smooth_step, smooth_step_derivative};
 

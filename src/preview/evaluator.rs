@@ -168,7 +168,7 @@ impl State {
             }
             None => None,
         };
-        let report = crate::inspect::inspect(input);
+        let report = crate::inspect::inspect(input, camera);
         let mut problems = match &report {
             Ok(rep) => rep
                 .problems
