@@ -45,17 +45,22 @@ fn main() {
     std::process::exit(code);
 }
 
-/// One malloc arena, trimmed above 1 MiB. glibc otherwise keeps freed frame
-/// buffers cached per thread, and a bake's peak RSS crept up with its length
-/// though its live heap does not (heaptrack, Dog bench: 28.7 MiB at 48
-/// frames, 29.9 MiB at 471; RSS 39 and 45 MiB). Set before any thread starts.
+/// One malloc arena for all threads. With glibc's default of one arena per
+/// thread, freed frame buffers stayed cached in each, and a bake's peak RSS
+/// crept up with its length though its live heap does not (heaptrack, Dog
+/// bench: 28.7 MiB live at 48 frames, 29.9 MiB at 471; RSS 39 and 45 MiB,
+/// 38 and 40 MiB with one arena). Frames allocate a few large buffers, so
+/// the shared arena's lock costs nothing measurable. Set before any thread
+/// starts; `GLIBC_TUNABLES` in the environment overrides it.
 #[cfg(all(target_os = "linux", target_env = "gnu"))]
 fn tune_malloc() {
-    // SAFETY: mallopt only sets allocator parameters; called on the main
+    if std::env::var_os("GLIBC_TUNABLES").is_some() {
+        return;
+    }
+    // SAFETY: mallopt only sets an allocator parameter; called on the main
     // thread before any other thread exists.
     unsafe {
         libc::mallopt(libc::M_ARENA_MAX, 1);
-        libc::mallopt(libc::M_TRIM_THRESHOLD, 1 << 20);
     }
 }
 
