@@ -261,6 +261,25 @@ def test_inspect_is_the_cli_report():
         assert painterly.inspect(path) == json.loads(run_painterly("inspect", path, "--json").stdout)
 
 
+def test_inspect_vouches_for_the_bake_with_its_camera(tmp_path):
+    """Without `painterly:camera` the view-dependent mesh needs the bake's
+    --camera: inspect reports that unless given the same camera, as the CLI."""
+    src = tmp_path / "building.usda"
+    layer = Sdf.Layer.FindOrOpen(str(FIXTURES / "building.usda"))
+    layer.Export(str(src))
+    stage = Usd.Stage.Open(str(src))
+    stage.GetPrimAtPath("/Building/Box").GetRelationship("painterly:camera").ClearTargets(True)
+    stage.GetRootLayer().Save()
+    report = painterly.inspect(src)
+    assert [p["prim"] for p in report["problems"]] == ["/Building/Box"], report["problems"]
+    assert "--camera" in report["problems"][0]["message"]
+    assert report == json.loads(run_painterly("inspect", src, "--json", check=False).stdout)
+    with_camera = painterly.inspect(src, camera="/Building/Camera")
+    assert with_camera["problems"] == []
+    cli = json.loads(run_painterly("inspect", src, "--json", "--camera", "/Building/Camera").stdout)
+    assert with_camera == cli
+
+
 def test_errors_are_painterly_errors_naming_where(tmp_path):
     with pytest.raises(painterly.Error) as e:
         painterly.Character(tmp_path / "missing.usda")
