@@ -56,7 +56,9 @@ def test_fractional_steps_and_uneven_last_chunk(painterly, tmp_path, repo_root):
         "shot.0003.13-13.75.usdc",
         "shot.0004.14-14.usdc",
     ]
-    assert sorted(p.name for p in (tmp_path / "shot.clips").iterdir()) == sorted(names + ["shot.manifest.usda"])
+    assert sorted(p.name for p in (tmp_path / "shot.clips").iterdir()) == sorted(
+        names + ["shot.manifest.usda", "shot.binding.usdc"]
+    )
     times = [10 + 0.25 * k for k in range(17)]
     compare(single, shot, src, times, exact=True)
     compare(single, shot, src, [t + 0.125 for t in times[:-1]], exact=False)
@@ -168,3 +170,76 @@ def test_a_long_bake_spilling_its_sample_index_matches_unspilled_chunks(painterl
     assert Sdf.Layer.FindOrOpen(str(single)).ListAllTimeSamples() == pytest.approx(times, abs=1e-9)
     picked = sorted({0, 1, 999, 1000, 1023, 1024, 1025, 2047, 2048, 2049, 2200, *range(0, 2201, 97)})
     compare(single, shot, src, [times[k] for k in picked], exact=True)
+
+
+def _chunk_task(painterly, src, shot, k, *extra):
+    return painterly("bake", src, "-o", shot, "--chunk", "5", "--chunk-index", k, "-v", *extra).stderr
+
+
+def test_tasks_of_a_shot_bind_once_through_the_binding_cache(painterly, tmp_path, repo_root):
+    """The first chunked process binds and leaves the binding in
+    <stem>.clips/<stem>.binding.usdc; later tasks and the assembly take it
+    from there, and what they write is byte-identical to a task that bound
+    by itself."""
+    src = repo_root / "fixtures" / "tube.usda"
+    shot, fresh = tmp_path / "a" / "shot.usda", tmp_path / "b" / "shot.usda"
+    shot.parent.mkdir(), fresh.parent.mkdir()
+    first = _chunk_task(painterly, src, shot, 0)
+    cache = shot.parent / "shot.clips" / "shot.binding.usdc"
+    assert cache.is_file() and "from the binding cache" not in first
+    info = Sdf.Layer.FindOrOpen(str(cache)).customLayerData["painterly"]
+    assert info["version"] and len(info["inputHash"]) == 64
+    # usd-core reads the cache as an override layer of bindings, one per point.
+    stage = Usd.Stage.Open(str(cache))
+    layers = [p for p in stage.TraverseAll() if p.HasAttribute("painterly:bindVertices")]
+    strokes = Usd.Stage.Open(str(src))
+    assert layers and all(
+        len(p.GetAttribute("painterly:bindVertices").Get())
+        == len(strokes.GetPrimAtPath(p.GetPath()).GetAttribute("points").Get())
+        for p in layers
+    )
+    second = _chunk_task(painterly, src, shot, 3)
+    assert f"took the binding of {len(layers)} stroke layer" in second
+    _chunk_task(painterly, src, fresh, 3)  # no cache there yet: binds itself
+    name = "shot.0003.16-20.usdc"
+    assert (shot.parent / "shot.clips" / name).read_bytes() == (fresh.parent / "shot.clips" / name).read_bytes()
+    for k in (1, 2, 4):
+        _chunk_task(painterly, src, shot, k)
+    assemble = painterly("bake", src, "-o", shot, "--chunk", "5", "--assemble", "-v").stderr
+    assert "from the binding cache" in assemble
+
+
+@pytest.mark.parametrize("damage", ["other input", "garbage", "out of range", "wrong length"])
+def test_a_stale_or_broken_binding_cache_is_ignored(painterly, tmp_path, repo_root, damage):
+    """A cache never fails a bake nor changes it: a cache of another input,
+    an unreadable one, or one whose entries fail the checks an authored
+    binding gets is ignored and the binding computed."""
+    src = tmp_path / "tube.usda"
+    shutil.copy(repo_root / "fixtures" / "tube.usda", src)
+    shot, fresh = tmp_path / "a" / "shot.usda", tmp_path / "b" / "shot.usda"
+    shot.parent.mkdir(), fresh.parent.mkdir()
+    _chunk_task(painterly, src, shot, 0)
+    cache = shot.parent / "shot.clips" / "shot.binding.usdc"
+    if damage == "other input":
+        src.write_text(src.read_text().replace("timeCodesPerSecond = 24", "timeCodesPerSecond = 24.0"))
+    elif damage == "garbage":
+        cache.write_bytes(b"PXR-USDC" + bytes(range(256)) * 8)
+    else:
+        layer = Sdf.Layer.FindOrOpen(str(cache))
+        attr = layer.GetAttributeAtPath("/Tube/Paint/Rings.painterly:bindVertices")
+        verts = list(attr.default)
+        if damage == "out of range":
+            verts[0] = (10**6, 0, 0)
+        else:
+            verts = verts[:-1]
+        attr.default = verts
+        layer.Save()
+    log = _chunk_task(painterly, src, shot, 2)
+    if damage in ("other input", "garbage"):
+        assert "from the binding cache" not in log and "binding cache" in log and "ignored" in log
+    else:  # only the damaged layer's entry is refused; the other layer's is used
+        assert "binding cache entry ignored: " in log and "/Tube/Paint/Rings" in log
+        assert "took the binding of 1 stroke layer from the binding cache" in log
+    _chunk_task(painterly, src, fresh, 2)
+    name = "shot.0002.11-15.usdc"
+    assert (shot.parent / "shot.clips" / name).read_bytes() == (fresh.parent / "shot.clips" / name).read_bytes()

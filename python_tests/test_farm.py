@@ -148,7 +148,9 @@ def states(st):
 
 
 def chunk_names(shot):
-    return sorted(p.name for p in (shot.parent / f"{shot.stem}.clips").glob("*.usdc"))
+    """Chunk layers in the clips folder (not the binding cache beside them)."""
+    clips = shot.parent / f"{shot.stem}.clips"
+    return sorted(p.name for p in clips.glob("*.usdc") if p.name != f"{shot.stem}.binding.usdc")
 
 
 def openjd_exe():

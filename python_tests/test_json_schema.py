@@ -124,7 +124,9 @@ def test_bake_json_chunks_are_the_files_written(painterly, tmp_path):
     out = tmp_path / "shot.usda"
     doc = validate("bake", json.loads(painterly("bake", FIXTURES / "tube.usda", "-o", out, "--chunk", 10, "--json").stdout))
     written = sorted(p.name for p in (tmp_path / "shot.clips").glob("*.usdc"))
-    assert written == ["shot.0000.1-10.usdc", "shot.0001.11-20.usdc", "shot.0002.21-24.usdc"]
+    # The binding cache sits beside the chunks; it is not a chunk.
+    assert written == ["shot.0000.1-10.usdc", "shot.0001.11-20.usdc", "shot.0002.21-24.usdc", "shot.binding.usdc"]
+    written.remove("shot.binding.usdc")
     assert sorted(pathlib.Path(c).name for c in doc["chunks"]) == written
     assert all((tmp_path / c).exists() or pathlib.Path(c).exists() for c in doc["chunks"])
     assert doc["frames"] == 24

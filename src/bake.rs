@@ -20,6 +20,7 @@ use crate::error::{Error, Result};
 use crate::extent::{curves_extent, point_based_extent};
 use crate::frames::FrameRange;
 use crate::usd_io::bake_layer::{self, BakeAttr, BakeLayout, FrameSink, Provenance, Sample, SampleKind};
+use crate::usd_io::binding_cache::{self, BindingCache};
 use crate::usd_io::clips::{self, ChunkedSink, ClipPlan};
 use crate::usd_io::layer::Format;
 use crate::usd_io::stage::StageReader;
@@ -135,7 +136,11 @@ fn open_for_bake_with(
     let opening = Instant::now();
     let reader = open()?;
     crate::character::log_opened(input, &reader, opening);
-    let mut character = Character::from_reader(reader, opts.camera.as_deref()).map_err(|e| e.in_file(input))?;
+    let mut character = match opts.chunk {
+        None => Character::from_reader(reader, opts.camera.as_deref()),
+        Some(_) => chunked_character(reader, output, opts.camera.as_deref()),
+    }
+    .map_err(|e| e.in_file(input))?;
     character.proxy_normals = opts.bake_proxy;
     if is_empty(&character.model, opts) {
         return Err(Error::msg(
@@ -144,6 +149,41 @@ fn open_for_bake_with(
         .in_file(input));
     }
     Ok(character)
+}
+
+/// The character of a chunked bake into `output`: bindings come from the
+/// clips folder's binding cache when it matches the input (see
+/// [`leave_binding_cache`]).
+fn chunked_character(reader: StageReader, output: &Path, camera: Option<&str>) -> Result<Character> {
+    let hash = clips::input_hash(&reader)?;
+    let cache = BindingCache::open(&clips::binding_cache_path(output)?, &hash);
+    Character::from_reader_with(reader, camera, cache.as_ref())
+}
+
+/// Leaves the bindings `ch` computed in the binding cache of a chunked bake
+/// into `output`, so that the other tasks of the shot and its assembly do
+/// not bind again. Called once every check has passed (a refused command
+/// leaves nothing behind); failing to write the cache fails nothing.
+pub fn leave_binding_cache(ch: &Character, output: &Path) {
+    if !ch.binding_computed {
+        return;
+    }
+    let written = (|| {
+        let hash = clips::input_hash(&ch.reader)?;
+        let path = clips::binding_cache_path(output)?;
+        std::fs::create_dir_all(path.parent().unwrap_or(Path::new(".")))
+            .map_err(|e| Error::msg(format!("cannot create the clips folder: {e}")))?;
+        let layers = ch
+            .model
+            .rigs
+            .iter()
+            .flat_map(|r| &r.layers)
+            .map(|l| (l.path.as_str(), &l.binding));
+        binding_cache::write(&path, &ch.reader.file, &hash, layers)
+    })();
+    if let Err(e) = written {
+        crate::vlog!("binding cache not written: {e}");
+    }
 }
 
 /// Evaluates every frame that `bake` without `--frames` (with `camera` as
@@ -245,6 +285,7 @@ fn bake_character(
                         ))
                     })?;
                     plan.create_dir()?;
+                    leave_binding_cache(ch, output);
                     let path = plan.chunk_path(chunk);
                     let chunk_layout = clips::chunk_layout(&layout, &plan, chunk, &times, clips::frame_step(&times));
                     let frames = &times[chunk.start..chunk.end];
@@ -265,6 +306,7 @@ fn bake_character(
                 }
                 (None, false) => {
                     let sink = Box::new(ChunkedSink::new(plan.clone(), layout, &times)?);
+                    leave_binding_cache(ch, output);
                     stream(ch, &times, opts.bake_proxy, sink, progress)?;
                     (times.len(), plan.chunks.iter().map(|c| plan.chunk_path(c)).collect())
                 }

@@ -21,6 +21,7 @@ use crate::keys::{combine, Source};
 use crate::mesh::{bounds_f64, fan_triangulate, weighted_sum, OneRings};
 use crate::skinning::{skin_points, to_f32, SkinningRest};
 use crate::usd_io::axes::AxisFrame;
+use crate::usd_io::binding_cache::BindingCache;
 use crate::usd_io::scene::{LayerKeys, Proxy, Rig, Scene};
 use crate::usd_io::stage::{Prim, StageReader};
 use crate::usd_io::view_mesh::{check_camera, read_view_meshes, sharpness_at, ViewBlend, ViewMesh};
@@ -84,6 +85,9 @@ pub struct Character {
     /// Read the deformed normals of proxies that have them with each frame
     /// (what `--bake-proxy` writes); off by default.
     pub proxy_normals: bool,
+    /// Whether some layer's binding was computed here (closest point), not
+    /// authored in the stage nor taken from a binding cache.
+    pub binding_computed: bool,
     /// Stage side of each rig: proxy, layer prims and axes. Its layers'
     /// rest points, keys and bindings have moved into `model`.
     rigs: Vec<Rig>,
@@ -177,10 +181,31 @@ impl Character {
     /// rig, layer, key and view-dependent mesh, resolves cameras, and
     /// computes the rest data (one-rings, centroids, bindings).
     pub fn from_reader(reader: StageReader, camera: Option<&str>) -> Result<Character> {
+        Character::from_reader_with(reader, camera, None)
+    }
+
+    /// Like [`Character::from_reader`], taking the binding of layers that
+    /// have none authored from `cache` where it holds one.
+    pub fn from_reader_with(
+        reader: StageReader,
+        camera: Option<&str>,
+        cache: Option<&BindingCache>,
+    ) -> Result<Character> {
         let started = std::time::Instant::now();
         // A rig or strokes from a missing asset would bake something else.
         reader.require_resolved()?;
-        let scene = Scene::read(&reader)?;
+        let mut scene = Scene::read(&reader)?;
+        if let Some(cache) = cache {
+            let filled = cache.fill(&mut scene.rigs);
+            crate::vlog!(
+                "took the binding of {} from the binding cache",
+                plural(filled, "stroke layer")
+            );
+        }
+        let binding_computed = scene
+            .rigs
+            .iter()
+            .any(|r| r.layers.iter().any(|l| l.cached_binding.is_none()));
         let view_meshes = read_view_meshes(&reader, &reader.prim_paths()?)?;
         if let Some(c) = camera {
             reader.require_camera(c, "--camera")?;
@@ -226,6 +251,7 @@ impl Character {
             },
             camera: camera.map(str::to_string),
             proxy_normals: false,
+            binding_computed,
             rigs,
             views,
         })

@@ -22,6 +22,7 @@ use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use crate::bake::{open_for_bake, resolve_frames, BakeOptions};
+use crate::character::Character;
 use crate::error::{Error, Result};
 use crate::frames::FrameRange;
 use crate::usd_io::clips::{self, ChunkState, ClipPlan};
@@ -207,8 +208,9 @@ impl FarmJob {
     }
 
     /// Checks the input and output as `bake` would, resolves the frames
-    /// and chunks, and reads which chunks are already done.
-    pub fn prepare(args: &SubmitArgs) -> Result<FarmJob> {
+    /// and chunks, and reads which chunks are already done; also returns
+    /// the opened character (its binding goes to the binding cache).
+    pub fn prepare(args: &SubmitArgs) -> Result<(FarmJob, Character)> {
         let opts = BakeOptions {
             frames: args.frames,
             bake_proxy: args.bake_proxy,
@@ -227,7 +229,7 @@ impl FarmJob {
         let states = clips::chunk_states(&clips, &input_hash, &times)?;
         let painterly = std::env::current_exe()
             .map_err(|e| Error::msg(format!("cannot find the painterly binary's own path: {e}")))?;
-        Ok(FarmJob {
+        let job = FarmJob {
             input: absolute(&args.input)?,
             output,
             chunk_size: args.chunk,
@@ -240,7 +242,8 @@ impl FarmJob {
             times,
             clips,
             states,
-        })
+        };
+        Ok((job, character))
     }
 }
 
@@ -363,7 +366,7 @@ pub fn submit(args: &SubmitArgs) -> Result<SubmitSummary> {
     if let SchedulerKind::Slurm = args.scheduler {
         slurm::check_installed()?;
     }
-    let job = FarmJob::prepare(args)?;
+    let (job, character) = FarmJob::prepare(args)?;
     let plan_path = plan::plan_path(&job.clips);
     if let Some(previous) = FarmPlan::read_if_any(&plan_path)? {
         refuse_live_tasks(&previous, &plan_path)?;
@@ -371,6 +374,11 @@ pub fn submit(args: &SubmitArgs) -> Result<SubmitSummary> {
     let todo = job.todo();
     std::fs::create_dir_all(job.farm_dir().join("logs"))
         .map_err(|e| Error::msg(format!("cannot create the farm folder: {e}")).in_file(&job.farm_dir()))?;
+    if !todo.is_empty() {
+        // Bound once here, for every task and the assembly.
+        crate::bake::leave_binding_cache(&character, &job.output);
+    }
+    drop(character);
     let sub = scheduler.submit(&job, &todo)?;
     let plan = FarmPlan::new(args.scheduler, &job, &sub);
     plan.write(&plan_path).map_err(|e| {

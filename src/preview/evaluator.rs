@@ -168,7 +168,10 @@ impl State {
             }
             None => None,
         };
-        let report = crate::inspect::inspect(input, camera);
+        // The stage checks of `inspect`, on the stage already open; not its
+        // every-frame evaluation, which would make each reload as slow as a
+        // bake: a frame that fails to evaluate is reported when shown.
+        let report = crate::inspect::inspect_stage(r);
         let mut problems = match &report {
             Ok(rep) => rep
                 .problems

@@ -91,21 +91,39 @@ pub struct Provenance {
 /// written by painterly). Only the layer itself is read, not what it
 /// sublayers.
 pub fn read_provenance(path: &Path) -> Result<Option<Provenance>> {
-    use openusd::sdf;
+    Ok(provenance_of(&open_mapped_layer(path)?))
+}
+
+/// Opens one layer (not what it sublayers) over a read-only memory mapping
+/// of its file, so that only the pages a read touches are loaded: reading a
+/// chunk's provenance then costs kilobytes, not the chunk's hundreds of MB.
+pub fn open_mapped_layer(path: &Path) -> Result<openusd::sdf::Layer> {
+    use openusd::{ar, sdf};
     let p = path
         .to_str()
         .ok_or_else(|| Error::msg("path is not valid UTF-8").in_file(path))?;
-    let layer = sdf::Layer::open(p).map_err(|e| Error::msg(format!("cannot read layer: {e}")).in_file(path))?;
+    // SAFETY (the promise `map_files` asks for: the file is not modified
+    // while the layer lives): painterly replaces the files it writes by
+    // rename, never writing into one, and so do usd-core's saves; callers
+    // keep the layer only while they read from it.
+    #[allow(unsafe_code)]
+    let resolver = unsafe { ar::DefaultResolver::new().map_files() };
+    sdf::Layer::open_with(resolver, p).map_err(|e| Error::msg(format!("cannot read layer: {e}")).in_file(path))
+}
+
+/// The provenance painterly recorded in `layer`, if any.
+pub fn provenance_of(layer: &openusd::sdf::Layer) -> Option<Provenance> {
+    use openusd::sdf;
     let data = layer
         .data()
         .get_field(&sdf::Path::abs_root(), "customLayerData")
         .ok()
         .map(|v| v.into_owned());
     let Some(Value::Dictionary(d)) = data else {
-        return Ok(None);
+        return None;
     };
     let Some(Value::Dictionary(info)) = d.get("painterly") else {
-        return Ok(None);
+        return None;
     };
     let text = |k: &str| match info.get(k) {
         Some(Value::String(s)) => Some(s.clone()),
@@ -116,7 +134,7 @@ pub fn read_provenance(path: &Path) -> Result<Option<Provenance>> {
         Some(Value::Int64(n)) => usize::try_from(*n).ok(),
         _ => None,
     };
-    Ok(Some(Provenance {
+    Some(Provenance {
         input: text("input").unwrap_or_default(),
         frames: text("frames").unwrap_or_default(),
         version: text("version").unwrap_or_default(),
@@ -126,7 +144,7 @@ pub fn read_provenance(path: &Path) -> Result<Option<Provenance>> {
             (Some(size), Some(Value::StringVec(names))) => Some((size, names.clone())),
             _ => None,
         },
-    }))
+    })
 }
 
 impl Provenance {

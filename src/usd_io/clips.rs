@@ -52,17 +52,30 @@ pub struct ClipPlan {
     pub chunks: Vec<Chunk>,
 }
 
+/// The stem of a clip-set layer's name and its clips folder, `<stem>.clips`.
+fn clips_dir(output: &Path) -> Result<(String, PathBuf)> {
+    let stem = output
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .ok_or_else(|| Error::msg("output path has no file name").in_file(output))?;
+    let dir = output.with_file_name(format!("{stem}.clips"));
+    Ok((stem, dir))
+}
+
+/// Where a chunked bake into `output` caches its binding:
+/// `<stem>.clips/<stem>.binding.usdc` (see [`super::binding_cache`]).
+pub fn binding_cache_path(output: &Path) -> Result<PathBuf> {
+    let (stem, dir) = clips_dir(output)?;
+    Ok(dir.join(format!("{stem}.binding.usdc")))
+}
+
 impl ClipPlan {
     /// Splits `times` into chunks of `chunk_size` frames for `output`.
     pub fn new(output: &Path, times: &[f64], chunk_size: usize) -> Result<ClipPlan> {
         if chunk_size == 0 {
             return Err(Error::msg("--chunk must be at least 1"));
         }
-        let stem = output
-            .file_stem()
-            .map(|s| s.to_string_lossy().into_owned())
-            .ok_or_else(|| Error::msg("output path has no file name").in_file(output))?;
-        let dir = output.with_file_name(format!("{stem}.clips"));
+        let (stem, dir) = clips_dir(output)?;
         let count = times.len().div_ceil(chunk_size);
         let width = (count.saturating_sub(1)).to_string().len().max(4);
         let chunks = (0..count)
@@ -292,6 +305,14 @@ fn read_stamp(path: &Path) -> Result<Option<Provenance>> {
 /// SHA-256 over every layer file the stage used (sorted by path: name, then
 /// bytes), hex encoded. Packages (`.usdz`) are hashed as one file.
 pub fn input_hash(r: &StageReader) -> Result<String> {
+    if let Some(h) = r.input_hash.get() {
+        return Ok(h.clone());
+    }
+    let h = hash_layers(r)?;
+    Ok(r.input_hash.get_or_init(|| h).clone())
+}
+
+fn hash_layers(r: &StageReader) -> Result<String> {
     use sha2::{Digest, Sha256};
     let mut files: BTreeSet<PathBuf> = BTreeSet::new();
     for id in r.stage.layer_identifiers() {

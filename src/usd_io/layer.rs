@@ -29,6 +29,8 @@ struct AttrOut {
 enum Samples {
     Values(Vec<(f64, Value)>),
     Streamed(usize),
+    /// A default value and no samples (what a binding cache holds).
+    Default(Value),
 }
 
 /// Streamed samples' numbers by attribute path, for [`usdc::add_layer_specs`].
@@ -113,6 +115,18 @@ impl OverLayer {
         );
     }
 
+    /// Authors an attribute's default value (no time samples).
+    pub fn set_default(&mut self, prim: &str, attr: &str, type_name: &'static str, value: Value) {
+        self.prims.entry(prim.to_string()).or_default().attrs.insert(
+            attr.to_string(),
+            AttrOut {
+                type_name,
+                samples: Samples::Default(value),
+                metadata: Vec::new(),
+            },
+        );
+    }
+
     /// Authors time samples whose values a crate stream already wrote; `key`
     /// is what [`write_to_stream`](Self::write_to_stream) asks for their
     /// handles by.
@@ -145,8 +159,8 @@ impl OverLayer {
 
     /// Builds the Sdf data: over specs for every authored prim and its ancestors.
     fn into_data(self) -> Result<sdf::Data> {
-        let (data, stored) = self.into_parts()?;
-        match stored.keys().next() {
+        let (data, streamed) = self.into_parts()?;
+        match streamed.keys().next() {
             Some(attr) => Err(Error::msg(format!(
                 "internal: {attr} holds samples of a crate stream; write the layer to that stream"
             ))),
@@ -170,7 +184,7 @@ impl OverLayer {
 
     /// The Sdf data, and the streamed samples it leaves out (by attribute path).
     fn into_parts(self) -> Result<(sdf::Data, StreamedSamples)> {
-        let mut stored = StreamedSamples::new();
+        let mut streamed = StreamedSamples::new();
         let mut data = sdf::Data::new();
         // Every prim path that needs a spec, with its children names in order.
         let mut children: BTreeMap<String, Vec<String>> = BTreeMap::new();
@@ -277,8 +291,9 @@ impl OverLayer {
                 match a.samples {
                     // Moved, not cloned: bakes hold hundreds of MB of samples.
                     Samples::Values(v) => spec.add(FieldKey::TimeSamples, Value::TimeSamples(v)),
+                    Samples::Default(v) => spec.add(FieldKey::Default, v),
                     Samples::Streamed(key) => {
-                        stored.insert(format!("{prim_path}.{name}"), key);
+                        streamed.insert(format!("{prim_path}.{name}"), key);
                     }
                 }
             }
@@ -293,7 +308,7 @@ impl OverLayer {
                 );
             }
         }
-        Ok((data, stored))
+        Ok((data, streamed))
     }
 
     /// Serialises to bytes in `format`.

@@ -7,6 +7,7 @@ pub mod assembly;
 pub mod atomic;
 pub mod axes;
 pub mod bake_layer;
+pub mod binding_cache;
 pub mod clips;
 pub mod compose_watch;
 pub mod edit;

@@ -1002,6 +1002,19 @@ fn read_cached_binding(
             ))
         }
     };
+    check_binding(path, &verts, &weights, npoints, proxy_points).map(Some)
+}
+
+/// A binding of `npoints` points to a proxy of `proxy_points` points, once
+/// every entry is checked: one per point, vertex indices in range, finite
+/// weights. Errors name the layer prim `path` and the attribute.
+pub fn check_binding(
+    path: &str,
+    verts: &[[i64; 3]],
+    weights: &[Vec3],
+    npoints: usize,
+    proxy_points: usize,
+) -> Result<Binding> {
     if verts.len() != npoints {
         return Err(Error::attr(
             path,
@@ -1025,11 +1038,11 @@ fn read_cached_binding(
             ));
         }
     }
-    check_finite(&weights, path, "painterly:bindWeights")?;
-    Ok(Some(Binding {
+    check_finite(weights, path, "painterly:bindWeights")?;
+    Ok(Binding {
         vertices: verts.iter().map(|v| v.map(|x| x as u32)).collect(),
         weights: weights.iter().map(|w| [w.x, w.y, w.z]).collect(),
-    }))
+    })
 }
 
 /// Authored displayOpacity as one value per curve.

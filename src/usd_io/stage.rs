@@ -28,6 +28,9 @@ pub struct StageReader {
     /// Sublayers, references and payloads that did not resolve or could not
     /// be read (usd-core warns and composes without them).
     pub unresolved: Vec<UnresolvedAsset>,
+    /// SHA-256 over the stage's layer files, once computed
+    /// ([`super::clips::input_hash`]): a chunked bake needs it more than once.
+    pub input_hash: std::sync::OnceLock<String>,
 }
 
 /// A sublayer, reference or payload whose asset (or target prim) is missing.
@@ -161,6 +164,7 @@ impl StageReader {
             stage,
             file: path.to_path_buf(),
             unresolved,
+            input_hash: std::sync::OnceLock::new(),
         })
     }
 
