@@ -201,18 +201,9 @@ pub fn bind(session: &EditSession, opts: &BindOptions) -> Result<BindReport> {
 
 fn write_binding(session: &EditSession, layer: &str, rest: &[Vec3], b: &Binding) -> Result<()> {
     session.set(layer, "painterly:restPoints", "point3f[]", true, vec3f_value(rest))?;
-    let verts = b
-        .vertices
-        .iter()
-        .map(|v| gf::Vec3i {
-            x: v[0] as i32,
-            y: v[1] as i32,
-            z: v[2] as i32,
-        })
-        .collect();
-    session.set(layer, "painterly:bindVertices", "int3[]", true, Value::Vec3iVec(verts))?;
-    let w = b.weights.iter().map(|w| gf::vec3f(w[0], w[1], w[2])).collect();
-    session.set(layer, "painterly:bindWeights", "float3[]", true, Value::Vec3fVec(w))
+    let (verts, weights) = crate::usd_io::values::binding_values(b);
+    session.set(layer, "painterly:bindVertices", "int3[]", true, verts)?;
+    session.set(layer, "painterly:bindWeights", "float3[]", true, weights)
 }
 
 /// Which kind of key [`key`] sets.

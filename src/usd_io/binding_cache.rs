@@ -16,7 +16,6 @@
 
 use std::path::Path;
 
-use openusd::gf;
 use openusd::sdf::{self, Value};
 
 use super::bake_layer::{open_mapped_layer, provenance_of, Provenance};
@@ -114,18 +113,9 @@ pub fn write<'a>(
         ..Default::default()
     });
     for (prim, b) in layers {
-        let verts = b
-            .vertices
-            .iter()
-            .map(|v| gf::Vec3i {
-                x: v[0] as i32,
-                y: v[1] as i32,
-                z: v[2] as i32,
-            })
-            .collect();
-        let weights = b.weights.iter().map(|w| gf::vec3f(w[0], w[1], w[2])).collect();
-        out.set_default(prim, "painterly:bindVertices", "int3[]", Value::Vec3iVec(verts));
-        out.set_default(prim, "painterly:bindWeights", "float3[]", Value::Vec3fVec(weights));
+        let (verts, weights) = values::binding_values(b);
+        out.set_default(prim, "painterly:bindVertices", "int3[]", verts);
+        out.set_default(prim, "painterly:bindWeights", "float3[]", weights);
     }
     out.write(path)
 }

@@ -4,7 +4,10 @@
 //! wants one representation, so readers accept every precision and convert.
 
 use glam::{DMat4, Vec3};
+use openusd::gf;
 use openusd::sdf::Value;
+
+use crate::bind::Binding;
 
 /// `point3f[]`, `float3[]`, `vector3f[]`, ... in any precision, as f32 vectors.
 pub fn vec3_array(v: &Value) -> Option<Vec<Vec3>> {
@@ -125,6 +128,22 @@ pub fn matrix4(v: &Value) -> Option<DMat4> {
 pub fn kind_name(v: &Value) -> String {
     let dbg = format!("{v:?}");
     dbg.split(['(', ' ', '{']).next().unwrap_or("value").to_string()
+}
+
+/// A binding as the values of `painterly:bindVertices` (`int3[]`) and
+/// `painterly:bindWeights` (`float3[]`).
+pub fn binding_values(b: &Binding) -> (Value, Value) {
+    let verts = b
+        .vertices
+        .iter()
+        .map(|v| gf::Vec3i {
+            x: v[0] as i32,
+            y: v[1] as i32,
+            z: v[2] as i32,
+        })
+        .collect();
+    let weights = b.weights.iter().map(|w| gf::vec3f(w[0], w[1], w[2])).collect();
+    (Value::Vec3iVec(verts), Value::Vec3fVec(weights))
 }
 
 #[cfg(test)]
