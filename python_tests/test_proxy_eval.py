@@ -192,6 +192,39 @@ def test_time_sampled_proxy_fractional_frames(painterly, tmp_path):
     check_proxy_matches_usd_core(rig, out, Au.frame_list(1, 3, 0.5), tol=1e-6)
 
 
+@pytest.mark.parametrize("default_points", [True, False])
+def test_point_cache_in_a_crate_sublayer_reads_as_usd_core_does(painterly, tmp_path, default_points):
+    """Time-sampled proxy points in a usd-core-written .usdc sublayer with a
+    layer offset (offset 2, scale 1.5) are read one sample at a time from the
+    crate file (src/usd_io/crate_samples.rs), not through openusd's reader.
+    The --bake-proxy points match usd-core at frames and fractional frames
+    in stage time, and are bit-identical to the bake of the same stage whose
+    sublayer is the .usda text (which openusd reads). Without default points
+    it is a point cache whose rest pose is its first sample, in stage time."""
+    from types import SimpleNamespace
+    rig = Au.build_points_rig(tmp_path / "rig.usda", mode="sampled", default_points=default_points,
+                              rest_time=None if default_points else 1.0)
+    Sdf.Layer.FindOrOpen(str(rig.path)).Export(str(tmp_path / "rig.usdc"))
+    frames = Au.frame_list(3.0, 2.0 + 1.5 * 10, 0.25)
+    points = {}
+    for ext in ("usdc", "usda"):
+        root = tmp_path / f"root_{ext}.usda"
+        root.write_text(f"#usda 1.0\n(\n    subLayers = [@./rig.{ext}@ (offset = 2; scale = 1.5)]\n)\n")
+        if not default_points:
+            # painterly:restTime is in the rig's own time: frame 1 is stage time 3.5.
+            st = Usd.Stage.Open(str(root))
+            assert st.GetPrimAtPath(rig.mesh).GetAttribute("points").Get(Usd.TimeCode.Default()) is None
+        staged = SimpleNamespace(path=root, mesh=rig.mesh, frames=frames)
+        out = bake_proxy(painterly, staged, tmp_path, frames_arg=f"{frames[0]}:{frames[-1]}:0.25",
+                         out_name=f"bake_{ext}.usdc")
+        check_proxy_matches_usd_core(staged, out, frames, tol=1e-6)
+        layer = Sdf.Layer.FindOrOpen(str(out))
+        pts = Sdf.Path(rig.mesh).AppendProperty("points")
+        points[ext] = {t: np.array(layer.QueryTimeSample(pts, t), dtype=np.float32) for t in frames}
+    for t in frames:
+        assert np.array_equal(points["usdc"][t], points["usda"][t]), f"t={t}: crate and text reads differ"
+
+
 def test_static_proxy_is_its_points(painterly, tmp_path):
     rig = Au.build_points_rig(tmp_path / "static.usda", mode="static",
                               proxy_xform=Au.xf_static((1, 2, 3), (10, 20, 30), (2, 2, 2)))

@@ -95,7 +95,7 @@ pub fn resolve_frames(r: &StageReader, frames: Option<FrameRange>) -> Result<Vec
 
 /// Bakes `input` into `output`. A stage with nothing to bake is an error.
 pub fn bake(input: &Path, output: &Path, opts: &BakeOptions, progress: Progress) -> Result<BakeSummary> {
-    bake_with(input, output, opts, progress, || StageReader::open(input))
+    bake_with(input, output, opts, progress, || StageReader::open_mapped(input))
 }
 
 /// Like [`bake`], for the stage `open` returns (a layer handed over in
@@ -116,7 +116,7 @@ pub fn bake_with(
 /// path, the character, something to bake), and the opened character; a
 /// farm submission makes them too, before it queues any task.
 pub fn open_for_bake(input: &Path, output: &Path, opts: &BakeOptions) -> Result<Character> {
-    open_for_bake_with(input, output, opts, || StageReader::open(input))
+    open_for_bake_with(input, output, opts, || StageReader::open_mapped(input))
 }
 
 /// [`open_for_bake`] for the stage `open` returns.

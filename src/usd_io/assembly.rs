@@ -36,7 +36,7 @@ pub fn write_view_layer(input: &Path, bake: &Path, output: &Path) -> Result<View
             return Err(Error::msg(format!("cannot open {what}: no such file")).in_file(p));
         }
     }
-    let r = StageReader::open(input)?;
+    let r = StageReader::open_mapped(input)?;
     let meta = r.metadata();
     let mut warnings = Vec::new();
     let provenance = read_provenance(bake)?;

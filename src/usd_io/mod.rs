@@ -10,6 +10,7 @@ pub mod bake_layer;
 pub mod binding_cache;
 pub mod clips;
 pub mod compose_watch;
+pub mod crate_samples;
 pub mod edit;
 pub mod guard;
 pub mod layer;

@@ -10,6 +10,7 @@ use glam::{DMat4, DVec3, Vec3};
 use openusd::usd;
 
 use super::axes::Axis;
+use super::crate_samples::CrateSamples;
 use super::guard::{MAX_PROXY_POINTS, MAX_STROKE_POINTS};
 use super::skel::{skeleton_binding, SkelProxy};
 use super::stage::StageReader;
@@ -59,6 +60,9 @@ pub struct Proxy {
     /// A cached query on `points`: per-frame reads through a plain attribute
     /// decode every time sample of a crate file each time.
     points_query: usd::AttributeQuery,
+    /// Time-sampled `points` read one sample at a time from the crate file,
+    /// where that gives what `points_query` gives (a point cache).
+    points_samples: Option<CrateSamples>,
 }
 
 /// A skinned proxy's authored `normals`: per point (`vertex`, `varying`)
@@ -429,11 +433,25 @@ pub fn read_mesh(r: &StageReader, prim: usd::Prim, rest_time: Option<f64>) -> Re
 
     // Rest pose and motion kind (SPEC §2).
     let skeleton = skeleton_binding(r, &prim).map_err(|e| e.or_rule(Rule::Skinning))?;
-    let has_samples = !r.sample_times(&prim, "points")?.is_empty();
+    let points_samples = r.crate_samples(&prim, "points");
+    let has_samples = match &points_samples {
+        Some(s) => !s.stage_times().is_empty(),
+        None => !r.sample_times(&prim, "points")?.is_empty(),
+    };
     let rest_pts = if skeleton.is_some() {
         r.typed(&prim, "points", None, "point3f[]", values::vec3_array)?
     } else if let Some(t) = rest_time {
-        r.typed(&prim, "points", Some(t), "point3f[]", values::vec3_array)?
+        match &points_samples {
+            Some(s) => s
+                .value_at(t)
+                .map_err(|e| Error::attr(&proxy_path, "points", format!("cannot read at time {t}: {e}")))?
+                .map(|v| {
+                    values::into_vec3_array(v)
+                        .map_err(|kind| Error::attr(&proxy_path, "points", format!("expected point3f[], found {kind}")))
+                })
+                .transpose()?,
+            None => r.typed(&prim, "points", Some(t), "point3f[]", values::vec3_array)?,
+        }
     } else {
         r.typed(&prim, "points", None, "point3f[]", values::vec3_array)?
     };
@@ -491,6 +509,7 @@ pub fn read_mesh(r: &StageReader, prim: usd::Prim, rest_time: Option<f64>) -> Re
         motion,
         normals,
         points_query: usd::AttributeQuery::new(&prim.attribute("points")),
+        points_samples,
         prim,
     })
 }
@@ -577,10 +596,14 @@ impl Proxy {
 
     /// Time-sampled `points` at `t` (USD's linear interpolation), checked for count.
     fn sampled_points(&self, t: f64) -> Result<Vec<Vec3>> {
-        let v = self
-            .points_query
-            .get_at::<openusd::sdf::Value>(usd::TimeCode::new(t))
-            .map_err(|e| Error::attr(&self.path, "points", format!("cannot read at time {t}: {e}")))?;
+        let v = match &self.points_samples {
+            Some(s) => s.value_at(t),
+            None => self
+                .points_query
+                .get_at::<openusd::sdf::Value>(usd::TimeCode::new(t))
+                .map_err(|e| e.to_string()),
+        }
+        .map_err(|e| Error::attr(&self.path, "points", format!("cannot read at time {t}: {e}")))?;
         let p = match v {
             None => Vec::new(),
             Some(v) => values::into_vec3_array(v)

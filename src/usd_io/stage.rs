@@ -12,6 +12,7 @@ use openusd::usd::{self, TimeCode};
 use openusd_schemas::geom::XformCache;
 
 use super::compose_watch;
+use super::crate_samples::CrateSamples;
 use super::guard::Guard;
 use super::values;
 use crate::error::{Error, Result};
@@ -31,6 +32,10 @@ pub struct StageReader {
     /// SHA-256 over the stage's layer files, once computed
     /// ([`super::clips::input_hash`]): a chunked bake needs it more than once.
     pub input_hash: std::sync::OnceLock<String>,
+    /// Whether the layers are mapped files on disk, unedited, for one
+    /// command ([`StageReader::open_mapped`]): only then are time samples read
+    /// straight from the files ([`super::crate_samples`]).
+    pub mapped: bool,
 }
 
 /// A sublayer, reference or payload whose asset (or target prim) is missing.
@@ -114,16 +119,41 @@ impl StageMetadata {
 }
 
 impl StageReader {
-    /// Opens and composes `path` (`.usda`, `.usdc` or `.usdz`).
+    /// Opens and composes `path` (`.usda`, `.usdc` or `.usdz`), reading
+    /// every layer into memory: for readers that live on while the user may
+    /// rewrite the files (the preview, the Python API).
     pub fn open(path: &Path) -> Result<Self> {
+        let path_str = Self::checked_input(path)?;
+        Self::compose(path, path_str, openusd::ar::DefaultResolver::new())
+    }
+
+    /// Opens and composes `path` over read-only memory mappings of its
+    /// layers, so a bake touches only the pages it reads, and lets time
+    /// samples be read straight from the files ([`Self::crate_samples`]).
+    /// For one command's duration (a bake, an assembly), as usd-core maps
+    /// crate files.
+    pub fn open_mapped(path: &Path) -> Result<Self> {
+        let path_str = Self::checked_input(path)?;
+        // SAFETY (the promise `map_files` asks for: the files are not modified
+        // while the stage lives): painterly and usd-core replace the files they
+        // write by rename, never writing into one (`--in-place` edits too), so a
+        // mapped layer keeps its bytes for the command's duration.
+        #[allow(unsafe_code)]
+        let resolver = unsafe { openusd::ar::DefaultResolver::new().map_files() };
+        Ok(StageReader {
+            mapped: true,
+            ..Self::compose(path, path_str, resolver)?
+        })
+    }
+
+    /// `path` as a string, when it names a regular file.
+    fn checked_input(path: &Path) -> Result<&str> {
         let meta = std::fs::metadata(path).map_err(|e| Error::msg(format!("cannot open input: {e}")).in_file(path))?;
         if !meta.is_file() {
             return Err(Error::msg("cannot open input: not a regular file").in_file(path));
         }
-        let path_str = path
-            .to_str()
-            .ok_or_else(|| Error::msg("input path is not valid UTF-8").in_file(path))?;
-        Self::compose(path, path_str, openusd::ar::DefaultResolver::new())
+        path.to_str()
+            .ok_or_else(|| Error::msg("input path is not valid UTF-8").in_file(path))
     }
 
     /// Opens and composes the layer `identifier` through `resolver` (see
@@ -165,6 +195,7 @@ impl StageReader {
             file: path.to_path_buf(),
             unresolved,
             input_hash: std::sync::OnceLock::new(),
+            mapped: false,
         })
     }
 
@@ -263,6 +294,15 @@ impl StageReader {
             .get_at::<Value>(time.map(TimeCode::new))
             .map_err(|e| Error::attr(prim.path(), name, format!("cannot read: {e}")))?;
         Ok(v.filter(|v| !matches!(v, Value::None | Value::ValueBlock)))
+    }
+
+    /// An attribute's time samples read one at a time from the crate file
+    /// that authors them, where that is exact (see [`CrateSamples`]).
+    pub fn crate_samples(&self, prim: &usd::Prim, name: &str) -> Option<CrateSamples> {
+        if !self.mapped {
+            return None;
+        }
+        CrateSamples::open(&self.stage, prim, name)
     }
 
     /// Authored time-sample times of an attribute (empty when none).

@@ -335,7 +335,11 @@ fn point_cache_time(r: &StageReader, prim: &usd::Prim, rest_time: Option<f64>) -
     if super::skel::skeleton_binding(r, prim)?.is_some() {
         return Ok(None);
     }
-    Ok(r.sample_times(prim, "points")?.first().copied())
+    // A point cache read from its crate file lists its times without decoding them.
+    match r.crate_samples(prim, "points") {
+        Some(s) => Ok(s.stage_times().first().copied()),
+        None => Ok(r.sample_times(prim, "points")?.first().copied()),
+    }
 }
 
 /// Checks that `path` names an existing prim with a transform; `origin`
