@@ -10,6 +10,7 @@ composed stage validates cleanly with UsdValidation; CLI reporting (--json,
 
 import json
 import pathlib
+import shutil
 
 import numpy as np
 import pytest
@@ -332,3 +333,80 @@ def test_stage_with_nothing_to_bake_exits_1_and_writes_nothing(painterly, tmp_pa
     assert "nothing to bake" in proc.stderr and str(src) in proc.stderr
     assert not out.exists()
     assert list(tmp_path.iterdir()) == [src]
+
+
+def test_a_rig_without_stroke_layers_bakes_only_with_bake_proxy(painterly, tmp_path, repo_root):
+    """A rig whose stroke layers are gone has nothing to bake (exit 1, no
+    file), unless --bake-proxy asks for its proxy, which is then written."""
+    src = tmp_path / "bare_rig.usda"
+    shutil.copyfile(repo_root / "fixtures" / "tube.usda", src)
+    stage = Usd.Stage.Open(str(src))
+    for name in ("Rings", "Stripes"):
+        assert stage.RemovePrim(f"/Tube/Paint/{name}")
+    stage.Save()
+    out = tmp_path / "b.usdc"
+    proc = painterly("bake", src, "-o", out, "--frames", "1:3", check=False)
+    assert proc.returncode == 1
+    assert "nothing to bake" in proc.stderr and str(src) in proc.stderr
+    assert not out.exists()
+    proc = painterly("bake", src, "-o", out, "--frames", "1:3", "--bake-proxy", "--json")
+    assert json.loads(proc.stdout)["layers"] == 0
+    layer = Sdf.Layer.FindOrOpen(str(out))
+    assert layer.ListTimeSamplesForPath("/Tube/Rig/Proxy.points") == [1.0, 2.0, 3.0]
+
+
+def test_bake_proxy_writes_each_rig_proxy_once(painterly, tmp_path, repo_root):
+    """--bake-proxy over three rigs: two share the tube's proxy, the third
+    has a copy of the whole SkelRoot as its own. Each proxy mesh is written
+    (the shared one once, equal to a one-rig bake's), and the copy's points
+    equal the original's, since it is the same rig."""
+    one = tmp_path / "one.usda"
+    shutil.copyfile(repo_root / "fixtures" / "tube.usda", one)
+    src = tmp_path / "three.usda"
+    layer = Sdf.Layer.FindOrOpen(str(one))
+    assert Sdf.CopySpec(layer, "/Tube/Paint", layer, "/Tube/PaintShared")
+    assert Sdf.CopySpec(layer, "/Tube/Rig", layer, "/Tube/Rig2")
+    assert Sdf.CopySpec(layer, "/Tube/Paint", layer, "/Tube/Paint2")
+    layer.GetRelationshipAtPath("/Tube/Paint2.painterly:proxy").targetPathList.explicitItems = ["/Tube/Rig2/Proxy"]
+    layer.Export(str(src))
+    layer.Reload(True)
+    outs = {}
+    for name, path, rigs in (("one", one, 1), ("three", src, 3)):
+        outs[name] = tmp_path / f"{name}_bake.usdc"
+        proc = painterly("bake", path, "-o", outs[name], "--frames", "1:3", "--bake-proxy", "--json")
+        assert json.loads(proc.stdout)["rigs"] == rigs
+    got = Sdf.Layer.FindOrOpen(str(outs["three"]))
+    want = Sdf.Layer.FindOrOpen(str(outs["one"]))
+    for mesh in ("/Tube/Rig/Proxy", "/Tube/Rig2/Proxy"):
+        pts = Sdf.Path(mesh).AppendProperty("points")
+        assert got.ListTimeSamplesForPath(pts) == [1.0, 2.0, 3.0], mesh
+        for t in (1.0, 2.0, 3.0):
+            assert np.array_equal(np.array(got.QueryTimeSample(pts, t)),
+                                  np.array(want.QueryTimeSample("/Tube/Rig/Proxy.points", t))), (mesh, t)
+
+
+def test_bake_proxy_beside_a_view_dependent_mesh(painterly, tmp_path, repo_root):
+    """A rig's proxy that is not the stage's view-dependent mesh is written
+    by --bake-proxy next to that mesh."""
+    fix = repo_root / "fixtures"
+    root = tmp_path / "both.usda"
+    root.write_text(f"#usda 1.0\n(\n    subLayers = [@{fix / 'tube.usda'}@, @{fix / 'building.usda'}@]\n)\n")
+    out = tmp_path / "b.usdc"
+    painterly("bake", root, "-o", out, "--frames", "1:3", "--bake-proxy", "-q")
+    layer = Sdf.Layer.FindOrOpen(str(out))
+    for mesh in ("/Tube/Rig/Proxy", "/Building/Box"):
+        assert layer.ListTimeSamplesForPath(f"{mesh}.points") == [1.0, 2.0, 3.0], mesh
+
+
+def test_skeleton_blocked_only_on_meshes_the_bake_writes(painterly, tmp_path, repo_root):
+    """skel:skeleton is blocked on a skinned proxy only when --bake-proxy
+    writes its points: otherwise viewers must go on skinning it."""
+    src = repo_root / "fixtures" / "tube.usda"
+    rel = Sdf.Path("/Tube/Rig/Proxy").AppendProperty("skel:skeleton")
+    for flags, blocked in (([], False), (["--bake-proxy"], True)):
+        out = tmp_path / f"b{len(flags)}.usda"
+        painterly("bake", src, "-o", out, "--frames", "1:2", "-q", *flags)
+        assert (Sdf.Layer.FindOrOpen(str(out)).GetRelationshipAtPath(rel) is not None) == blocked, flags
+        comp = Au.compose(src, out)
+        targets = comp.GetPrimAtPath("/Tube/Rig/Proxy").GetRelationship("skel:skeleton").GetTargets()
+        assert (targets == []) == blocked, (flags, targets)

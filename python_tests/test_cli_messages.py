@@ -117,3 +117,66 @@ def test_a_closed_pipe_ends_quietly(painterly, repo_root):
     )
     assert proc.stderr == ""
     assert proc.stdout.strip() in {"0", "141"}
+
+
+def test_bake_refuses_to_write_over_its_input(painterly, tmp_path, repo_root):
+    """The input is never modified: an output naming the input (directly or
+    through a symlink) is refused before any work, and the input's bytes stay."""
+    src = tmp_path / "tube.usda"
+    src.write_bytes((repo_root / "fixtures" / "tube.usda").read_bytes())
+    link = tmp_path / "link.usda"
+    link.symlink_to(src)
+    before = src.read_bytes()
+    for out in (src, link, tmp_path / "." / "tube.usda"):
+        proc = painterly("bake", src, "-o", out, "--frames", "1:2", check=False)
+        assert proc.returncode == 1, proc.stderr
+        assert proc.stderr.strip() == f"error: {out}: output would overwrite the input; inputs are never modified"
+        assert src.read_bytes() == before
+        assert sorted(p.name for p in tmp_path.iterdir()) == ["link.usda", "tube.usda"]
+
+
+def test_bake_names_a_missing_output_folder(painterly, tmp_path, repo_root):
+    out = tmp_path / "no" / "such" / "bake.usdc"
+    proc = painterly("bake", repo_root / "fixtures" / "tube.usda", "-o", out, check=False)
+    assert proc.returncode == 1
+    assert proc.stderr.strip() == f"error: {out}: output directory {out.parent} does not exist"
+    assert not (tmp_path / "no").exists()
+
+
+def test_bake_to_a_bare_file_name_writes_in_the_working_folder(painterly, tmp_path, repo_root):
+    """`-o bake.usdc` (no folder) is the working folder, which exists."""
+    proc = painterly("bake", repo_root / "fixtures" / "tube.usda", "-o", "bake.usdc", "--frames", "1:2", "-q",
+                     cwd=tmp_path, check=False)
+    assert (proc.returncode, proc.stderr) == (0, "")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bake.usdc"]
+
+
+def test_a_stage_without_a_frame_range_inspects_clean_and_bakes_with_frames(painterly, tmp_path, repo_root):
+    """No startTimeCode/endTimeCode: nothing is wrong with the stage
+    (inspect exit 0), a bake without --frames says what to pass (exit 1),
+    and a bake with --frames works."""
+    text = (repo_root / "fixtures" / "tube.usda").read_text()
+    text = "\n".join(l for l in text.splitlines() if "TimeCode = " not in l or "PerSecond" in l) + "\n"
+    src = tmp_path / "norange.usda"
+    src.write_text(text)
+    assert "startTimeCode" not in text and "endTimeCode" not in text
+    proc = painterly("inspect", src, check=False)
+    assert (proc.returncode, proc.stderr) == (0, ""), proc.stderr
+    proc = painterly("bake", src, "-o", tmp_path / "a.usdc", check=False)
+    assert proc.returncode == 1
+    assert proc.stderr.strip() == f"error: {src}: the stage has no startTimeCode/endTimeCode: pass --frames A:B"
+    proc = painterly("bake", src, "-o", tmp_path / "b.usdc", "--frames", "1:3", "-q", check=False)
+    assert (proc.returncode, proc.stderr) == (0, "")
+
+
+def test_verbose_phase_times_add_up(painterly, tmp_path, repo_root):
+    """The -v frame line: read, evaluate (summed over threads), write and
+    wall seconds; reading and writing are serial, so each lies within the wall."""
+    proc = painterly("bake", repo_root / "fixtures" / "tube.usda", "-o", tmp_path / "b.usdc", "-v")
+    import re
+    m = re.search(r"(\d+) frames: read ([\d.]+) s, evaluate ([\d.]+) s \(summed over threads\), "
+                  r"write ([\d.]+) s; ([\d.]+) s wall", proc.stderr)
+    assert m, proc.stderr
+    frames, read, evaluate, write, wall = int(m[1]), *map(float, m.group(2, 3, 4, 5))
+    assert frames == 24
+    assert 0 <= read <= wall + 0.001 and 0 <= write <= wall + 0.001 and evaluate >= 0

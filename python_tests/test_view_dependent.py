@@ -596,6 +596,17 @@ def test_skinned_base(painterly, tmp_path):
     UsdSkel.BakeSkinning(comp.Traverse(), Gf.Interval(1, 12))
     for t in frames:
         assert np.abs(Au.world_points(comp, rig.mesh, t) - before[t]).max() <= 1e-6 * diag
+    # The view mesh is also the rig's proxy: with --bake-proxy its baked
+    # points are still the view-dependent ones, written once.
+    assert Usd.Stage.Open(str(rig.path)).GetPrimAtPath(rig.rig).GetRelationship(
+        "painterly:proxy").GetTargets() == [Sdf.Path(rig.mesh)]
+    out2 = tmp_path / "bake_proxy.usda"
+    painterly("bake", rig.path, "-o", out2, "--quiet", "--bake-proxy")
+    with_proxy = Sdf.Layer.FindOrOpen(str(out2))
+    pts = Sdf.Path(rig.mesh).AppendProperty("points")
+    assert with_proxy.ListTimeSamplesForPath(pts) == layer.ListTimeSamplesForPath(pts)
+    for t in frames:
+        assert np.array_equal(np.array(with_proxy.QueryTimeSample(pts, t)), np.array(layer.QueryTimeSample(pts, t)))
 
 
 # ---------------------------------------------------------------------------
