@@ -172,8 +172,11 @@ def test_a_stage_without_a_frame_range_inspects_clean_and_bakes_with_frames(pain
 def test_verbose_phase_times_add_up(painterly, tmp_path, repo_root):
     """The -v frame line: read, evaluate (summed over threads), write and
     wall seconds; reading and writing are serial, so each lies within the wall."""
-    proc = painterly("bake", repo_root / "fixtures" / "tube.usda", "-o", tmp_path / "b.usdc", "-v")
+    src = repo_root / "fixtures" / "tube.usda"
+    proc = painterly("bake", src, "-o", tmp_path / "b.usdc", "-v")
     import re
+    assert re.search(rf"^painterly: opened {re.escape(str(src))} \(1 layer\) in [\d.]+ s$", proc.stderr, re.M), \
+        proc.stderr
     m = re.search(r"(\d+) frames: read ([\d.]+) s, evaluate ([\d.]+) s \(summed over threads\), "
                   r"write ([\d.]+) s; ([\d.]+) s wall", proc.stderr)
     assert m, proc.stderr
