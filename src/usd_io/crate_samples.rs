@@ -320,6 +320,19 @@ mod tests {
     }
 
     #[test]
+    fn unsorted_or_repeated_sample_times_are_left_to_openusd() {
+        // openusd sorts a crate file's samples and keeps the last of a
+        // repeated time; this reader takes only strictly ascending tables.
+        for times in [[2.0, 1.0, 3.0], [1.0, 2.0, 2.0]] {
+            let dir = TempDir::new().unwrap();
+            let layer = sample_layer(dir.path(), &times);
+            let r = StageReader::open_mapped(&layer).unwrap();
+            let prim = r.require_prim("/M").unwrap();
+            assert!(r.crate_samples(&prim, "points").is_none(), "{times:?}");
+        }
+    }
+
+    #[test]
     fn a_stronger_opinion_or_an_edited_stage_is_left_to_openusd() {
         let dir = TempDir::new().unwrap();
         sample_layer(dir.path(), &[1.0, 2.0]);
