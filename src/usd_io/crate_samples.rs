@@ -14,7 +14,7 @@
 //! the strongest opinion is `timeSamples` (not a default, not value clips) in
 //! a crate file on disk, sorted with distinct times, of `point3f[]`-like
 //! arrays; the stage time goes through the same layer offset and the same
-//! linear (or held) interpolation with the same arithmetic as openusd's
+//! linear interpolation with the same arithmetic as openusd's
 //! `AttributeQuery` (tests compare the two bit for bit). Everything else
 //! returns `None` and the caller reads through openusd as before.
 
@@ -41,7 +41,6 @@ pub struct CrateSamples {
     reps: Vec<u64>,
     /// Authoring layer → stage time.
     offset: LayerOffset,
-    interpolation: InterpolationType,
 }
 
 impl CrateSamples {
@@ -60,12 +59,16 @@ impl CrateSamples {
         if times.is_empty() || !times.windows(2).all(|w| sdf::compare_sample_times(w[0], w[1]).is_lt()) {
             return None;
         }
+        // painterly's stages interpolate linearly (openusd's default); a held
+        // stage would be openusd's to read.
+        if stage.interpolation_type() != InterpolationType::Linear {
+            return None;
+        }
         let samples = CrateSamples {
             file,
             times,
             reps,
             offset: site.offset,
-            interpolation: stage.interpolation_type(),
         };
         // Only arrays of float 3-vectors are interpolated here.
         match samples.decode(0)? {
@@ -96,21 +99,11 @@ impl CrateSamples {
             Ok(i) => return Ok(clean(decode(i)?)),
             Err(i) => (i - 1, i),
         };
-        let v_lo = decode(lo)?;
-        if matches!(v_lo, Value::ValueBlock | Value::None) {
-            return Ok(None);
-        }
-        if self.interpolation == InterpolationType::Held {
-            // A blocked upper sample withholds the value in either mode.
-            return Ok(match decode(hi)? {
-                Value::ValueBlock | Value::None => None,
-                _ => Some(v_lo),
-            });
-        }
-        let v_hi = decode(hi)?;
+        let (v_lo, v_hi) = (decode(lo)?, decode(hi)?);
         let u = (lt - self.times[lo]) / (self.times[hi] - self.times[lo]);
         Ok(match (v_lo, v_hi) {
-            (_, Value::ValueBlock | Value::None) => None,
+            // A blocked sample on either side withholds the value.
+            (Value::ValueBlock | Value::None, _) | (_, Value::ValueBlock | Value::None) => None,
             (Value::Vec3fVec(a), Value::Vec3fVec(b)) if a.len() == b.len() => {
                 let u = u as f32;
                 Some(Value::Vec3fVec(
@@ -224,12 +217,21 @@ mod tests {
     /// A crate layer overriding `/M.points` with samples at `times` (4 points
     /// each, distinct per sample and per point).
     fn sample_layer(dir: &Path, times: &[f64]) -> std::path::PathBuf {
+        let counts: Vec<(f64, Option<usize>)> = times.iter().map(|&t| (t, Some(4))).collect();
+        sample_layer_of(dir, &counts)
+    }
+
+    /// As [`sample_layer`], with each sample's point count (`None`: a blocked sample).
+    fn sample_layer_of(dir: &Path, samples: &[(f64, Option<usize>)]) -> std::path::PathBuf {
         let mut layer = OverLayer::new(StageMetadata::default());
-        let samples = times
+        let samples = samples
             .iter()
             .enumerate()
-            .map(|(k, &t)| {
-                let pts = (0..4)
+            .map(|(k, &(t, n))| {
+                let Some(n) = n else {
+                    return (t, Value::ValueBlock);
+                };
+                let pts = (0..n)
                     .map(|i| {
                         let f = (k * 4 + i) as f32;
                         gf::Vec3f {
@@ -268,9 +270,12 @@ mod tests {
         for t in times {
             let want = query.get_at::<Value>(usd::TimeCode::new(t)).unwrap();
             let got = lazy.value_at(t).unwrap();
-            let bits = |v: &Option<Value>| -> Vec<u32> {
+            let bits = |v: &Option<Value>| -> Option<Vec<u32>> {
                 match v {
-                    Some(Value::Vec3fVec(p)) => p.iter().flat_map(|q| [q.x, q.y, q.z]).map(f32::to_bits).collect(),
+                    Some(Value::Vec3fVec(p)) => {
+                        Some(p.iter().flat_map(|q| [q.x, q.y, q.z]).map(f32::to_bits).collect())
+                    }
+                    None => None,
                     other => panic!("unexpected {other:?}"),
                 }
             };
@@ -317,6 +322,23 @@ mod tests {
             "#usda 1.0\n\ndef Mesh \"M\" (\n    references = @./samples.usdc@</M> (offset = -3; scale = 0.5)\n)\n{\n}\n",
         );
         assert_same_as_openusd(&root);
+    }
+
+    #[test]
+    fn mismatched_counts_and_blocked_samples_read_as_openusd_reads_them() {
+        // Between samples of different lengths openusd holds the lower one;
+        // next to a blocked sample there is no value.
+        let dir = TempDir::new().unwrap();
+        let layer = sample_layer_of(
+            dir.path(),
+            &[(1.0, Some(4)), (2.0, Some(5)), (3.0, Some(5)), (4.0, None)],
+        );
+        assert_same_as_openusd(&layer);
+        let r = StageReader::open_mapped(&layer).unwrap();
+        let lazy = r.crate_samples(&r.require_prim("/M").unwrap(), "points").unwrap();
+        assert!(matches!(lazy.value_at(1.5).unwrap(), Some(Value::Vec3fVec(p)) if p.len() == 4));
+        assert_eq!(lazy.value_at(3.5).unwrap(), None);
+        assert_eq!(lazy.value_at(9.0).unwrap(), None);
     }
 
     #[test]
