@@ -86,3 +86,27 @@ fn overriding_an_unknown_axis_is_an_error() {
     let nan = Configuration::from([("/Blowfish/Paint/inflate".to_string(), f64::NAN)]);
     assert!(ch.read_frame_with(5.0, &nan).is_err());
 }
+
+/// A library caller (no clap to check the flags) asking for one chunk or
+/// the assembly without `chunk` is refused before anything is read or written.
+#[test]
+fn chunk_index_or_assemble_without_chunk_is_refused() {
+    use painterly::bake::{open_for_bake, BakeOptions};
+    let out = std::env::temp_dir().join(format!("painterly-chunkless-{}.usda", std::process::id()));
+    for opts in [
+        BakeOptions {
+            chunk_index: Some(0),
+            ..Default::default()
+        },
+        BakeOptions {
+            assemble: true,
+            ..Default::default()
+        },
+    ] {
+        let e = open_for_bake(Path::new("fixtures/blowfish.usda"), &out, &opts)
+            .err()
+            .expect("refused");
+        assert_eq!(e.message, "--chunk-index and --assemble need --chunk N");
+        assert!(!out.exists());
+    }
+}
