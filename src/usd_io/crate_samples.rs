@@ -116,6 +116,8 @@ impl CrateSamples {
     }
 
     fn decode(&self, i: usize) -> Option<Value> {
+        // openusd's `ValueRep` cannot be named here (its module is private):
+        // copy one out of the file's fields and set its bits.
         let mut rep = self.file.fields.first()?.value_rep;
         rep.0 = self.reps[i];
         self.file.value(rep).ok()
@@ -152,7 +154,7 @@ fn winning_time_samples(stage: &usd::Stage, prim: &usd::Prim, name: &str) -> Opt
 fn map_crate(path: &Path) -> Option<CrateFile> {
     use openusd::ar::{self, Resolver};
     let p = path.to_str()?;
-    // SAFETY: as for the stage's own mapping of its layers (`StageReader::open`):
+    // SAFETY: as for the stage's own mapping of its layers (`StageReader::open_mapped`):
     // painterly and usd-core replace files by rename, never writing into one.
     #[allow(unsafe_code)]
     let resolver = unsafe { ar::DefaultResolver::new().map_files() };
