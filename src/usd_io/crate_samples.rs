@@ -170,6 +170,27 @@ fn map_crate(path: &Path) -> Option<CrateFile> {
 /// `TimeSamples` value (a jump to the times' representation, a jump to the
 /// count and the sample representations), with every offset bounds-checked.
 fn time_sample_table(file: &CrateFile, path: &sdf::Path) -> Option<(Vec<f64>, Vec<u64>)> {
+    let (times, count_at) = locate_time_samples(file, path)?;
+    let bytes: &[u8] = file.bytes();
+    let count = usize::try_from(read_u64(bytes, count_at)?).ok()?;
+    // The times were decoded from the file, so a count equal to theirs is
+    // bounded by the file's size.
+    if count != times.len() {
+        return None;
+    }
+    let reps = (0..count)
+        .map(|i| read_u64(bytes, count_at + 8 + 8 * i))
+        .collect::<Option<Vec<u64>>>()?;
+    Some((times, reps))
+}
+
+/// The little-endian u64 at `at`, if the bytes hold one there.
+fn read_u64(bytes: &[u8], at: usize) -> Option<u64> {
+    Some(u64::from_le_bytes(bytes.get(at..at.checked_add(8)?)?.try_into().ok()?))
+}
+
+/// The sample times of the spec at `path` and where its sample count is.
+fn locate_time_samples(file: &CrateFile, path: &sdf::Path) -> Option<(Vec<f64>, usize)> {
     let spec = file.specs.iter().find(|s| file.paths.get(s.path_index) == Some(path))?;
     let rep = file
         .fieldsets
@@ -184,8 +205,7 @@ fn time_sample_table(file: &CrateFile, path: &sdf::Path) -> Option<(Vec<f64>, Ve
         return None;
     }
     let bytes: &[u8] = file.bytes();
-    let read_u64 =
-        |at: usize| -> Option<u64> { Some(u64::from_le_bytes(bytes.get(at..at.checked_add(8)?)?.try_into().ok()?)) };
+    let read_u64 = |at: usize| read_u64(bytes, at);
     let jump = |at: usize| -> Option<usize> {
         let off = read_u64(at)? as i64;
         usize::try_from((at as i64).checked_add(off)?).ok()
@@ -198,17 +218,7 @@ fn time_sample_table(file: &CrateFile, path: &sdf::Path) -> Option<(Vec<f64>, Ve
         Value::DoubleVec(t) => t,
         _ => return None,
     };
-    let count_at = jump(times_at + 8)?;
-    let count = usize::try_from(read_u64(count_at)?).ok()?;
-    // The times were decoded from the file, so a count equal to theirs is
-    // bounded by the file's size.
-    if count != times.len() {
-        return None;
-    }
-    let reps = (0..count)
-        .map(|i| read_u64(count_at + 8 + 8 * i))
-        .collect::<Option<Vec<u64>>>()?;
-    Some((times, reps))
+    Some((times, jump(times_at + 8)?))
 }
 
 #[cfg(test)]
@@ -343,6 +353,30 @@ mod tests {
         assert!(matches!(lazy.value_at(1.5).unwrap(), Some(Value::Vec3fVec(p)) if p.len() == 4));
         assert_eq!(lazy.value_at(3.5).unwrap(), None);
         assert_eq!(lazy.value_at(9.0).unwrap(), None);
+    }
+
+    #[test]
+    fn a_sample_count_that_disagrees_with_the_times_is_left_to_openusd() {
+        // A damaged table: openusd refuses to read it, and so does this reader
+        // (rather than indexing past the table).
+        let dir = TempDir::new().unwrap();
+        let layer = sample_layer(dir.path(), &[1.0, 2.0, 3.0]);
+        let count_at = {
+            let file = map_crate(&layer).unwrap();
+            let path = sdf::Path::new("/M.points").unwrap();
+            let (times, at) = locate_time_samples(&file, &path).unwrap();
+            assert_eq!(read_u64(file.bytes(), at), Some(times.len() as u64));
+            at
+        };
+        let mut bytes = std::fs::read(&layer).unwrap();
+        bytes[count_at..count_at + 8].copy_from_slice(&7u64.to_le_bytes());
+        std::fs::write(&layer, &bytes).unwrap();
+        let r = StageReader::open_mapped(&layer).unwrap();
+        let prim = r.require_prim("/M").unwrap();
+        assert!(r.crate_samples(&prim, "points").is_none());
+        assert!(usd::AttributeQuery::new(&prim.attribute("points"))
+            .get_at::<Value>(usd::TimeCode::new(1.5))
+            .is_err());
     }
 
     #[test]
