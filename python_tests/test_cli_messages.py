@@ -151,20 +151,31 @@ def test_bake_to_a_bare_file_name_writes_in_the_working_folder(painterly, tmp_pa
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bake.usdc"]
 
 
-def test_a_stage_without_a_frame_range_inspects_clean_and_bakes_with_frames(painterly, tmp_path, repo_root):
+@pytest.mark.parametrize("dropped, message", [
+    (("startTimeCode", "endTimeCode"), "the stage has no startTimeCode/endTimeCode: pass --frames A:B"),
+    (("endTimeCode",), "the stage has a startTimeCode but no endTimeCode: pass --frames A:B"),
+    (("startTimeCode",), "the stage has an endTimeCode but no startTimeCode: pass --frames A:B"),
+])
+def test_a_stage_without_a_frame_range_inspects_clean_and_bakes_with_frames(painterly, tmp_path, repo_root,
+                                                                           dropped, message):
     """No startTimeCode/endTimeCode: nothing is wrong with the stage
-    (inspect exit 0), a bake without --frames says what to pass (exit 1),
-    and a bake with --frames works."""
+    (inspect exit 0); half a range is one problem for inspect. A bake
+    without --frames says what to pass (exit 1); with --frames it works."""
     text = (repo_root / "fixtures" / "tube.usda").read_text()
-    text = "\n".join(l for l in text.splitlines() if "TimeCode = " not in l or "PerSecond" in l) + "\n"
+    text = "\n".join(l for l in text.splitlines() if not any(f"{d} = " in l for d in dropped)) + "\n"
     src = tmp_path / "norange.usda"
     src.write_text(text)
-    assert "startTimeCode" not in text and "endTimeCode" not in text
-    proc = painterly("inspect", src, check=False)
-    assert (proc.returncode, proc.stderr) == (0, ""), proc.stderr
+    assert all(d not in text for d in dropped)
+    proc = painterly("inspect", src, "--json", check=False)
+    problems = json.loads(proc.stdout)["problems"]
+    if len(dropped) == 2:
+        assert (proc.returncode, proc.stderr, problems) == (0, "", []), proc.stderr
+    else:
+        assert proc.returncode == 1
+        assert [p["message"] for p in problems] == [message]
     proc = painterly("bake", src, "-o", tmp_path / "a.usdc", check=False)
     assert proc.returncode == 1
-    assert proc.stderr.strip() == f"error: {src}: the stage has no startTimeCode/endTimeCode: pass --frames A:B"
+    assert proc.stderr.strip() == f"error: {src}: {message}"
     proc = painterly("bake", src, "-o", tmp_path / "b.usdc", "--frames", "1:3", "-q", check=False)
     assert (proc.returncode, proc.stderr) == (0, "")
 
