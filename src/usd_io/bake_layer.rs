@@ -98,17 +98,13 @@ pub fn read_provenance(path: &Path) -> Result<Option<Provenance>> {
 /// of its file, so that only the pages a read touches are loaded: reading a
 /// chunk's provenance then costs kilobytes, not the chunk's hundreds of MB.
 pub fn open_mapped_layer(path: &Path) -> Result<openusd::sdf::Layer> {
-    use openusd::{ar, sdf};
+    use openusd::sdf;
     let p = path
         .to_str()
         .ok_or_else(|| Error::msg("path is not valid UTF-8").in_file(path))?;
-    // SAFETY (the promise `map_files` asks for: the file is not modified
-    // while the layer lives): painterly replaces the files it writes by
-    // rename, never writing into one, and so do usd-core's saves; callers
-    // keep the layer only while they read from it.
-    #[allow(unsafe_code)]
-    let resolver = unsafe { ar::DefaultResolver::new().map_files() };
-    sdf::Layer::open_with(resolver, p).map_err(|e| Error::msg(format!("cannot read layer: {e}")).in_file(path))
+    // Callers keep the layer only while they read from it.
+    sdf::Layer::open_with(super::stage::mapped_resolver(), p)
+        .map_err(|e| Error::msg(format!("cannot read layer: {e}")).in_file(path))
 }
 
 /// The provenance painterly recorded in `layer`, if any.

@@ -152,12 +152,9 @@ fn winning_time_samples(stage: &usd::Stage, prim: &usd::Prim, name: &str) -> Opt
 
 /// The crate file at `path` over a read-only memory mapping.
 fn map_crate(path: &Path) -> Option<CrateFile> {
-    use openusd::ar::{self, Resolver};
+    use openusd::ar::Resolver;
     let p = path.to_str()?;
-    // SAFETY: as for the stage's own mapping of its layers (`StageReader::open_mapped`):
-    // painterly and usd-core replace files by rename, never writing into one.
-    #[allow(unsafe_code)]
-    let resolver = unsafe { ar::DefaultResolver::new().map_files() };
+    let resolver = super::stage::mapped_resolver();
     let resolved = resolver.resolve(p)?;
     let bytes = resolver.open_asset(&resolved).ok()?.into_buffer().ok()?;
     let file = CrateFile::open(bytes).ok()?;

@@ -433,23 +433,14 @@ pub fn read_mesh(r: &StageReader, prim: usd::Prim, rest_time: Option<f64>) -> Re
 
     // Rest pose and motion kind (SPEC §2).
     let skeleton = skeleton_binding(r, &prim).map_err(|e| e.or_rule(Rule::Skinning))?;
+    // Crate samples exist only where samples are authored.
     let points_samples = r.crate_samples(&prim, "points");
-    let has_samples = match &points_samples {
-        Some(s) => !s.stage_times().is_empty(),
-        None => !r.sample_times(&prim, "points")?.is_empty(),
-    };
+    let has_samples = points_samples.is_some() || !r.sample_times(&prim, "points")?.is_empty();
     let rest_pts = if skeleton.is_some() {
         r.typed(&prim, "points", None, "point3f[]", values::vec3_array)?
     } else if let Some(t) = rest_time {
         match &points_samples {
-            Some(s) => s
-                .value_at(t)
-                .map_err(|e| Error::attr(&proxy_path, "points", format!("cannot read at time {t}: {e}")))?
-                .map(|v| {
-                    values::into_vec3_array(v)
-                        .map_err(|kind| Error::attr(&proxy_path, "points", format!("expected point3f[], found {kind}")))
-                })
-                .transpose()?,
+            Some(s) => points_read(&proxy_path, t, s.value_at(t))?,
             None => r.typed(&prim, "points", Some(t), "point3f[]", values::vec3_array)?,
         }
     } else {
@@ -602,13 +593,8 @@ impl Proxy {
                 .points_query
                 .get_at::<openusd::sdf::Value>(usd::TimeCode::new(t))
                 .map_err(|e| e.to_string()),
-        }
-        .map_err(|e| Error::attr(&self.path, "points", format!("cannot read at time {t}: {e}")))?;
-        let p = match v {
-            None => Vec::new(),
-            Some(v) => values::into_vec3_array(v)
-                .map_err(|kind| Error::attr(&self.path, "points", format!("expected point3f[], found {kind}")))?,
         };
+        let p = points_read(&self.path, t, v)?.unwrap_or_default();
         if p.len() != self.rest.len() {
             return Err(Error::attr(
                 &self.path,
@@ -632,6 +618,21 @@ impl Proxy {
     pub fn is_skinned(&self) -> bool {
         matches!(self.motion, ProxyMotion::Skel(_))
     }
+}
+
+/// A mesh's `points` as read at `t` (`None`: no value there), with the
+/// errors naming `mesh`.
+fn points_read(
+    mesh: &str,
+    t: f64,
+    read: std::result::Result<Option<openusd::sdf::Value>, String>,
+) -> Result<Option<Vec<Vec3>>> {
+    read.map_err(|e| Error::attr(mesh, "points", format!("cannot read at time {t}: {e}")))?
+        .map(|v| {
+            values::into_vec3_array(v)
+                .map_err(|kind| Error::attr(mesh, "points", format!("expected point3f[], found {kind}")))
+        })
+        .transpose()
 }
 
 fn read_layer(r: &StageReader, path: &str, proxy_points: usize) -> Result<StrokeLayer> {

@@ -118,6 +118,22 @@ impl StageMetadata {
     }
 }
 
+/// The default resolver, handing out read-only memory mappings of files
+/// instead of reading them. For readers that live for one command (a bake,
+/// an assembly, a provenance read): the only ones that may use it.
+pub(crate) fn mapped_resolver() -> openusd::ar::DefaultResolver {
+    // SAFETY (the promise `map_files` asks for: a mapped file is not modified
+    // while mapped): painterly and usd-core replace the files they write by
+    // rename, never writing into one (`--in-place` edits too), so a mapping
+    // keeps its bytes for the command's duration. A program truncating an
+    // input in place under a running bake is the documented exception
+    // (README, Limits).
+    #[allow(unsafe_code)]
+    unsafe {
+        openusd::ar::DefaultResolver::new().map_files()
+    }
+}
+
 impl StageReader {
     /// Opens and composes `path` (`.usda`, `.usdc` or `.usdz`), reading
     /// every layer into memory: for readers that live on while the user may
@@ -134,15 +150,9 @@ impl StageReader {
     /// crate files.
     pub fn open_mapped(path: &Path) -> Result<Self> {
         let path_str = Self::checked_input(path)?;
-        // SAFETY (the promise `map_files` asks for: the files are not modified
-        // while the stage lives): painterly and usd-core replace the files they
-        // write by rename, never writing into one (`--in-place` edits too), so a
-        // mapped layer keeps its bytes for the command's duration.
-        #[allow(unsafe_code)]
-        let resolver = unsafe { openusd::ar::DefaultResolver::new().map_files() };
         Ok(StageReader {
             mapped: true,
-            ..Self::compose(path, path_str, resolver)?
+            ..Self::compose(path, path_str, mapped_resolver())?
         })
     }
 
