@@ -11,10 +11,12 @@
 //!
 //! The search is a bounding-volume hierarchy over the triangles (median
 //! splits, f32 boxes rounded outwards so they always contain their f64
-//! triangles) queried per point in parallel. A query keeps every triangle
-//! within the tie tolerance of the best distance found so far and prunes
-//! only boxes farther than that (plus a rounding margin), so its answer is
-//! exactly the brute-force answer of [`bind_brute_force`].
+//! triangles), built binary and queried four-wide (four child boxes tested
+//! in one pass of f32 lanes), per point in parallel. A query keeps every
+//! triangle within the tie tolerance of the best distance found so far and
+//! prunes only boxes farther than that (plus a margin for f32 and f64
+//! rounding), so its answer is exactly the brute-force answer of
+//! [`bind_brute_force`].
 
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
@@ -64,6 +66,14 @@ pub struct ClosestPoint {
     nodes: Vec<Node>,
     /// The triangles in leaf order, with what prunes them cheaply.
     leaf_tris: Vec<LeafTri>,
+    /// Their corners, in the same order: a leaf's exact tests read
+    /// neighbouring memory instead of three scattered vertices each.
+    leaf_corners: Vec<[DVec3; 3]>,
+    /// The same hierarchy with four children per node (the binary tree's
+    /// grandchildren), queried: one pass over f32 lanes tests four boxes.
+    wide: Vec<Wide>,
+    /// The leaves of `wide`: their triangles' boxes, four at a time.
+    groups: Vec<LeafGroup>,
     /// SPEC §3 tie tolerance (1e-6 × bounding-box diagonal).
     tol: f64,
     /// Absolute slack added to pruning distances: covers the rounding of
@@ -112,6 +122,9 @@ impl ClosestPoint {
             triangles: triangles.to_vec(),
             nodes: Vec::new(),
             leaf_tris: Vec::new(),
+            leaf_corners: Vec::new(),
+            wide: Vec::new(),
+            groups: Vec::new(),
             tol,
             slack: 1e-12 * (extent + tol * 1e6),
             // Rounding n and d to f32 moves the plane by at most about
@@ -158,6 +171,10 @@ impl ClosestPoint {
             .collect();
         let mut nodes = split(&mut items, 0);
         self.leaf_tris = items.par_iter().map(|&(_, t)| self.leaf_tri(t)).collect();
+        self.leaf_corners = items
+            .iter()
+            .map(|&(_, t)| self.triangles[t as usize].map(|v| self.points[v as usize]))
+            .collect();
         for i in (0..nodes.len()).rev() {
             let Node { first, count, .. } = nodes[i];
             let (lo, hi) = if count > 0 {
@@ -174,6 +191,7 @@ impl ClosestPoint {
             nodes[i].hi = hi;
         }
         self.nodes = nodes;
+        (self.wide, self.groups) = widen(&self.nodes, &self.leaf_tris);
     }
 
     /// Exact f64 distance from `p` to triangle `t` and the barycentrics of
@@ -195,8 +213,13 @@ impl ClosestPoint {
 
     /// [`Self::query`] starting from `hint`, a triangle likely to be close
     /// (the previous point's), which only speeds the search up.
+    ///
+    /// Boxes are tested in f32, four at a time, against a bound rounded so
+    /// that a box is skipped only when its exact distance exceeds best + tie
+    /// tolerance (+ rounding slack): every triangle the f64 test would keep
+    /// is still tested exactly, so the answer is the brute-force one.
     fn query_with(&self, p: DVec3, hint: Option<u32>, s: &mut Scratch) -> (usize, [f64; 3]) {
-        assert!(!self.nodes.is_empty(), "closest point on an empty triangle set");
+        assert!(!self.wide.is_empty(), "closest point on an empty triangle set");
         s.found.clear();
         s.stack.clear();
         let mut best = f64::INFINITY;
@@ -205,58 +228,59 @@ impl ClosestPoint {
             best = d;
             s.found.push((t, d, w));
         }
-        // Prune a box when its distance exceeds best + tol (+ rounding slack).
-        let limit = |best: f64| {
-            let b = best + self.tol + self.slack;
-            b * b
-        };
+        // Box distances are taken from p rounded to f32; that moves them
+        // by at most |p - p32|, added to the bound.
+        let p32 = p.as_vec3();
+        let shift = (p - p32.as_dvec3()).length();
+        let q = p32.to_array();
+        let limit = |best: f64| f32_bound2(best + self.tol + self.slack + shift);
         let mut limit2 = limit(best);
-        s.stack.push((0u32, box_distance2(&self.nodes[0], p)));
+        s.stack.push((0u32, 0.0));
         while let Some((ni, d2)) = s.stack.pop() {
             if d2 > limit2 {
                 continue;
             }
-            let node = &self.nodes[ni as usize];
-            if node.count > 0 {
-                for lt in &self.leaf_tris[node.first as usize..(node.first + node.count) as usize] {
-                    let t = lt.index;
-                    if Some(t) == hint {
+            let node = &self.wide[ni as usize];
+            let dist = node.boxes.distance2(q);
+            let mut inner = [(0u32, 0f32); 4];
+            let mut n_inner = 0;
+            for j in 0..node.len as usize {
+                if dist[j] > limit2 {
+                    continue;
+                }
+                let child = node.child[j];
+                if child & LEAF_FLAG == 0 {
+                    inner[n_inner] = (child, dist[j]);
+                    n_inner += 1;
+                    continue;
+                }
+                let group = &self.groups[(child & !LEAF_FLAG) as usize];
+                let tri_dist = group.boxes.distance2(q);
+                let first = group.first as usize;
+                for (i, lt) in self.leaf_tris[first..][..group.len as usize].iter().enumerate() {
+                    if tri_dist[i] > limit2 || Some(lt.index) == hint {
                         continue;
                     }
                     let bound = best + self.tol + self.slack;
-                    if lt_box_distance2(lt, p) > bound * bound {
-                        continue;
-                    }
                     let [nx, ny, nz, nd] = lt.plane.map(f64::from);
                     if (nx * p.x + ny * p.y + nz * p.z - nd).abs() - self.plane_slack > bound {
                         continue;
                     }
-                    let (d, w) = self.distance(p, t);
+                    let [a, b, c] = self.leaf_corners[first + i];
+                    let (d, w) = triangle_distance(p, a, b, c);
                     if d <= best + self.tol {
-                        s.found.push((t, d, w));
+                        s.found.push((lt.index, d, w));
                         if d < best {
                             best = d;
                             limit2 = limit(best);
                         }
                     }
                 }
-            } else {
-                let (a, b) = (node.first, node.first + 1);
-                let da = box_distance2(&self.nodes[a as usize], p);
-                let db = box_distance2(&self.nodes[b as usize], p);
-                // Nearer child on top of the stack.
-                let ((n0, d0), (n1, d1)) = if da <= db {
-                    ((b, db), (a, da))
-                } else {
-                    ((a, da), (b, db))
-                };
-                if d0 <= limit2 {
-                    s.stack.push((n0, d0));
-                }
-                if d1 <= limit2 {
-                    s.stack.push((n1, d1));
-                }
             }
+            // Farther children first, so the nearest is searched next.
+            let inner = &mut inner[..n_inner];
+            inner.sort_unstable_by(|a, b| b.1.total_cmp(&a.1));
+            s.stack.extend_from_slice(inner);
         }
         let (t, _, w) = s
             .found
@@ -338,7 +362,7 @@ impl ClosestPoint {
 /// Per-thread query buffers.
 #[derive(Default)]
 struct Scratch {
-    stack: Vec<(u32, f64)>,
+    stack: Vec<(u32, f32)>,
     /// (triangle, distance, barycentrics) within the tie tolerance of the
     /// best distance at the time it was found.
     found: Vec<(u32, f64, [f64; 3])>,
@@ -348,23 +372,137 @@ fn union(l0: [f32; 3], h0: [f32; 3], l1: [f32; 3], h1: [f32; 3]) -> ([f32; 3], [
     ([0, 1, 2].map(|k| l0[k].min(l1[k])), [0, 1, 2].map(|k| h0[k].max(h1[k])))
 }
 
-/// Squared distance (f64) from `p` to a node's box.
-fn box_distance2(n: &Node, p: DVec3) -> f64 {
-    f32_box_distance2(&n.lo, &n.hi, p)
+/// Marks a [`Wide`] child that is a leaf (its index in
+/// `ClosestPoint::groups`) rather than another wide node.
+const LEAF_FLAG: u32 = 1 << 31;
+
+/// A node of the four-wide hierarchy: up to four children's boxes.
+#[derive(Clone, Copy, Debug)]
+struct Wide {
+    boxes: Boxes4,
+    /// A wide node's index, or `LEAF_FLAG |` a leaf group's index.
+    child: [u32; 4],
+    len: u32,
 }
 
-fn lt_box_distance2(t: &LeafTri, p: DVec3) -> f64 {
-    f32_box_distance2(&t.lo, &t.hi, p)
+/// Four f32 boxes, axis-major so that the four are tested in one pass.
+#[derive(Clone, Copy, Debug)]
+struct Boxes4 {
+    lo: [[f32; 4]; 3],
+    hi: [[f32; 4]; 3],
 }
 
-fn f32_box_distance2(lo: &[f32; 3], hi: &[f32; 3], p: DVec3) -> f64 {
-    let mut d2 = 0.0;
-    for k in 0..3 {
-        let (lo, hi) = (lo[k] as f64, hi[k] as f64);
-        let d = (lo - p[k]).max(p[k] - hi).max(0.0);
-        d2 += d * d;
+impl Boxes4 {
+    /// Squared f32 distances from `p` to the four boxes (lanes past a
+    /// node's `len` are meaningless). Each is within a relative 3e-7 of the
+    /// exact value (five roundings), or smaller where a square underflows;
+    /// [`f32_bound2`]'s margin covers that.
+    #[inline]
+    fn distance2(&self, p: [f32; 3]) -> [f32; 4] {
+        let mut d2 = [0f32; 4];
+        for k in 0..3 {
+            for j in 0..4 {
+                let below = self.lo[k][j] - p[k];
+                let above = p[k] - self.hi[k][j];
+                let d = if below > above { below } else { above };
+                let d = if d > 0.0 { d } else { 0.0 };
+                d2[j] += d * d;
+            }
+        }
+        d2
     }
-    d2
+}
+
+/// An f32 bound for squared f32 box distances: a box whose f32 distance²
+/// exceeds it is farther than `bound` (f64) exactly. Rounded up, with a
+/// relative margin (1e-6) above the f32 arithmetic's error.
+fn f32_bound2(bound: f64) -> f32 {
+    round_f32(bound * bound * (1.0 + 1e-6), true)
+}
+
+/// The four-wide hierarchy of a binary one (root first): each wide node
+/// takes its binary node's children, splitting the largest inner child
+/// (by box surface) until it has four.
+fn widen(nodes: &[Node], tris: &[LeafTri]) -> (Vec<Wide>, Vec<LeafGroup>) {
+    if nodes.is_empty() {
+        return (Vec::new(), Vec::new());
+    }
+    let mut groups = Vec::new();
+    let area = |n: &Node| {
+        let e = [0, 1, 2].map(|k| n.hi[k] - n.lo[k]);
+        e[0] * e[1] + e[1] * e[2] + e[2] * e[0]
+    };
+    let mut wide = Vec::new();
+    // (binary node, wide slot to fill)
+    let mut todo = vec![(0usize, 0usize)];
+    wide.push(None);
+    while let Some((b, slot)) = todo.pop() {
+        let mut kids: Vec<usize> = if nodes[b].count > 0 {
+            vec![b]
+        } else {
+            vec![nodes[b].first as usize, nodes[b].first as usize + 1]
+        };
+        while kids.len() < 4 {
+            let Some(i) = (0..kids.len())
+                .filter(|&i| nodes[kids[i]].count == 0)
+                .max_by(|&i, &j| area(&nodes[kids[i]]).total_cmp(&area(&nodes[kids[j]])))
+            else {
+                break;
+            };
+            let n = nodes[kids[i]];
+            kids[i] = n.first as usize;
+            kids.push(n.first as usize + 1);
+        }
+        let mut w = Wide {
+            boxes: Boxes4 {
+                lo: [[f32::INFINITY; 4]; 3],
+                hi: [[f32::NEG_INFINITY; 4]; 3],
+            },
+            child: [0; 4],
+            len: kids.len() as u32,
+        };
+        for (j, &c) in kids.iter().enumerate() {
+            for k in 0..3 {
+                w.boxes.lo[k][j] = nodes[c].lo[k];
+                w.boxes.hi[k][j] = nodes[c].hi[k];
+            }
+            w.child[j] = if nodes[c].count > 0 {
+                let (first, len) = (nodes[c].first, nodes[c].count);
+                let mut boxes = Boxes4 {
+                    lo: [[f32::INFINITY; 4]; 3],
+                    hi: [[f32::NEG_INFINITY; 4]; 3],
+                };
+                for (i, t) in tris[first as usize..(first + len) as usize].iter().enumerate() {
+                    for k in 0..3 {
+                        boxes.lo[k][i] = t.lo[k];
+                        boxes.hi[k][i] = t.hi[k];
+                    }
+                }
+                groups.push(LeafGroup { boxes, first, len });
+                LEAF_FLAG | (groups.len() - 1) as u32
+            } else {
+                let s = wide.len();
+                wide.push(None);
+                todo.push((c, s));
+                s as u32
+            };
+        }
+        wide[slot] = Some(w);
+    }
+    let wide = wide
+        .into_iter()
+        .map(|w| w.expect("every wide node is filled"))
+        .collect();
+    (wide, groups)
+}
+
+/// A leaf of the wide hierarchy: up to four triangles (`LEAF_SIZE`) from
+/// `first` in `ClosestPoint::leaf_tris`, with their boxes side by side.
+#[derive(Clone, Copy, Debug)]
+struct LeafGroup {
+    boxes: Boxes4,
+    first: u32,
+    len: u32,
 }
 
 /// Splits `items` (centroid, triangle) into a BVH whose leaves index
@@ -671,13 +809,9 @@ mod tests {
         DVec3::new(rng.unit(), rng.unit(), rng.unit())
     }
 
-    #[test]
-    fn bvh_equals_brute_force_on_hard_meshes() {
-        let mut rng = Lcg::new(7);
-        // A grid with every vertex duplicated per quad (seams everywhere),
-        // f32-rounded like stage data; a soup of overlapping triangles with
-        // degenerate ones; both queried on and off the surface.
-        let n = 12;
+    /// An n × n grid of 0.1-wide quads on a wave, every vertex duplicated per
+    /// quad (seams everywhere), f32-rounded like stage data.
+    fn seam_grid(n: usize) -> (Vec<DVec3>, Vec<[u32; 3]>) {
         let mut pts = Vec::new();
         let mut tris = Vec::new();
         for j in 0..n {
@@ -691,6 +825,17 @@ mod tests {
                 tris.push([v, v + 2, v + 3]);
             }
         }
+        (pts, tris)
+    }
+
+    #[test]
+    fn bvh_equals_brute_force_on_hard_meshes() {
+        let mut rng = Lcg::new(7);
+        // A grid with every vertex duplicated per quad (seams everywhere),
+        // f32-rounded like stage data; a soup of overlapping triangles with
+        // degenerate ones; both queried on and off the surface.
+        let n = 12;
+        let (pts, tris) = seam_grid(n);
         let mut queries: Vec<Vec3> = (0..400)
             .map(|k| {
                 if k % 4 == 0 {
@@ -745,6 +890,38 @@ mod tests {
         let mut seen: Vec<u32> = cp.leaf_tris.iter().map(|t| t.index).collect();
         seen.sort_unstable();
         assert_eq!(seen, (0..tris.len() as u32).collect::<Vec<_>>());
+    }
+
+    #[test]
+    fn tiny_and_huge_scales_equal_brute_force() {
+        // f32 box distances underflow (squares of 1e-22) or grow large; the
+        // pruning must stay conservative at both ends.
+        let (pts, tris) = seam_grid(12);
+        let mut rng = Lcg::new(11);
+        for scale in [1e-22, 1e-9, 1e15] {
+            let pts: Vec<DVec3> = pts.iter().map(|&p| (p * scale).as_vec3().as_dvec3()).collect();
+            let queries: Vec<Vec3> = (0..300)
+                .map(|_| ((unit_vec(&mut rng) * 1.6 - 0.3) * scale).as_vec3())
+                .chain(pts.iter().map(|p| p.as_vec3()))
+                .collect();
+            let cp = ClosestPoint::new(&pts, &tris);
+            assert_eq!(
+                cp.bind(&queries),
+                bind_brute_force(&pts, &tris, &queries),
+                "scale {scale}"
+            );
+        }
+    }
+
+    #[test]
+    fn f32_bound_is_never_below_the_f64_bound() {
+        let mut rng = Lcg::new(5);
+        for _ in 0..10_000 {
+            let b = (rng.unit() * 80.0 - 40.0).exp2() * rng.unit();
+            assert!(f32_bound2(b) as f64 >= b * b, "{b}");
+        }
+        assert_eq!(f32_bound2(f64::INFINITY), f32::INFINITY);
+        assert_eq!(f32_bound2(1e30), f32::INFINITY);
     }
 
     #[test]
