@@ -244,13 +244,12 @@ impl ClosestPoint {
             let dist = node.boxes.distance2(q);
             let mut inner = [(0u32, 0f32); 4];
             let mut n_inner = 0;
-            for j in 0..node.len as usize {
-                if dist[j] > limit2 {
+            for (&d2, &child) in dist.iter().zip(&node.child).take(node.len as usize) {
+                if d2 > limit2 {
                     continue;
                 }
-                let child = node.child[j];
                 if child & LEAF_FLAG == 0 {
-                    inner[n_inner] = (child, dist[j]);
+                    inner[n_inner] = (child, d2);
                     n_inner += 1;
                     continue;
                 }
@@ -400,13 +399,12 @@ impl Boxes4 {
     #[inline]
     fn distance2(&self, p: [f32; 3]) -> [f32; 4] {
         let mut d2 = [0f32; 4];
-        for k in 0..3 {
-            for j in 0..4 {
-                let below = self.lo[k][j] - p[k];
-                let above = p[k] - self.hi[k][j];
+        for ((lo, hi), &x) in self.lo.iter().zip(&self.hi).zip(&p) {
+            for ((d2, &lo), &hi) in d2.iter_mut().zip(lo).zip(hi) {
+                let (below, above) = (lo - x, x - hi);
                 let d = if below > above { below } else { above };
                 let d = if d > 0.0 { d } else { 0.0 };
-                d2[j] += d * d;
+                *d2 += d * d;
             }
         }
         d2
