@@ -17,7 +17,7 @@ use glam::Vec3;
 
 use crate::character::{Character, FrameOutput, Model, RigModel};
 use crate::error::{Error, Result};
-use crate::extent::{curves_extent, point_based_extent};
+use crate::extent::{pad_curves_extent, point_based_extent};
 use crate::frames::FrameRange;
 use crate::usd_io::bake_layer::{self, BakeAttr, BakeLayout, FrameSink, Provenance, Sample, SampleKind};
 use crate::usd_io::binding_cache::{self, BindingCache};
@@ -419,7 +419,7 @@ fn frame_samples(out: FrameOutput, baked_proxy: &[bool]) -> Vec<Sample> {
     let extent = |p: &[Vec3]| Sample::Vec3s(point_based_extent(p).to_vec());
     let mut s = Vec::with_capacity(3 * out.layers.len() + 2 * (out.proxies.len() + out.views.len()));
     for l in out.layers {
-        let e = Sample::Vec3s(curves_extent(&l.points, l.max_width).to_vec());
+        let e = Sample::Vec3s(pad_curves_extent(l.bounds, l.max_width).to_vec());
         s.push(Sample::Vec3s(l.points));
         s.push(e);
         s.push(Sample::Floats(l.opacity));

@@ -143,6 +143,8 @@ pub struct LayerFrame {
     /// The largest `widths` value at this time: the extent's padding
     /// ([`crate::extent::curves_extent`]).
     pub max_width: f32,
+    /// The points' box, [`crate::extent::point_based_extent`] of `points`.
+    pub bounds: [Vec3; 2],
 }
 
 /// One frame's results.
@@ -423,14 +425,15 @@ impl Model {
                 let rest = &layer.rest_points;
                 let (keyed, keyed_opacity) = keyed_state(&layer.keys, rest, &rf.axis_values, t);
                 let mut points = vec![Vec3::ZERO; rest.len()];
-                skin_points(
+                let skinned = skin_points(
                     &layer.binding,
                     &motions,
                     &frame,
                     keyed.as_deref().unwrap_or(rest),
                     &mut points,
                 );
-                if let Some(i) = points.iter().position(|p| !p.is_finite()) {
+                if !skinned.finite {
+                    let i = points.iter().position(|p| !p.is_finite()).unwrap_or(0);
                     return Err(Error::prim(
                         &layer.path,
                         format!("baked point {i} is not finite at time {t}"),
@@ -441,6 +444,7 @@ impl Model {
                     points,
                     opacity: layer.display_opacity.iter().map(|d| d * o).collect(),
                     max_width,
+                    bounds: skinned.extent,
                 });
             }
             proxies.push(with_proxies.then(|| rf.posed.iter().map(|p| p.as_vec3()).collect()));

@@ -27,7 +27,11 @@ pub fn max_width(widths: impl IntoIterator<Item = f32>) -> f32 {
 /// `UsdGeom.Curves.ComputeExtent`: the points' box grown by half of
 /// `max_width` (see [`max_width`]) on every side.
 pub fn curves_extent(points: &[Vec3], max_width: f32) -> [Vec3; 2] {
-    let [lo, hi] = point_based_extent(points);
+    pad_curves_extent(point_based_extent(points), max_width)
+}
+
+/// [`curves_extent`] from the points' box ([`point_based_extent`]).
+pub fn pad_curves_extent([lo, hi]: [Vec3; 2], max_width: f32) -> [Vec3; 2] {
     let pad = Vec3::splat(max_width / 2.0);
     [lo - pad, hi + pad]
 }

@@ -167,22 +167,61 @@ pub fn blended_motion(motions: &[Affine3A], vertices: [u32; 3], weights: [f32; 3
     }
 }
 
+/// What [`skin_points`] saw of its output in the same pass: the points' box
+/// ([`crate::extent::point_based_extent`]: usd-core's empty box for none)
+/// and whether every coordinate is finite. A bake needs both per layer per
+/// frame; gathering them while the points are in registers saves two more
+/// passes over them.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SkinnedBox {
+    pub extent: [Vec3; 2],
+    pub finite: bool,
+}
+
+/// Points per parallel task.
+const SKIN_CHUNK: usize = 4096;
+
 /// Skins rest points: out[k] = frame · (Σ w M_v) · rest[k].
 ///
 /// `frame` maps skinned proxy-local positions into the output space (proxy
-/// local-to-world, then the stroke prim's world-to-local).
-pub fn skin_points(binding: &Binding, motions: &[Affine3A], frame: &Affine3A, rest: &[Vec3], out: &mut [Vec3]) {
-    out.par_chunks_mut(4096)
-        .zip(rest.par_chunks(4096))
+/// local-to-world, then the stroke prim's world-to-local); the identity
+/// (strokes under the proxy's own transform) is skipped.
+pub fn skin_points(
+    binding: &Binding,
+    motions: &[Affine3A],
+    frame: &Affine3A,
+    rest: &[Vec3],
+    out: &mut [Vec3],
+) -> SkinnedBox {
+    let framed = *frame != Affine3A::IDENTITY;
+    let empty = (Vec3A::splat(f32::MAX), Vec3A::splat(-f32::MAX), Vec3A::ZERO);
+    let (lo, hi, nan) = out
+        .par_chunks_mut(SKIN_CHUNK)
+        .zip(rest.par_chunks(SKIN_CHUNK))
         .enumerate()
-        .for_each(|(chunk, (out, rest))| {
-            let base = chunk * 4096;
+        .map(|(chunk, (out, rest))| {
+            let base = chunk * SKIN_CHUNK;
+            let (mut lo, mut hi, mut nan) = empty;
             for (k, (o, &p)) in out.iter_mut().zip(rest).enumerate() {
                 let i = base + k;
                 let m = blended_motion(motions, binding.vertices[i], binding.weights[i]);
-                *o = frame.transform_point3a(m.transform_point3a(Vec3A::from(p))).into();
+                let mut q = m.transform_point3a(Vec3A::from(p));
+                if framed {
+                    q = frame.transform_point3a(q);
+                }
+                lo = lo.min(q);
+                hi = hi.max(q);
+                // q × 0 is ±0 for a finite coordinate, NaN for an infinite or NaN one.
+                nan += q * 0.0;
+                *o = q.into();
             }
-        });
+            (lo, hi, nan)
+        })
+        .reduce(|| empty, |a, b| (a.0.min(b.0), a.1.max(b.1), a.2 + b.2));
+    SkinnedBox {
+        extent: [lo.into(), hi.into()],
+        finite: nan == Vec3A::ZERO,
+    }
 }
 
 #[cfg(test)]
@@ -286,5 +325,53 @@ mod tests {
         let mut out = vec![Vec3::ZERO];
         skin_points(&binding, &motions, &frame, &[Vec3::ONE], &mut out);
         assert!((out[0] - Vec3::new(3.0, 2.5, 2.5)).length() < 1e-6);
+    }
+
+    #[test]
+    fn skinned_box_is_the_extent_and_finiteness_of_the_output() {
+        use crate::extent::point_based_extent;
+        let mut rng = crate::interp::testutil::Lcg::new(9);
+        let mut v = || Vec3::new(rng.unit() as f32, rng.unit() as f32, rng.unit() as f32) * 4.0 - 2.0;
+        let motions: Vec<Affine3A> = (0..7)
+            .map(|_| {
+                Affine3A::from_scale_rotation_translation(v().abs() + 0.5, glam::Quat::from_rotation_z(v().x), v())
+            })
+            .collect();
+        // More points than one parallel chunk, so chunks are reduced.
+        let n = 2 * SKIN_CHUNK + 17;
+        let binding = Binding {
+            vertices: (0..n)
+                .map(|i| [i % 7, (i + 3) % 7, (i + 5) % 7].map(|x| x as u32))
+                .collect(),
+            weights: vec![[0.5, 0.3, 0.2]; n],
+        };
+        let rest: Vec<Vec3> = (0..n).map(|_| v()).collect();
+        let mut out = vec![Vec3::ZERO; n];
+        for frame in [
+            Affine3A::IDENTITY,
+            Affine3A::from_translation(Vec3::new(1.0, -2.0, 0.5)),
+        ] {
+            let got = skin_points(&binding, &motions, &frame, &rest, &mut out);
+            assert_eq!(
+                got,
+                SkinnedBox {
+                    extent: point_based_extent(&out),
+                    finite: true
+                }
+            );
+        }
+        // No points: usd-core's empty box.
+        let none = skin_points(&Binding::default(), &motions, &Affine3A::IDENTITY, &[], &mut []);
+        assert_eq!(none.extent, point_based_extent(&[]));
+        assert!(none.finite);
+        // One infinite or NaN coordinate anywhere is seen.
+        for bad in [f32::INFINITY, f32::NEG_INFINITY, f32::NAN] {
+            let mut rest = rest.clone();
+            rest[n - 3].y = bad;
+            assert!(
+                !skin_points(&binding, &motions, &Affine3A::IDENTITY, &rest, &mut out).finite,
+                "{bad}"
+            );
+        }
     }
 }
