@@ -18,8 +18,8 @@ use glam::{Affine3A, DMat4, DVec3, Vec3};
 use crate::bind::{Binding, ClosestPoint};
 use crate::error::{Error, Result};
 use crate::keys::{combine, Source};
-use crate::mesh::{bounds_f64, fan_triangulate, weighted_sum, OneRings};
-use crate::skinning::{skin_points, to_f32, SkinningRest};
+use crate::mesh::{bounds_f64, fan_triangulate, OneRings};
+use crate::skinning::{skin_blended_points, to_f32, SkinningRest};
 use crate::usd_io::axes::AxisFrame;
 use crate::usd_io::binding_cache::BindingCache;
 use crate::usd_io::scene::{LayerKeys, Proxy, Rig, Scene};
@@ -425,13 +425,7 @@ impl Model {
                 let rest = &layer.rest_points;
                 let (keyed, keyed_opacity) = keyed_state(&layer.keys, rest, &rf.axis_values, t);
                 let mut points = vec![Vec3::ZERO; rest.len()];
-                let skinned = skin_points(
-                    &layer.binding,
-                    &motions,
-                    &frame,
-                    keyed.as_deref().unwrap_or(rest),
-                    &mut points,
-                );
+                let skinned = skin_blended_points(&layer.binding, &motions, &frame, &keyed, &mut points);
                 if !skinned.finite {
                     let i = points.iter().position(|p| !p.is_finite()).unwrap_or(0);
                     return Err(Error::prim(
@@ -596,27 +590,27 @@ fn key_terms(k: &LayerKeys, axis_values: &[f64], t: f64) -> (Terms, Terms) {
     (points, opacity)
 }
 
-/// A layer's keyed rest points (None: its own `rest` points) and keyed opacity at `t`.
-pub fn keyed_state(k: &LayerKeys, rest: &[Vec3], axis_values: &[f64], t: f64) -> (Option<Vec<Vec3>>, f32) {
+/// A layer's keyed rest points as weighted arrays (weights summing to 1; a
+/// layer without keys: `rest` with weight 1), for
+/// [`skin_blended_points`], and its keyed opacity at `t`.
+pub fn keyed_state<'a>(
+    k: &'a LayerKeys,
+    rest: &'a [Vec3],
+    axis_values: &[f64],
+    t: f64,
+) -> (Vec<(f64, &'a [Vec3])>, f32) {
     let (point_terms, opacity_terms) = key_terms(k, axis_values, t);
-    let points = if point_terms == [(1.0, Source::Rest)] {
-        None
-    } else {
-        let arrays: Vec<(f64, &[Vec3])> = point_terms
-            .iter()
-            .map(|&(w, s)| {
-                let v: &[Vec3] = match s {
-                    Source::Rest => rest,
-                    Source::Pose(i) => &k.pose_points.as_ref().expect("pose weights come from pose keys").values[i],
-                    Source::Time(i) => &k.time_points.as_ref().expect("time weights come from time keys").values[i],
-                };
-                (w, v)
-            })
-            .collect();
-        let mut out = vec![Vec3::ZERO; rest.len()];
-        weighted_sum(&mut out, &arrays);
-        Some(out)
-    };
+    let points = point_terms
+        .iter()
+        .map(|&(w, s)| {
+            let v: &[Vec3] = match s {
+                Source::Rest => rest,
+                Source::Pose(i) => &k.pose_points.as_ref().expect("pose weights come from pose keys").values[i],
+                Source::Time(i) => &k.time_points.as_ref().expect("time weights come from time keys").values[i],
+            };
+            (w, v)
+        })
+        .collect();
     let opacity: f64 = opacity_terms
         .iter()
         .map(|&(w, s)| {

@@ -193,19 +193,65 @@ pub fn skin_points(
     rest: &[Vec3],
     out: &mut [Vec3],
 ) -> SkinnedBox {
+    skin_with(binding, motions, frame, out, |i| rest[i])
+}
+
+/// [`skin_points`] of keyed rest points Σ w_k a_k (a layer's key blend),
+/// blended per point in the skinning pass rather than into an array first.
+/// Terms of weight 0 are skipped; the sum runs in f32, in term order, from
+/// zero (as [`crate::mesh::weighted_sum`] does).
+///
+/// # Panics
+/// When a term's length differs from `out`'s.
+pub fn skin_blended_points(
+    binding: &Binding,
+    motions: &[Affine3A],
+    frame: &Affine3A,
+    terms: &[(f64, &[Vec3])],
+    out: &mut [Vec3],
+) -> SkinnedBox {
+    let terms: Vec<(f32, &[Vec3])> = terms
+        .iter()
+        .filter(|(w, _)| *w != 0.0)
+        .map(|&(w, a)| (w as f32, a))
+        .collect();
+    for (k, (_, a)) in terms.iter().enumerate() {
+        assert_eq!(a.len(), out.len(), "term {k}: length differs from output");
+    }
+    if let [(w, a)] = terms[..] {
+        if w == 1.0 {
+            return skin_with(binding, motions, frame, out, |i| a[i]);
+        }
+    }
+    skin_with(binding, motions, frame, out, |i| {
+        let mut acc = Vec3::ZERO;
+        for &(w, a) in &terms {
+            acc += a[i] * w;
+        }
+        acc
+    })
+}
+
+/// [`skin_points`] with the rest point of index `i` from `rest_at(i)`.
+fn skin_with(
+    binding: &Binding,
+    motions: &[Affine3A],
+    frame: &Affine3A,
+    out: &mut [Vec3],
+    rest_at: impl Fn(usize) -> Vec3 + Sync,
+) -> SkinnedBox {
     let framed = *frame != Affine3A::IDENTITY;
     let empty = (Vec3A::splat(f32::MAX), Vec3A::splat(-f32::MAX), Vec3A::ZERO);
     let (lo, hi, nan) = out
         .par_chunks_mut(SKIN_CHUNK)
-        .zip(rest.par_chunks(SKIN_CHUNK))
         .enumerate()
-        .map(|(chunk, (out, rest))| {
+        .map(|(chunk, out)| {
             let base = chunk * SKIN_CHUNK;
             let (mut lo, mut hi, mut nan) = empty;
-            for (k, (o, &p)) in out.iter_mut().zip(rest).enumerate() {
+            for (k, o) in out.iter_mut().enumerate() {
                 let i = base + k;
                 let m = blended_motion(motions, binding.vertices[i], binding.weights[i]);
-                let mut q = m.transform_point3a(Vec3A::from(p));
+                let mut q = m.transform_point3a(Vec3A::from(rest_at(i)));
                 if framed {
                     q = frame.transform_point3a(q);
                 }
@@ -325,6 +371,36 @@ mod tests {
         let mut out = vec![Vec3::ZERO];
         skin_points(&binding, &motions, &frame, &[Vec3::ONE], &mut out);
         assert!((out[0] - Vec3::new(3.0, 2.5, 2.5)).length() < 1e-6);
+    }
+
+    #[test]
+    fn blended_rest_points_skin_as_their_weighted_sum() {
+        let motions = vec![
+            Affine3A::from_translation(Vec3::X),
+            Affine3A::from_rotation_z(0.3),
+            Affine3A::from_scale(Vec3::splat(2.0)),
+        ];
+        let binding = Binding {
+            vertices: vec![[0, 1, 2]; 3],
+            weights: vec![[0.5, 0.25, 0.25]; 3],
+        };
+        let a = [Vec3::ONE, Vec3::new(-1.0, 2.0, 0.5), Vec3::Z];
+        let b = [Vec3::X, Vec3::Y, Vec3::new(3.0, -2.0, 1.0)];
+        let terms: [(f64, &[Vec3]); 3] = [(0.25, &a), (0.0, &[]), (0.75, &b)];
+        let mut summed = vec![Vec3::ZERO; 3];
+        crate::mesh::weighted_sum(&mut summed, &terms);
+        let frame = Affine3A::from_translation(Vec3::new(0.0, 1.0, -1.0));
+        let (mut want, mut got) = (vec![Vec3::ZERO; 3], vec![Vec3::ZERO; 3]);
+        let want_box = skin_points(&binding, &motions, &frame, &summed, &mut want);
+        assert_eq!(
+            skin_blended_points(&binding, &motions, &frame, &terms, &mut got),
+            want_box
+        );
+        assert_eq!(got, want);
+        // One term of weight 1 is that array itself.
+        skin_points(&binding, &motions, &frame, &b, &mut want);
+        skin_blended_points(&binding, &motions, &frame, &[(1.0, &b)], &mut got);
+        assert_eq!(got, want);
     }
 
     #[test]
