@@ -607,6 +607,19 @@ def test_skinned_base(painterly, tmp_path):
     assert with_proxy.ListTimeSamplesForPath(pts) == layer.ListTimeSamplesForPath(pts)
     for t in frames:
         assert np.array_equal(np.array(with_proxy.QueryTimeSample(pts, t)), np.array(layer.QueryTimeSample(pts, t)))
+    # Nor are its authored normals baked: skinned, they would contradict
+    # the view-dependent points (a proxy that is a view mesh is not baked).
+    stage = Usd.Stage.Open(str(rig.path))
+    normals = UsdGeom.Mesh(stage.GetPrimAtPath(rig.mesh)).CreateNormalsAttr([(0.0, 1.0, 0.0)] * len(rest))
+    normals.SetMetadata("interpolation", UsdGeom.Tokens.vertex)
+    stage.GetRootLayer().Save()
+    del stage
+    out3 = tmp_path / "bake_proxy_normals.usda"
+    painterly("bake", rig.path, "-o", out3, "--quiet", "--bake-proxy")
+    with_normals = Sdf.Layer.FindOrOpen(str(out3))
+    assert with_normals.GetAttributeAtPath(Sdf.Path(rig.mesh).AppendProperty("normals")) is None
+    for t in frames:
+        assert np.array_equal(np.array(with_normals.QueryTimeSample(pts, t)), np.array(layer.QueryTimeSample(pts, t)))
 
 
 # ---------------------------------------------------------------------------
