@@ -912,6 +912,39 @@ mod tests {
     }
 
     #[test]
+    fn f64_queries_far_from_the_origin_equal_brute_force() {
+        // Queries not representable in f32, on a mesh 1e4 from the origin:
+        // the f32 box test sees each query moved by up to about 5e-4, far
+        // more than the tie tolerance, and must allow for it. Half lie on
+        // seams (ties between two triangles).
+        let (pts, tris) = seam_grid(12);
+        let off = DVec3::new(1e4, -2e4, 5e3);
+        let pts: Vec<DVec3> = pts.iter().map(|&p| p + off).collect();
+        let cp = ClosestPoint::new(&pts, &tris);
+        let tol = tie_tolerance(&pts);
+        let mut rng = Lcg::new(17);
+        for k in 0..600 {
+            let q = off
+                + if k % 2 == 0 {
+                    let x = (rng.unit() * 12.0).floor() * 0.1;
+                    DVec3::new(x, rng.unit() * 1.2, 0.05 * (7.0 * x).sin() + rng.unit() * 0.02 - 0.01)
+                } else {
+                    unit_vec(&mut rng) * 1.4 - 0.2
+                };
+            let d: Vec<(f64, [f64; 3])> = tris
+                .iter()
+                .map(|t| {
+                    let [a, b, c] = t.map(|v| pts[v as usize]);
+                    triangle_distance(q, a, b, c)
+                })
+                .collect();
+            let best = d.iter().map(|x| x.0).fold(f64::INFINITY, f64::min);
+            let want = d.iter().position(|x| x.0 <= best + tol).expect("a nearest triangle");
+            assert_eq!(cp.query(q), (want, d[want].1), "query {q}");
+        }
+    }
+
+    #[test]
     fn f32_bound_is_never_below_the_f64_bound() {
         let mut rng = Lcg::new(5);
         for _ in 0..10_000 {
