@@ -193,7 +193,7 @@ pub fn skin_points(
     rest: &[Vec3],
     out: &mut [Vec3],
 ) -> SkinnedBox {
-    skin_with(binding, motions, frame, out, |i| rest[i])
+    skin_with(binding, motions, frame, out, |start, _| Some(&rest[start..]))
 }
 
 /// [`skin_points`] of keyed rest points Σ w_k a_k (a layer's key blend),
@@ -218,48 +218,60 @@ pub fn skin_blended_points(
     for (k, (_, a)) in terms.iter().enumerate() {
         assert_eq!(a.len(), out.len(), "term {k}: length differs from output");
     }
-    if let [(w, a)] = terms[..] {
-        if w == 1.0 {
-            return skin_with(binding, motions, frame, out, |i| a[i]);
-        }
+    match terms[..] {
+        [(1.0, a)] => skin_with(binding, motions, frame, out, |start, _| Some(&a[start..])),
+        _ => skin_with(binding, motions, frame, out, |start, buf| {
+            // Term by term over a block that stays in L1: one vectorisable
+            // loop per key array, no per-frame array of blended points.
+            buf.fill(Vec3::ZERO);
+            for &(w, a) in &terms {
+                for (b, &x) in buf.iter_mut().zip(&a[start..]) {
+                    *b += x * w;
+                }
+            }
+            None
+        }),
     }
-    skin_with(binding, motions, frame, out, |i| {
-        let mut acc = Vec3::ZERO;
-        for &(w, a) in &terms {
-            acc += a[i] * w;
-        }
-        acc
-    })
 }
 
-/// [`skin_points`] with the rest point of index `i` from `rest_at(i)`.
-fn skin_with(
-    binding: &Binding,
-    motions: &[Affine3A],
-    frame: &Affine3A,
-    out: &mut [Vec3],
-    rest_at: impl Fn(usize) -> Vec3 + Sync,
-) -> SkinnedBox {
+/// Rest points per block of [`skin_with`].
+const REST_BLOCK: usize = 256;
+
+/// [`skin_points`] with the rest points of a block from `rest(start, buf)`:
+/// those of indices `start..start + buf.len()`, either as a slice of some
+/// array (at least `buf.len()` long) or, when it returns `None`, in `buf`.
+fn skin_with<'a, R>(binding: &Binding, motions: &[Affine3A], frame: &Affine3A, out: &mut [Vec3], rest: R) -> SkinnedBox
+where
+    R: Fn(usize, &mut [Vec3]) -> Option<&'a [Vec3]> + Sync,
+{
     let framed = *frame != Affine3A::IDENTITY;
     let empty = (Vec3A::splat(f32::MAX), Vec3A::splat(-f32::MAX), Vec3A::ZERO);
     let (lo, hi, nan) = out
         .par_chunks_mut(SKIN_CHUNK)
         .enumerate()
         .map(|(chunk, out)| {
-            let base = chunk * SKIN_CHUNK;
             let (mut lo, mut hi, mut nan) = empty;
-            for (k, o) in out.iter_mut().enumerate() {
-                let i = base + k;
-                let m = blended_motion(motions, binding.vertices[i], binding.weights[i]);
-                let mut q = m.transform_point3a(Vec3A::from(rest_at(i)));
-                if framed {
-                    q = frame.transform_point3a(q);
+            let mut buf = [Vec3::ZERO; REST_BLOCK];
+            for (block, out) in out.chunks_mut(REST_BLOCK).enumerate() {
+                let start = chunk * SKIN_CHUNK + block * REST_BLOCK;
+                let block = &mut buf[..out.len()];
+                let rest = match rest(start, block) {
+                    Some(points) => points,
+                    None => block,
+                };
+                for (k, (o, &p)) in out.iter_mut().zip(rest).enumerate() {
+                    let i = start + k;
+                    let m = blended_motion(motions, binding.vertices[i], binding.weights[i]);
+                    let mut q = m.transform_point3a(Vec3A::from(p));
+                    if framed {
+                        q = frame.transform_point3a(q);
+                    }
+                    lo = lo.min(q);
+                    hi = hi.max(q);
+                    // q × 0 is ±0 for a finite coordinate, NaN for an infinite or NaN one.
+                    nan += q * 0.0;
+                    *o = q.into();
                 }
-                lo = lo.min(q);
-                hi = hi.max(q);
-                // q × 0 is ±0 for a finite coordinate, NaN for an infinite or NaN one.
-                nan += q * 0.0;
-                *o = q.into();
             }
             (lo, hi, nan)
         })
