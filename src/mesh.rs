@@ -111,14 +111,7 @@ pub fn bounds_f64(points: &[DVec3]) -> Option<[DVec3; 2]> {
 /// If a weighted array's length differs from `out`'s.
 pub fn weighted_sum(out: &mut [Vec3], terms: &[(f64, &[Vec3])]) {
     use rayon::prelude::*;
-    let terms: Vec<(f32, &[Vec3])> = terms
-        .iter()
-        .filter(|(w, _)| *w != 0.0)
-        .map(|&(w, a)| (w as f32, a))
-        .collect();
-    for (k, (_, a)) in terms.iter().enumerate() {
-        assert_eq!(a.len(), out.len(), "term {k}: length differs from output");
-    }
+    let terms = f32_terms(terms, out.len());
     out.par_chunks_mut(4096).enumerate().for_each(|(c, chunk)| {
         let start = c * 4096;
         for (i, o) in chunk.iter_mut().enumerate() {
@@ -129,6 +122,23 @@ pub fn weighted_sum(out: &mut [Vec3], terms: &[(f64, &[Vec3])]) {
             *o = acc;
         }
     });
+}
+
+/// The terms of a [`weighted_sum`] as it computes them: zero weights
+/// dropped, the rest in f32.
+///
+/// # Panics
+/// If a weighted array's length differs from `len`.
+pub fn f32_terms<'a>(terms: &[(f64, &'a [Vec3])], len: usize) -> Vec<(f32, &'a [Vec3])> {
+    let terms: Vec<(f32, &[Vec3])> = terms
+        .iter()
+        .filter(|(w, _)| *w != 0.0)
+        .map(|&(w, a)| (w as f32, a))
+        .collect();
+    for (k, (_, a)) in terms.iter().enumerate() {
+        assert_eq!(a.len(), len, "term {k}: length differs from output");
+    }
+    terms
 }
 
 #[cfg(test)]

@@ -210,14 +210,7 @@ pub fn skin_blended_points(
     terms: &[(f64, &[Vec3])],
     out: &mut [Vec3],
 ) -> SkinnedBox {
-    let terms: Vec<(f32, &[Vec3])> = terms
-        .iter()
-        .filter(|(w, _)| *w != 0.0)
-        .map(|&(w, a)| (w as f32, a))
-        .collect();
-    for (k, (_, a)) in terms.iter().enumerate() {
-        assert_eq!(a.len(), out.len(), "term {k}: length differs from output");
-    }
+    let terms = crate::mesh::f32_terms(terms, out.len());
     match terms[..] {
         [(1.0, a)] => skin_with(binding, motions, frame, out, |start, _| Some(&a[start..])),
         _ => skin_with(binding, motions, frame, out, |start, buf| {
