@@ -197,7 +197,8 @@ pub fn skin_points(
 }
 
 /// [`skin_points`] of keyed rest points Σ w_k a_k (a layer's key blend),
-/// blended per point in the skinning pass rather than into an array first.
+/// blended a block at a time inside the skinning pass rather than into a
+/// whole array first.
 /// Terms of weight 0 are skipped; the sum runs in f32, in term order, from
 /// zero (as [`crate::mesh::weighted_sum`] does).
 ///
