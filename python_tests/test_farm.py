@@ -41,9 +41,6 @@ PLAN_FIELDS = {
     "assemble_job", "assemble_command", "submit_commands", "files", "chunks",
 }
 PLAN_CHUNK_FIELDS = {"index", "name", "frames", "state_at_submit", "submitted", "task", "command"}
-# Slow enough to cancel a running task reliably: 4 chunks of 189 frames,
-# each several seconds with two tasks sharing two cores.
-SLOW_FRAMES, SLOW_CHUNK = "1:48:0.0625", "189"
 
 
 # --------------------------------------------------------------------------
@@ -222,11 +219,32 @@ def test_slurm_bake_of_four_chunks_composes_to_the_single_file_bake(slurm, paint
     assert st["chunks"][2]["detail"] == f"task {job}_2 ended COMPLETED and the chunk is missing"
 
 
+def gate_first_chunk(tmp_path):
+    """A bash start-up file that holds array task 1 of a job while it runs.
+
+    Tasks are bash scripts and sbatch exports the submitting environment, so
+    `BASH_ENV` runs this before the task's first line: task 1 says it started,
+    then waits (up to 10 minutes) for a file nobody writes. Cancelling it
+    therefore always meets a running task, however fast the bake is.
+    """
+    started = tmp_path / "task1.started"
+    hook = tmp_path / "hold_task1.sh"
+    hook.write_text(
+        'if [ "${SLURM_ARRAY_TASK_ID:-}" = 1 ]; then\n'
+        f'  touch {started}\n'
+        '  for _ in $(seq 6000); do sleep 0.1; done\n'
+        "fi\n"
+    )
+    return hook, started
+
+
 def test_a_cancelled_task_is_redone_alone_on_resubmit(slurm, painterly, tmp_path):
     shot = tmp_path / "shot.usda"
-    args = ("--chunk", SLOW_CHUNK, "--frames", SLOW_FRAMES, "--scheduler", "slurm")
+    args = ("--chunk", "12", "--scheduler", "slurm")
+    hook, started = gate_first_chunk(tmp_path)
+    gated = dict(slurm, BASH_ENV=str(hook))
     # Held: every task waits, deterministically.
-    sub, _ = submit(painterly, slurm, BLOWFISH, shot, *args, "--sbatch-arg", "--hold")
+    sub, _ = submit(painterly, gated, BLOWFISH, shot, *args, "--sbatch-arg", "--hold")
     job, asm = sub["job"], sub["assemble_job"]
     st = status(painterly, slurm, shot)
     assert states(st) == ["pending"] * 4
@@ -242,9 +260,10 @@ def test_a_cancelled_task_is_redone_alone_on_resubmit(slurm, painterly, tmp_path
     slurm_cmd(slurm, "scontrol", "release", asm)
     victim = f"{job}_1"
     deadline = time.monotonic() + 120
-    while live_tasks(slurm, [job]).get(victim) != "RUNNING":
+    while not started.exists():
         assert time.monotonic() < deadline, "chunk 1's task never ran"
         time.sleep(0.05)
+    assert live_tasks(slurm, [job]).get(victim) == "RUNNING"
     st = status(painterly, slurm, shot)
     assert st["chunks"][1]["state"] == "running" and st["chunks"][1]["task"] == victim
     slurm_cmd(slurm, "scancel", victim)
@@ -252,8 +271,7 @@ def test_a_cancelled_task_is_redone_alone_on_resubmit(slurm, painterly, tmp_path
 
     st = status(painterly, slurm, shot)
     names = [c["name"] for c in st["chunks"]]
-    assert not (shot.parent / "shot.clips" / names[1]).exists(), \
-        "chunk 1 finished before scancel reached it: make the chunks slower"
+    assert not (shot.parent / "shot.clips" / names[1]).exists()
     assert states(st) == ["done", "failed", "done", "done"]
     assert st["chunks"][1]["scheduler_state"] == "CANCELLED"
     assert st["assembly"]["state"] == "failed" and st["assembly"]["scheduler_state"] == "CANCELLED"
@@ -276,7 +294,7 @@ def test_a_cancelled_task_is_redone_alone_on_resubmit(slurm, painterly, tmp_path
     # The re-baked chunk is the one a local task writes, byte for byte.
     local = tmp_path / "local" / "shot.usda"
     local.parent.mkdir()
-    painterly("bake", BLOWFISH, "-o", local, "--chunk", SLOW_CHUNK, "--frames", SLOW_FRAMES, "--chunk-index", "1", "--quiet")
+    painterly("bake", BLOWFISH, "-o", local, "--chunk", "12", "--chunk-index", "1", "--quiet")
     assert (local.parent / "shot.clips" / names[1]).read_bytes() == (shot.parent / "shot.clips" / names[1]).read_bytes()
     layer = Sdf.Layer.FindOrOpen(str(shot))
     assert (layer.startTimeCode, layer.endTimeCode) == (1, 48)
