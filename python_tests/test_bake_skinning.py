@@ -10,7 +10,7 @@ attribute). Every baked point at every baked frame must agree within
 
 import numpy as np
 import pytest
-from pxr import Sdf, Usd, UsdGeom
+from pxr import Gf, Sdf, Usd, UsdGeom
 
 import authoring as Au
 import reference_skinning as R
@@ -130,6 +130,35 @@ def test_deep_layer_with_own_transform(painterly, tmp_path):
     rig.layers.append("/World/Paint/Group/Deep/Strokes")
     out = run_bake(painterly, rig, tmp_path)
     check_strokes(rig, out, rig.frames)
+
+
+def test_one_sample_values_hold_at_every_frame(painterly, tmp_path):
+    """A transform op and painterly:opacity with one time sample beside a
+    different default are the sample at every frame, as usd-core resolves
+    them, though a bake reads a value that cannot vary only once. The first
+    layer resets the transform stack under an animated rig Xform (its
+    transform is fixed), the second inherits the animation."""
+    rig = Au.build_skel_rig(
+        tmp_path / "rig.usda", extra_layers=1, offsets=(0.0, 0.05),
+        rig_xform=Au.xf_animated({1: ((0, 0, 0), (0, 0, 0), (1, 1, 1)), 12: ((1, 2, 0), (0, 45, 0), (1, 1, 1))}))
+    st = Usd.Stage.Open(str(rig.path))
+    for i, path in enumerate(rig.layers[:2]):
+        prim = st.GetPrimAtPath(path)
+        x = UsdGeom.Xformable(prim)
+        x.SetResetXformStack(i == 0)
+        op = x.AddTranslateOp(opSuffix="held")
+        op.Set(Gf.Vec3d(0, 0, 0))
+        op.Set(Gf.Vec3d(0.5, -0.25, 1.0 + i), 6)
+    opacity = st.GetPrimAtPath(rig.layers[0]).CreateAttribute("painterly:opacity", Sdf.ValueTypeNames.Float, False)
+    opacity.Set(0.9)
+    opacity.Set(0.3, 6)
+    st.GetRootLayer().Save()
+    out = run_bake(painterly, rig, tmp_path)
+    check_strokes(rig, out, rig.frames)
+    comp = Au.compose(rig.path, out)
+    pv = UsdGeom.PrimvarsAPI(comp.GetPrimAtPath(rig.layers[0])).GetPrimvar("displayOpacity")
+    for t in rig.frames:
+        np.testing.assert_allclose(np.array(pv.ComputeFlattened(t)), 0.3, rtol=1e-7, err_msg=f"t={t}")
 
 
 @pytest.mark.parametrize("default_points", [True, False])

@@ -106,6 +106,9 @@ pub struct StrokeLayer {
     pub cached_binding: Option<Binding>,
     /// `painterly:opacity` (fallback 1).
     pub opacity: f32,
+    /// `painterly:opacity` at every time, once read, when it cannot vary
+    /// in time (read per frame otherwise).
+    fixed_opacity: Option<std::sync::OnceLock<f32>>,
     /// Authored `primvars:displayOpacity` per curve (1 when absent).
     pub display_opacity: Vec<f32>,
     /// `widths`, as far as the extent needs them (see [`StrokeLayer::max_width_at`]).
@@ -711,6 +714,10 @@ fn read_layer(r: &StageReader, path: &str, proxy_points: usize) -> Result<Stroke
     if !opacity.is_finite() {
         return Err(Error::attr(path, "painterly:opacity", "opacity is not finite").rule(Rule::NonFinite));
     }
+    let opacity_varies = prim
+        .attribute("painterly:opacity")
+        .value_might_be_time_varying()
+        .map_err(|e| Error::attr(path, "painterly:opacity", format!("cannot read: {e}")))?;
     let display_opacity = read_display_opacity(r, &prim, path, &counts).map_err(|e| e.or_rule(Rule::DisplayOpacity))?;
     let widths = read_widths(r, &prim, path)?;
     Ok(StrokeLayer {
@@ -720,6 +727,7 @@ fn read_layer(r: &StageReader, path: &str, proxy_points: usize) -> Result<Stroke
         points: authored_points,
         cached_binding,
         opacity,
+        fixed_opacity: (!opacity_varies).then(std::sync::OnceLock::new),
         display_opacity,
         widths,
         keys: LayerKeys::default(),
@@ -1137,6 +1145,9 @@ impl StrokeLayer {
 
     /// `painterly:opacity` at `t` (it may be animated; fallback 1).
     pub fn opacity_at(&self, r: &StageReader, t: f64) -> Result<f32> {
+        if let Some(o) = self.fixed_opacity.as_ref().and_then(|f| f.get()) {
+            return Ok(*o);
+        }
         let o = r
             .typed(&self.prim, "painterly:opacity", Some(t), "float", values::scalar)?
             .unwrap_or(1.0) as f32;
@@ -1146,6 +1157,9 @@ impl StrokeLayer {
                 "painterly:opacity",
                 format!("opacity is not finite at time {t}"),
             ));
+        }
+        if let Some(f) = &self.fixed_opacity {
+            let _ = f.set(o);
         }
         Ok(o)
     }

@@ -4,10 +4,12 @@
 //! Everything painterly reads goes through here, so "which file, which prim,
 //! which attribute" is attached in one place.
 
+use std::collections::HashMap;
 use std::path::{Path, PathBuf};
+use std::sync::Mutex;
 
 use glam::DMat4;
-use openusd::sdf::Value;
+use openusd::sdf::{self, Value};
 use openusd::usd::{self, TimeCode};
 use openusd_schemas::geom::XformCache;
 
@@ -34,8 +36,13 @@ pub struct StageReader {
     pub input_hash: std::sync::OnceLock<String>,
     /// Whether the layers are mapped files on disk, unedited, for one
     /// command ([`StageReader::open_mapped`]): only then are time samples read
-    /// straight from the files ([`super::crate_samples`]).
+    /// straight from the files ([`super::crate_samples`]) and fixed world
+    /// transforms kept ([`StageReader::local_to_world`]).
     pub mapped: bool,
+    /// World transforms of a mapped stage by prim, once computed: `None`
+    /// where an op of the prim or an ancestor may vary in time. A bake asks
+    /// for every stroke layer's transform every frame.
+    pub(crate) fixed_transforms: Mutex<HashMap<sdf::Path, Option<DMat4>>>,
 }
 
 /// A sublayer, reference or payload whose asset (or target prim) is missing.
@@ -206,6 +213,7 @@ impl StageReader {
             unresolved,
             input_hash: std::sync::OnceLock::new(),
             mapped: false,
+            fixed_transforms: Mutex::default(),
         })
     }
 
@@ -369,7 +377,46 @@ impl StageReader {
     }
 
     /// Local-to-world transform of a prim at `time`, in glam column form.
+    ///
+    /// On a mapped stage a transform that cannot vary in time is computed
+    /// once and kept.
     pub fn local_to_world(&self, prim: &usd::Prim, time: f64) -> Result<DMat4> {
+        if !self.mapped {
+            return self.compute_local_to_world(prim, time);
+        }
+        let lock = || self.fixed_transforms.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(kept) = lock().get(prim.path()) {
+            return match kept {
+                Some(m) => Ok(*m),
+                None => self.compute_local_to_world(prim, time),
+            };
+        }
+        let varies = self.transform_might_vary(prim)?;
+        let m = self.compute_local_to_world(prim, time)?;
+        lock().insert(prim.path().clone(), (!varies).then_some(m));
+        Ok(m)
+    }
+
+    /// Whether an op of `prim` or of an ancestor up to the nearest
+    /// `!resetXformStack!` may vary in time (C++
+    /// `UsdGeomXformCache::TransformMightBeTimeVarying`, up the chain).
+    pub fn transform_might_vary(&self, prim: &usd::Prim) -> Result<bool> {
+        let mut cache = XformCache::new(None::<TimeCode>);
+        let mut at = Some(prim.clone());
+        while let Some(p) = at {
+            let fail = |e: openusd_schemas::SchemaError| Error::prim(p.path(), format!("cannot read transform: {e}"));
+            if cache.transform_might_be_time_varying(&p).map_err(fail)? {
+                return Ok(true);
+            }
+            if cache.resets_xform_stack(&p).map_err(fail)? {
+                break;
+            }
+            at = p.parent();
+        }
+        Ok(false)
+    }
+
+    fn compute_local_to_world(&self, prim: &usd::Prim, time: f64) -> Result<DMat4> {
         let mut cache = XformCache::new(TimeCode::new(time));
         let m = cache
             .local_to_world_transform(prim)
