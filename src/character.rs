@@ -568,8 +568,9 @@ pub fn measure_axes(
         proxy_centre: (lo + hi) * 0.5,
         ..frame
     };
+    let mut reads = crate::usd_io::axes::FrameReads::default();
     for &a in needed {
-        values[a] = rig.axes[a].value(r, &frame)?;
+        values[a] = rig.axes[a].value_with(r, &frame, &mut reads)?;
     }
     Ok(values)
 }

@@ -30,7 +30,8 @@ pub enum AxisSource {
     /// A component of a joint's rotation vector relative to its rest rotation.
     JointRotation {
         rest: DQuat,
-        anim: Option<SkelAnimQuery>,
+        /// The Skeleton's animation and its path.
+        anim: Option<(SkelAnimQuery, String)>,
         index: Option<usize>,
     },
     /// A component of a prim's world-space origin, in the proxy's local space.
@@ -180,13 +181,13 @@ impl Axis {
                     _ => DQuat::IDENTITY,
                 };
                 let anim_path = r.targets(&skel, "skel:animationSource")?.into_iter().next();
-                let anim = match &anim_path {
-                    Some(a) => anim_query(r, path, a)?,
+                let anim = match anim_path {
+                    Some(a) => anim_query(r, path, &a)?.map(|q| (q, a)),
                     None => None,
                 };
                 let index = anim
                     .as_ref()
-                    .and_then(|a| a.joint_order().iter().position(|n| *n == joint));
+                    .and_then(|(a, _)| a.joint_order().iter().position(|n| *n == joint));
                 AxisSource::JointRotation { rest, anim, index }
             }
             "position" => {
@@ -222,6 +223,11 @@ impl Axis {
 
     /// The coordinate at a frame, in axis units (before `scale`).
     pub fn value(&self, r: &StageReader, f: &AxisFrame) -> Result<f64> {
+        self.value_with(r, f, &mut FrameReads::default())
+    }
+
+    /// [`Self::value`], sharing what `reads` already holds for this frame.
+    pub fn value_with(&self, r: &StageReader, f: &AxisFrame, reads: &mut FrameReads) -> Result<f64> {
         let t = f.time;
         let raw = match &self.source {
             AxisSource::Attribute { prim, attr } => {
@@ -243,12 +249,14 @@ impl Axis {
             },
             AxisSource::JointRotation { rest, anim, index } => {
                 let q = match (anim, index) {
-                    (Some(a), Some(i)) => {
-                        let (_, rots, _) =
+                    (Some((a, anim_path)), Some(i)) => {
+                        let rots = reads.joint_rotations(anim_path, || {
                             a.compute_joint_local_transform_components(TimeCode::new(t))
+                                .map(|(_, rots, _)| rots)
                                 .map_err(|e| {
                                     Error::attr(&self.path, "source", format!("cannot read joint rotations: {e}"))
-                                })?;
+                                })
+                        })?;
                         let q = rots.get(*i).copied().unwrap_or(openusd::gf::Quatf::IDENTITY);
                         DQuat::from_xyzw(q.x as f64, q.y as f64, q.z as f64, q.w as f64).normalize()
                     }
@@ -294,6 +302,31 @@ impl Axis {
             ));
         }
         Ok(raw)
+    }
+}
+
+/// What one frame's axes read in common: the joint rotations of each
+/// SkelAnimation, read once however many jointRotation axes measure it
+/// (the keys bench has 21 on one animation). Only for one frame's time.
+#[derive(Default)]
+pub struct FrameReads {
+    rotations: Vec<(String, Vec<openusd::gf::Quatf>)>,
+}
+
+impl FrameReads {
+    fn joint_rotations(
+        &mut self,
+        anim: &str,
+        read: impl FnOnce() -> Result<Vec<openusd::gf::Quatf>>,
+    ) -> Result<&[openusd::gf::Quatf]> {
+        let at = match self.rotations.iter().position(|(a, _)| a == anim) {
+            Some(at) => at,
+            None => {
+                self.rotations.push((anim.to_string(), read()?));
+                self.rotations.len() - 1
+            }
+        };
+        Ok(&self.rotations[at].1)
     }
 }
 
@@ -391,6 +424,28 @@ fn pick(v: &Value, element: i64, component: i64) -> std::result::Result<f64, Pic
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn frame_reads_read_each_animation_once() {
+        let q = |x: f32| vec![openusd::gf::quatf(1.0, x, 0.0, 0.0)];
+        let mut reads = FrameReads::default();
+        let mut calls = 0;
+        for (anim, x) in [("/A", 0.1), ("/B", 0.2), ("/A", 0.9), ("/B", 0.9)] {
+            let got = reads
+                .joint_rotations(anim, || {
+                    calls += 1;
+                    Ok(q(x))
+                })
+                .unwrap();
+            // The first read of each animation is the one kept.
+            assert_eq!(got, q(if anim == "/A" { 0.1 } else { 0.2 }).as_slice());
+        }
+        assert_eq!(calls, 2);
+        let mut fresh = FrameReads::default();
+        assert!(fresh.joint_rotations("/A", || Err(Error::msg("unreadable"))).is_err());
+        // A failed read is not kept.
+        assert_eq!(fresh.joint_rotations("/A", || Ok(q(0.3))).unwrap(), q(0.3).as_slice());
+    }
 
     #[test]
     fn rotation_vector_is_axis_times_angle_the_short_way() {
