@@ -404,6 +404,21 @@ struct Boxes4 {
 }
 
 impl Boxes4 {
+    /// Up to four (lo, hi) boxes side by side; unused lanes are empty.
+    fn from_boxes<'a>(boxes: impl Iterator<Item = (&'a [f32; 3], &'a [f32; 3])>) -> Self {
+        let mut b = Boxes4 {
+            lo: [[f32::INFINITY; 4]; 3],
+            hi: [[f32::NEG_INFINITY; 4]; 3],
+        };
+        for (lane, (lo, hi)) in boxes.take(4).enumerate() {
+            for k in 0..3 {
+                b.lo[k][lane] = lo[k];
+                b.hi[k][lane] = hi[k];
+            }
+        }
+        b
+    }
+
     /// Squared f32 distances from `p` to the four boxes (lanes past a
     /// node's `len` are meaningless). Each is within a relative 3e-7 of the
     /// exact value (five roundings), or smaller where a square underflows;
@@ -464,30 +479,15 @@ fn widen(nodes: &[Node], tris: &[LeafTri]) -> (Vec<Wide>, Vec<LeafGroup>) {
             kids.push(n.first as usize + 1);
         }
         let mut w = Wide {
-            boxes: Boxes4 {
-                lo: [[f32::INFINITY; 4]; 3],
-                hi: [[f32::NEG_INFINITY; 4]; 3],
-            },
+            boxes: Boxes4::from_boxes(kids.iter().map(|&c| (&nodes[c].lo, &nodes[c].hi))),
             child: [0; 4],
             len: kids.len() as u32,
         };
         for (j, &c) in kids.iter().enumerate() {
-            for k in 0..3 {
-                w.boxes.lo[k][j] = nodes[c].lo[k];
-                w.boxes.hi[k][j] = nodes[c].hi[k];
-            }
             w.child[j] = if nodes[c].count > 0 {
                 let (first, len) = (nodes[c].first, nodes[c].count);
-                let mut boxes = Boxes4 {
-                    lo: [[f32::INFINITY; 4]; 3],
-                    hi: [[f32::NEG_INFINITY; 4]; 3],
-                };
-                for (i, t) in tris[first as usize..(first + len) as usize].iter().enumerate() {
-                    for k in 0..3 {
-                        boxes.lo[k][i] = t.lo[k];
-                        boxes.hi[k][i] = t.hi[k];
-                    }
-                }
+                let leaf = &tris[first as usize..(first + len) as usize];
+                let boxes = Boxes4::from_boxes(leaf.iter().map(|t| (&t.lo, &t.hi)));
                 groups.push(LeafGroup { boxes, first, len });
                 LEAF_FLAG | (groups.len() - 1) as u32
             } else {
