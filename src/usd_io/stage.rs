@@ -385,9 +385,10 @@ impl StageReader {
             return self.compute_local_to_world(prim, time);
         }
         let lock = || self.fixed_transforms.lock().unwrap_or_else(|e| e.into_inner());
-        if let Some(kept) = lock().get(prim.path()) {
+        let kept = lock().get(prim.path()).copied();
+        if let Some(kept) = kept {
             return match kept {
-                Some(m) => Ok(*m),
+                Some(m) => Ok(m),
                 None => self.compute_local_to_world(prim, time),
             };
         }
