@@ -161,6 +161,37 @@ def test_one_sample_values_hold_at_every_frame(painterly, tmp_path):
         np.testing.assert_allclose(np.array(pv.ComputeFlattened(t)), 0.3, rtol=1e-7, err_msg=f"t={t}")
 
 
+def test_a_baked_point_beyond_float_range_is_named(painterly, tmp_path):
+    """Finite inputs whose baked point leaves float's range (a stroke layer
+    scaled far down, so stroke-local points are far out): exit 1, nothing
+    written, and the error names the layer and the first such point."""
+    f32_max = float(np.finfo(np.float32).max)
+    rig = Au.build_skel_rig(tmp_path / "rig.usda", offsets=(0.0, 0.05))
+    t0 = rig.frames[0]
+    layer = rig.layers[0]
+    # Without a layer transform, stroke-local = proxy-local: pick the scale
+    # so that some points, but not the first, land beyond f32's largest
+    # value, with a clear gap on both sides of it.
+    m = np.abs(R.expected_strokes(rig.path, [t0])[layer][t0]).max(axis=1)
+    above = np.unique(m[m > m[0]])
+    gaps = above[1:] / above[:-1]
+    k = int(np.argmax(gaps))
+    assert gaps[k] > 1.001, "no clear gap between point sizes"
+    scale = float(np.sqrt(above[k] * above[k + 1])) / f32_max
+    st = Usd.Stage.Open(str(rig.path))
+    UsdGeom.Xformable(st.GetPrimAtPath(layer)).AddScaleOp(UsdGeom.XformOp.PrecisionDouble).Set(
+        Gf.Vec3d(scale, scale, scale))
+    st.GetRootLayer().Save()
+    size = np.abs(R.expected_strokes(rig.path, [t0])[layer][t0]).max(axis=1)
+    first = int(np.argmax(size > f32_max))
+    assert first > 0 and size[first] > f32_max and size[0] < f32_max
+    out = tmp_path / "bake.usdc"
+    proc = painterly("bake", rig.path, "-o", out, "--frames", f"{t0:g}:{t0:g}", check=False)
+    assert proc.returncode == 1, proc.stderr
+    assert f"{layer}: baked point {first} is not finite at time {t0:g}" in proc.stderr, proc.stderr
+    assert not out.exists()
+
+
 @pytest.mark.parametrize("default_points", [True, False])
 def test_time_sampled_proxy_with_rest_time(painterly, tmp_path, default_points):
     """painterly:restTime picks the rest pose from the time-sampled points
