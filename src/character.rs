@@ -570,7 +570,7 @@ pub fn measure_axes(
     };
     let mut reads = crate::usd_io::axes::FrameReads::default();
     for &a in needed {
-        values[a] = rig.axes[a].value_with(r, &frame, &mut reads)?;
+        values[a] = rig.axes[a].value(r, &frame, &mut reads)?;
     }
     Ok(values)
 }

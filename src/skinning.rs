@@ -410,6 +410,48 @@ mod tests {
     }
 
     #[test]
+    fn every_block_of_every_chunk_skins_its_own_points() {
+        // Points spanning two parallel chunks and several rest blocks each,
+        // every one with its own binding and rest point, against eq. 1 per
+        // point: Σ w_j M_j p (the blended matrix applied, up to rounding).
+        let mut rng = crate::interp::testutil::Lcg::new(4);
+        let mut v = || Vec3::new(rng.unit() as f32, rng.unit() as f32, rng.unit() as f32) * 2.0 - 1.0;
+        let motions: Vec<Affine3A> = (0..11)
+            .map(|_| Affine3A::from_scale_rotation_translation(Vec3::ONE, glam::Quat::from_rotation_y(v().x), v()))
+            .collect();
+        let n = SKIN_CHUNK + 3 * REST_BLOCK + 5;
+        let binding = Binding {
+            vertices: (0..n)
+                .map(|i| [i % 11, (i / 11) % 11, (i / 121) % 11].map(|x| x as u32))
+                .collect(),
+            weights: (0..n)
+                .map(|i| {
+                    let a = (i % 7) as f32 / 10.0;
+                    [a, 0.8 - a, 0.2]
+                })
+                .collect(),
+        };
+        let (a, b): (Vec<Vec3>, Vec<Vec3>) = (0..n).map(|_| (v(), v())).unzip();
+        let frame = Affine3A::from_translation(Vec3::new(0.5, 0.0, -0.25));
+        let eq1 = |i: usize, p: Vec3| {
+            let q: Vec3 = (0..3)
+                .map(|j| motions[binding.vertices[i][j] as usize].transform_point3(p) * binding.weights[i][j])
+                .sum();
+            frame.transform_point3(q)
+        };
+        let mut out = vec![Vec3::ZERO; n];
+        skin_points(&binding, &motions, &frame, &a, &mut out);
+        for (i, (o, &p)) in out.iter().zip(&a).enumerate() {
+            assert!((*o - eq1(i, p)).length() < 1e-5, "point {i}: {o} vs {}", eq1(i, p));
+        }
+        skin_blended_points(&binding, &motions, &frame, &[(0.25, &a), (0.75, &b)], &mut out);
+        for (i, o) in out.iter().enumerate() {
+            let want = eq1(i, a[i] * 0.25 + b[i] * 0.75);
+            assert!((*o - want).length() < 1e-5, "blended point {i}: {o} vs {want}");
+        }
+    }
+
+    #[test]
     fn skinned_box_is_the_extent_and_finiteness_of_the_output() {
         use crate::extent::point_based_extent;
         let mut rng = crate::interp::testutil::Lcg::new(9);

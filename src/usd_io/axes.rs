@@ -221,13 +221,9 @@ impl Axis {
         })
     }
 
-    /// The coordinate at a frame, in axis units (before `scale`).
-    pub fn value(&self, r: &StageReader, f: &AxisFrame) -> Result<f64> {
-        self.value_with(r, f, &mut FrameReads::default())
-    }
-
-    /// [`Self::value`], sharing what `reads` already holds for this frame.
-    pub fn value_with(&self, r: &StageReader, f: &AxisFrame, reads: &mut FrameReads) -> Result<f64> {
+    /// The coordinate at a frame, in axis units (before `scale`), sharing
+    /// what `reads` already holds for this frame.
+    pub fn value(&self, r: &StageReader, f: &AxisFrame, reads: &mut FrameReads) -> Result<f64> {
         let t = f.time;
         let raw = match &self.source {
             AxisSource::Attribute { prim, attr } => {
