@@ -544,3 +544,66 @@ fn unresolved_assets(stage: &usd::Stage) -> Vec<UnresolvedAsset> {
     out.sort_by(|a, b| (&a.layer, &a.prim, &a.asset).cmp(&(&b.layer, &b.prim, &b.asset)));
     out
 }
+
+#[cfg(test)]
+mod tests {
+    use super::super::atomic::TempDir;
+    use super::*;
+    use glam::DVec3;
+
+    /// A mapped reader keeps exactly the transforms nothing can vary (a
+    /// one-sample op is fixed; an animated parent is not, unless the child
+    /// resets the stack); an in-memory reader keeps none. Answers are
+    /// usd-core's either way (python_tests: test_one_sample_values_hold_at_every_frame).
+    #[test]
+    fn fixed_transforms_are_kept_only_where_nothing_varies() {
+        let dir = TempDir::new().unwrap();
+        let path = dir.path().join("xf.usda");
+        std::fs::write(
+            &path,
+            r#"#usda 1.0
+def Xform "Moving" {
+    double3 xformOp:translate.timeSamples = { 1: (0, 0, 0), 5: (4, 0, 0) }
+    uniform token[] xformOpOrder = ["xformOp:translate"]
+    def Xform "Child" {
+        double3 xformOp:translate = (0, 1, 0)
+        uniform token[] xformOpOrder = ["xformOp:translate"]
+    }
+    def Xform "Reset" {
+        double3 xformOp:translate = (0, 0, 0)
+        double3 xformOp:translate.timeSamples = { 3: (0, 0, 2) }
+        uniform token[] xformOpOrder = ["!resetXformStack!", "xformOp:translate"]
+    }
+}
+"#,
+        )
+        .unwrap();
+        let kept = |r: &StageReader, p: &str| {
+            r.fixed_transforms
+                .lock()
+                .unwrap()
+                .get(&sdf::Path::new(p).unwrap())
+                .copied()
+        };
+        let r = StageReader::open_mapped(&path).unwrap();
+        for t in [1.0, 3.0, 5.0] {
+            for p in ["/Moving", "/Moving/Child", "/Moving/Reset"] {
+                let m = r.local_to_world(&r.require_prim(p).unwrap(), t).unwrap();
+                let want = match p {
+                    "/Moving" => DVec3::new(t - 1.0, 0.0, 0.0),
+                    "/Moving/Child" => DVec3::new(t - 1.0, 1.0, 0.0),
+                    _ => DVec3::new(0.0, 0.0, 2.0),
+                };
+                assert_eq!(m.w_axis.truncate(), want, "{p} at {t}");
+            }
+        }
+        assert_eq!(kept(&r, "/Moving"), Some(None));
+        assert_eq!(kept(&r, "/Moving/Child"), Some(None));
+        let reset = kept(&r, "/Moving/Reset").expect("asked for").expect("kept");
+        assert_eq!(reset.w_axis.truncate(), DVec3::new(0.0, 0.0, 2.0));
+        let r = StageReader::open(&path).unwrap();
+        r.local_to_world(&r.require_prim("/Moving/Reset").unwrap(), 1.0)
+            .unwrap();
+        assert_eq!(kept(&r, "/Moving/Reset"), None);
+    }
+}
