@@ -2,6 +2,7 @@
 in words, a --verbose log of phases, no silent no-op edits."""
 
 import json
+import pathlib
 
 import pytest
 
@@ -117,6 +118,23 @@ def test_a_closed_pipe_ends_quietly(painterly, repo_root):
     )
     assert proc.stderr == ""
     assert proc.stdout.strip() in {"0", "141"}
+
+
+@pytest.mark.skipif(not pathlib.Path("/dev/full").exists(), reason="no /dev/full")
+def test_a_full_stdout_is_a_failed_write(repo_root):
+    """A write to stdout that fails (a full disk) exits 1 naming the stream
+    and the reason, as the README's exit codes say, not 3 (a bug)."""
+    import subprocess
+
+    from conftest import painterly_binary
+
+    with open("/dev/full", "w") as full:
+        proc = subprocess.run([str(painterly_binary()), "inspect", "--json",
+                               str(repo_root / "fixtures" / "blowfish.usda")],
+                              stdout=full, stderr=subprocess.PIPE, text=True, timeout=60)
+    assert proc.returncode == 1
+    assert proc.stderr.startswith("error: failed printing to stdout: No space left on device"), proc.stderr
+    assert "internal error" not in proc.stderr
 
 
 def test_bake_refuses_to_write_over_its_input(painterly, tmp_path, repo_root):

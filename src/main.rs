@@ -17,10 +17,16 @@ fn main() {
             .map(|s| s.to_string())
             .or_else(|| info.payload().downcast_ref::<String>().cloned())
             .unwrap_or_else(|| "unknown".into());
-        // A reader that went away (`painterly inspect --json | head`) ends
-        // the run quietly, as SIGPIPE ends Unix tools: exit 128 + 13.
-        if msg.contains("failed printing to") && msg.contains("Broken pipe") {
-            std::process::exit(141);
+        // `println!` panics when stdout or stderr cannot be written. A
+        // reader that went away (`painterly inspect --json | head`) ends the
+        // run quietly, as SIGPIPE ends Unix tools: exit 128 + 13. Any other
+        // such failure (a full disk) is a failed write, not a bug: exit 1.
+        if msg.starts_with("failed printing to") {
+            if msg.contains("Broken pipe") {
+                std::process::exit(141);
+            }
+            eprintln!("error: {msg}");
+            std::process::exit(1);
         }
         let at = info
             .location()
