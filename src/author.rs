@@ -581,3 +581,33 @@ pub fn path_from_prim(r: &StageReader, prim_path: &str, time: Option<f64>, xform
     let m = r.local_to_world(&prim, time.unwrap_or(xform_time))?;
     Ok(pts[..n].iter().map(|p| m.transform_point3(p.as_dvec3())).collect())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_singular_or_non_finite_blend_is_refused_naming_the_point() {
+        // Two rotations half a turn apart about z: their even blend flattens x and y.
+        let (a, b) = (
+            DMat3::from_rotation_z(1.0),
+            DMat3::from_rotation_z(1.0 + std::f64::consts::PI),
+        );
+        let flat = DAffine3::from_mat3_translation((a + b) * 0.5, DVec3::X);
+        let infinite =
+            DAffine3::from_mat3_translation(DMat3::from_diagonal(DVec3::new(f64::MAX, 4.0, 1.0)), DVec3::ZERO);
+        for (m, what) in [(flat, "singular"), (infinite, "infinite determinant")] {
+            let e = invert(&m, "/Paint/L", 7).expect_err(what).to_string();
+            assert!(
+                e.contains("/Paint/L") && e.contains("point 7") && e.contains("singular"),
+                "{what}: {e}"
+            );
+        }
+        let turn = DAffine3::from_mat3_translation(a * 2.0, DVec3::Y);
+        let p = DVec3::new(0.3, -1.0, 2.0);
+        let back = invert(&turn, "/Paint/L", 0)
+            .unwrap()
+            .transform_point3(turn.transform_point3(p));
+        assert!((back - p).length() < 1e-12);
+    }
+}
