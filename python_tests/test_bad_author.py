@@ -126,6 +126,9 @@ def test_key_name_exists(painterly, case):
             names=[f"{LAYER}/key1", "--replace"], existing=True)
     # the rig has no axes: every pose key sits at coordinates [], so a second points key clashes
     refused(painterly, "key", inp, "--layer", LAYER, "--time", 7, "--points", names=[f"{LAYER}/key1"])
+    # --replace of `nopts` by name, whose points would also replace key1: two keys, refused
+    refused(painterly, "key", inp, "--layer", LAYER, "--time", 7, "--name", "nopts", "--points", "--opacity", 0.3,
+            "--replace", names=[f"{LAYER}/key1", "--replace would overwrite two different keys"], existing=True)
 
 
 def test_edit_layer_is_the_input(painterly, case):
