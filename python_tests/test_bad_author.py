@@ -116,7 +116,7 @@ def test_tool_path_prim_too_short_or_missing(painterly, case):
 def test_radius_not_positive(painterly, case, radius):
     inp, refused = case
     for which in ("smudge", "expand"):
-        refused(painterly, *brush_args(inp, which, radius=radius), names=["radius"])
+        refused(painterly, *brush_args(inp, which, radius=radius), names=[f"--radius {radius} must be positive"])
 
 
 def test_key_name_exists(painterly, case):
