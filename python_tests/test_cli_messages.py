@@ -137,6 +137,22 @@ def test_a_full_stdout_is_a_failed_write(repo_root):
     assert "internal error" not in proc.stderr
 
 
+def test_verbose_times_each_stage_of_the_bake(painterly, repo_root, tmp_path):
+    """--verbose's per-stage line: every stage timed, none negative, the
+    writer's time not above the whole bake's (it runs inside it)."""
+    import re
+
+    proc = painterly("bake", repo_root / "fixtures" / "blowfish.usda", "-o", tmp_path / "b.usdc", "--verbose")
+    m = re.search(r"painterly: 48 frames: read ([0-9.]+) s, evaluate ([0-9.]+) s \(summed over threads\), "
+                  r"write ([0-9.]+) s; ([0-9.]+) s wall\n", proc.stderr)
+    assert m, proc.stderr
+    read, evaluate, write, wall = map(float, m.groups())
+    total = float(re.search(r"-> .*b\.usdc in ([0-9.]+) s", proc.stdout + proc.stderr).group(1))
+    # Writing 48 frames of 17,940 points takes milliseconds, never 0.000 s.
+    assert read >= 0 and evaluate > 0 and write > 0 and wall > 0
+    assert write <= total + 0.01 and wall <= total + 0.01
+
+
 def test_bake_refuses_to_write_over_its_input(painterly, tmp_path, repo_root):
     """The input is never modified: an output naming the input (directly or
     through a symlink) is refused before any work, and the input's bytes stay."""
