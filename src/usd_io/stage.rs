@@ -401,7 +401,7 @@ impl StageReader {
     /// Whether an op of `prim` or of an ancestor up to the nearest
     /// `!resetXformStack!` may vary in time (C++
     /// `UsdGeomXformCache::TransformMightBeTimeVarying`, up the chain).
-    pub fn transform_might_vary(&self, prim: &usd::Prim) -> Result<bool> {
+    fn transform_might_vary(&self, prim: &usd::Prim) -> Result<bool> {
         let mut cache = XformCache::new(None::<TimeCode>);
         let mut at = Some(prim.clone());
         while let Some(p) = at {
