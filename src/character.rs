@@ -242,7 +242,7 @@ impl Character {
         crate::vlog!(
             "bound {} (rest data of {}) in {:.3} s",
             plural(rig_models.iter().map(|r| r.num_points()).sum(), "stroke point"),
-            plural(rig_models.iter().map(|r| r.skin.len()).sum(), "proxy vertex"),
+            plural(rig_models.iter().map(|r| r.skin.vertex_count()).sum(), "proxy vertex"),
             started.elapsed().as_secs_f64()
         );
         Ok(Character {

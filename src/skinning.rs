@@ -50,18 +50,13 @@ impl SkinningRest {
     }
 
     /// Number of proxy vertices.
-    pub fn len(&self) -> usize {
+    pub fn vertex_count(&self) -> usize {
         self.centroids.len()
-    }
-
-    /// True for an empty proxy.
-    pub fn is_empty(&self) -> bool {
-        self.centroids.is_empty()
     }
 
     /// The rigid motion M_v(x) = R (x − c) + c' of every vertex for a pose.
     pub fn vertex_motions(&self, posed: &[DVec3]) -> Vec<DAffine3> {
-        (0..self.len())
+        (0..self.vertex_count())
             .into_par_iter()
             .map(|v| self.vertex_motion(v, posed))
             .collect()
@@ -308,6 +303,30 @@ mod tests {
             let x = DVec3::new(0.3, 0.7, 2.0);
             assert!((m.transform_point3(x) - (q * x + t)).length() < 1e-12);
         }
+    }
+
+    #[test]
+    fn the_svd_fit_recovers_a_rotation_and_excludes_a_reflection() {
+        // `svd_rotation` is the fast fit's reference and fallback, so it is
+        // checked on its own (the fast path answers the other tests).
+        // Points ±3x, ±2y, ±1z: centred, with Σ p pᵀ = diag(18, 8, 2).
+        let pts = [3.0 * DVec3::X, 2.0 * DVec3::Y, DVec3::Z]
+            .into_iter()
+            .flat_map(|p| [p, -p]);
+        let q = DMat3::from_quat(DQuat::from_axis_angle(DVec3::new(1.0, -2.0, 0.7).normalize(), 2.3));
+        let (h, _) = cross_covariance(pts.clone().map(|p| (p, q * p)));
+        let r = svd_rotation(&h);
+        assert!((r - q).to_cols_array().iter().all(|d| d.abs() < 1e-12), "{r} vs {q}");
+        // Mirrored in z: H = diag(18, 8, −2). Every proper rotation moves
+        // the x and y points too; the identity errs only on the two z points
+        // (Σ |R p − q|² = 8), the least, so the fit is I and not the mirror.
+        let mirror = DMat3::from_diagonal(DVec3::new(1.0, 1.0, -1.0));
+        let (h, _) = cross_covariance(pts.map(|p| (p, mirror * p)));
+        let r = svd_rotation(&h);
+        assert!(
+            (r - DMat3::IDENTITY).to_cols_array().iter().all(|d| d.abs() < 1e-12),
+            "{r}"
+        );
     }
 
     #[test]

@@ -1,0 +1,96 @@
+"""The ledger of the full mutation run (scripts/mutants_ledger.py, issue 16):
+a finished unit is recorded with its counts and misses, stands while its
+source file is unchanged since its commit, and is reported per file."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+LEDGER_PY = Path(__file__).resolve().parent.parent / "scripts" / "mutants_ledger.py"
+
+
+def git(repo, *args):
+    return subprocess.run(["git", *args], cwd=repo, check=True, capture_output=True, text=True).stdout.strip()
+
+
+def ledger(repo, *args):
+    return subprocess.run(
+        [sys.executable, str(LEDGER_PY), *args], cwd=repo, check=True, capture_output=True, text=True
+    ).stdout
+
+
+def unit(repo, name, file, k, n, caught, unviable, missed, timeout):
+    d = repo / "out" / name
+    (d / "mutants.out").mkdir(parents=True)
+    (d / "unit").write_text(f"{file} {k} {n}\n")
+    (d / "commit").write_text(git(repo, "rev-parse", "HEAD") + "\n")
+    (d / "pytest").write_text("python_tests/test_a.py python_tests/test_b.py\n")
+    outcomes = {"caught": caught, "unviable": unviable, "missed": len(missed), "timeout": len(timeout)}
+    (d / "mutants.out" / "outcomes.json").write_text(json.dumps(outcomes))
+    (d / "mutants.out" / "missed.txt").write_text("".join(m + "\n" for m in missed))
+    (d / "mutants.out" / "timeout.txt").write_text("".join(m + "\n" for m in timeout))
+    return d
+
+
+def test_a_unit_stands_until_its_file_changes(tmp_path):
+    repo = tmp_path
+    git(repo, "init", "-q")
+    git(repo, "config", "user.email", "t@example.com")
+    git(repo, "config", "user.name", "t")
+    (repo / "src").mkdir()
+    (repo / "src" / "a.rs").write_text("fn a() {}\n")
+    (repo / "src" / "b.rs").write_text("fn b() {}\n")
+    (repo / "docs").mkdir()
+    git(repo, "add", "src")
+    git(repo, "commit", "-qm", "one")
+    head = git(repo, "rev-parse", "HEAD")
+
+    missed = ["src/a.rs:1:1: replace a with ()", "src/a.rs:2:3: replace + with -"]
+    first = unit(repo, "a1", "src/a.rs", 0, 2, 3, 0, [], [])
+    ledger(repo, "record", str(first))
+    again = unit(repo, "a1-again", "src/a.rs", 0, 2, 5, 1, missed, ["src/a.rs:4:1: delete !"])
+    ledger(repo, "record", str(again))
+
+    lines = (repo / "docs" / "mutants_ledger.jsonl").read_text().splitlines()
+    assert len(lines) == 2
+    entry = json.loads(lines[1])
+    assert entry["file"] == "src/a.rs" and entry["k"] == 0 and entry["n"] == 2
+    assert entry["commit"] == head
+    assert entry["caught"] == 5 and entry["unviable"] == 1
+    assert entry["missed"] == missed and entry["timeout"] == ["src/a.rs:4:1: delete !"]
+    assert entry["pytest"] == ["python_tests/test_a.py", "python_tests/test_b.py"]
+
+    # The last line of a unit wins; only the recorded unit stands.
+    assert ledger(repo, "standing") == f"src/a.rs 0 2 {head[:12]}\n"
+
+    plan = repo / "plan"
+    plan.write_text("src/a.rs 0 2 17\nsrc/a.rs 1 2 17\nsrc/b.rs 0 1 4\n")
+    report = ledger(repo, "report", str(plan)).splitlines()
+    assert "| `src/a.rs` | 17 | 1/2 | 5 | 2 | 1 | 1 |" in report
+    assert "| `src/b.rs` | 4 | 0/1 | 0 | 0 | 0 | 0 |" in report
+    assert "| **all** | 21 | 1/3 | 5 | 2 | 1 | 1 |" in report
+    assert f"9 of 21 mutants tested; commits: {head[:12]}." in report
+    assert "  " + missed[0] in report and "  " + missed[1] in report
+    assert "  src/a.rs:4:1: delete !" in report
+
+    # Another file's change leaves it standing; its own file's change does not.
+    (repo / "src" / "b.rs").write_text("fn b() { 1; }\n")
+    assert ledger(repo, "standing") == f"src/a.rs 0 2 {head[:12]}\n"
+    (repo / "src" / "a.rs").write_text("fn a() { 2; }\n")
+    assert ledger(repo, "standing") == ""
+    assert "| **all** | 21 | 0/3 | 0 | 0 | 0 | 0 |" in ledger(repo, "report", str(plan)).splitlines()
+
+
+def test_every_pytest_file_the_map_names_exists():
+    root = LEDGER_PY.parent.parent
+    rules = [
+        line.split()
+        for line in (root / "scripts" / "mutants_pytest_map").read_text().splitlines()
+        if line.strip() and not line.startswith("#")
+    ]
+    assert rules[-1][0] == "*", "the last rule catches every other source file"
+    for glob, *files in rules:
+        assert files, f"rule {glob} names no pytest file"
+        for f in files:
+            assert (root / "python_tests" / f).is_file(), f"rule {glob}: no python_tests/{f}"
