@@ -330,6 +330,26 @@ mod tests {
     }
 
     #[test]
+    fn the_svd_fit_is_the_identity_where_no_rotation_is_determined() {
+        // The doc's rule: I when σ₂ < 1e-9 σ₁ (a ratio: the same at every
+        // scale), when H is zero, and when H is not finite.
+        let q = DMat3::from_quat(DQuat::from_axis_angle(DVec3::new(0.3, 1.0, -0.4).normalize(), 1.1));
+        let thin = q * DMat3::from_diagonal(DVec3::new(1.0, 1e-10, 0.0));
+        for k in [1e-3, 1.0, 1e3] {
+            assert_eq!(svd_rotation(&(thin * k)), DMat3::IDENTITY, "σ₂/σ₁ = 1e-10 at scale {k}");
+        }
+        // Just above the ratio a rotation is determined, and it is not I.
+        let wide = q * DMat3::from_diagonal(DVec3::new(1.0, 1e-8, 0.0)) * 1e3;
+        assert_ne!(svd_rotation(&wide), DMat3::IDENTITY);
+        assert_eq!(svd_rotation(&DMat3::ZERO), DMat3::IDENTITY);
+        for bad in [f64::NAN, f64::INFINITY] {
+            let mut h = q;
+            h.y_axis.z = bad;
+            assert_eq!(svd_rotation(&h), DMat3::IDENTITY, "H with {bad}");
+        }
+    }
+
+    #[test]
     fn reflection_is_excluded() {
         // A mirrored pose: the best proper rotation is not the mirror.
         let rest = [DVec3::X, DVec3::Y, DVec3::Z, DVec3::ZERO];
