@@ -158,6 +158,33 @@ mod tests {
     }
 
     #[test]
+    fn brushes_measure_from_a_path_off_the_origin_at_any_radius() {
+        // A path off the origin, drawn in −x, and radius 2: the falloff is
+        // of d / 2, so at d = 1 the cubic step is 2/8 − 3/4 + 1 = 0.5.
+        let path = [DVec3::new(3.0, 1.0, 0.0), DVec3::new(1.0, 1.0, 0.0)];
+        assert_eq!(
+            closest_on_path(&path, DVec3::new(2.0, 2.0, 0.0)),
+            Some((1.0, -DVec3::X))
+        );
+        let pts = [
+            DVec3::new(2.0, 1.0, 0.0), // on the path: weight 1
+            DVec3::new(2.0, 2.0, 0.0), // d = 1: weight 0.5
+            DVec3::new(0.0, 1.0, 0.0), // past the end (1, 1, 0), d = 1: weight 0.5
+            DVec3::new(2.0, 1.0, 2.5), // d = 2.5, beyond the radius: unmoved
+        ];
+        let close = |got: &[DVec3], want: [DVec3; 4]| {
+            for (g, w) in got.iter().zip(want) {
+                assert!((*g - w).length() < 1e-12, "{g} vs {w}");
+            }
+        };
+        let along = [0.4, 0.2, 0.2, 0.0].map(|s| -DVec3::X * s);
+        close(&smudge(&pts, &path, 2.0, 0.4, Falloff::Cubic), along);
+        let normals = [DVec3::Z, DVec3::Y, DVec3::X, DVec3::Z];
+        let out = [DVec3::Z * 0.4, DVec3::Y * 0.2, DVec3::X * 0.2, DVec3::ZERO];
+        close(&expand(&pts, &normals, &path, 2.0, 0.4, Falloff::Cubic), out);
+    }
+
+    #[test]
     fn normals_of_a_flat_square_point_up() {
         let pts = [DVec3::ZERO, DVec3::X, DVec3::new(1.0, 1.0, 0.0), DVec3::Y];
         let n = vertex_normals(&pts, &[[0, 1, 2], [0, 2, 3]]);
