@@ -31,8 +31,9 @@ impl Falloff {
 
 /// The point of a polyline closest to `p`: (distance, unit tangent there).
 ///
-/// The tangent is that of the segment holding the closest point. Zero-length
-/// segments are skipped; the path must have a segment of non-zero length.
+/// The tangent is that of the segment holding the closest point; where two
+/// segments hold it (a corner), the earlier one's. Zero-length segments are
+/// skipped; the path must have a segment of non-zero length.
 pub fn closest_on_path(path: &[DVec3], p: DVec3) -> Option<(f64, DVec3)> {
     let mut best: Option<(f64, DVec3)> = None;
     for w in path.windows(2) {
@@ -182,6 +183,28 @@ mod tests {
         let normals = [DVec3::Z, DVec3::Y, DVec3::X, DVec3::Z];
         let out = [DVec3::Z * 0.4, DVec3::Y * 0.2, DVec3::X * 0.2, DVec3::ZERO];
         close(&expand(&pts, &normals, &path, 2.0, 0.4, Falloff::Cubic), out);
+    }
+
+    #[test]
+    fn the_closest_segment_of_a_path_gives_the_tangent() {
+        // An L: +x from (1, 0, 0) to (3, 0, 0), then +y to (3, 2, 0).
+        let path = [
+            DVec3::new(1.0, 0.0, 0.0),
+            DVec3::new(3.0, 0.0, 0.0),
+            DVec3::new(3.0, 2.0, 0.0),
+        ];
+        // Beside the second leg (distance 1; the first leg is √3.25 away).
+        assert_eq!(closest_on_path(&path, DVec3::new(4.0, 1.5, 0.0)), Some((1.0, DVec3::Y)));
+        // Beside the first leg (distance 0.5; the second is √1.25 away).
+        assert_eq!(
+            closest_on_path(&path, DVec3::new(2.0, -0.5, 0.0)),
+            Some((0.5, DVec3::X))
+        );
+        // Off the corner, both legs at √2: the earlier leg's tangent.
+        assert_eq!(
+            closest_on_path(&path, DVec3::new(4.0, -1.0, 0.0)),
+            Some((2f64.sqrt(), DVec3::X))
+        );
     }
 
     #[test]
