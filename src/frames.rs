@@ -192,6 +192,31 @@ mod tests {
     }
 
     #[test]
+    fn each_refusal_says_why() {
+        let why = |s: &str| s.parse::<FrameRange>().unwrap_err();
+        // Parsing refuses a non-finite number itself; `count` (public, and
+        // what every range is checked with) refuses any one non-finite
+        // field, whatever the others.
+        assert_eq!(why("1:inf"), "\"inf\" is not a finite number");
+        let (inf, nan) = (f64::INFINITY, f64::NAN);
+        for (start, end, step) in [
+            (nan, 3.0, 1.0),
+            (inf, 3.0, 1.0),
+            (1.0, inf, 1.0),
+            (1.0, -inf, 1.0),
+            (0.0, 10.0, inf),
+            (0.0, 10.0, nan),
+        ] {
+            let e = FrameRange { start, end, step }.count().unwrap_err();
+            assert_eq!(e, format!("{start}:{end}:{step} is not a finite range"));
+        }
+        assert_eq!(why("1:12:0"), "step 0 must be positive");
+        assert_eq!(why("1:12:-2"), "step -2 must be positive");
+        assert_eq!(why("5:1"), "end 1 is before start 5");
+        assert!(why("1e17:100000000000000016:1").starts_with("step 1 is too small to separate"));
+    }
+
+    #[test]
     fn frame_limit_is_exact() {
         let max = MAX_FRAMES as f64;
         let r: FrameRange = format!("1:{max}").parse().unwrap();
