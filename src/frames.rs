@@ -74,12 +74,20 @@ impl FrameRange {
                  {MAX_FRAMES} per run (split the range into chunks)"
             ));
         }
-        // Every time code must differ from the previous one in f64.
-        let top = start.abs().max(end.abs());
-        if n > 1.0 && top + step == top {
-            return Err(format!("step {step} is too small to separate time codes near {top}"));
+        // Every time code `times` makes must differ from the previous one in
+        // f64. Checked on the codes themselves: a step just above half the
+        // spacing of f64 near the end passes `end + step != end` and still
+        // rounds two codes to one (at most MAX_FRAMES additions).
+        let n = n as usize;
+        let mut previous = start;
+        for k in 1..n {
+            let t = start + k as f64 * step;
+            if t <= previous {
+                return Err(format!("step {step} is too small to separate time codes near {t}"));
+            }
+            previous = t;
         }
-        Ok(n as usize)
+        Ok(n)
     }
 
     /// The time codes of the range, start first; the end is included when the
@@ -213,7 +221,21 @@ mod tests {
         assert_eq!(why("1:12:0"), "step 0 must be positive");
         assert_eq!(why("1:12:-2"), "step -2 must be positive");
         assert_eq!(why("5:1"), "end 1 is before start 5");
-        assert!(why("1e17:100000000000000016:1").starts_with("step 1 is too small to separate"));
+        assert_eq!(
+            why("1e17:100000000000000016:1"),
+            "step 1 is too small to separate time codes near 100000000000000000"
+        );
+        // Just below 2^57 f64 is spaced 16 apart: a step of 10 moves `end`
+        // (10 > 16/2) yet rounds 2^57 − 64 + 10 and + 20 both to 2^57 − 48.
+        let (start, end) = (2f64.powi(57) - 64.0, 2f64.powi(57) - 16.0);
+        let e = FrameRange { start, end, step: 10.0 }.count().unwrap_err();
+        assert_eq!(
+            e,
+            format!("step 10 is too small to separate time codes near {}", start + 16.0)
+        );
+        let r = FrameRange { start, end, step: 16.0 };
+        assert_eq!(r.count(), Ok(4));
+        assert_eq!(r.times(), [64.0, 48.0, 32.0, 16.0].map(|d| 2f64.powi(57) - d));
     }
 
     #[test]
