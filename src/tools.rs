@@ -208,6 +208,27 @@ mod tests {
     }
 
     #[test]
+    fn normals_are_area_weighted_anywhere_in_space() {
+        // Two triangles off the origin sharing the edge 0–1: one flat
+        // (cross product (2,0,0)×(0,1,0) = (0,0,2)), one upright and three
+        // times larger ((2,0,0)×(0,0,3) = (0,−6,0)). The shared vertices get
+        // (0,−6,2)/√40, the others their own triangle's normal.
+        let o = DVec3::new(10.0, -4.0, 5.0);
+        let pts = [
+            DVec3::ZERO,
+            DVec3::new(2.0, 0.0, 0.0),
+            DVec3::Y,
+            DVec3::new(0.0, 0.0, 3.0),
+        ]
+        .map(|p| p + o);
+        let n = vertex_normals(&pts, &[[0, 1, 2], [0, 1, 3]]);
+        let shared = DVec3::new(0.0, -3.0, 1.0) / 10f64.sqrt();
+        for (got, want) in n.iter().zip([shared, shared, DVec3::Z, -DVec3::Y]) {
+            assert!((*got - want).length() < 1e-12, "{got} vs {want}");
+        }
+    }
+
+    #[test]
     fn normals_of_a_flat_square_point_up() {
         let pts = [DVec3::ZERO, DVec3::X, DVec3::new(1.0, 1.0, 0.0), DVec3::Y];
         let n = vertex_normals(&pts, &[[0, 1, 2], [0, 2, 3]]);
@@ -217,7 +238,11 @@ mod tests {
     #[test]
     fn stroke_selection_parses_ranges() {
         assert_eq!(parse_strokes("3,7-9, 1").unwrap(), vec![1, 3, 7, 8, 9]);
-        assert!(parse_strokes("5-2").is_err());
+        assert_eq!(parse_strokes("4-4,2").unwrap(), vec![2, 4]);
+        assert_eq!(
+            parse_strokes("1,5-2").unwrap_err(),
+            "range \"5-2\" ends before it starts"
+        );
         assert!(parse_strokes("x").is_err());
         assert!(parse_strokes("").is_err());
     }
