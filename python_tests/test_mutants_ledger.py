@@ -79,7 +79,9 @@ def test_a_unit_stands_until_its_file_changes(tmp_path):
     assert ledger(repo, "standing") == f"src/a.rs 0 2 {head[:12]}\n"
     (repo / "src" / "a.rs").write_text("fn a() { 2; }\n")
     assert ledger(repo, "standing") == ""
-    assert "| **all** | 21 | 0/3 | 0 | 0 | 0 | 0 |" in ledger(repo, "report", str(plan)).splitlines()
+    report = ledger(repo, "report", str(plan)).splitlines()
+    assert "| **all** | 21 | 0/3 | 0 | 0 | 0 | 0 |" in report
+    assert f"  src/a.rs 1/2 at {head[:12]}: 9 tested, 5 caught, 2 missed, 1 timeouts, 1 unviable" in report
 
 
 def test_every_pytest_file_the_map_names_exists():

@@ -80,13 +80,16 @@ def standing():
 def report(plan_path):
     last = entries()
     rows = defaultdict(lambda: defaultdict(int))
-    missed, timeouts, commits = [], [], set()
+    missed, timeouts, commits, stale = [], [], set(), []
     for l in lines(plan_path):
         f, k, n, count = l.split()
         r = rows[f]
         r["total"], r["units"] = int(count), int(n)
         e = last.get((f, int(k), int(n)))
-        if e is None or not stands(e):
+        if e is None:
+            continue
+        if not stands(e):
+            stale.append(e)
             continue
         commits.add(e["commit"][:12])
         r["done"] += 1
@@ -107,6 +110,14 @@ def report(plan_path):
     print(f"| **all** | {tot['total']} | {tot['done']}/{tot['units']} | {tot['caught']} | {tot['missed']} | {tot['timeout']} | {tot['unviable']} |")
     tested = tot["caught"] + tot["missed"] + tot["timeout"] + tot["unviable"]
     print(f"\n{tested} of {tot['total']} mutants tested; commits: {', '.join(sorted(commits)) or 'none'}.")
+    if stale:
+        print("\nRecorded at a commit whose source file has changed since (to run again):")
+        for e in stale:
+            tested = e["caught"] + len(e["missed"]) + len(e["timeout"]) + e["unviable"]
+            print(
+                f"  {e['file']} {e['k'] + 1}/{e['n']} at {e['commit'][:12]}: {tested} tested, {e['caught']} caught, "
+                f"{len(e['missed'])} missed, {len(e['timeout'])} timeouts, {e['unviable']} unviable"
+            )
     for title, names in (("Missed", missed), ("Timed out", timeouts)):
         if names:
             print(f"\n{title}:")
