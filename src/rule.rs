@@ -237,6 +237,8 @@ mod tests {
         assert_eq!(names.len(), Rule::ALL.len());
         for r in Rule::ALL {
             assert_eq!(Rule::from_id(r.id()), Some(r));
+            // Shown as its id, as in `--json` and the validators' names.
+            assert_eq!(r.to_string(), r.id());
             // The validator name is the id in CamelCase.
             let camel: String = r.id().split('-').map(|w| w[..1].to_uppercase() + &w[1..]).collect();
             assert_eq!(camel, r.validator());
