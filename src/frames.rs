@@ -81,7 +81,7 @@ impl FrameRange {
         let n = n as usize;
         let mut previous = start;
         for k in 1..n {
-            let t = start + k as f64 * step;
+            let t = self.time_at(k);
             if t <= previous {
                 return Err(format!("step {step} is too small to separate time codes near {t}"));
             }
@@ -102,7 +102,12 @@ impl FrameRange {
                 0
             }
         });
-        (0..n).map(|k| self.start + k as f64 * self.step).collect()
+        (0..n).map(|k| self.time_at(k)).collect()
+    }
+
+    /// Time code `k` of the range: what `times` lists and `count` checks.
+    fn time_at(&self, k: usize) -> f64 {
+        self.start + k as f64 * self.step
     }
 
     /// Checks the range lies within the stage's authored [start, end].
