@@ -139,4 +139,55 @@ mod tests {
         assert!(err.to_string().contains("bad.usda"), "{err}");
         std::fs::remove_dir_all(&dir).unwrap();
     }
+
+    /// Every question but "what is at our path" goes to the filesystem
+    /// resolver unchanged; otherwise sublayers and clips beside a handed-over
+    /// layer would resolve differently from the same layer on disk.
+    #[test]
+    fn answers_like_the_filesystem_resolver_except_for_its_own_layer() {
+        let dir = std::env::temp_dir().join(format!("painterly_memory_fwd_{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let on_disk = dir.join("real.usda");
+        std::fs::write(&on_disk, "#usda 1.0\n").unwrap();
+        let ours = dir.join("held.usdc").to_str().unwrap().to_string();
+        let r = MemoryResolver {
+            inner: DefaultResolver::new(),
+            identifier: ours.clone(),
+            bytes: b"crate bytes".to_vec(),
+        };
+        let plain = DefaultResolver::new();
+
+        // Extensions pick the file format.
+        assert_eq!(r.get_extension(&ours), "usdc");
+        assert_eq!(r.get_extension("a/b.usda"), "usda");
+        // A bare name is a search path (context dependent); an absolute or
+        // ./-relative one is not.
+        assert!(r.is_context_dependent_path("layer.usda"));
+        assert!(!r.is_context_dependent_path("./layer.usda"));
+        assert!(!r.is_context_dependent_path(&ours));
+        // Relative spellings of one in-memory layer share one identifier.
+        assert_eq!(r.in_memory_identifier("./sub//a.usda"), "sub/a.usda");
+        assert_eq!(r.in_memory_identifier(&ours), ours.as_str());
+        // New assets land where the filesystem resolver puts them.
+        let new = dir.join("new.usda").to_str().unwrap().to_string();
+        assert_eq!(r.resolve_for_new_asset(&new), plain.resolve_for_new_asset(&new));
+        assert_eq!(r.resolve_for_new_asset(&new).as_deref(), Some(Path::new(&new)));
+        // Our layer has no file, so no timestamp; a real file has its own.
+        let real = ResolvedPath::new(on_disk.clone());
+        assert_eq!(
+            r.get_modification_timestamp("real.usda", &real),
+            Some(std::fs::metadata(&on_disk).unwrap().modified().unwrap())
+        );
+        assert_eq!(r.get_modification_timestamp(&ours, &ResolvedPath::new(&ours)), None);
+        // Resolving and opening: ours from memory, the rest from disk.
+        assert_eq!(r.resolve(&ours), Some(ResolvedPath::new(&ours)));
+        assert_eq!(r.resolve(on_disk.to_str().unwrap()), Some(real.clone()));
+        let held = r.open_asset(&ResolvedPath::new(&ours)).unwrap().read_all().unwrap();
+        assert_eq!(held, b"crate bytes");
+        // A stack composed through this resolver is told apart from one
+        // composed from the file on disk.
+        assert_eq!(r.identity(), format!("painterly-memory:{ours}"));
+        assert_ne!(r.identity(), plain.identity());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 }
