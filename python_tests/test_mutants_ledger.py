@@ -1,6 +1,8 @@
 """The ledger of the full mutation run (scripts/mutants_ledger.py, issue 16):
 a finished unit is recorded with its counts and misses, stands while its
-source file is unchanged since its commit, and is reported per file."""
+file's mutable code (the text without its trailing test module) is
+unchanged since its commit, a recheck's catches close misses, written
+reasons close the rest, and it is all reported per file."""
 
 import json
 import subprocess
@@ -67,9 +69,9 @@ def test_a_unit_stands_until_its_file_changes(tmp_path):
     plan = repo / "plan"
     plan.write_text("src/a.rs 0 2 17\nsrc/a.rs 1 2 17\nsrc/b.rs 0 1 4\n")
     report = ledger(repo, "report", str(plan)).splitlines()
-    assert "| `src/a.rs` | 17 | 1/2 | 5 | 2 | 1 | 1 |" in report
-    assert "| `src/b.rs` | 4 | 0/1 | 0 | 0 | 0 | 0 |" in report
-    assert "| **all** | 21 | 1/3 | 5 | 2 | 1 | 1 |" in report
+    assert "| `src/a.rs` | 17 | 1/2 | 5 | 2 | 1 | 1 | 0 | 0 |" in report
+    assert "| `src/b.rs` | 4 | 0/1 | 0 | 0 | 0 | 0 | 0 | 0 |" in report
+    assert "| **all** | 21 | 1/3 | 5 | 2 | 1 | 1 | 0 | 0 |" in report
     assert f"9 of 21 mutants tested; commits: {head[:12]}." in report
     assert "  " + missed[0] in report and "  " + missed[1] in report
     assert "  src/a.rs:4:1: delete !" in report
@@ -80,8 +82,68 @@ def test_a_unit_stands_until_its_file_changes(tmp_path):
     (repo / "src" / "a.rs").write_text("fn a() { 2; }\n")
     assert ledger(repo, "standing") == ""
     report = ledger(repo, "report", str(plan)).splitlines()
-    assert "| **all** | 21 | 0/3 | 0 | 0 | 0 | 0 |" in report
+    assert "| **all** | 21 | 0/3 | 0 | 0 | 0 | 0 | 0 | 0 |" in report
     assert f"  src/a.rs 1/2 at {head[:12]}: 9 tested, 5 caught, 2 missed, 1 timeouts, 1 unviable" in report
+
+
+def test_tests_added_to_a_file_keep_its_units_and_rechecks_and_reasons_close_misses(tmp_path):
+    repo = tmp_path
+    git(repo, "init", "-q")
+    git(repo, "config", "user.email", "t@example.com")
+    git(repo, "config", "user.name", "t")
+    (repo / "src").mkdir()
+    (repo / "docs").mkdir()
+    code = "pub fn a(x: i32) -> i32 {\n    x + 1\n}\n"
+    tests = "\n#[cfg(test)]\nmod tests {\n    #[test]\n    fn one() {\n        assert_eq!(super::a(1), 2);\n    }\n}\n"
+    (repo / "src" / "a.rs").write_text(code + tests)
+    git(repo, "add", "src")
+    git(repo, "commit", "-qm", "one")
+    head = git(repo, "rev-parse", "HEAD")
+    missed = ["src/a.rs:2:7: replace + with -", "src/a.rs:2:7: replace + with *", "src/a.rs:1:1: replace a -> i32 with 0"]
+    ledger(repo, "record", str(unit(repo, "a", "src/a.rs", 0, 1, 4, 0, missed, [])))
+
+    # A test added inside the trailing test module: the unit stands.
+    more = tests.replace("    }\n}\n", "    }\n    #[test]\n    fn two() {}\n}\n")
+    (repo / "src" / "a.rs").write_text(code + more)
+    assert ledger(repo, "standing") == f"src/a.rs 0 1 {head[:12]}\n"
+    assert ledger(repo, "missed", "src/a.rs").splitlines() == missed
+
+    # A recheck at a later commit caught two of the three.
+    git(repo, "commit", "-qam", "tests")
+    d = unit(repo, "re", "src/a.rs", 0, 1, 0, 0, [missed[1]], [])
+    (d / "mutants.out" / "caught.txt").write_text(missed[0] + "\n" + missed[2] + "\n")
+    ledger(repo, "recheck", str(d))
+    assert ledger(repo, "missed", "src/a.rs").splitlines() == [missed[1]]
+    # Rechecks are not units: standing lists the unit alone.
+    assert ledger(repo, "standing") == f"src/a.rs 0 1 {head[:12]}\n"
+
+    plan = repo / "plan"
+    plan.write_text("src/a.rs 0 1 7\n")
+    report = ledger(repo, "report", str(plan)).splitlines()
+    assert "| `src/a.rs` | 7 | 1/1 | 4 | 3 | 0 | 0 | 2 | 0 |" in report
+    at = report.index("Missed or timed out, with neither a test that kills it nor a reason:")
+    assert report[at + 1 :] == ["  " + missed[1]]
+
+    # A written reason closes the last; a reason for no miss is listed as stale.
+    (repo / "docs" / "mutants_reasons.txt").write_text(
+        "# comment\n" + missed[1] + "\n    equivalent: x * 1 = x + 1 nowhere,\n    but say why.\n"
+        "src/a.rs:9:9: replace gone with ()\n    old.\n"
+    )
+    report = ledger(repo, "report", str(plan)).splitlines()
+    assert "| `src/a.rs` | 7 | 1/1 | 4 | 3 | 0 | 0 | 2 | 1 |" in report
+    assert "Missed or timed out, with neither a test that kills it nor a reason:" not in report
+    at = report.index("Reasons in docs/mutants_reasons.txt for no standing miss (stale):")
+    assert report[at + 1 :] == ["  src/a.rs:9:9: replace gone with ()"]
+
+    # A reason with no text is refused.
+    (repo / "docs" / "mutants_reasons.txt").write_text(missed[1] + "\n")
+    bad = subprocess.run([sys.executable, str(LEDGER_PY), "report", str(plan)], cwd=repo, capture_output=True, text=True)
+    assert bad.returncode == 1 and f"no reason under {missed[1]}" in bad.stderr
+
+    # A change to the code itself (not its tests): the unit and the recheck are stale.
+    (repo / "src" / "a.rs").write_text(code.replace("x + 1", "x + 2") + more)
+    assert ledger(repo, "standing") == ""
+    assert ledger(repo, "missed", "src/a.rs") == ""
 
 
 def test_every_pytest_file_the_map_names_exists():

@@ -5,11 +5,23 @@ docs/mutants_ledger.jsonl holds one JSON line per finished unit (a source
 file, or shard K of N of one): the commit it ran at, the pytest files it
 ran, how many mutants were caught and unviable, and the names of those
 missed and timed out. It is committed, so a run resumes on any clone; the
-last line of a unit wins. A unit's result stands while its source file is
-unchanged since that commit.
+last line of a unit wins. A recheck line records a later run of a file's
+missed mutants alone (the tests written for them): the names it caught are
+no longer missed.
+
+A line stands while its file's mutable code is unchanged since its commit:
+the file's text without its trailing `#[cfg(test)] mod` (cargo-mutants
+never mutates test code, and tests added there only grow), so a test
+written for a miss leaves the file's units standing.
+
+docs/mutants_reasons.txt gives each miss no test kills its written reason:
+a line with the mutant's name as cargo-mutants prints it, then the reason
+on indented lines.
 
     mutants_ledger.py record UNIT_DIR   # append the unit that ran in UNIT_DIR
+    mutants_ledger.py recheck UNIT_DIR  # append a recheck of missed mutants that ran in UNIT_DIR
     mutants_ledger.py standing          # "FILE K N COMMIT" of every unit whose result stands
+    mutants_ledger.py missed FILE       # the file's standing misses no recheck has caught, one per line
     mutants_ledger.py report PLAN       # PLAN: "FILE K N COUNT" lines; a Markdown table and the misses
 """
 
@@ -32,6 +44,52 @@ def lines(path):
         return [l.rstrip("\n") for l in f if l.strip()]
 
 
+REASONS = os.environ.get("PAINTERLY_MUTANTS_REASONS", os.path.join("docs", "mutants_reasons.txt"))
+
+
+def reasons():
+    """Mutant name -> its written reason (docs/mutants_reasons.txt)."""
+    out, name = {}, None
+    for l in lines(REASONS):
+        if l.startswith("#"):
+            continue
+        if l[:1].isspace():
+            if name is None:
+                sys.exit(f"{REASONS}: a reason before any mutant name: {l.strip()}")
+            out[name] = (out[name] + " " + l.strip()).strip()
+        else:
+            name = l.strip()
+            out[name] = ""
+    for name, why in out.items():
+        if not why:
+            sys.exit(f"{REASONS}: no reason under {name}")
+    return out
+
+
+def append(entry):
+    # Lanes finish units at the same time: one appender at a time.
+    with open(LEDGER, "a") as ledger:
+        fcntl.flock(ledger, fcntl.LOCK_EX)
+        ledger.write(json.dumps(entry, sort_keys=True) + "\n")
+
+
+def recheck(unit_dir):
+    f = open(os.path.join(unit_dir, "unit")).read().split()[0]
+    out = os.path.join(unit_dir, "mutants.out")
+    append(
+        {
+            "recheck": True,
+            "file": f,
+            "commit": open(os.path.join(unit_dir, "commit")).read().strip(),
+            "date": datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
+            "pytest": open(os.path.join(unit_dir, "pytest")).read().split(),
+            "caught": lines(os.path.join(out, "caught.txt")),
+            "missed": lines(os.path.join(out, "missed.txt")),
+            "timeout": lines(os.path.join(out, "timeout.txt")),
+        }
+    )
+
+
 def record(unit_dir):
     f, k, n = open(os.path.join(unit_dir, "unit")).read().split()
     out = os.path.join(unit_dir, "mutants.out")
@@ -48,27 +106,68 @@ def record(unit_dir):
         "missed": lines(os.path.join(out, "missed.txt")),
         "timeout": lines(os.path.join(out, "timeout.txt")),
     }
-    # Lanes finish units at the same time: one appender at a time.
-    with open(LEDGER, "a") as ledger:
-        fcntl.flock(ledger, fcntl.LOCK_EX)
-        ledger.write(json.dumps(entry, sort_keys=True) + "\n")
+    append(entry)
 
 
 def entries():
     last = {}
     for l in lines(LEDGER):
         e = json.loads(l)
-        last[(e["file"], e["k"], e["n"])] = e
+        if not e.get("recheck"):
+            last[(e["file"], e["k"], e["n"])] = e
     return last
 
 
+def killed(f):
+    """Names of `f`'s mutants that a standing recheck caught."""
+    out = set()
+    for l in lines(LEDGER):
+        e = json.loads(l)
+        if e.get("recheck") and e["file"] == f and stands(e):
+            out.update(e["caught"])
+    return out
+
+
+def mutable_code(text):
+    """The text cargo-mutants mutates: without a trailing `#[cfg(test)] mod`.
+
+    The module must be the file's last item (rustfmt's layout: its closing
+    brace is the first line that is exactly `}` and the last non-blank
+    line); anything else is kept whole.
+    """
+    ls = text.splitlines()
+    for i, l in enumerate(ls):
+        if l == "#[cfg(test)]" and i + 1 < len(ls) and ls[i + 1].startswith("mod ") and ls[i + 1].endswith("{"):
+            rest = ls[i + 2 :]
+            end = next((j for j, r in enumerate(rest) if r == "}"), None)
+            if end is not None and all(not r.strip() for r in rest[end + 1 :]):
+                return "\n".join(ls[:i]).rstrip() + "\n"
+    return text
+
+
+_code_cache = {}
+
+
 def stands(e):
-    """Whether the entry's source file is unchanged from its commit to the work tree."""
-    known = subprocess.run(["git", "cat-file", "-e", e["commit"]], capture_output=True)
-    if known.returncode != 0:
+    """Whether the entry's file has the same mutable code at its commit and in the work tree."""
+    key = (e["commit"], e["file"])
+    if key not in _code_cache:
+        then = subprocess.run(["git", "show", f"{e['commit']}:{e['file']}"], capture_output=True, text=True)
+        _code_cache[key] = mutable_code(then.stdout) if then.returncode == 0 else None
+    if _code_cache[key] is None or not os.path.exists(e["file"]):
         return False
-    same = subprocess.run(["git", "diff", "--quiet", e["commit"], "--", e["file"]])
-    return same.returncode == 0
+    with open(e["file"]) as now:
+        return mutable_code(now.read()) == _code_cache[key]
+
+
+def missed(f):
+    """The file's standing misses that no standing recheck caught."""
+    gone = killed(f)
+    for (g, _, _), e in sorted(entries().items()):
+        if g == f and stands(e):
+            for m in e["missed"] + e["timeout"]:
+                if m not in gone:
+                    print(m)
 
 
 def standing():
@@ -91,23 +190,37 @@ def report(plan_path):
         if not stands(e):
             stale.append(e)
             continue
+        gone = killed(f)
         commits.add(e["commit"][:12])
         r["done"] += 1
         r["caught"] += e["caught"]
         r["unviable"] += e["unviable"]
         r["missed"] += len(e["missed"])
         r["timeout"] += len(e["timeout"])
-        missed += e["missed"]
-        timeouts += e["timeout"]
-    print("| file | mutants | units done | caught | missed | timeouts | unviable |")
-    print("|---|---|---|---|---|---|---|")
+        r["killed"] += sum(m in gone for m in e["missed"] + e["timeout"])
+        missed += [m for m in e["missed"] if m not in gone]
+        timeouts += [m for m in e["timeout"] if m not in gone]
+    why = reasons()
+    for r in rows.values():
+        r["reasoned"] += 0
+    for m in missed + timeouts:
+        if m in why:
+            rows[m.split(":")[0]]["reasoned"] += 1
+    print("| file | mutants | units done | caught | missed | timeouts | unviable | misses killed since | misses with a reason |")
+    print("|---|---|---|---|---|---|---|---|---|")
     tot = defaultdict(int)
     for f in sorted(rows):
         r = rows[f]
-        print(f"| `{f}` | {r['total']} | {r['done']}/{r['units']} | {r['caught']} | {r['missed']} | {r['timeout']} | {r['unviable']} |")
+        print(
+            f"| `{f}` | {r['total']} | {r['done']}/{r['units']} | {r['caught']} | {r['missed']} | {r['timeout']} "
+            f"| {r['unviable']} | {r['killed']} | {r['reasoned']} |"
+        )
         for key, v in r.items():
             tot[key] += v
-    print(f"| **all** | {tot['total']} | {tot['done']}/{tot['units']} | {tot['caught']} | {tot['missed']} | {tot['timeout']} | {tot['unviable']} |")
+    print(
+        f"| **all** | {tot['total']} | {tot['done']}/{tot['units']} | {tot['caught']} | {tot['missed']} | {tot['timeout']} "
+        f"| {tot['unviable']} | {tot['killed']} | {tot['reasoned']} |"
+    )
     tested = tot["caught"] + tot["missed"] + tot["timeout"] + tot["unviable"]
     print(f"\n{tested} of {tot['total']} mutants tested; commits: {', '.join(sorted(commits)) or 'none'}.")
     if stale:
@@ -118,7 +231,13 @@ def report(plan_path):
                 f"  {e['file']} {e['k'] + 1}/{e['n']} at {e['commit'][:12]}: {tested} tested, {e['caught']} caught, "
                 f"{len(e['missed'])} missed, {len(e['timeout'])} timeouts, {e['unviable']} unviable"
             )
-    for title, names in (("Missed", missed), ("Timed out", timeouts)):
+    open_ = [m for m in missed + timeouts if m not in why]
+    listed = set(missed + timeouts)
+    unused = [m for m in why if m not in listed]
+    for title, names in (
+        ("Missed or timed out, with neither a test that kills it nor a reason", open_),
+        ("Reasons in " + REASONS + " for no standing miss (stale)", unused),
+    ):
         if names:
             print(f"\n{title}:")
             for m in names:
@@ -129,6 +248,10 @@ if __name__ == "__main__":
     cmd = sys.argv[1:2]
     if cmd == ["record"] and len(sys.argv) == 3:
         record(sys.argv[2])
+    elif cmd == ["recheck"] and len(sys.argv) == 3:
+        recheck(sys.argv[2])
+    elif cmd == ["missed"] and len(sys.argv) == 3:
+        missed(sys.argv[2])
     elif cmd == ["standing"] and len(sys.argv) == 2:
         standing()
     elif cmd == ["report"] and len(sys.argv) == 3:
