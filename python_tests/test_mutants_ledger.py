@@ -146,6 +146,34 @@ def test_tests_added_to_a_file_keep_its_units_and_rechecks_and_reasons_close_mis
     assert ledger(repo, "missed", "src/a.rs") == ""
 
 
+def load_ledger_module():
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("mutants_ledger", LEDGER_PY)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_the_trailing_test_module_is_found_past_strings_and_comments():
+    code = "fn a() -> u32 {\n    1\n}\n"
+    tricky = (
+        "\n#[cfg(test)]\nmod tests {\n    const T: &str = r#\"\ndef X {\n}\n\"#;\n"
+        "    // a } in a comment\n    /* and { here /* nested } */ */\n"
+        "    fn f<'a>(x: &'a str) -> char { let _ = \"}\\\"\"; '}' }\n}\n"
+    )
+    ledger_mod = load_ledger_module()
+    assert ledger_mod.mutable_code(code + tricky) == code
+    # An item after the module is code: the text is kept whole.
+    after = code + tricky + "\nfn b() {}\n"
+    assert ledger_mod.mutable_code(after) == after
+    # A module that is not a test module, or an unclosed one, is kept too.
+    plain = code + "\nmod inner {\n}\n"
+    assert ledger_mod.mutable_code(plain) == plain
+    unclosed = code + "\n#[cfg(test)]\nmod tests {\n    fn f() {}\n"
+    assert ledger_mod.mutable_code(unclosed) == unclosed
+
+
 def test_every_pytest_file_the_map_names_exists():
     root = LEDGER_PY.parent.parent
     rules = [

@@ -28,6 +28,7 @@ on indented lines.
 import fcntl
 import json
 import os
+import re
 import subprocess
 import sys
 from collections import defaultdict
@@ -128,20 +129,64 @@ def killed(f):
     return out
 
 
+def block_end(text, i):
+    """Index just past the `}` closing the `{` at text[i], skipping braces
+    in comments, strings, raw strings and char literals; None if unclosed."""
+    depth, n = 0, len(text)
+    while i < n:
+        c = text[i]
+        if text.startswith("//", i):
+            i = text.find("\n", i)
+            if i < 0:
+                return None
+        elif text.startswith("/*", i):
+            nest, i = 1, i + 2
+            while nest and i < n:
+                if text.startswith("/*", i):
+                    nest, i = nest + 1, i + 2
+                elif text.startswith("*/", i):
+                    nest, i = nest - 1, i + 2
+                else:
+                    i += 1
+            continue
+        elif c == "r" and re.match(r'r#*"', text[i:]) and not (text[i - 1].isalnum() or text[i - 1] == "_"):
+            hashes = re.match(r'r(#*)"', text[i:]).group(1)
+            close = text.find('"' + hashes, i + len(hashes) + 2)
+            if close < 0:
+                return None
+            i = close + len(hashes) + 1
+            continue
+        elif c == '"':
+            i += 1
+            while i < n and text[i] != '"':
+                i += 2 if text[i] == "\\" else 1
+        elif c == "'":
+            # A char literal ('x', '\n', '\u{..}'); otherwise a lifetime.
+            m = re.match(r"'(\\u\{[0-9a-fA-F]+\}|\\.|[^\\'])'", text[i:])
+            if m:
+                i += len(m.group(0))
+                continue
+        elif c == "{":
+            depth += 1
+        elif c == "}":
+            depth -= 1
+            if depth == 0:
+                return i + 1
+        i += 1
+    return None
+
+
 def mutable_code(text):
     """The text cargo-mutants mutates: without a trailing `#[cfg(test)] mod`.
 
-    The module must be the file's last item (rustfmt's layout: its closing
-    brace is the first line that is exactly `}` and the last non-blank
-    line); anything else is kept whole.
+    The module is stripped only when it is the file's last item: its
+    closing brace (found past comments and string literals) is followed by
+    nothing but blank space. Anything else is kept whole.
     """
-    ls = text.splitlines()
-    for i, l in enumerate(ls):
-        if l == "#[cfg(test)]" and i + 1 < len(ls) and ls[i + 1].startswith("mod ") and ls[i + 1].endswith("{"):
-            rest = ls[i + 2 :]
-            end = next((j for j, r in enumerate(rest) if r == "}"), None)
-            if end is not None and all(not r.strip() for r in rest[end + 1 :]):
-                return "\n".join(ls[:i]).rstrip() + "\n"
+    for m in re.finditer(r"^#\[cfg\(test\)\]\n(pub(\([a-z]+\))? )?mod \w+ \{$", text, re.M):
+        end = block_end(text, m.end() - 1)
+        if end is not None and not text[end:].strip():
+            return text[: m.start()].rstrip() + "\n"
     return text
 
 

@@ -810,6 +810,41 @@ mod tests {
             b,
             bind_brute_force(&pts, &tris, &[Vec3::new(1.0, 0.5, 0.0), Vec3::new(0.2, 0.7, -1.0)])
         );
+        // A binding has one entry per bound point.
+        assert_eq!((b.len(), b.is_empty()), (2, false));
+        let none = cp.bind(&[]);
+        assert_eq!((none.len(), none.is_empty()), (0, true));
+    }
+
+    /// round_f32 gives the nearest f32 on the asked side: the smallest f32
+    /// at or above x (up), the largest at or below (down). Derived from the
+    /// definition: the answer brackets x and its neighbour on that side
+    /// does not.
+    #[test]
+    fn round_f32_gives_the_nearest_f32_on_each_side() {
+        let one_ulp = 2f64.powi(-23);
+        for x in [
+            1.0,                            // an f32: itself both ways
+            1.0 + 2f64.powi(-30),           // just above 1: nearest f32 is 1 (below x)
+            1.0 + one_ulp - 2f64.powi(-30), // just below 1 + ulp: nearest f32 is above x
+            -1.0 - 2f64.powi(-30),
+            0.1,
+            -0.1,
+            3.0e7 + 0.3,
+            1e-40, // subnormal in f32
+            0.0,
+        ] {
+            let (up, down) = (round_f32(x, true), round_f32(x, false));
+            assert!(up as f64 >= x && (up.next_down() as f64) < x, "up {x}: {up}");
+            assert!(down as f64 <= x && (down.next_up() as f64) > x, "down {x}: {down}");
+            if x as f32 as f64 == x {
+                assert_eq!((up, down), (x as f32, x as f32), "{x} is an f32");
+            } else {
+                assert_eq!(up, down.next_up(), "{x}: one f32 apart");
+            }
+        }
+        assert_eq!(round_f32(1.0 + 2f64.powi(-30), true), (1.0 + one_ulp) as f32);
+        assert_eq!(round_f32(1.0 + 2f64.powi(-30), false), 1.0);
     }
 
     use crate::interp::testutil::Lcg;
