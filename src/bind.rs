@@ -847,6 +847,37 @@ mod tests {
         assert_eq!(round_f32(1.0 + 2f64.powi(-30), false), 1.0);
     }
 
+    /// Far from the origin, p rounded to f32 moves by up to half an f32
+    /// spacing (2⁻¹¹ at 10⁴), more than the gap between two candidates; the
+    /// pruning bound widens by that shift, so the nearer triangle is still
+    /// found after a hint that is farther. Numbers by hand: p.x = 10⁴ +
+    /// 0.00045 rounds to 10⁴ (shift 0.00045); B lies in x = 10⁴ + 2⁻⁹ (an
+    /// f32, so its box is exact), 0.001503 from p and 2⁻⁹ = 0.001953 from
+    /// p32; the hint A lies 0.002 from p on the other side. The bound
+    /// without the shift, 0.002 + tol + slack − 0.00045 ≈ 0.00155, would
+    /// skip B's box; with it, 0.00245, B is tested and wins.
+    #[test]
+    fn the_bound_covers_the_query_rounded_to_f32() {
+        let x = 10_000.0 + 0.00045;
+        assert_eq!(x as f32, 10_000.0f32);
+        let xb = 10_000.0 + 2f64.powi(-9);
+        let xa = x - 0.002;
+        let pts = vec![
+            DVec3::new(xa, -1.0, -1.0),
+            DVec3::new(xa, 1.0, -1.0),
+            DVec3::new(xa, 0.0, 1.0),
+            DVec3::new(xb, -1.0, -1.0),
+            DVec3::new(xb, 1.0, -1.0),
+            DVec3::new(xb, 0.0, 1.0),
+        ];
+        let tris = vec![[0, 1, 2], [3, 4, 5]];
+        let cp = ClosestPoint::new(&pts, &tris);
+        let p = DVec3::new(x, 0.0, 0.0);
+        let (t, _) = cp.query_with(p, Some(0), &mut Scratch::default());
+        assert_eq!(t, 1, "the nearer triangle, 0.0015 away against 0.002");
+        assert_eq!(cp.query(p).0, 1);
+    }
+
     use crate::interp::testutil::Lcg;
 
     /// A point uniform in the unit cube.
