@@ -911,6 +911,33 @@ mod tests {
         assert!(s.work.exact <= 8, "{} exact distances of 32", s.work.exact);
     }
 
+    /// A tie found second: the plane prefilter keeps every triangle within
+    /// best + tolerance, so a lower-index triangle 0.9 tolerances farther
+    /// than the hint still wins (SPEC §3). The mesh is centred on the
+    /// origin, so the plane's own slack (10⁻⁶ × the largest |x|, √2 here)
+    /// is below the tolerance (10⁻⁶ × the diagonal, √8 here) and cannot
+    /// hide a bound that forgot the tolerance.
+    #[test]
+    fn a_tie_found_after_the_hint_still_goes_to_the_lower_index() {
+        let quad = |z: f64| {
+            [
+                DVec3::new(-1.0, -1.0, z),
+                DVec3::new(1.0, -1.0, z),
+                DVec3::new(-1.0, 1.0, z),
+            ]
+        };
+        let tol = tie_tolerance(&[quad(0.0).as_slice(), quad(-1e-5).as_slice()].concat());
+        let eps = 0.9 * tol;
+        let pts = [quad(-eps), quad(0.0)].concat();
+        assert!((tie_tolerance(&pts) - tol).abs() < 1e-15);
+        let tris = vec![[0, 1, 2], [3, 4, 5]];
+        let cp = ClosestPoint::new(&pts, &tris);
+        let p = DVec3::new(-0.5, -0.4, 0.5);
+        assert_eq!(cp.query_with(p, Some(1), &mut Scratch::default()).0, 0);
+        assert_eq!(cp.query(p).0, 0);
+        assert_eq!(bind_brute_force(&pts, &tris, &[p.as_vec3()]).vertices, vec![[0, 1, 2]]);
+    }
+
     use crate::interp::testutil::Lcg;
 
     /// A point uniform in the unit cube.
