@@ -35,15 +35,20 @@ def unit(repo, name, file, k, n, caught, unviable, missed, timeout):
     return d
 
 
-def test_a_unit_stands_until_its_file_changes(tmp_path):
-    repo = tmp_path
+def new_repo(repo):
+    """An empty git repository with src/ and docs/ folders."""
     git(repo, "init", "-q")
     git(repo, "config", "user.email", "t@example.com")
     git(repo, "config", "user.name", "t")
     (repo / "src").mkdir()
+    (repo / "docs").mkdir()
+    return repo
+
+
+def test_a_unit_stands_until_its_file_changes(tmp_path):
+    repo = new_repo(tmp_path)
     (repo / "src" / "a.rs").write_text("fn a() {}\n")
     (repo / "src" / "b.rs").write_text("fn b() {}\n")
-    (repo / "docs").mkdir()
     git(repo, "add", "src")
     git(repo, "commit", "-qm", "one")
     head = git(repo, "rev-parse", "HEAD")
@@ -87,12 +92,7 @@ def test_a_unit_stands_until_its_file_changes(tmp_path):
 
 
 def test_tests_added_to_a_file_keep_its_units_and_rechecks_and_reasons_close_misses(tmp_path):
-    repo = tmp_path
-    git(repo, "init", "-q")
-    git(repo, "config", "user.email", "t@example.com")
-    git(repo, "config", "user.name", "t")
-    (repo / "src").mkdir()
-    (repo / "docs").mkdir()
+    repo = new_repo(tmp_path)
     code = "pub fn a(x: i32) -> i32 {\n    x + 1\n}\n"
     tests = "\n#[cfg(test)]\nmod tests {\n    #[test]\n    fn one() {\n        assert_eq!(super::a(1), 2);\n    }\n}\n"
     (repo / "src" / "a.rs").write_text(code + tests)

@@ -74,40 +74,28 @@ def append(entry):
         ledger.write(json.dumps(entry, sort_keys=True) + "\n")
 
 
-def recheck(unit_dir):
-    f = open(os.path.join(unit_dir, "unit")).read().split()[0]
+def ran(unit_dir):
+    """What a unit or recheck folder says of its run: file, commit, pytest files, misses."""
     out = os.path.join(unit_dir, "mutants.out")
-    append(
-        {
-            "recheck": True,
-            "file": f,
-            "commit": open(os.path.join(unit_dir, "commit")).read().strip(),
-            "date": datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
-            "pytest": open(os.path.join(unit_dir, "pytest")).read().split(),
-            "caught": lines(os.path.join(out, "caught.txt")),
-            "missed": lines(os.path.join(out, "missed.txt")),
-            "timeout": lines(os.path.join(out, "timeout.txt")),
-        }
-    )
-
-
-def record(unit_dir):
-    f, k, n = open(os.path.join(unit_dir, "unit")).read().split()
-    out = os.path.join(unit_dir, "mutants.out")
-    outcomes = json.load(open(os.path.join(out, "outcomes.json")))
-    entry = {
-        "file": f,
-        "k": int(k),
-        "n": int(n),
+    return {
+        "file": open(os.path.join(unit_dir, "unit")).read().split()[0],
         "commit": open(os.path.join(unit_dir, "commit")).read().strip(),
         "date": datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
         "pytest": open(os.path.join(unit_dir, "pytest")).read().split(),
-        "caught": outcomes["caught"],
-        "unviable": outcomes["unviable"],
         "missed": lines(os.path.join(out, "missed.txt")),
         "timeout": lines(os.path.join(out, "timeout.txt")),
     }
-    append(entry)
+
+
+def recheck(unit_dir):
+    caught = lines(os.path.join(unit_dir, "mutants.out", "caught.txt"))
+    append({**ran(unit_dir), "recheck": True, "caught": caught})
+
+
+def record(unit_dir):
+    _, k, n = open(os.path.join(unit_dir, "unit")).read().split()
+    outcomes = json.load(open(os.path.join(unit_dir, "mutants.out", "outcomes.json")))
+    append({**ran(unit_dir), "k": int(k), "n": int(n), "caught": outcomes["caught"], "unviable": outcomes["unviable"]})
 
 
 def entries():
@@ -119,13 +107,13 @@ def entries():
     return last
 
 
-def killed(f):
-    """Names of `f`'s mutants that a standing recheck caught."""
-    out = set()
+def killed():
+    """File -> names of its mutants that a standing recheck caught."""
+    out = defaultdict(set)
     for l in lines(LEDGER):
         e = json.loads(l)
-        if e.get("recheck") and e["file"] == f and stands(e):
-            out.update(e["caught"])
+        if e.get("recheck") and stands(e):
+            out[e["file"]].update(e["caught"])
     return out
 
 
@@ -207,7 +195,7 @@ def stands(e):
 
 def missed(f):
     """The file's standing misses that no standing recheck caught."""
-    gone = killed(f)
+    gone = killed()[f]
     for (g, _, _), e in sorted(entries().items()):
         if g == f and stands(e):
             for m in e["missed"] + e["timeout"]:
@@ -223,6 +211,7 @@ def standing():
 
 def report(plan_path):
     last = entries()
+    caught_since = killed()
     rows = defaultdict(lambda: defaultdict(int))
     missed, timeouts, commits, stale = [], [], set(), []
     for l in lines(plan_path):
@@ -235,7 +224,7 @@ def report(plan_path):
         if not stands(e):
             stale.append(e)
             continue
-        gone = killed(f)
+        gone = caught_since[f]
         commits.add(e["commit"][:12])
         r["done"] += 1
         r["caught"] += e["caught"]
@@ -246,8 +235,6 @@ def report(plan_path):
         missed += [m for m in e["missed"] if m not in gone]
         timeouts += [m for m in e["timeout"] if m not in gone]
     why = reasons()
-    for r in rows.values():
-        r["reasoned"] += 0
     for m in missed + timeouts:
         if m in why:
             rows[m.split(":")[0]]["reasoned"] += 1
