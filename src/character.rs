@@ -479,15 +479,29 @@ impl RigModel {
             ClosestPoint::new(&proxy.rest, &tris)
         });
         let needed_axes = needed_axes(rig);
+        // Every uncached layer's points in one query batch: one parallel
+        // job instead of one per layer, and one spatial order over the
+        // whole rig, so neighbouring queries share their triangles.
+        let fresh = bvh
+            .as_ref()
+            .map(|bvh| {
+                let uncached = rig.layers.iter().filter(|l| l.cached_binding.is_none());
+                let all: Vec<Vec3> = uncached.flat_map(|l| l.rest_points.iter().copied()).collect();
+                bvh.bind(&all)
+            })
+            .unwrap_or_default();
+        let mut at = 0;
         let layers = rig
             .layers
             .iter_mut()
             .map(|l| {
                 let rest_points = std::mem::take(&mut l.rest_points);
-                let binding = match (l.cached_binding.take(), &bvh) {
-                    (Some(b), _) => b,
-                    (None, Some(bvh)) => bvh.bind(&rest_points),
-                    (None, None) => unreachable!("a BVH is built when a layer has no cached binding"),
+                let binding = match l.cached_binding.take() {
+                    Some(b) => b,
+                    None => {
+                        at += rest_points.len();
+                        fresh.range(at - rest_points.len()..at)
+                    }
                 };
                 LayerModel {
                     path: l.path.clone(),
