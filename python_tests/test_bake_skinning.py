@@ -269,6 +269,23 @@ def test_cached_binding_is_honoured(painterly, tmp_path):
     check_strokes(rig, out, rig.frames, expected=with_cached, posed=posed)
 
 
+def test_cached_binding_between_fresh_layers(painterly, tmp_path):
+    """The middle one of three layers has a cached binding; the other two are
+    bound fresh (in one batch), each to its own points."""
+    calls = []
+
+    def middle_only(rest, counts, idx, pts):
+        calls.append(len(pts))
+        return _other_binding(rest, counts, idx, pts) if len(calls) == 2 else (None, None)
+
+    rig = Au.build_skel_rig(tmp_path / "rig.usda", bind_cache=middle_only, extra_layers=2,
+                            n_strokes=5, offsets=(0.0, 0.02))
+    stage, rigs = R.describe(rig.path)
+    assert [layer["cached"] for layer in rigs[0]["layers"]] == [False, True, False]
+    out = run_bake(painterly, rig, tmp_path)
+    check_strokes(rig, out, rig.frames)
+
+
 @pytest.mark.parametrize("name", ["RiggedFigure", "CesiumMan"])
 def test_real_asset_strokes(painterly, tmp_path, real_assets, name):
     rig = Au.wrap_real_asset(real_assets, name, tmp_path, n_strokes=12,

@@ -43,14 +43,6 @@ impl Binding {
     pub fn is_empty(&self) -> bool {
         self.vertices.is_empty()
     }
-
-    /// The binding of the points in `range`.
-    pub fn range(&self, range: std::ops::Range<usize>) -> Binding {
-        Binding {
-            vertices: self.vertices[range.clone()].to_vec(),
-            weights: self.weights[range].to_vec(),
-        }
-    }
 }
 
 /// Triangles per BVH leaf.

@@ -481,7 +481,7 @@ impl RigModel {
         let needed_axes = needed_axes(rig);
         // Every uncached layer's points in one query batch: one parallel
         // job instead of one per layer, and one spatial order over the
-        // whole rig, so neighbouring queries share their triangles.
+        // whole rig, so each query starts from a near neighbour's triangle.
         let fresh = bvh
             .as_ref()
             .map(|bvh| {
@@ -490,7 +490,7 @@ impl RigModel {
                 bvh.bind(&all)
             })
             .unwrap_or_default();
-        let mut at = 0;
+        let (mut vertices, mut weights) = (fresh.vertices.into_iter(), fresh.weights.into_iter());
         let layers = rig
             .layers
             .iter_mut()
@@ -498,10 +498,10 @@ impl RigModel {
                 let rest_points = std::mem::take(&mut l.rest_points);
                 let binding = match l.cached_binding.take() {
                     Some(b) => b,
-                    None => {
-                        at += rest_points.len();
-                        fresh.range(at - rest_points.len()..at)
-                    }
+                    None => Binding {
+                        vertices: vertices.by_ref().take(rest_points.len()).collect(),
+                        weights: weights.by_ref().take(rest_points.len()).collect(),
+                    },
                 };
                 LayerModel {
                     path: l.path.clone(),
