@@ -646,6 +646,32 @@ mod tests {
     }
 
     #[test]
+    fn a_is_the_normalised_kernel_at_its_sample_point_for_any_alpha() {
+        // Eq. 11 with the kernels evaluated at y = α x_i + (1 − α) x_j from
+        // its plain distances, not compute_a's expansion; α ≠ ½ has no
+        // (i, j)/(j, i) symmetry to share.
+        let (_, sq) = super::super::validate_keys(2, &FIG9).unwrap();
+        for alpha in [0.3, 0.5, 0.8] {
+            let sv = SmoothVoronoi::new(5, sq.clone(), Params { alpha, ..Params::PAPER });
+            let mut spread = 0.0f64;
+            for i in 0..5 {
+                for j in (0..5).filter(|&j| j != i) {
+                    let y = [0, 1].map(|k| alpha * FIG9[2 * i + k] + (1.0 - alpha) * FIG9[2 * j + k]);
+                    let want = sv.normalized_kernels(&FIG9, 2, &y)[i];
+                    assert!(
+                        (sv.a(i, j) - want).abs() < 1e-12,
+                        "α {alpha}: a_{i}{j} {} vs {want}",
+                        sv.a(i, j)
+                    );
+                    spread = spread.max((sv.a(i, j) - sv.a(j, i)).abs());
+                }
+            }
+            // The test needs a_ij ≠ a_ji somewhere, or it could not see a swap.
+            assert!(spread > 0.1, "α {alpha}: {spread}");
+        }
+    }
+
+    #[test]
     fn two_keys_give_the_smooth_step_along_the_line() {
         let keys = [1.0, 2.0, 0.0, 3.0, 4.0, 2.0];
         let it = build(3, &keys);

@@ -490,6 +490,314 @@ mod tests {
         assert!((area - 6.0 * 44.0).abs() < 12.0, "{area}");
     }
 
+    /// A brush with distinct texels: 3 across (u), 4 along (v), row-major by v.
+    fn brush_3x4() -> Brush {
+        Brush {
+            width: 3,
+            height: 4,
+            values: vec![0.9, 0.5, 0.3, 0.7, 1.0, 0.2, 0.4, 0.8, 0.6, 1.0, 0.3, 0.5],
+        }
+    }
+
+    /// Bilinear filtering written as tent weights over texel centres
+    /// ((i + ½)/w, (j + ½)/h), the lookup clamped to the edge texels.
+    fn tent_sample(b: &Brush, u: f32, v: f32) -> f32 {
+        let x = (u.clamp(0.0, 1.0) * b.width as f32 - 0.5).clamp(0.0, b.width as f32 - 1.0);
+        let y = (v.clamp(0.0, 1.0) * b.height as f32 - 0.5).clamp(0.0, b.height as f32 - 1.0);
+        let mut sum = 0.0;
+        for j in 0..b.height {
+            for i in 0..b.width {
+                let w = (1.0 - (x - i as f32).abs()).max(0.0) * (1.0 - (y - j as f32).abs()).max(0.0);
+                sum += w * b.values[j * b.width + i];
+            }
+        }
+        sum
+    }
+
+    #[test]
+    fn brush_samples_texel_centres_and_blends_between_them() {
+        let b = brush_3x4();
+        // At a texel centre: that texel.
+        assert!((b.sample(0.5 / 3.0, 0.5 / 4.0) - 0.9).abs() < 1e-6);
+        assert!((b.sample(1.5 / 3.0, 2.5 / 4.0) - 0.8).abs() < 1e-6);
+        // Halfway between two centres along u, then along v: their mean.
+        assert!((b.sample(1.0 / 3.0, 0.5 / 4.0) - 0.7).abs() < 1e-6);
+        assert!((b.sample(2.5 / 3.0, 2.0 / 4.0) - 0.4).abs() < 1e-6);
+        // Beyond the outer centres: the edge texel.
+        assert!((b.sample(0.0, 0.0) - 0.9).abs() < 1e-6);
+        assert!((b.sample(1.0, 1.0) - 0.5).abs() < 1e-6);
+        // Anywhere: the tent-weight form.
+        for (u, v) in [(0.23, 0.61), (0.77, 0.05), (0.41, 0.93), (0.6, 0.3)] {
+            assert!((b.sample(u, v) - tent_sample(&b, u, v)).abs() < 1e-6, "({u}, {v})");
+        }
+    }
+
+    #[test]
+    fn stroke_attributes_follow_the_segment_and_the_brush() {
+        // One segment from (10, 20) to (54, 20), radius 6: depth, opacity,
+        // colour and arc length all change along it.
+        let (red, blue) = (Vec3::new(1.0, 0.0, 0.0), Vec3::new(0.0, 0.0, 1.0));
+        let end = |x: f32, depth: f32, opacity: f32, color: Vec3, arc: f32| RibbonVertex {
+            pos: Vec2::new(x, 20.0),
+            radius: 6.0,
+            depth,
+            color,
+            opacity,
+            arc,
+        };
+        let scene = scene_with(&[vec![end(10.0, 4.0, 0.2, red, 0.0), end(54.0, 8.0, 1.0, blue, 44.0)]]);
+        let brush = brush_3x4();
+        let plain = render(&scene, None);
+        let brushed = render(&scene, Some(&brush));
+        for x in [14usize, 25, 40, 49] {
+            for y in [17usize, 20, 23] {
+                // Pixel centre (x + ½, y + ½): inside the ribbon, away from
+                // its caps, so fully covered.
+                let t = (x as f32 + 0.5 - 10.0) / 44.0;
+                let across = (y as f32 + 0.5 - 20.0) / 6.0;
+                let opacity = 0.2 + 0.8 * t;
+                let color = red * (1.0 - t) + blue * t;
+                let i = y * 64 + x;
+                for (frame, alpha) in [
+                    (&plain, opacity),
+                    (&brushed, opacity * tent_sample(&brush, 0.5 * (across + 1.0), t)),
+                ] {
+                    let c = frame.rgba[i];
+                    let want = [color.x * alpha, color.y * alpha, color.z * alpha, alpha];
+                    for k in 0..4 {
+                        assert!((c[k] - want[k]).abs() < 1e-5, "({x}, {y}): {c:?} vs {want:?}");
+                    }
+                    assert!(
+                        (frame.z[i] - (4.0 + 4.0 * t)).abs() < 1e-5,
+                        "({x}, {y}) z {}",
+                        frame.z[i]
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_dot_with_a_brush_samples_the_middle_of_its_length() {
+        // A one-point stroke has no length: the brush is read at v = ½.
+        let mut dot = stroke_verts(20.0, Vec3::ONE, 1.0);
+        dot.truncate(1);
+        let mut scene = scene_with(&[dot]);
+        scene.strokes[0].length = 0.0;
+        let brush = brush_3x4();
+        let f = render(&scene, Some(&brush));
+        // Pixel (10, 20): centre (10.5, 20.5), across = 0.5 / 6, fully covered.
+        let want = tent_sample(&brush, 0.5 * (0.5 / 6.0 + 1.0), 0.5);
+        assert!(
+            (f.rgba[20 * 64 + 10][3] - want).abs() < 1e-5,
+            "{:?} vs {want}",
+            f.rgba[20 * 64 + 10]
+        );
+    }
+
+    #[test]
+    fn joins_are_round_and_alpha_ties_keep_the_earlier_segment() {
+        // Three collinear points joined at a pixel centre (32.5, 20.5): the
+        // join is round, so the pixel there is fully covered.
+        let mut v = stroke_verts(20.5, Vec3::ONE, 1.0);
+        v.insert(
+            1,
+            RibbonVertex {
+                pos: Vec2::new(32.5, 20.5),
+                arc: 22.5,
+                ..v[0]
+            },
+        );
+        let f = render(&scene_with(&[v]), None);
+        assert!(
+            (f.rgba[20 * 64 + 32][3] - 1.0).abs() < 1e-6,
+            "{:?}",
+            f.rgba[20 * 64 + 32]
+        );
+        // Doubling back: both segments give (32, 20) alpha 0.5; the first
+        // (red, depth 5) keeps the pixel, not the way back (red to blue, depth 5 to 7).
+        let mut v = stroke_verts(20.0, Vec3::X, 0.5);
+        v.push(RibbonVertex {
+            color: Vec3::Z,
+            depth: 7.0,
+            arc: 88.0,
+            ..v[0]
+        });
+        let f = render(&scene_with(&[v]), None);
+        let c = f.rgba[20 * 64 + 32];
+        assert!(
+            (c[0] - 0.5).abs() < 1e-6 && c[2].abs() < 1e-6 && (c[3] - 0.5).abs() < 1e-6,
+            "{c:?}"
+        );
+        assert_eq!(f.z[20 * 64 + 32], 5.0);
+    }
+
+    #[test]
+    fn silhouette_lines_interpolate_depth_and_cover_their_rows() {
+        // A horizontal line through pixel centres of row 20, radius 1,
+        // opacity 0.5, depth 4 to 8; the same line again at depth 9 ties
+        // everywhere and changes nothing.
+        let end = |x: f32, depth: f32| RibbonVertex {
+            pos: Vec2::new(x, 20.5),
+            radius: 1.0,
+            depth,
+            color: Vec3::ZERO,
+            opacity: 0.5,
+            arc: 0.0,
+        };
+        let mut s = scene_with(&[]);
+        s.line_color = Vec3::new(0.2, 0.4, 0.6);
+        s.lines.push([end(4.0, 4.0), end(44.0, 8.0)]);
+        s.lines.push([end(4.0, 9.0), end(44.0, 9.0)]);
+        let f = render(&s, None);
+        for x in [10usize, 24, 37] {
+            let t = (x as f32 + 0.5 - 4.0) / 40.0;
+            // Row 20 is fully covered, rows 19 and 21 half (box filter), 22 not.
+            for (y, coverage) in [(19usize, 0.5), (20, 1.0), (21, 0.5), (22, 0.0)] {
+                let c = f.rgba[y * 64 + x];
+                let a = 0.5 * coverage;
+                let want = [0.2 * a, 0.4 * a, 0.6 * a, a];
+                for k in 0..4 {
+                    assert!((c[k] - want[k]).abs() < 1e-5, "({x}, {y}): {c:?} vs {want:?}");
+                }
+            }
+            assert!(
+                (f.z[20 * 64 + x] - (4.0 + 4.0 * t)).abs() < 1e-5,
+                "z at {x}: {}",
+                f.z[20 * 64 + x]
+            );
+        }
+    }
+
+    #[test]
+    fn the_depth_test_allows_the_documented_bias() {
+        // An orthographic mesh whose depth is 5 + 0.1·x (slope 0.1 per
+        // pixel). At pixel (12, 20) it is 6.25, so a stroke passes up to
+        // 6.25·1.01 + 0.1·(0 + 1) = 6.4125 and a silhouette line of radius
+        // 1.5 up to 6.3125 + 0.1·(1.5 + 1) = 6.5625.
+        let mesh = ScreenTriangle {
+            pos: [Vec2::new(0.0, 0.0), Vec2::new(0.0, 40.0), Vec2::new(40.0, 0.0)],
+            depth: [5.0, 5.0, 9.0],
+            normal: [Vec3::Z; 3],
+            color: [Vec3::splat(0.5); 3],
+        };
+        let alpha_at = |stroke_depth: Option<f32>, line_depth: Option<f32>| {
+            let mut s = scene_with(&[]);
+            s.perspective = false;
+            s.triangles.push(mesh);
+            s.shading = Some(WarmCool {
+                k_a: 0.0,
+                k1: 0.0,
+                k3: 0.0,
+                warm: Vec3::ZERO,
+                cool: Vec3::ZERO,
+                ..WarmCool::default()
+            });
+            let at = |depth: f32, radius: f32| {
+                [2.0, 30.0].map(|x| RibbonVertex {
+                    pos: Vec2::new(x, 20.5),
+                    radius,
+                    depth,
+                    color: Vec3::ONE,
+                    opacity: 1.0,
+                    arc: x - 2.0,
+                })
+            };
+            if let Some(d) = stroke_depth {
+                s.verts.extend(at(d, 3.0));
+                s.strokes.push(StrokeRibbon {
+                    start: 0,
+                    end: 2,
+                    length: 28.0,
+                });
+            }
+            if let Some(d) = line_depth {
+                s.line_color = Vec3::ONE;
+                s.lines.push(at(d, 1.5));
+            }
+            // The shading is black, so what shows is the stroke or line.
+            render(&s, None).rgba[20 * 64 + 12][0]
+        };
+        assert_eq!(alpha_at(None, None), 0.0);
+        assert!(alpha_at(Some(6.40), None) > 0.99);
+        assert_eq!(alpha_at(Some(6.43), None), 0.0);
+        assert!(alpha_at(None, Some(6.55)) > 0.99);
+        assert_eq!(alpha_at(None, Some(6.575)), 0.0);
+    }
+
+    #[test]
+    fn mesh_colour_and_normal_interpolate_and_back_faces_light_their_seen_side() {
+        // Orthographic, so the weights at a pixel centre are its plain
+        // barycentrics (area ratios).
+        let pos = [Vec2::new(2.0, 2.0), Vec2::new(2.0, 38.0), Vec2::new(60.0, 2.0)];
+        let color = [
+            Vec3::new(0.9, 0.1, 0.1),
+            Vec3::new(0.1, 0.8, 0.2),
+            Vec3::new(0.2, 0.3, 0.9),
+        ];
+        let weights = |p: Vec2| {
+            let area = |a: Vec2, b: Vec2, c: Vec2| (b - a).perp_dot(c - a);
+            let whole = area(pos[0], pos[1], pos[2]);
+            [
+                area(p, pos[1], pos[2]) / whole,
+                area(pos[0], p, pos[2]) / whole,
+                area(pos[0], pos[1], p) / whole,
+            ]
+        };
+        let shading = WarmCool::default();
+        for normal in [
+            // Facing the camera, tilted differently at each corner.
+            [
+                Vec3::new(0.3, 0.1, 1.0),
+                Vec3::new(-0.2, 0.5, 0.8),
+                Vec3::new(0.1, -0.4, 0.9),
+            ],
+            // Seen from behind: lit as its other side.
+            [
+                Vec3::new(0.3, 0.1, -1.0),
+                Vec3::new(-0.2, 0.5, -0.8),
+                Vec3::new(0.1, -0.4, -0.9),
+            ],
+            // Edge-on (z = 0): lit as it is, not flipped.
+            [
+                Vec3::new(1.0, 0.2, 0.0),
+                Vec3::new(0.8, -0.3, 0.0),
+                Vec3::new(0.9, 0.1, 0.0),
+            ],
+        ] {
+            let mut s = scene_with(&[]);
+            s.perspective = false;
+            s.triangles.push(ScreenTriangle {
+                pos,
+                depth: [5.0; 3],
+                normal,
+                color,
+            });
+            let f = render(&s, None);
+            for (x, y) in [(5usize, 5usize), (20, 10), (8, 30), (40, 4)] {
+                let w = weights(Vec2::new(x as f32 + 0.5, y as f32 + 0.5));
+                let n = (normal[0] * w[0] + normal[1] * w[1] + normal[2] * w[2]).normalize();
+                let n = if n.z < 0.0 { -n } else { n };
+                let want = shading.shade(color[0] * w[0] + color[1] * w[1] + color[2] * w[2], n);
+                let c = f.rgba[y * 64 + x];
+                assert!(
+                    (Vec3::new(c[0], c[1], c[2]) - want).abs().max_element() < 1e-5,
+                    "({x}, {y}): {c:?} vs {want}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn a_stroke_on_the_last_row_of_a_whole_tile_image() {
+        // 64 × 64: the stroke's box ends at the image's bottom edge, which is
+        // also a tile edge; it is binned to the tiles that exist.
+        let mut s = scene_with(&[stroke_verts(60.0, Vec3::ONE, 1.0)]);
+        s.height = 64;
+        let f = render(&s, None);
+        assert!((f.rgba[63 * 64 + 32][3] - 1.0).abs() < 1e-6);
+    }
+
     #[test]
     fn meshes_hide_strokes_behind_them() {
         let mut s = scene_with(&[stroke_verts(20.0, Vec3::X, 1.0)]);
