@@ -134,11 +134,14 @@ def test_tests_added_to_a_file_keep_its_units_and_rechecks_and_reasons_close_mis
     assert "Missed or timed out, with neither a test that kills it nor a reason:" not in report
     at = report.index("Reasons in docs/mutants_reasons.txt for no standing miss (stale):")
     assert report[at + 1 :] == ["  src/a.rs:9:9: replace gone with ()"]
+    # A recheck would run none of them again.
+    assert ledger(repo, "missed", "src/a.rs") == ""
 
     # A reason with no text is refused.
     (repo / "docs" / "mutants_reasons.txt").write_text(missed[1] + "\n")
     bad = subprocess.run([sys.executable, str(LEDGER_PY), "report", str(plan)], cwd=repo, capture_output=True, text=True)
     assert bad.returncode == 1 and f"no reason under {missed[1]}" in bad.stderr
+    (repo / "docs" / "mutants_reasons.txt").unlink()
 
     # A change to the code itself (not its tests): the unit and the recheck are stale.
     (repo / "src" / "a.rs").write_text(code.replace("x + 1", "x + 2") + more)

@@ -194,12 +194,13 @@ def stands(e):
 
 
 def missed(f):
-    """The file's standing misses that no standing recheck caught."""
-    gone = killed()[f]
+    """The file's standing misses that no standing recheck caught and no
+    written reason explains: what a recheck runs again."""
+    gone, why = killed()[f], reasons()
     for (g, _, _), e in sorted(entries().items()):
         if g == f and stands(e):
             for m in e["missed"] + e["timeout"]:
-                if m not in gone:
+                if m not in gone and m not in why:
                     print(m)
 
 
