@@ -711,6 +711,229 @@ def Xform "A" (
     }
 
     #[test]
+    fn scans_reorders_separators_signs_and_assets() {
+        let text = r#"#usda 1.0
+(
+    defaultPrim = "A"
+)
+
+reorder rootPrims = ["C", "A"]
+;
+class "C"
+{
+}
+
+def Xform "A" (
+    kind = "component"
+)
+{
+    reorder nameChildren = ["B", "X"]
+    reorder properties = ["d", "i"]
+    ;
+    double d = -1.5
+    int i = +3 (
+        doc = "signed"
+    )
+    asset a = @a.usda@</P>
+    custom uniform token[] t = ["x", "y"]
+    rel r
+    float2 f.connect = </A.g>
+
+    over "B"
+    {
+        ;
+    }
+}
+"#;
+        let mut p = Parser::new(text).unwrap();
+        let roots = p.layer().unwrap();
+        let paths: Vec<&str> = roots.iter().map(|b| b.path.as_str()).collect();
+        assert_eq!(paths, ["/C", "/A"]);
+        assert_eq!(&text[roots[0].header.clone()], "class \"C\"");
+        let a = &roots[1];
+        assert_eq!(&text[a.header.clone()], "def Xform \"A\"");
+        let heads: Vec<&str> = a.props.iter().map(|p| &text[p.head.clone()]).collect();
+        assert_eq!(
+            heads,
+            [
+                "double d = -1.5",
+                "int i = +3",
+                "asset a = @a.usda@</P>",
+                "custom uniform token[] t = [\"x\", \"y\"]",
+                "rel r",
+                "float2 f.connect = </A.g>",
+            ]
+        );
+        let names: Vec<(&str, Option<&str>)> = a.props.iter().map(|p| (p.name.as_str(), p.suffix.as_deref())).collect();
+        assert_eq!(
+            names,
+            [
+                ("d", None),
+                ("i", None),
+                ("a", None),
+                ("t", None),
+                ("r", None),
+                ("f", Some("connect"))
+            ]
+        );
+        // The statement ends after its metadata.
+        assert!(text[a.props[1].head.start..a.props[1].end].ends_with("doc = \"signed\"\n    )"));
+        assert_eq!(a.props[0].end, a.props[0].head.end);
+        assert_eq!(a.children.len(), 1);
+        assert_eq!(a.children[0].path, "/A/B");
+        assert_eq!(&text[a.children[0].header.clone()], "over \"B\"");
+        assert_eq!(&text[a.open..=a.open], "{");
+        assert_eq!(&text[a.close..], "}\n");
+    }
+
+    #[test]
+    fn malformed_text_is_refused_with_what_was_expected() {
+        let err = |body: &str| {
+            let text = format!("#usda 1.0\n\ndef \"A\"\n{{\n{body}\n}}\n");
+            Parser::new(&text).and_then(|mut p| p.layer()).map(|_| ()).unwrap_err()
+        };
+        assert_eq!(
+            err("    def Xform\n    {\n    }"),
+            "line 6: expected a prim name, found \"{\""
+        );
+        assert_eq!(
+            err("    variantSet v = {\n    }"),
+            "line 5: expected a variant set name, found \"v\""
+        );
+        assert_eq!(
+            err("    reorder children = []"),
+            "line 5: expected nameChildren or properties, found \"children\""
+        );
+        assert_eq!(err("    float x = ;"), "line 5: expected a value, found \";\"");
+        assert_eq!(
+            err("    uniform \"s\" x"),
+            "line 5: expected a property, found \"\\\"s\\\"\""
+        );
+        assert_eq!(err("    float = 1"), "line 5: expected a property name, found \"=\"");
+        assert_eq!(
+            err("    float x.\"s\" = 1"),
+            "line 5: expected connect, timeSamples or spline, found \"\\\"s\\\"\""
+        );
+        assert_eq!(err("    float x = -"), "line 6: expected a value, found \"}\"");
+        let text = "#usda 1.0\ndef \"A\"\n{\n    float x =";
+        assert_eq!(
+            Parser::new(text).and_then(|mut p| p.layer()).map(|_| ()).unwrap_err(),
+            "expected a value at the end of the file"
+        );
+    }
+
+    #[test]
+    fn formats_every_kind_it_authors_so_openusd_reads_it_back() {
+        use openusd::gf::{Vec3d, Vec3f, Vec3i};
+        let cases = [
+            ("bool", Value::Bool(true), "1"),
+            ("int", Value::Int(-7), "-7"),
+            ("int64", Value::Int64(-8_000_000_000), "-8000000000"),
+            ("uint", Value::Uint(4_000_000_000), "4000000000"),
+            ("float", Value::Float(0.25), "0.25"),
+            ("double", Value::Double(-1e-9), "-1e-9"),
+            (
+                "string",
+                Value::String("a \"q\" \\ b\nc".into()),
+                "\"a \\\"q\\\" \\\\ b\\nc\"",
+            ),
+            ("token", Value::Token("tok".into()), "\"tok\""),
+            ("float[]", Value::FloatVec(vec![1.5, 2e20]), "[1.5, 2e20]"),
+            ("double[]", Value::DoubleVec(vec![0.0, 123456.5]), "[0, 123456.5]"),
+            ("int[]", Value::IntVec(vec![3, -4]), "[3, -4]"),
+            (
+                "token[]",
+                Value::TokenVec(vec!["a".into(), "b".into()]),
+                "[\"a\", \"b\"]",
+            ),
+            ("string[]", Value::StringVec(vec!["s".into()]), "[\"s\"]"),
+            (
+                "float3",
+                Value::Vec3f(Vec3f {
+                    x: 1.0,
+                    y: -2.0,
+                    z: 0.5,
+                }),
+                "(1, -2, 0.5)",
+            ),
+            ("double3", Value::Vec3d(Vec3d { x: 0.1, y: 0.0, z: 3.0 }), "(0.1, 0, 3)"),
+            (
+                "point3f[]",
+                Value::Vec3fVec(vec![Vec3f { x: 1.0, y: 2.0, z: 3.0 }]),
+                "[(1, 2, 3)]",
+            ),
+            (
+                "double3[]",
+                Value::Vec3dVec(vec![Vec3d { x: 4.0, y: 5.0, z: 6.5 }]),
+                "[(4, 5, 6.5)]",
+            ),
+            (
+                "int3[]",
+                Value::Vec3iVec(vec![Vec3i { x: 1, y: -2, z: 3 }]),
+                "[(1, -2, 3)]",
+            ),
+        ];
+        for (ty, value, want) in &cases {
+            assert_eq!(format_value(value).as_deref(), Some(*want), "{ty}");
+            let text = format!("#usda 1.0\ndef \"A\"\n{{\n    {ty} v = {want}\n}}\n");
+            let back = parse(&text);
+            let got = back.get_field(&sdf::Path::new("/A.v").unwrap(), "default").unwrap();
+            assert_eq!(*got, *value, "{ty} read back from {want}");
+        }
+        // Non-finite and tiny or huge magnitudes, f64 and f32.
+        assert_eq!(fmt_f64(f64::NAN), "nan");
+        assert_eq!(fmt_f64(f64::INFINITY), "inf");
+        assert_eq!(fmt_f64(f64::NEG_INFINITY), "-inf");
+        assert_eq!(fmt_f64(0.0), "0");
+        assert_eq!(fmt_f64(1e-5), "0.00001");
+        assert_eq!(fmt_f64(3e-6), "3e-6");
+        assert_eq!(fmt_f64(-2e16), "-2e16");
+        assert_eq!(fmt_f32(f32::NAN), "nan");
+        assert_eq!(fmt_f32(f32::NEG_INFINITY), "-inf");
+        assert_eq!(fmt_f32(f32::INFINITY), "inf");
+        assert_eq!(fmt_f32(-4e-6), "-4e-6");
+    }
+
+    #[test]
+    fn headers_name_the_specifier_and_a_type_only_when_there_is_one() {
+        let mut data = sdf::Data::new();
+        for (p, spec, ty) in [
+            ("/C", Specifier::Class, Some("Xform")),
+            ("/D", Specifier::Def, Some("")),
+            ("/O", Specifier::Over, None),
+        ] {
+            let s = data.create_spec(sdf::Path::new(p).unwrap(), sdf::SpecType::Prim);
+            s.add("specifier", Value::Specifier(spec));
+            if let Some(ty) = ty {
+                s.add("typeName", Value::Token(ty.into()));
+            }
+        }
+        let header = |p: &str| prim_header(&data, &sdf::Path::new(p).unwrap()).unwrap();
+        assert_eq!(header("/C"), "class Xform \"C\"");
+        assert_eq!(header("/D"), "def \"D\"");
+        assert_eq!(header("/O"), "over \"O\"");
+    }
+
+    #[test]
+    fn new_children_take_the_indent_of_their_parent() {
+        // Tabs before the parent's header: a new child is indented one
+        // level (four spaces) deeper than that.
+        let text = "#usda 1.0\ndef \"A\"\n{\n\tdef \"B\"\n\t{\n\t}\n}\n";
+        let mut data = sdf::Data::new();
+        for p in ["/A", "/A/B", "/A/B/K"] {
+            let s = data.create_spec(sdf::Path::new(p).unwrap(), sdf::SpecType::Prim);
+            s.add("specifier", Value::Specifier(Specifier::Def));
+        }
+        let out = splice(text, &data, &["/A/B/K".into()], &[], &[]).unwrap();
+        assert_eq!(
+            out,
+            "#usda 1.0\ndef \"A\"\n{\n\tdef \"B\"\n\t{\n\n\t    def \"K\"\n\t    {\n\t    }\n\t}\n}\n"
+        );
+        assert_eq!(indent_at("x\n  \ty = 1", 6), "  \t");
+        assert_eq!(indent_at("  top", 2), "  ");
+    }
+
+    #[test]
     fn splices_new_and_existing_specs() {
         let text =
             "#usda 1.0\n# a comment kept\ndef \"A\"\n{\n    float x = 1 # one\n\n    def \"B\"\n    {\n    }\n}\n";
