@@ -752,6 +752,67 @@ mod tests {
         assert!((w[1] - 0.5).abs() < 1e-12 && (w[2] - 0.5).abs() < 1e-12 && w[0].abs() < 1e-12);
     }
 
+    fn assert_weights(got: [f64; 3], want: [f64; 3], what: &str) {
+        assert!(
+            (0..3).all(|k| (got[k] - want[k]).abs() < 1e-12),
+            "{what}: {got:?} vs {want:?}"
+        );
+    }
+
+    #[test]
+    fn every_region_gives_its_barycentrics() {
+        // A right triangle with unequal legs, points 1 above its plane; the
+        // weights of each region's closest point by hand.
+        let (a, b, c) = (DVec3::ZERO, DVec3::new(4.0, 0.0, 0.0), DVec3::new(0.0, 2.0, 0.0));
+        for (p, want, what) in [
+            ((1.0, 0.5), [0.5, 0.25, 0.25], "face"),
+            ((1.0, -1.0), [0.75, 0.25, 0.0], "edge ab at (1, 0)"),
+            ((-1.0, 1.5), [0.25, 0.0, 0.75], "edge ac at (0, 1.5)"),
+            // (3, 2) - (2.4, 0.8) = (0.6, 1.2) is normal to bc = (-4, 2).
+            ((3.0, 2.0), [0.0, 0.6, 0.4], "edge bc at (2.4, 0.8)"),
+            ((-1.0, -1.0), [1.0, 0.0, 0.0], "vertex a"),
+            ((5.0, -1.0), [0.0, 1.0, 0.0], "vertex b"),
+            ((-1.0, 3.0), [0.0, 0.0, 1.0], "vertex c"),
+        ] {
+            let p = DVec3::new(p.0, p.1, 1.0);
+            assert_weights(closest_point_barycentric(p, a, b, c), want, what);
+        }
+    }
+
+    #[test]
+    fn the_degenerate_fallback_takes_the_closest_edge_the_earlier_on_ties() {
+        let v = |x: f64, y: f64| DVec3::new(x, y, 0.0);
+        let p = |x: f64, y: f64| DVec3::new(x, y, 1.0);
+        // Collinear: ab and bc both reach (1.5, 0), at distance² 2; ab is earlier.
+        assert_weights(
+            degenerate_barycentric(p(1.5, 1.0), v(0.0, 0.0), v(2.0, 0.0), v(1.0, 0.0)),
+            [0.25, 0.75, 0.0],
+            "collinear, ab and bc tie",
+        );
+        // Collinear: ab ends at a = (1, 0); ac and bc both reach (1.8, 0).
+        assert_weights(
+            degenerate_barycentric(p(1.8, 1.0), v(1.0, 0.0), v(0.0, 0.0), v(2.0, 0.0)),
+            [0.2, 0.0, 0.8],
+            "collinear, ac and bc tie",
+        );
+        // Any triangle: its closest edge alone (bc at (2.4, 0.8)).
+        assert_weights(
+            degenerate_barycentric(p(3.0, 2.0), v(0.0, 0.0), v(4.0, 0.0), v(0.0, 2.0)),
+            [0.0, 0.6, 0.4],
+            "bc closest",
+        );
+        // One point: its first weight.
+        assert_weights(
+            degenerate_barycentric(p(3.0, 2.0), v(1.0, 1.0), v(1.0, 1.0), v(1.0, 1.0)),
+            [1.0, 0.0, 0.0],
+            "a = b = c",
+        );
+        // A zero-length edge a = b, reached from the region test's 0 / 0:
+        // ac (= bc) at (0, 1).
+        let w = closest_point_barycentric(DVec3::new(1.0, 1.0, 0.0), v(0.0, 0.0), v(0.0, 0.0), v(0.0, 2.0));
+        assert_weights(w, [0.5, 0.0, 0.5], "a = b");
+    }
+
     #[test]
     fn degenerate_triangle_gives_finite_weights() {
         let w = closest_point_barycentric(DVec3::new(0.5, 1.0, 0.0), DVec3::ZERO, DVec3::X, DVec3::X * 2.0);
@@ -917,6 +978,34 @@ mod tests {
     /// origin, so the plane's own slack (10⁻⁶ × the largest |x|, √2 here)
     /// is below the tolerance (10⁻⁶ × the diagonal, √8 here) and cannot
     /// hide a bound that forgot the tolerance.
+    #[test]
+    fn a_tie_at_the_edge_of_the_tolerance_is_kept() {
+        // B (index 0) lies at x = T, just inside the tie tolerance of A
+        // (index 1, x = 0); the query is on A, so SPEC §3 answers B. T is
+        // small enough for f32 boxes to place B's box within an ulp of T:
+        // the box test then has no margin but the rounding slack.
+        let tri = |x: f64| {
+            [
+                DVec3::new(x, -1.0, -1.0),
+                DVec3::new(x, 2.0, -1.0),
+                DVec3::new(x, -1.0, 2.0),
+            ]
+        };
+        let tris = [[0, 1, 2], [3, 4, 5]];
+        let mut t = 4.2e-6;
+        for _ in 0..3 {
+            t = tie_tolerance(&[tri(t), tri(0.0)].concat()) * (1.0 - 1e-9);
+        }
+        let pts = [tri(t), tri(0.0)].concat();
+        assert!(t < tie_tolerance(&pts));
+        assert_eq!(bind_brute_force(&pts, &tris, &[Vec3::ZERO]).vertices, [[0, 1, 2]]);
+        // From A as the hint (as bind() starts from a neighbour's triangle),
+        // B's box is tested against the tightest bound.
+        let cp = ClosestPoint::new(&pts, &tris);
+        assert_eq!(cp.query_with(DVec3::ZERO, Some(1), &mut Scratch::default()).0, 0);
+        assert_eq!(cp.query(DVec3::ZERO).0, 0);
+    }
+
     #[test]
     fn a_tie_found_after_the_hint_still_goes_to_the_lower_index() {
         let quad = |z: f64| {
