@@ -979,6 +979,18 @@ mod tests {
     /// is below the tolerance (10⁻⁶ × the diagonal, √8 here) and cannot
     /// hide a bound that forgot the tolerance.
     #[test]
+    fn the_tie_tolerance_is_a_millionth_of_the_diagonal() {
+        // A 6 × 8 × 0 box: diagonal 10 (SPEC §3).
+        let pts = [
+            DVec3::new(-1.0, 2.0, 5.0),
+            DVec3::new(5.0, 10.0, 5.0),
+            DVec3::new(2.0, 3.0, 5.0),
+        ];
+        assert!((tie_tolerance(&pts) - 1e-5).abs() < 1e-18, "{}", tie_tolerance(&pts));
+        assert_eq!(tie_tolerance(&[]), 0.0);
+    }
+
+    #[test]
     fn a_tie_at_the_edge_of_the_tolerance_is_kept() {
         // B (index 0) lies at x = T, just inside the tie tolerance of A
         // (index 1, x = 0); the query is on A, so SPEC §3 answers B. T is
