@@ -545,7 +545,9 @@ mod tests {
             opacity,
             arc,
         };
-        let scene = scene_with(&[vec![end(10.0, 4.0, 0.2, red, 0.0), end(54.0, 8.0, 1.0, blue, 44.0)]]);
+        // The segment starts 10 pixels into a 54-pixel stroke.
+        let mut scene = scene_with(&[vec![end(10.0, 4.0, 0.2, red, 10.0), end(54.0, 8.0, 1.0, blue, 54.0)]]);
+        scene.strokes[0].length = 54.0;
         let brush = brush_3x4();
         let plain = render(&scene, None);
         let brushed = render(&scene, Some(&brush));
@@ -560,7 +562,10 @@ mod tests {
                 let i = y * 64 + x;
                 for (frame, alpha) in [
                     (&plain, opacity),
-                    (&brushed, opacity * tent_sample(&brush, 0.5 * (across + 1.0), t)),
+                    (
+                        &brushed,
+                        opacity * tent_sample(&brush, 0.5 * (across + 1.0), (10.0 + 44.0 * t) / 54.0),
+                    ),
                 ] {
                     let c = frame.rgba[i];
                     let want = [color.x * alpha, color.y * alpha, color.z * alpha, alpha];
@@ -630,6 +635,33 @@ mod tests {
             "{c:?}"
         );
         assert_eq!(f.z[20 * 64 + 32], 5.0);
+    }
+
+    #[test]
+    fn a_bend_is_the_union_of_both_segments_round_ends() {
+        // At a 45° bend, a pixel centre 4√2 from the join vertex lies in both
+        // segments' round ends. Each filters with its own box width
+        // (1 along a horizontal segment, 1/√2 along a diagonal), and the
+        // larger coverage, the diagonal's, wins:
+        // (6 − (4√2 − ½·(1/√2))) / (1/√2) ≈ 0.98528 against 6 − (4√2 − ½) ≈ 0.84315.
+        let diagonal = (6.0 - (4.0 * 2f32.sqrt() - 0.5 / 2f32.sqrt())) * 2f32.sqrt();
+        let at = |x: f32, y: f32, arc: f32| RibbonVertex {
+            pos: Vec2::new(x, y),
+            radius: 6.0,
+            depth: 5.0,
+            color: Vec3::ONE,
+            opacity: 1.0,
+            arc,
+        };
+        // Horizontal, then diagonal: the second segment's round start counts.
+        let first = vec![at(10.0, 20.5, 0.0), at(32.5, 20.5, 22.5), at(50.0, 38.0, 47.2)];
+        // Diagonal, then horizontal: the first segment's round end counts.
+        let second = vec![at(15.0, 3.0, 0.0), at(32.5, 20.5, 24.7), at(55.0, 20.5, 47.2)];
+        for (stroke, (x, y)) in [(first, (36, 16)), (second, (28, 24))] {
+            let f = render(&scene_with(&[stroke]), None);
+            let a = f.rgba[y * 64 + x][3];
+            assert!((a - diagonal).abs() < 1e-4, "({x}, {y}): {a} vs {diagonal}");
+        }
     }
 
     #[test]
