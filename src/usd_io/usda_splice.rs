@@ -735,6 +735,7 @@ def Xform "A" (
         doc = "signed"
     )
     asset a = @a.usda@</P>
+    asset b = @b.usda@
     custom uniform token[] t = ["x", "y"]
     rel r
     float2 f.connect = </A.g>
@@ -759,6 +760,7 @@ def Xform "A" (
                 "double d = -1.5",
                 "int i = +3",
                 "asset a = @a.usda@</P>",
+                "asset b = @b.usda@",
                 "custom uniform token[] t = [\"x\", \"y\"]",
                 "rel r",
                 "float2 f.connect = </A.g>",
@@ -771,6 +773,7 @@ def Xform "A" (
                 ("d", None),
                 ("i", None),
                 ("a", None),
+                ("b", None),
                 ("t", None),
                 ("r", None),
                 ("f", Some("connect"))
