@@ -783,30 +783,39 @@ mod tests {
     fn the_degenerate_fallback_takes_the_closest_edge_the_earlier_on_ties() {
         let v = |x: f64, y: f64| DVec3::new(x, y, 0.0);
         let p = |x: f64, y: f64| DVec3::new(x, y, 1.0);
-        // Collinear: ab and bc both reach (1.5, 0), at distance² 2; ab is earlier.
-        assert_weights(
-            degenerate_barycentric(p(1.5, 1.0), v(0.0, 0.0), v(2.0, 0.0), v(1.0, 0.0)),
-            [0.25, 0.75, 0.0],
-            "collinear, ab and bc tie",
-        );
-        // Collinear: ab ends at a = (1, 0); ac and bc both reach (1.8, 0).
-        assert_weights(
-            degenerate_barycentric(p(1.8, 1.0), v(1.0, 0.0), v(0.0, 0.0), v(2.0, 0.0)),
-            [0.2, 0.0, 0.8],
-            "collinear, ac and bc tie",
-        );
-        // Any triangle: its closest edge alone (bc at (2.4, 0.8)).
-        assert_weights(
-            degenerate_barycentric(p(3.0, 2.0), v(0.0, 0.0), v(4.0, 0.0), v(0.0, 2.0)),
-            [0.0, 0.6, 0.4],
-            "bc closest",
-        );
-        // One point: its first weight.
-        assert_weights(
-            degenerate_barycentric(p(3.0, 2.0), v(1.0, 1.0), v(1.0, 1.0), v(1.0, 1.0)),
-            [1.0, 0.0, 0.0],
-            "a = b = c",
-        );
+        for (q, [a, b, c], want, what) in [
+            // ab and bc both reach (1.5, 0); ab is earlier.
+            (
+                (1.5, 1.0),
+                [(0.0, 0.0), (2.0, 0.0), (1.0, 0.0)],
+                [0.25, 0.75, 0.0],
+                "collinear, ab and bc tie",
+            ),
+            // ab ends at a = (1, 0); ac and bc both reach (1.8, 0).
+            (
+                (1.8, 1.0),
+                [(1.0, 0.0), (0.0, 0.0), (2.0, 0.0)],
+                [0.2, 0.0, 0.8],
+                "collinear, ac and bc tie",
+            ),
+            // Any triangle: its closest edge alone (bc at (2.4, 0.8)).
+            (
+                (3.0, 2.0),
+                [(0.0, 0.0), (4.0, 0.0), (0.0, 2.0)],
+                [0.0, 0.6, 0.4],
+                "bc closest",
+            ),
+            // One point: its first weight.
+            (
+                (3.0, 2.0),
+                [(1.0, 1.0), (1.0, 1.0), (1.0, 1.0)],
+                [1.0, 0.0, 0.0],
+                "a = b = c",
+            ),
+        ] {
+            let w = degenerate_barycentric(p(q.0, q.1), v(a.0, a.1), v(b.0, b.1), v(c.0, c.1));
+            assert_weights(w, want, what);
+        }
         // A zero-length edge a = b, reached from the region test's 0 / 0:
         // ac (= bc) at (0, 1).
         let w = closest_point_barycentric(DVec3::new(1.0, 1.0, 0.0), v(0.0, 0.0), v(0.0, 0.0), v(0.0, 2.0));
