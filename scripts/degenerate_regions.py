@@ -24,6 +24,11 @@ def sub(u, v):
     return (u[0] - v[0], u[1] - v[1], u[2] - v[2])
 
 
+def edge(name, num, den):
+    """An edge branch: its name, with '-nan' when num / den is not finite."""
+    return (name if den != 0 and math.isfinite(num / den) else name + "-nan"), None
+
+
 def region(p, a, b, c):
     """The branch closest_point_barycentric takes; '-nan' when its quotient
     is not finite; for the face branch also its denominator."""
@@ -37,20 +42,17 @@ def region(p, a, b, c):
         return "vertex b", None
     vc = d1 * d4 - d3 * d2
     if vc <= 0 and d1 >= 0 and d3 <= 0:
-        den = d1 - d3
-        return ("edge ab" if den != 0 and math.isfinite(d1 / den) else "edge ab-nan"), None
+        return edge("edge ab", d1, d1 - d3)
     cp = sub(p, c)
     d5, d6 = dot(ab, cp), dot(ac, cp)
     if d6 >= 0 and d5 <= d6:
         return "vertex c", None
     vb = d5 * d2 - d1 * d6
     if vb <= 0 and d2 >= 0 and d6 <= 0:
-        den = d2 - d6
-        return ("edge ac" if den != 0 and math.isfinite(d2 / den) else "edge ac-nan"), None
+        return edge("edge ac", d2, d2 - d6)
     va = d3 * d6 - d5 * d4
     if va <= 0 and (d4 - d3) >= 0 and (d5 - d6) >= 0:
-        den = (d4 - d3) + (d5 - d6)
-        return ("edge bc" if den != 0 and math.isfinite((d4 - d3) / den) else "edge bc-nan"), None
+        return edge("edge bc", d4 - d3, (d4 - d3) + (d5 - d6))
     return "face", va + vb + vc
 
 
