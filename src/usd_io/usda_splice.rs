@@ -985,4 +985,91 @@ def Xform "A" (
         assert_eq!(*v, Value::FloatVec(vec![0.1, -3e-7, 1e20]));
         assert!(back.has_spec(&sdf::Path::new("/A/B/K.time").unwrap()));
     }
+
+    #[test]
+    fn splices_headers_blank_lines_comments_and_unterminated_text_exactly() {
+        // An `over` that becomes a typed `def`; a trailing comment two
+        // spaces after the last property; a `{}` on one line that gains an
+        // attribute and a child at the same offset; no newline at the end.
+        let text = "#usda 1.0\nover \"O\"\n{\n    float a = 1  # c\n}\ndef \"E\" {}";
+        let mut data = sdf::Data::new();
+        for (p, spec, ty) in [
+            ("/O", Specifier::Def, "Xform"),
+            ("/E", Specifier::Def, ""),
+            ("/E/K", Specifier::Def, ""),
+            ("/N", Specifier::Def, ""),
+            ("/N/C1", Specifier::Def, ""),
+            ("/N/C1/G1", Specifier::Def, ""),
+            ("/N/C1/G2", Specifier::Def, ""),
+            ("/N/C2", Specifier::Def, ""),
+        ] {
+            let s = data.create_spec(sdf::Path::new(p).unwrap(), sdf::SpecType::Prim);
+            s.add("specifier", Value::Specifier(spec));
+            if !ty.is_empty() {
+                s.add("typeName", Value::Token(ty.into()));
+            }
+        }
+        for p in ["/O.b", "/E.x", "/N.x"] {
+            let s = data.create_spec(sdf::Path::new(p).unwrap(), sdf::SpecType::Attribute);
+            s.add("typeName", Value::Token("float".into()));
+            s.add("default", Value::Float(2.0));
+        }
+        let prims: Vec<String> = ["/O", "/E/K", "/N", "/N/C1", "/N/C1/G1", "/N/C1/G2", "/N/C2"]
+            .map(String::from)
+            .to_vec();
+        let attrs: Vec<(String, String)> = [("/O", "b"), ("/E", "x"), ("/N", "x")]
+            .map(|(p, n)| (p.into(), n.into()))
+            .to_vec();
+        let out = splice(text, &data, &prims, &["/O".into()], &attrs).unwrap();
+        // By the layout rules: the new attribute goes after the comment that
+        // ends the last property's line; the one-line `{}` gets the child
+        // block (a newline first, the child one level in) and then the
+        // attribute (before `}`, which moves to a line of its own), in the
+        // order the edits were made (usd-core reads either order); a new
+        // root prim starts after a newline added to the unterminated text
+        // and a blank line; inside a new prim, a blank line separates a
+        // child from an attribute or a sibling before it, not from `{`.
+        let expected = [
+            "#usda 1.0",
+            "def Xform \"O\"",
+            "{",
+            "    float a = 1  # c",
+            "    float b = 2",
+            "}",
+            "def \"E\" {",
+            "    def \"K\"",
+            "    {",
+            "    }",
+            "",
+            "    float x = 2",
+            "}",
+            "",
+            "def \"N\"",
+            "{",
+            "    float x = 2",
+            "",
+            "    def \"C1\"",
+            "    {",
+            "        def \"G1\"",
+            "        {",
+            "        }",
+            "",
+            "        def \"G2\"",
+            "        {",
+            "        }",
+            "    }",
+            "",
+            "    def \"C2\"",
+            "    {",
+            "    }",
+            "}",
+            "",
+        ]
+        .join("\n");
+        assert_eq!(out, expected);
+        let back = parse(&out);
+        for p in ["/O.b", "/E.x", "/E/K", "/N.x", "/N/C1/G2", "/N/C2"] {
+            assert!(back.has_spec(&sdf::Path::new(p).unwrap()), "{p}");
+        }
+    }
 }
