@@ -25,6 +25,7 @@ import pytest
 from pxr import Gf, Sdf, Usd, Vt
 
 import authoring as Au
+import crate_reps
 
 T = Sdf.ValueTypeNames
 
@@ -396,6 +397,103 @@ def test_in_place_keeps_values_openusd_misreads(painterly, tmp_path, case):
     src.Export(str(inp))
     painterly("bind", inp, "--in-place", "--quiet")
     assert Sdf.Layer.OpenAsAnonymous(str(inp)).GetAttributeAtPath("/Bug.v").default == value
+
+
+# ---------------------------------------------------------------------------
+# value layout
+
+
+def rep_panel():
+    """Values on each side of usd-core's encoding rules (crateFile.cpp):
+    inlined when a double is exactly a float, when vector components and a
+    diagonal matrix's entries are 8-bit integers, and for an empty
+    dictionary; int arrays compressed from 16 elements; float arrays from 16
+    when integral or with at most n/4 distinct values; raw non-int arrays
+    8-byte aligned; equal values stored once. (-0.0 vector components are
+    left out: usd-core inlines them as +0.0, painterly keeps the sign.)"""
+    frac = [0.1, 0.35, 0.6, 0.85, 1.1]
+    return [
+        ("d_half", T.Double, 0.5),
+        ("d_tenth", T.Double, 0.1),
+        ("d_negzero", T.Double, -0.0),
+        ("d_huge", T.Double, 1e300),
+        ("f_tenth", T.Float, 0.1),
+        ("v3h_frac", T.Half3, Gf.Vec3h(0.5, 0, 1)),  # 6 bytes: leaves the next write unaligned
+        ("v3f_ints", T.Float3, Gf.Vec3f(1, 2, -3)),
+        ("v3f_frac", T.Float3, Gf.Vec3f(0.5, 1, 2)),
+        ("v3f_big", T.Float3, Gf.Vec3f(1, 200, 3)),
+        ("v3d_ints", T.Double3, Gf.Vec3d(1, -128, 127)),
+        ("v3h_ints", T.Half3, Gf.Vec3h(1, 0, -3)),
+        ("m4_identity", T.Matrix4d, Gf.Matrix4d(1)),
+        ("m4_diag", T.Matrix4d, Gf.Matrix4d(2, 0, 0, 0, 0, 3, 0, 0, 0, 0, -4, 0, 0, 0, 0, 1)),
+        ("m4_translate", T.Matrix4d, Gf.Matrix4d().SetTranslate(Gf.Vec3d(0, 0, 1))),
+        ("m4_frac_diag", T.Matrix4d, Gf.Matrix4d(0.5)),
+        ("m2_upper", T.Matrix2d, Gf.Matrix2d(1, 1, 0, 1)),
+        ("m2_lower", T.Matrix2d, Gf.Matrix2d(1, 0, 1, 1)),
+        ("m3_corner", T.Matrix3d, Gf.Matrix3d(1, 0, 0, 0, 1, 0, 2, 0, 1)),
+        ("i15", T.IntArray, Vt.IntArray(list(range(15)))),
+        ("i16", T.IntArray, Vt.IntArray(list(range(16)))),
+        ("i64_16", T.Int64Array, Vt.Int64Array([3 * k for k in range(16)])),
+        ("u16", T.UIntArray, Vt.UIntArray(list(range(16)))),
+        ("f15_int", T.FloatArray, Vt.FloatArray([float(k) for k in range(15)])),
+        ("f16_int", T.FloatArray, Vt.FloatArray([float(k) - 8 for k in range(16)])),
+        ("f16_half", T.FloatArray, Vt.FloatArray([k + 0.5 for k in range(16)])),
+        ("f16_lut4", T.FloatArray, Vt.FloatArray([frac[k % 4] for k in range(16)])),
+        ("f16_lut5", T.FloatArray, Vt.FloatArray([frac[k % 5] for k in range(16)])),
+        ("d20_lut5", T.DoubleArray, Vt.DoubleArray([frac[k % 5] for k in range(20)])),
+        ("d19_lut5", T.DoubleArray, Vt.DoubleArray([frac[k % 5] for k in range(19)])),
+        ("d16_int", T.DoubleArray, Vt.DoubleArray([float(-k) for k in range(16)])),
+        ("h16_int", T.HalfArray, Vt.HalfArray([float(k) for k in range(16)])),
+        ("p3", T.Point3fArray, Vt.Vec3fArray([(0.5, 1, 2)] * 3)),
+        ("arr_a", T.FloatArray, Vt.FloatArray([0.5, 0.7, 0.9])),
+        ("arr_b", T.FloatArray, Vt.FloatArray([0.5, 0.7, 0.9])),
+        # Dictionaries, as customData: an empty one nested, two equal ones.
+        # (Equal dictionaries holding stored values, such as arrays, are
+        # shared by usd-core, which dedups by value, but not by painterly,
+        # which dedups bytes: the second one's nested reps point elsewhere.)
+        ("dict_empty", None, {"e": {}}),
+        ("dict_a", None, {"x": 0.5, "y": "s", "i": 3}),
+        ("dict_b", None, {"x": 0.5, "y": "s", "i": 3}),
+    ]
+
+
+def test_values_are_laid_out_as_usd_core_lays_them(painterly, tmp_path):
+    rig = skel_rig(tmp_path, name="panel.usda")
+    src = Sdf.Layer.FindOrOpen(str(rig.path))
+    prim = Sdf.CreatePrimInLayer(src, "/Values")
+    prim.specifier = Sdf.SpecifierDef
+    for name, ty, v in rep_panel():
+        if ty is None:
+            Sdf.AttributeSpec(prim, name, T.Int).customData = v
+        else:
+            Sdf.AttributeSpec(prim, name, ty).default = v
+    theirs = tmp_path / "usd_core.usdc"
+    src.Export(str(theirs))
+    ours = tmp_path / "painterly.usdc"
+    shutil.copy(theirs, ours)
+    painterly("bind", ours, "--time", 5, "--in-place", "--quiet")
+    assert contents(Sdf.Layer.OpenAsAnonymous(str(ours)))["/Values"] == contents(
+        Sdf.Layer.OpenAsAnonymous(str(theirs)))["/Values"], "test setup: values changed"
+
+    def layout(crate, name, ty):
+        rep = crate.rep(f"/Values.{name}", "customData" if ty is None else "default")
+        reps = crate.dictionary_reps(rep) if ty is None else [rep]
+        # The payload is an offset, which differs between files, unless inlined.
+        return [(r.type, r.array, r.inlined, r.compressed, r.payload if r.inlined else None) for r in reps]
+
+    u, p = crate_reps.Crate(theirs), crate_reps.Crate(ours)
+    differ = [(name, layout(u, name, ty), layout(p, name, ty))
+              for name, ty, _ in rep_panel() if layout(u, name, ty) != layout(p, name, ty)]
+    assert not differ, f"(value, usd-core's rep, painterly's): {differ}"
+
+    def rep(crate, name):
+        return crate.rep(f"/Values.{name}", "customData" if name.startswith("dict") else "default")
+
+    for crate, who in ((u, "usd-core"), (p, "painterly")):
+        for name in ("f15_int", "f16_lut5", "p3", "arr_a", "m4_translate"):
+            assert rep(crate, name).payload % 8 == 0, f"{who}: {name} not 8-byte aligned"
+        assert rep(crate, "dict_a") == rep(crate, "dict_b"), f"{who}: equal dictionaries stored twice"
+        assert rep(crate, "arr_a") == rep(crate, "arr_b"), f"{who}: equal arrays stored twice"
 
 
 # ---------------------------------------------------------------------------

@@ -806,3 +806,234 @@ fn rewrites_a_crate_layer_read_from_disk() {
         Value::Int(99)
     );
 }
+
+/// The rep of field `field` of spec `spec` in a crate file.
+fn rep_of(file: &CrateFile, spec: &str, field: &str) -> u64 {
+    let s = file
+        .specs
+        .iter()
+        .find(|s| file.paths[s.path_index].as_str() == spec)
+        .unwrap_or_else(|| panic!("no spec {spec}"));
+    let mut k = s.fieldset_index;
+    while let Some(f) = file.fieldsets[k] {
+        let f = &file.fields[f];
+        if file.tokens[f.token_index] == field {
+            return f.value_rep.0;
+        }
+        k += 1;
+    }
+    panic!("{spec} has no field {field}")
+}
+
+const COMPRESSED_BIT: u64 = 1 << 61;
+
+/// openusd sizes its buffer for decoding a compressed 64-bit int array as if
+/// the codes were 32-bit: 4 + ceil(2n / 8) + 4n bytes, 72 for 16 elements.
+/// The integer coding of 16 int64s is 8 (the common difference) + 4 (the
+/// 2-bit codes) + 2, 4 or 8 bytes per other difference; a coding of exactly
+/// 72 bytes is compressed, one of 74 is stored raw.
+#[test]
+fn int64_arrays_compress_only_within_openusds_decoding_buffer() {
+    // Differences from the previous element (the first from 0).
+    let cumulative = |deltas: &[i64]| -> Vec<i64> {
+        let mut prev = 0i64;
+        deltas
+            .iter()
+            .map(|d| {
+                prev = prev.wrapping_add(*d);
+                prev
+            })
+            .collect()
+    };
+    let large = |k: i64| (1i64 << 40) + k; // 8 bytes each
+                                           // 8 common (0) + 7 large (56) + 1 medium (4): 8 + 4 + 60 = 72.
+    let mut at_limit = vec![0i64; 8];
+    at_limit.extend((1..=7).map(large));
+    at_limit.push(100_000);
+    // 7 common + 7 large + 1 medium + 1 small (2): 8 + 4 + 62 = 74.
+    let mut over = vec![0i64; 7];
+    over.extend((1..=7).map(large));
+    over.extend([100_000, 5]);
+    assert_eq!((at_limit.len(), over.len()), (16, 16));
+    assert_eq!(compress::encode_ints(&cumulative(&at_limit)).len(), 72);
+    assert_eq!(compress::encode_ints(&cumulative(&over)).len(), 74);
+    let data = layer_of(&[
+        ("atLimit", Value::Int64Vec(cumulative(&at_limit))),
+        ("over", Value::Int64Vec(cumulative(&over))),
+        ("int32", Value::IntVec((0..16).map(|i| i * 100_000).collect())),
+    ]);
+    let bytes = write(&data);
+    assert_same(&data, &read(&bytes));
+    let file = CrateFile::open(bytes).unwrap();
+    let compressed = |name: &str| rep_of(&file, &format!("/Values.{name}"), "default") & COMPRESSED_BIT != 0;
+    assert!(compressed("atLimit"));
+    assert!(!compressed("over"));
+    assert!(compressed("int32"), "32-bit arrays are not limited");
+}
+
+/// Each nested value (a time sample, a dictionary entry) goes one level
+/// deeper and comes back: many of them side by side stay at depth one.
+#[test]
+fn many_samples_and_entries_stay_within_the_nesting_limit() {
+    let samples: Vec<(f64, Value)> = (0..40).map(|i| (i as f64, Value::Double(0.1 * i as f64))).collect();
+    let entries: HashMap<String, Value> = (0..40).map(|i| (format!("k{i}"), Value::Int(i))).collect();
+    let data = layer_of(&[
+        ("samples", Value::TimeSamples(samples)),
+        ("dict", Value::Dictionary(entries)),
+    ]);
+    assert_same(&data, &read(&write(&data)));
+}
+
+/// A time sample equal to an earlier one of the same attribute is stored
+/// once, also when it was written after other bytes of the same value.
+#[test]
+fn equal_time_samples_are_stored_once() {
+    let a: Vec<f32> = (0..1000).map(|i| (i as f32 * 0.37).sin()).collect();
+    let b: Vec<f32> = (0..1000).map(|i| (i as f32 * 0.53).cos()).collect();
+    let data = layer_of(&[(
+        "samples",
+        Value::TimeSamples(vec![
+            (1.0, Value::FloatVec(a)),
+            (2.0, Value::FloatVec(b.clone())),
+            (3.0, Value::FloatVec(b)),
+        ]),
+    )]);
+    let bytes = write(&data);
+    assert_same(&data, &read(&bytes));
+    // Two arrays of 4,000 raw bytes (neither is integral or few-valued),
+    // not three; the rest of the file is well under 4,000 bytes.
+    assert!(
+        bytes.len() < 3 * 4000,
+        "{} bytes: the third sample was stored again",
+        bytes.len()
+    );
+    assert!(bytes.len() > 2 * 4000);
+}
+
+/// Raw arrays of non-integers start 8-byte aligned (usd-core maps them
+/// straight from the file), also right after a 6-byte value.
+#[test]
+fn raw_arrays_start_8_byte_aligned() {
+    let h = |x: f32| f16::from_f32(x);
+    let mut values = Vec::new();
+    for k in 0..4 {
+        // Named so that each 6-byte value is written just before an array.
+        values.push((format!("k{k}h"), Value::Vec3h(gf::vec3h(h(0.5), h(k as f32), h(1.0)))));
+        values.push((format!("k{k}v"), Value::FloatVec(vec![0.5, 0.25 + k as f32])));
+    }
+    let named: Vec<(&str, Value)> = values.iter().map(|(n, v)| (n.as_str(), v.clone())).collect();
+    let data = layer_of(&named);
+    let bytes = write(&data);
+    assert_same(&data, &read(&bytes));
+    let file = CrateFile::open(bytes).unwrap();
+    let payload = |name: &str| rep_of(&file, &format!("/Values.{name}"), "default") & ((1 << 48) - 1);
+    for k in 0..4 {
+        assert_eq!(payload(&format!("k{k}v")) % 8, 0, "k{k}v");
+    }
+    // Not vacuous: some 6-byte value ends off an 8-byte boundary.
+    assert!((0..4).any(|k| (payload(&format!("k{k}h")) + 6) % 8 != 0));
+}
+
+/// The dedup key includes the rep's flags: a raw float array whose bytes
+/// spell another float array's compressed encoding (same count, same
+/// length) is a different value and must get its own rep.
+#[test]
+fn a_raw_array_spelling_a_compressed_one_is_not_shared() {
+    const N: usize = 64;
+    // Integral floats (compressed as 'i' + coded ints) whose compressed
+    // part is exactly 4N - 1 bytes, so that with the 'i' it is as long as
+    // N raw floats. Found by trying seeds and widths; the ints stay within
+    // ±2^23, where f32 holds them exactly.
+    let mut state = 7u64;
+    let mut next = move || {
+        // splitmix64
+        state = state.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let z = (state ^ (state >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        let z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^ (z >> 31)
+    };
+    let found = (0..20_000).find_map(|_| {
+        let wide = (next() % (N as u64)) as usize;
+        let ints: Vec<i32> = (0..N)
+            .map(|k| {
+                let r = next() as i32;
+                if k < wide {
+                    r >> 9
+                } else {
+                    r >> 26
+                }
+            })
+            .collect();
+        let mut body = vec![b'i'];
+        compress::put_compressed_ints(&ints, &mut body);
+        (body.len() == 4 * N).then_some((ints, body))
+    });
+    let (ints, body) = found.expect("a compressed encoding 4N bytes long");
+    let compressed: Vec<f32> = ints.iter().map(|&i| i as f32).collect();
+    let raw: Vec<f32> = body
+        .chunks_exact(4)
+        .map(|c| f32::from_le_bytes(c.try_into().unwrap()))
+        .collect();
+    let data = layer_of(&[
+        ("compressed", Value::FloatVec(compressed)),
+        ("raw", Value::FloatVec(raw)),
+    ]);
+    let bytes = write(&data);
+    let file = CrateFile::open(bytes.clone()).unwrap();
+    let rep = |n: &str| rep_of(&file, &format!("/Values.{n}"), "default");
+    assert_ne!(rep("compressed") & COMPRESSED_BIT, 0, "test setup: compressed");
+    assert_eq!(rep("raw") & COMPRESSED_BIT, 0, "test setup: raw");
+    // Same bytes after the count: only the flags tell them apart.
+    let payload = |n: &str| (rep(n) & ((1 << 48) - 1)) as usize;
+    let at = |n: &str| &bytes[payload(n)..payload(n) + 8 + 4 * N];
+    if payload("compressed") != payload("raw") {
+        assert_eq!(
+            at("compressed"),
+            at("raw"),
+            "test setup: the two encodings are the same bytes"
+        );
+    }
+    assert_ne!(payload("compressed"), payload("raw"));
+    let back = read(&bytes);
+    for n in ["compressed", "raw"] {
+        let p = path(&format!("/Values.{n}"));
+        let (a, b) = (
+            data.get_field(&p, "default").unwrap(),
+            back.get_field(&p, "default").unwrap(),
+        );
+        let bits = |v: &Value| {
+            v.clone()
+                .try_as_float_vec()
+                .unwrap()
+                .iter()
+                .map(|x| x.to_bits())
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(bits(&a), bits(&b), "{n}");
+    }
+}
+
+/// An integral float array holding -0.0 is not coded as integers (0 would
+/// read back as +0.0): the bits come back, for f32 and f64 elements.
+#[test]
+fn negative_zero_keeps_integral_arrays_raw() {
+    let f: Vec<f32> = (0..16).map(|k| if k == 5 { -0.0 } else { k as f32 }).collect();
+    let d: Vec<f64> = (0..16).map(|k| if k == 5 { -0.0 } else { -(k as f64) }).collect();
+    let data = layer_of(&[("f", Value::FloatVec(f.clone())), ("d", Value::DoubleVec(d.clone()))]);
+    let back = read(&write(&data));
+    let get = |n: &str| {
+        back.get_field(&path(&format!("/Values.{n}")), "default")
+            .unwrap()
+            .into_owned()
+    };
+    let bf = get("f").try_as_float_vec().unwrap();
+    let bd = get("d").try_as_double_vec().unwrap();
+    assert_eq!(
+        bf.iter().map(|x| x.to_bits()).collect::<Vec<_>>(),
+        f.iter().map(|x| x.to_bits()).collect::<Vec<_>>()
+    );
+    assert_eq!(
+        bd.iter().map(|x| x.to_bits()).collect::<Vec<_>>(),
+        d.iter().map(|x| x.to_bits()).collect::<Vec<_>>()
+    );
+}
