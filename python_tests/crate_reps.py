@@ -46,6 +46,19 @@ class Rep:
         return self.bits & PAYLOAD_MASK
 
 
+def _extended_length(src: bytes, i: int, n: int) -> tuple[int, int]:
+    """A 4-bit length of 15 continues in the next bytes, each added, until
+    one is not 255. Returns the length and the index after it."""
+    if n == 15:
+        while True:
+            b = src[i]
+            i += 1
+            n += b
+            if b != 255:
+                break
+    return n, i
+
+
 def lz4_block(src: bytes) -> bytes:
     """One LZ4 block (the raw block format, no frame header)."""
     out = bytearray()
@@ -53,28 +66,14 @@ def lz4_block(src: bytes) -> bytes:
     while i < len(src):
         token = src[i]
         i += 1
-        n = token >> 4
-        if n == 15:
-            while True:
-                b = src[i]
-                i += 1
-                n += b
-                if b != 255:
-                    break
+        n, i = _extended_length(src, i, token >> 4)
         out += src[i:i + n]
         i += n
         if i >= len(src):
             break  # the last sequence has literals only
         offset = src[i] | (src[i + 1] << 8)
         i += 2
-        m = token & 15
-        if m == 15:
-            while True:
-                b = src[i]
-                i += 1
-                m += b
-                if b != 255:
-                    break
+        m, i = _extended_length(src, i, token & 15)
         start = len(out) - offset
         for k in range(m + 4):  # matches may overlap what they produce
             out.append(out[start + k])
