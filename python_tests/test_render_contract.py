@@ -163,6 +163,36 @@ def test_colours_opacity_visibility_and_purpose(painterly, tmp_path, scene):
     assert png[y, x, 3] == 1.0
 
 
+def test_per_face_colours_and_widths_under_a_scaled_parent(painterly, tmp_path):
+    """A uniform displayColor gives each face its own colour; a stroke's width scales with its transform."""
+    path = tmp_path / "faces.usda"
+    stage = new_stage(path)
+    m = UsdGeom.Mesh.Define(stage, "/TwoFaces")
+    m.CreatePointsAttr([Gf.Vec3f(x, y, 0) for x, y in [(-3, 0.5), (-2, 0.5), (-1, 0.5), (-3, 1.5), (-2, 1.5), (-1, 1.5)]])
+    m.CreateFaceVertexCountsAttr([4, 4])
+    m.CreateFaceVertexIndicesAttr([0, 1, 4, 3, 1, 2, 5, 4])
+    m.CreateSubdivisionSchemeAttr("none")
+    m.CreateDisplayColorPrimvar(UsdGeom.Tokens.uniform).Set([Gf.Vec3f(*RED), Gf.Vec3f(*GREEN)])
+    # Width 0.3 under a parent scaled ×2: 0.6 wide in the world, as UsdGeom
+    # widths are in the prim's own space.
+    UsdGeom.Xform.Define(stage, "/Big").AddScaleOp().Set(Gf.Vec3f(2, 2, 2))
+    stroke(stage, "/Big/Stroke", (0.25, -0.5), (1.5, -0.5), BLUE_STROKE, 1.0, width=0.3, z=0.0)
+    stage.GetRootLayer().Save()
+    render(painterly, path, tmp_path)
+    exr = read_exr(tmp_path / "f.0001.exr")
+    rgb = np.stack([exr["R"], exr["G"], exr["B"]], axis=-1)
+    facing = (0.0, 0.0, 1.0)
+    for centre, colour in [((-2.5, 1.0, 0.0), RED), ((-1.5, 1.0, 0.0), GREEN)]:
+        x, y = pixel(path, centre)
+        np.testing.assert_allclose(rgb[y, x], warm_cool(colour, facing), atol=2e-3)
+    # The stroke runs along y = -1 from x = 0.5 to 3 (world); half its width is 0.3.
+    # A pixel is about 0.03 units here.
+    alpha = exr["A"]
+    for off, covered in [(0.0, True), (0.2, True), (-0.2, True), (0.4, False), (-0.4, False)]:
+        x, y = pixel(path, (1.75, -1.0 + off, 0.0))
+        assert (alpha[y, x] > 0.5) == covered, (off, alpha[y, x])
+
+
 def rotation(rx, ry):
     return Gf.Matrix3d(Gf.Rotation(Gf.Vec3d(1, 0, 0), rx)) * Gf.Matrix3d(Gf.Rotation(Gf.Vec3d(0, 1, 0), ry))
 

@@ -376,6 +376,11 @@ mod tests {
         assert_eq!(fast_rotation(&h, spread), None);
         assert_eq!(fast_rotation(&DMat3::ZERO, 0.0), None);
         assert_eq!(fast_rotation(&DMat3::from_diagonal(DVec3::splat(f64::NAN)), 1.0), None);
+        // Finite entries whose squares overflow: ‖H‖ is infinite, and
+        // scaling by 1/‖H‖ would erase H (the SVD decides instead).
+        let huge = DMat3::from_quat(glam::DQuat::from_rotation_z(0.7)) * 1e200;
+        assert!(huge.is_finite());
+        assert_eq!(fast_rotation(&huge, f64::INFINITY), None);
         // A ring as wide along y as along z, mirrored in z: H = diag(4, 1, −1),
         // every rotation about x is optimal (σ₂ = σ₃ with det H < 0), so the
         // fit is left to the SVD.

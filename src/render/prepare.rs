@@ -459,10 +459,10 @@ pub fn build_scene(proj: &Projector, curves: &[CurvesData], meshes: &[MeshData],
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::render::camera::CameraParams;
+    use crate::render::camera::{CameraParams, Projection};
     use crate::render::composite::render;
     use crate::render::curves::{Basis, CurveType, Wrap};
-    use glam::DMat4;
+    use glam::{DMat4, DVec2};
 
     fn projector() -> Projector {
         // 100 px wide window of 2 units at depth 10: 50 px per unit there.
@@ -591,5 +591,535 @@ mod tests {
         // The right edge at x = 0.5 at depth 9.5: pixel 50 + 0.5 / 9.5 · 500 = 76.3.
         let edge = f.rgba[50 * 100 + 76];
         assert!(edge[0] < 0.2 && edge[3] > 0.9, "{edge:?}");
+    }
+
+    // What follows pins each step against values derived by hand, or
+    // against an independent rule (a triangle faces the eye exactly when
+    // its projection winds counter-clockwise as seen).
+
+    #[test]
+    fn validate_counts_colours_per_interpolation() {
+        let with = |colors| MeshData { colors, ..cube() };
+        let v = |n| vec![Vec3::ONE; n];
+        assert_eq!(with(Primvar::Constant(Vec3::ONE)).validate(), Ok(()));
+        assert_eq!(with(Primvar::Uniform(v(6))).validate(), Ok(()));
+        assert_eq!(with(Primvar::Vertex(v(8))).validate(), Ok(()));
+        assert_eq!(with(Primvar::Varying(v(8))).validate(), Ok(()));
+        assert_eq!(with(Primvar::FaceVarying(v(24))).validate(), Ok(()));
+        let err = |n: usize, how: &str, want: usize| {
+            Err((
+                "primvars:displayColor",
+                format!("{n} values with {how} interpolation, expected {want}"),
+            ))
+        };
+        assert_eq!(with(Primvar::Uniform(v(8))).validate(), err(8, "uniform", 6));
+        assert_eq!(with(Primvar::Vertex(v(6))).validate(), err(6, "vertex", 8));
+        assert_eq!(with(Primvar::Varying(v(24))).validate(), err(24, "varying", 8));
+        assert_eq!(with(Primvar::FaceVarying(v(8))).validate(), err(8, "faceVarying", 24));
+    }
+
+    #[test]
+    fn lerp_carries_every_attribute() {
+        let a = CamPoint {
+            p: DVec3::new(1.0, 2.0, -4.0),
+            width: 2.0,
+            color: Vec3::new(0.0, 1.0, 0.5),
+            opacity: 1.0,
+        };
+        let b = CamPoint {
+            p: DVec3::new(5.0, -2.0, -8.0),
+            width: 6.0,
+            color: Vec3::new(1.0, 0.0, 0.5),
+            opacity: 0.0,
+        };
+        let c = a.lerp(&b, 0.25);
+        assert_eq!(c.p, DVec3::new(2.0, 1.0, -5.0));
+        assert_eq!(c.width, 3.0);
+        assert_eq!(c.color, Vec3::new(0.25, 0.75, 0.5));
+        assert_eq!(c.opacity, 0.75);
+    }
+
+    #[test]
+    fn clip_interval_keeps_the_closed_range() {
+        // Constant depth: kept whole when inside, bounds included.
+        assert_eq!(clip_interval(1.0, 1.0, 1.0, 100.0), Some((0.0, 1.0)));
+        assert_eq!(clip_interval(100.0, 100.0, 1.0, 100.0), Some((0.0, 1.0)));
+        assert_eq!(clip_interval(50.0, 50.0, 1.0, 100.0), Some((0.0, 1.0)));
+        assert_eq!(clip_interval(0.5, 0.5, 1.0, 100.0), None);
+        assert_eq!(clip_interval(101.0, 101.0, 1.0, 100.0), None);
+        // d(t) = 150 − 100 t comes inside the far plane at t = 1/2.
+        assert_eq!(clip_interval(150.0, 50.0, 1.0, 100.0), Some((0.5, 1.0)));
+        // d(t) = 200 t crosses near at t = 1/200 and far at t = 1/2.
+        assert_eq!(clip_interval(0.0, 200.0, 1.0, 100.0), Some((1.0 / 200.0, 0.5)));
+        assert_eq!(clip_interval(101.0, 300.0, 1.0, 100.0), None);
+        assert_eq!(clip_interval(0.0, 0.5, 1.0, 100.0), None);
+        // A step of exactly 1e-300 is still a slope: d(t) = 1e-300 t
+        // reaches near = 1e-300 at t = 1.
+        assert_eq!(clip_interval(0.0, 1e-300, 1e-300, 1.0), Some((1.0, 1.0)));
+    }
+
+    /// Points at these depths (x = depth, so pieces can be told apart).
+    fn at_depths(depths: &[f64]) -> Vec<CamPoint> {
+        let point = |d: f64| CamPoint {
+            p: DVec3::new(d, 0.0, -d),
+            width: 1.0,
+            color: Vec3::ONE,
+            opacity: 1.0,
+        };
+        depths.iter().map(|&d| point(d)).collect()
+    }
+
+    /// The depths of each clipped piece, rounded to 1e-9.
+    fn piece_depths(depths: &[f64]) -> Vec<Vec<f64>> {
+        clip_polyline(&at_depths(depths), 1.0, 10.0)
+            .iter()
+            .map(|piece| piece.iter().map(|c| (-c.p.z * 1e9).round() / 1e9).collect())
+            .collect()
+    }
+
+    #[test]
+    fn clip_polyline_splits_into_the_runs_inside() {
+        let none: Vec<Vec<f64>> = vec![];
+        // Single points: kept inside the closed range [1, 10] only.
+        assert_eq!(piece_depths(&[1.0]), [[1.0]]);
+        assert_eq!(piece_depths(&[10.0]), [[10.0]]);
+        assert_eq!(piece_depths(&[5.0]), [[5.0]]);
+        assert_eq!(piece_depths(&[0.5]), none);
+        assert_eq!(piece_depths(&[11.0]), none);
+        // Inside throughout: one run of every point.
+        assert_eq!(piece_depths(&[2.0, 3.0, 4.0]), [[2.0, 3.0, 4.0]]);
+        // Starting behind the near plane: the run starts on it.
+        assert_eq!(piece_depths(&[0.5, 0.6, 2.0]), [[1.0, 2.0]]);
+        // Leaving through near and coming back: two runs.
+        assert_eq!(
+            piece_depths(&[0.5, 2.0, 3.0, 0.5, 2.0]),
+            [vec![1.0, 2.0, 3.0, 1.0], vec![1.0, 2.0]]
+        );
+        // Leaving through far and coming back.
+        assert_eq!(piece_depths(&[2.0, 12.0, 3.0]), [[2.0, 10.0], [10.0, 3.0]]);
+        assert_eq!(piece_depths(&[0.5, 0.7]), none);
+    }
+
+    #[test]
+    fn strokes_sort_by_their_mean_depth() {
+        let p = projector();
+        // Eight points at depth 5 against two at depth 6: the mean puts the
+        // two-point stroke behind (a sum would not).
+        let line = |z: f64, n: usize, color: Vec3| CurvesData {
+            counts: vec![n],
+            points: (0..n).map(|i| DVec3::new(-0.5 + i as f64 / n as f64, 0.0, z)).collect(),
+            ..stroke(z, 0.0, 0.0, 0.2, color)
+        };
+        for order in [[0, 1], [1, 0]] {
+            let c = [line(5.0, 8, Vec3::X), line(4.0, 2, Vec3::Z)];
+            let cs: Vec<CurvesData> = order.iter().map(|&i| c[i].clone()).collect();
+            let s = build_scene(&p, &cs, &[], &Style::default());
+            let first = s.verts[s.strokes[0].start as usize];
+            assert_eq!((first.depth, first.color), (6.0, Vec3::Z), "{order:?}");
+        }
+        // A piece whose radius is not finite is dropped.
+        let wide = stroke(0.0, -0.5, 0.5, f32::INFINITY, Vec3::ONE);
+        assert!(build_scene(&p, &[wide], &[], &Style::default()).strokes.is_empty());
+    }
+
+    #[test]
+    fn newell_normal_is_twice_the_area_along_the_normal() {
+        let tri = [
+            DVec3::new(3.0, -1.0, 2.0),
+            DVec3::new(5.0, 0.0, 1.0),
+            DVec3::new(2.0, 2.0, 4.0),
+        ];
+        let cross = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
+        assert!((newell(&tri, &[0, 1, 2]) - cross).length() < 1e-12);
+        assert!((newell(&tri, &[0, 2, 1]) + cross).length() < 1e-12);
+        // A 2 × 3 rectangle in the plane z = 7.
+        let quad = [(0.0, 0.0), (2.0, 0.0), (2.0, 3.0), (0.0, 3.0)].map(|(x, y)| DVec3::new(x, y, 7.0));
+        assert_eq!(newell(&quad, &[0, 1, 2, 3]), DVec3::new(0.0, 0.0, 12.0));
+    }
+
+    fn ortho_projector() -> Projector {
+        let cam = CameraParams {
+            projection: Projection::Orthographic,
+            horizontal_aperture: 100.0,
+            vertical_aperture: 100.0,
+            camera_to_world: DMat4::from_translation(DVec3::new(0.0, 0.0, 10.0)),
+            ..Default::default()
+        };
+        Projector::new(&cam, 100, 100)
+    }
+
+    #[test]
+    fn facing_is_strict_in_both_projections() {
+        let persp = projector();
+        let p = DVec3::new(0.0, 0.0, -5.0);
+        assert!(faces_eye(&persp, DVec3::Z, p));
+        assert!(!faces_eye(&persp, -DVec3::Z, p));
+        assert!(!faces_eye(&persp, DVec3::X, p), "edge-on");
+        // Orthographic: the normal's z alone decides, wherever the point is.
+        let ortho = ortho_projector();
+        let off = DVec3::new(30.0, 0.0, -5.0);
+        assert!(faces_eye(&ortho, DVec3::new(1.0, 0.0, 0.01), off));
+        assert!(!faces_eye(&ortho, DVec3::new(-1.0, 0.0, 0.0), off), "edge-on");
+        assert!(!faces_eye(&ortho, DVec3::new(-1.0, 0.0, -0.01), off));
+        assert!(
+            faces_eye(&persp, DVec3::new(-1.0, 0.0, 0.0), off),
+            "the eye's direction counts in perspective"
+        );
+    }
+
+    fn mesh_vertex(p: [f64; 3], n: [f32; 3], c: [f32; 3]) -> MeshVertex {
+        MeshVertex {
+            p: DVec3::from(p),
+            n: Vec3::from(n),
+            c: Vec3::from(c),
+        }
+    }
+
+    fn pncs(vs: &[MeshVertex]) -> Vec<(DVec3, Vec3, Vec3)> {
+        vs.iter().map(|v| (v.p, v.n, v.c)).collect()
+    }
+
+    #[test]
+    fn near_clip_of_a_triangle_cuts_on_the_plane() {
+        // near = 2; depths 5, 5, 1: b→c crosses at t = (2 − 5)/(1 − 5) = 3/4,
+        // c→a at t = (2 − 1)/(5 − 1) = 1/4.
+        let a = mesh_vertex([0.0, 0.0, -5.0], [1.0, 0.0, 0.0], [0.5, 0.0, 0.0]);
+        let b = mesh_vertex([4.0, 0.0, -5.0], [0.0, 1.0, 0.0], [0.0, 0.5, 0.0]);
+        let c = mesh_vertex([0.0, 4.0, -1.0], [0.0, 0.0, 1.0], [0.0, 0.0, 0.5]);
+        let bc = (
+            DVec3::new(1.0, 3.0, -2.0),
+            Vec3::new(0.0, 0.25, 0.75),
+            Vec3::new(0.0, 0.125, 0.375),
+        );
+        let ca = (
+            DVec3::new(0.0, 3.0, -2.0),
+            Vec3::new(0.25, 0.0, 0.75),
+            Vec3::new(0.125, 0.0, 0.375),
+        );
+        let (pa, pb) = ((a.p, a.n, a.c), (b.p, b.n, b.c));
+        assert_eq!(pncs(&clip_triangle_near([a, b, c], 2.0)), [pa, pb, bc, ca]);
+        // Two corners behind: a triangle, a→b′ cut at 3/4.
+        let b2 = mesh_vertex([4.0, 0.0, -1.0], [0.0, 1.0, 0.0], [0.0, 0.5, 0.0]);
+        let ab = (
+            DVec3::new(3.0, 0.0, -2.0),
+            Vec3::new(0.25, 0.75, 0.0),
+            Vec3::new(0.125, 0.375, 0.0),
+        );
+        assert_eq!(pncs(&clip_triangle_near([a, b2, c], 2.0)), [pa, ab, ca]);
+        // A corner on the plane is inside: nothing changes.
+        let on = mesh_vertex([0.0, 4.0, -2.0], [0.0, 0.0, 1.0], [0.0, 0.0, 0.5]);
+        assert_eq!(pncs(&clip_triangle_near([a, b, on], 2.0)), pncs(&[a, b, on]));
+    }
+
+    /// A mesh of separate faces over `points`.
+    fn mesh(points: Vec<DVec3>, faces: &[&[u32]]) -> MeshData {
+        MeshData {
+            path: "/M".into(),
+            face_counts: faces.iter().map(|f| f.len() as u32).collect(),
+            face_indices: faces.iter().flat_map(|f| f.iter().copied()).collect(),
+            points,
+            colors: Primvar::Constant(Vec3::splat(0.5)),
+            left_handed: false,
+            double_sided: false,
+            smooth: false,
+        }
+    }
+
+    /// Twice the signed area of a projected triangle, positive when it winds
+    /// counter-clockwise as seen (pixel y points down).
+    fn seen_area(pos: [Vec2; 3]) -> f64 {
+        let [a, b, c] = pos.map(|p| p.as_dvec2());
+        -(b - a).perp_dot(c - a)
+    }
+
+    fn pixel(proj: &Projector, p: DVec3) -> Vec2 {
+        proj.camera_to_pixel(proj.to_camera(p)).as_vec2()
+    }
+
+    #[test]
+    fn culling_keeps_the_triangles_that_wind_counter_clockwise_on_screen() {
+        use crate::interp::testutil::Lcg;
+        let mut rng = Lcg::new(16);
+        for proj in [projector(), ortho_projector()] {
+            // 300 triangles 5–15 units in front of the camera, none nearly edge-on.
+            let mut points = Vec::new();
+            let mut faces: Vec<[u32; 3]> = Vec::new();
+            while faces.len() < 300 {
+                let tri: [DVec3; 3] = std::array::from_fn(|_| {
+                    DVec3::new(rng.uniform(-3.0, 3.0), rng.uniform(-3.0, 3.0), rng.uniform(-5.0, 5.0))
+                });
+                if seen_area(tri.map(|p| pixel(&proj, p))).abs() < 1.0 {
+                    continue;
+                }
+                let i = points.len() as u32;
+                points.extend(tri);
+                faces.push([i, i + 1, i + 2]);
+            }
+            let face_refs: Vec<&[u32]> = faces.iter().map(|f| &f[..]).collect();
+            let m = mesh(points.clone(), &face_refs);
+            let seen = |f: &[u32; 3]| f.map(|i| pixel(&proj, points[i as usize]));
+            let want = |ccw: bool| -> Vec<[Vec2; 3]> {
+                faces
+                    .iter()
+                    .map(seen)
+                    .filter(|&s| (seen_area(s) > 0.0) == ccw)
+                    .collect()
+            };
+            let got = |m: &MeshData| -> Vec<[Vec2; 3]> {
+                prepare_mesh(&proj, m, &Style::default())
+                    .0
+                    .iter()
+                    .map(|t| t.pos)
+                    .collect()
+            };
+            let front = want(true);
+            assert!(front.len() > 100 && front.len() < 200, "{}", front.len());
+            assert_eq!(got(&m), front);
+            // Left-handed: clockwise polygons face outwards.
+            assert_eq!(
+                got(&MeshData {
+                    left_handed: true,
+                    ..m.clone()
+                }),
+                want(false)
+            );
+            assert_eq!(
+                got(&MeshData {
+                    double_sided: true,
+                    ..m.clone()
+                })
+                .len(),
+                300
+            );
+        }
+    }
+
+    #[test]
+    fn silhouettes_are_the_edges_between_front_and_back_faces() {
+        use crate::interp::testutil::Lcg;
+        let mut rng = Lcg::new(3);
+        // A 3 × 2 × 1.4 box off the origin, outward counter-clockwise quads,
+        // seen by perspective cameras all around it.
+        let (lo, hi) = (DVec3::new(-1.0, 0.5, -0.2), DVec3::new(2.0, 2.5, 1.2));
+        let mut box_mesh = cube();
+        box_mesh.points = box_mesh
+            .points
+            .iter()
+            .map(|q| lo + (hi - lo) * (*q + DVec3::ONE) * 0.5)
+            .collect();
+        let centre = (lo + hi) * 0.5;
+        let style = Style {
+            line_width: 3.0,
+            ..Style::default()
+        };
+        for _ in 0..40 {
+            let dir = DVec3::new(rng.uniform(-1.0, 1.0), rng.uniform(-1.0, 1.0), rng.uniform(-1.0, 1.0));
+            if dir.length() < 0.2 {
+                continue;
+            }
+            let eye = centre + dir.normalize() * rng.uniform(6.0, 12.0);
+            let up = if dir.normalize().y.abs() > 0.9 {
+                DVec3::X
+            } else {
+                DVec3::Y
+            };
+            let cam = CameraParams {
+                focal_length: 35.0,
+                camera_to_world: DMat4::look_at_rh(eye, centre, up).inverse(),
+                ..Default::default()
+            };
+            let proj = Projector::new(&cam, 200, 150);
+            let faces: Vec<&[u32]> = box_mesh.face_indices.chunks(4).collect();
+            // Facing from the projected outline alone (shoelace area).
+            let seen: Vec<bool> = faces
+                .iter()
+                .map(|f| {
+                    let q: Vec<DVec2> = f
+                        .iter()
+                        .map(|&i| pixel(&proj, box_mesh.points[i as usize]).as_dvec2())
+                        .collect();
+                    let twice_area: f64 = (0..4).map(|k| q[k].perp_dot(q[(k + 1) % 4])).sum();
+                    -twice_area > 0.0
+                })
+                .collect();
+            let mut want = Vec::new();
+            for (f, face) in faces.iter().enumerate() {
+                for (g, other) in faces.iter().enumerate().skip(f + 1) {
+                    let shared: Vec<u32> = face.iter().copied().filter(|i| other.contains(i)).collect();
+                    if shared.len() == 2 && seen[f] != seen[g] {
+                        want.push((shared[0].min(shared[1]), shared[0].max(shared[1])));
+                    }
+                }
+            }
+            want.sort();
+            let (_, lines) = prepare_mesh(&proj, &box_mesh, &style);
+            let vertex_at = |v: &RibbonVertex| -> u32 {
+                let i = (0..8)
+                    .min_by(|&a, &b| {
+                        let d = |i: usize| (pixel(&proj, box_mesh.points[i]) - v.pos).length();
+                        d(a).total_cmp(&d(b))
+                    })
+                    .unwrap();
+                let depth = -proj.to_camera(box_mesh.points[i]).z;
+                assert!((v.depth as f64 - depth).abs() < 1e-5, "{} {depth}", v.depth);
+                assert_eq!(v.radius, 1.5);
+                assert_eq!(v.pos, pixel(&proj, box_mesh.points[i]));
+                i as u32
+            };
+            let mut got: Vec<(u32, u32)> = lines
+                .iter()
+                .map(|[a, b]| {
+                    let (a, b) = (vertex_at(a), vertex_at(b));
+                    (a.min(b), a.max(b))
+                })
+                .collect();
+            got.sort();
+            assert!(want.len() == 4 || want.len() == 6, "{want:?}");
+            assert_eq!(got, want, "eye {eye}");
+        }
+    }
+
+    #[test]
+    fn smooth_normals_are_area_weighted_and_flat_ones_per_face() {
+        // Two faces at O: t1 (normal +Z, twice-area 1) and t2 (cross
+        // (1, 0, 1), twice-area √2); O and Y get (0, 0, 1) + (1, 0, 1).
+        let pts = vec![
+            DVec3::ZERO,
+            DVec3::new(1.0, 0.0, 0.0),
+            DVec3::new(0.0, 1.0, 0.0),
+            DVec3::new(-1.0, 0.0, 1.0),
+        ];
+        let m = MeshData {
+            smooth: true,
+            ..mesh(pts, &[&[0, 1, 2], &[0, 2, 3]])
+        };
+        let shared = Vec3::new(1.0, 0.0, 2.0) / 5f32.sqrt();
+        let side = Vec3::new(1.0, 0.0, 1.0) / 2f32.sqrt();
+        let normals = |m: &MeshData| -> Vec<[Vec3; 3]> {
+            prepare_mesh(&projector(), m, &Style::default())
+                .0
+                .iter()
+                .map(|t| t.normal)
+                .collect()
+        };
+        let close = |got: Vec<[Vec3; 3]>, want: [[Vec3; 3]; 2]| {
+            assert_eq!(got.len(), 2);
+            for (g, w) in got.iter().flatten().zip(want.iter().flatten()) {
+                assert!((*g - *w).length() < 1e-6, "{got:?}");
+            }
+        };
+        close(normals(&m), [[shared, Vec3::Z, shared], [shared, shared, side]]);
+        close(
+            normals(&MeshData {
+                smooth: false,
+                ..m.clone()
+            }),
+            [[Vec3::Z; 3], [side; 3]],
+        );
+        // Left-handed: every normal turns (both faces are then back faces).
+        close(
+            normals(&MeshData {
+                left_handed: true,
+                double_sided: true,
+                ..m.clone()
+            }),
+            [[-shared, -Vec3::Z, -shared], [-shared, -shared, -side]],
+        );
+    }
+
+    #[test]
+    fn mesh_colours_follow_their_interpolation() {
+        let pts = vec![
+            DVec3::new(0.0, 0.0, 0.0),
+            DVec3::new(1.0, 0.0, 0.0),
+            DVec3::new(1.0, 1.0, 0.0),
+            DVec3::new(0.0, 1.0, 0.0),
+            DVec3::new(2.0, 0.0, 0.0),
+        ];
+        let m = mesh(pts, &[&[0, 1, 2, 3], &[1, 4, 2]]);
+        let c = |i: usize| Vec3::new(i as f32 / 8.0, 1.0 - i as f32 / 8.0, 0.25);
+        let colours = |colors| -> Vec<[Vec3; 3]> {
+            let m = MeshData { colors, ..m.clone() };
+            prepare_mesh(&projector(), &m, &Style::default())
+                .0
+                .iter()
+                .map(|t| t.color)
+                .collect()
+        };
+        // The quad fans into (0 1 2) and (0 2 3).
+        let corners = Primvar::FaceVarying((0..7).map(c).collect());
+        assert_eq!(
+            colours(corners),
+            [[c(0), c(1), c(2)], [c(0), c(2), c(3)], [c(4), c(5), c(6)]]
+        );
+        let per_point = Primvar::Vertex((0..5).map(c).collect());
+        assert_eq!(
+            colours(per_point),
+            [[c(0), c(1), c(2)], [c(0), c(2), c(3)], [c(1), c(4), c(2)]]
+        );
+        let per_face = Primvar::Uniform(vec![c(5), c(6)]);
+        assert_eq!(colours(per_face), [[c(5); 3], [c(5); 3], [c(6); 3]]);
+    }
+
+    #[test]
+    fn triangles_at_the_clipping_planes() {
+        // near 1, far 100, camera at z = 10: depth d is world z = 10 − d.
+        let cam = CameraParams {
+            far: 100.0,
+            ..Default::default()
+        };
+        let cam = CameraParams {
+            camera_to_world: DMat4::from_translation(DVec3::new(0.0, 0.0, 10.0)),
+            ..cam
+        };
+        let p = Projector::new(&cam, 100, 100);
+        let at = |depths: [f64; 3]| {
+            let pts = vec![
+                DVec3::new(0.0, 0.0, 10.0 - depths[0]),
+                DVec3::new(0.1, 0.0, 10.0 - depths[1]),
+                DVec3::new(0.0, 0.1, 10.0 - depths[2]),
+            ];
+            let (tris, _) = prepare_mesh(&p, &mesh(pts, &[&[0, 1, 2]]), &Style::default());
+            tris.iter().map(|t| t.depth).collect::<Vec<_>>()
+        };
+        assert_eq!(p.to_camera(DVec3::new(0.0, 0.0, -90.0)).z, -100.0);
+        assert_eq!(at([100.0; 3]), [[100.0; 3]], "on the far plane");
+        assert_eq!(at([105.0; 3]), Vec::<[f32; 3]>::new(), "beyond it");
+        assert_eq!(at([105.0, 105.0, 50.0]), [[105.0, 105.0, 50.0]], "only part beyond");
+        assert_eq!(at([1.0; 3]), [[1.0; 3]], "on the near plane");
+        assert_eq!(at([0.5; 3]), Vec::<[f32; 3]>::new(), "before it");
+    }
+
+    #[test]
+    fn an_edge_of_three_faces_pairs_its_first_two() {
+        // Faces 0 (front), 1 (back) and 2 (front) share edge 0–1; the
+        // silhouette test pairs the first two.
+        let pts = vec![
+            DVec3::new(0.0, 0.0, 0.0),
+            DVec3::new(1.0, 0.0, 0.0),
+            DVec3::new(0.5, 1.0, 0.0),
+            DVec3::new(0.5, -1.0, 0.0),
+            DVec3::new(0.5, -1.0, 0.1),
+        ];
+        let m = mesh(pts.clone(), &[&[0, 1, 2], &[0, 1, 3], &[1, 0, 4]]);
+        let p = projector();
+        let (_, lines) = prepare_mesh(&p, &m, &Style::default());
+        let ends: Vec<[Vec2; 2]> = lines.iter().map(|l| [l[0].pos, l[1].pos]).collect();
+        let edge = [pixel(&p, pts[0]), pixel(&p, pts[1])];
+        assert!(ends == [edge] || ends == [[edge[1], edge[0]]], "{ends:?}");
+    }
+
+    #[test]
+    fn the_scene_carries_the_projection_and_style() {
+        let style = Style {
+            line_color: Vec3::new(0.1, 0.2, 0.3),
+            ..Style::default()
+        };
+        let s = build_scene(&projector(), &[], &[], &style);
+        assert!(s.perspective);
+        assert_eq!(s.line_color, style.line_color);
+        assert_eq!(s.shading, Some(style.shading));
+        assert_eq!((s.width, s.height), (100, 100));
+        assert!(!build_scene(&ortho_projector(), &[], &[], &style).perspective);
     }
 }
