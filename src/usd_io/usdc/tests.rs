@@ -1020,7 +1020,14 @@ fn a_raw_array_spelling_a_compressed_one_is_not_shared() {
 fn negative_zero_keeps_integral_arrays_raw() {
     let f: Vec<f32> = (0..16).map(|k| if k == 5 { -0.0 } else { k as f32 }).collect();
     let d: Vec<f64> = (0..16).map(|k| if k == 5 { -0.0 } else { -(k as f64) }).collect();
-    let data = layer_of(&[("f", Value::FloatVec(f.clone())), ("d", Value::DoubleVec(d.clone()))]);
+    let h: Vec<f16> = (0..16)
+        .map(|k| f16::from_f32(if k == 5 { -0.0 } else { k as f32 }))
+        .collect();
+    let data = layer_of(&[
+        ("f", Value::FloatVec(f.clone())),
+        ("d", Value::DoubleVec(d.clone())),
+        ("h", Value::HalfVec(h.clone())),
+    ]);
     let back = read(&write(&data));
     let get = |n: &str| {
         back.get_field(&path(&format!("/Values.{n}")), "default")
@@ -1036,5 +1043,10 @@ fn negative_zero_keeps_integral_arrays_raw() {
     assert_eq!(
         bd.iter().map(|x| x.to_bits()).collect::<Vec<_>>(),
         d.iter().map(|x| x.to_bits()).collect::<Vec<_>>()
+    );
+    let bh = get("h").try_as_half_vec().unwrap();
+    assert_eq!(
+        bh.iter().map(|x| x.to_bits()).collect::<Vec<_>>(),
+        h.iter().map(|x| x.to_bits()).collect::<Vec<_>>()
     );
 }
