@@ -11,7 +11,7 @@ import numpy as np
 import OpenEXR
 import pytest
 from PIL import Image
-from pxr import Gf, Usd, UsdGeom, Vt
+from pxr import Gf, Sdf, Usd, UsdGeom, Vt
 from scipy.spatial import ConvexHull
 
 W, H = 200, 160
@@ -191,6 +191,30 @@ def test_per_face_colours_and_widths_under_a_scaled_parent(painterly, tmp_path):
     for off, covered in [(0.0, True), (0.2, True), (-0.2, True), (0.4, False), (-0.4, False)]:
         x, y = pixel(path, (1.75, -1.0 + off, 0.0))
         assert (alpha[y, x] > 0.5) == covered, (off, alpha[y, x])
+
+
+@pytest.mark.parametrize(
+    "field,value",
+    [("timeCodesPerSecond", 0.0), ("framesPerSecond", -24.0), ("startTimeCode", float("inf")), ("endTimeCode", float("nan"))],
+)
+def test_a_scene_without_strokes_with_bad_timing_is_refused(painterly, tmp_path, field, value):
+    """The render's root layer copies the input's timing: bad timing is named, not written."""
+    path = tmp_path / "plain.usda"
+    stage = new_stage(path)
+    quad(stage, "/Red", (0.0, 0.0), 0.8, RED)
+    stage.GetRootLayer().Save()
+    layer = Sdf.Layer.FindOrOpen(str(path))
+    # Authored, else timeCodesPerSecond falls back to framesPerSecond (USD's rule).
+    layer.timeCodesPerSecond = 24.0
+    setattr(layer, field, value)
+    layer.Save()
+    out = tmp_path / "out"
+    out.mkdir()
+    proc = painterly("render", path, "--camera", "/Cam", "--frames", "1", "-o", out / "f.####.exr",
+                     "--size", "20x16", check=False)
+    assert proc.returncode == 1, proc.stderr
+    assert "plain.usda" in proc.stderr and field in proc.stderr, proc.stderr
+    assert not any(out.iterdir())
 
 
 def rotation(rx, ry):
