@@ -366,4 +366,263 @@ mod tests {
         assert!((t([a, b, c]).depth_slope() - 2.0 / 16.0).abs() < 1e-6);
         assert!((s.weights.iter().sum::<f32>() - 1.0).abs() < 1e-5);
     }
+
+    // Exact values derived by hand from the module's formulas, and the
+    // triangle rasteriser against an independent f64 inside test.
+
+    #[test]
+    fn box_overlap_is_the_covered_fraction() {
+        assert_eq!(box_overlap(0.0, -1.0, 1.0, 1.0), 1.0);
+        assert_eq!(box_overlap(1.0, -1.0, 1.0, 1.0), 0.5);
+        assert_eq!(box_overlap(1.25, -1.0, 1.0, 1.0), 0.25);
+        assert_eq!(box_overlap(-1.25, -1.0, 1.0, 1.0), 0.25);
+        assert_eq!(box_overlap(2.0, -1.0, 1.0, 1.0), 0.0);
+        // A box of width 0.5 centred at 0.9: [0.65, 1.15] ∩ [−1, 1] = 0.35 long.
+        assert!((box_overlap(0.9, -1.0, 1.0, 0.5) - 0.7).abs() < 1e-6);
+        // Wider than the interval: at most the interval's share.
+        assert_eq!(box_overlap(0.0, -0.25, 0.25, 1.0), 0.5);
+    }
+
+    #[test]
+    fn a_dot_is_a_disc_of_the_larger_radius() {
+        let (a, b) = (v(10.0, 10.0, 1.0), v(10.0, 10.0, 2.5));
+        let at = |x: f32, y: f32| segment_fragment(Vec2::new(x, y), &a, &b, true, true);
+        // Distance 2: the box [1.5, 2.5] lies inside the radius.
+        let f = at(12.0, 10.0).unwrap();
+        assert_eq!((f.coverage, f.t, f.across), (1.0, 0.0, 0.8));
+        // Distance 2.5 (on the rim, left of the centre): half.
+        let f = at(10.0 - 1.5, 10.0 + 2.0).unwrap();
+        assert_eq!((f.coverage, f.across), (0.5, -0.6));
+        assert!(at(13.1, 10.0).is_none());
+        // Radius 0: an interval of length 0 covers nothing.
+        let z = v(10.0, 10.0, 0.0);
+        assert!(segment_fragment(Vec2::new(10.25, 10.0), &z, &z, true, true).is_none());
+    }
+
+    #[test]
+    fn a_segment_covers_by_distance_with_caps_and_joins() {
+        // Horizontal, from x = 0 to 10, radius 2 → 4: r(t) = 2 + 2t.
+        let (a, b) = (v(0.0, 0.0, 2.0), v(10.0, 0.0, 4.0));
+        let at = |x: f32, y: f32, ca: bool, cb: bool| segment_fragment(Vec2::new(x, y), &a, &b, ca, cb);
+        // Middle, r = 3: a pixel centred 3 off is half covered; across = ±1.
+        let f = at(5.0, 3.0, true, true).unwrap();
+        assert_eq!((f.coverage, f.t, f.across), (0.5, 0.5, 1.0));
+        let f = at(5.0, -2.25, true, true).unwrap();
+        assert_eq!((f.coverage, f.across), (1.0, -0.75));
+        let f = at(2.5, 2.0, true, true).unwrap();
+        assert_eq!((f.coverage, f.t, f.across), (1.0, 0.25, 0.8));
+        // Butt cap at a: a pixel centred 0.25 before it is a quarter covered.
+        let f = at(-0.25, 1.0, true, true).unwrap();
+        assert_eq!((f.coverage, f.t), (0.25, 0.0));
+        // A round join instead: distance to a itself, √(0.25² + 1²) < 2.
+        let f = at(-0.25, 1.0, false, true).unwrap();
+        assert_eq!((f.coverage, f.t), (1.0, 0.0));
+        let f = at(-1.5, 1.5, false, true).unwrap();
+        let d = (1.5f32 * 1.5 * 2.0).sqrt();
+        // r = 2 at a: the box [d − 0.5, d + 0.5] overlaps [−2, 2] by 2 − (d − 0.5).
+        assert!((f.coverage - (2.0 - (d - 0.5))).abs() < 1e-6, "{f:?}");
+        // Butt cap at b: 0.25 past it.
+        let f = at(10.25, -1.0, true, true).unwrap();
+        assert_eq!((f.coverage, f.t), (0.25, 1.0));
+        let f = at(11.0, 0.0, true, false).unwrap();
+        assert_eq!((f.coverage, f.t), (1.0, 1.0));
+        assert!(at(11.0, 0.0, true, true).is_none());
+        assert!(at(5.0, 3.6, true, true).is_none());
+        // Direction (0.8, 0.6): rows sample the distance every 0.8, the box
+        // is 0.8 wide; a centre 2.9 from the line with r = 3 is
+        // (3 − 2.5) / 0.8 covered.
+        let (c, d) = (v(0.0, 0.0, 3.0), v(40.0, 30.0, 3.0));
+        let n = Vec2::new(-0.6, 0.8);
+        let p = Vec2::new(20.0, 15.0) + n * 2.9;
+        let f = segment_fragment(p, &c, &d, true, true).unwrap();
+        assert!((f.coverage - 0.625).abs() < 1e-5, "{f:?}");
+        assert!((f.across - 2.9 / 3.0).abs() < 1e-5 && (f.t - 0.5).abs() < 1e-6);
+        // Its cap: 0.2 before c along the line, 0.2 / 0.8 of the box.
+        let p = Vec2::new(0.8, 0.6) * -0.2;
+        let f = segment_fragment(p, &c, &d, true, true).unwrap();
+        assert!((f.coverage - 0.25).abs() < 1e-5, "{f:?}");
+        let p = Vec2::new(40.0, 30.0) + Vec2::new(0.8, 0.6) * 0.2;
+        let f = segment_fragment(p, &c, &d, true, true).unwrap();
+        assert!((f.coverage - 0.25).abs() < 1e-5, "{f:?}");
+    }
+
+    #[test]
+    fn pixel_rects_round_outwards_and_intersect() {
+        let r = PixelRect::around([(Vec2::new(10.2, 20.7), 1.0), (Vec2::new(15.5, 22.1), 0.5)].into_iter());
+        // Hull with margins: [9.2, 16.0] × [19.7, 22.6], one more pixel each way.
+        let want = PixelRect {
+            x0: 8,
+            y0: 18,
+            x1: 18,
+            y1: 25,
+        };
+        assert_eq!(r, Some(want));
+        assert_eq!(PixelRect::around([(Vec2::new(f32::NAN, 0.0), 1.0)].into_iter()), None);
+        assert_eq!(PixelRect::around(std::iter::empty()), None);
+        let huge = PixelRect::around([(Vec2::new(-1e30, 1e30), 0.0)].into_iter()).unwrap();
+        // Clamped to ±1e8 (exact in f32) before the floor and ceil.
+        assert_eq!((huge.x0, huge.y1), (-100_000_000, 100_000_001));
+        let seg = segment_rect(&v(10.2, 20.7, 0.5), &v(15.5, 22.1, 0.0)).unwrap();
+        assert_eq!(seg, want);
+        let o = PixelRect {
+            x0: 12,
+            y0: 0,
+            x1: 40,
+            y1: 20,
+        };
+        let both = PixelRect {
+            x0: 12,
+            y0: 18,
+            x1: 18,
+            y1: 20,
+        };
+        assert_eq!(want.intersect(&o), Some(both));
+        assert_eq!(o.intersect(&want), Some(both));
+        let touching = PixelRect { x0: 18, ..o };
+        assert_eq!(want.intersect(&touching), None);
+        let below = PixelRect { y1: 18, ..o };
+        assert_eq!(want.intersect(&below), None);
+    }
+
+    fn tri(pos: [Vec2; 3], depth: [f32; 3]) -> ScreenTriangle {
+        ScreenTriangle {
+            pos,
+            depth,
+            normal: [Vec3::Z; 3],
+            color: [Vec3::ONE; 3],
+        }
+    }
+
+    #[test]
+    fn depth_slope_is_the_planes_gradient() {
+        // z = 0.5 + 0.25 x − 0.125 y at three general corners.
+        let z = |p: Vec2| 0.5 + 0.25 * p.x - 0.125 * p.y;
+        let pos = [Vec2::new(1.0, 2.0), Vec2::new(7.0, 3.0), Vec2::new(2.0, 9.0)];
+        assert!((tri(pos, pos.map(z)).depth_slope() - 0.375).abs() < 1e-6);
+        let z = |p: Vec2| 4.0 - 0.5 * p.x + 0.75 * p.y;
+        let rev = [pos[0], pos[2], pos[1]];
+        assert!((tri(rev, rev.map(z)).depth_slope() - 1.25).abs() < 1e-6);
+        let flat = [Vec2::ZERO, Vec2::ONE, Vec2::splat(2.0)];
+        assert_eq!(tri(flat, [1.0; 3]).depth_slope(), f32::INFINITY);
+    }
+
+    #[test]
+    fn triangles_cover_the_pixel_centres_inside_them() {
+        use crate::interp::testutil::Lcg;
+        let mut rng = Lcg::new(7);
+        let clip = PixelRect {
+            x0: 0,
+            y0: 0,
+            x1: 40,
+            y1: 30,
+        };
+        for case in 0..200 {
+            let pos: [Vec2; 3] =
+                std::array::from_fn(|_| Vec2::new(rng.uniform(-10.0, 50.0) as f32, rng.uniform(-10.0, 40.0) as f32));
+            let depth: [f32; 3] = std::array::from_fn(|_| rng.uniform(1.0, 20.0) as f32);
+            let t = tri(pos, depth);
+            // Independent: f64 edge functions, sign-normalised.
+            let [a, b, c] = pos.map(|p| p.as_dvec2());
+            let area = (b - a).perp_dot(c - a);
+            if area.abs() < 1.0 {
+                continue;
+            }
+            let inside = |x: i32, y: i32| -> Option<bool> {
+                let p = glam::DVec2::new(x as f64 + 0.5, y as f64 + 0.5);
+                let e = [(b, c), (c, a), (a, b)].map(|(u, w)| (w - u).perp_dot(p - u) / area);
+                if e.iter().any(|v| v.abs() < 1e-4) {
+                    return None; // on an edge: either answer
+                }
+                Some(e.iter().all(|&v| v > 0.0))
+            };
+            for perspective in [false, true] {
+                let mut got = vec![None; 40 * 30];
+                t.raster(&clip, perspective, |s| {
+                    assert!(s.x >= 0 && s.x < 40 && s.y >= 0 && s.y < 30, "{s:?} outside the clip");
+                    assert!(got[(s.y * 40 + s.x) as usize].is_none(), "a pixel twice");
+                    got[(s.y * 40 + s.x) as usize] = Some(s);
+                });
+                for y in 0..30 {
+                    for x in 0..40 {
+                        let s = got[(y * 40 + x) as usize];
+                        match inside(x, y) {
+                            Some(want) => assert_eq!(s.is_some(), want, "case {case} pixel {x},{y}"),
+                            None => continue,
+                        }
+                        let Some(s) = s else { continue };
+                        // Screen barycentrics of the centre, then the depth and
+                        // weights each projection implies.
+                        let p = glam::DVec2::new(x as f64 + 0.5, y as f64 + 0.5);
+                        let w = [(b, c), (c, a), (a, b)].map(|(u, v)| (v - u).perp_dot(p - u) / area);
+                        let z = depth.map(f64::from);
+                        let (want_depth, want_w) = if perspective {
+                            let q = [w[0] / z[0], w[1] / z[1], w[2] / z[2]];
+                            let sum = q[0] + q[1] + q[2];
+                            (1.0 / sum, q.map(|v| v / sum))
+                        } else {
+                            (w[0] * z[0] + w[1] * z[1] + w[2] * z[2], w)
+                        };
+                        assert!(
+                            (s.depth as f64 - want_depth).abs() < 1e-3,
+                            "case {case}: {} vs {want_depth}",
+                            s.depth
+                        );
+                        for k in 0..3 {
+                            assert!(
+                                (s.weights[k] as f64 - want_w[k]).abs() < 1e-4,
+                                "case {case}: {s:?} vs {want_w:?}"
+                            );
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn edges_through_pixel_centres_go_to_one_triangle_either_winding() {
+        // A 16 × 12 rectangle cut at x = 8.5 and y = 6.5 (lines of pixel
+        // centres) into four quads, each split by a diagonal, in both
+        // windings: every pixel exactly once.
+        let xs = [0.0, 8.5, 16.0];
+        let ys = [0.0, 6.5, 12.0];
+        let clip = PixelRect {
+            x0: -2,
+            y0: -2,
+            x1: 20,
+            y1: 16,
+        };
+        for clockwise in [false, true] {
+            let mut count = vec![0u8; 22 * 18];
+            for i in 0..2 {
+                for j in 0..2 {
+                    let (p00, p10) = (Vec2::new(xs[i], ys[j]), Vec2::new(xs[i + 1], ys[j]));
+                    let (p11, p01) = (Vec2::new(xs[i + 1], ys[j + 1]), Vec2::new(xs[i], ys[j + 1]));
+                    for mut corners in [[p00, p10, p11], [p00, p11, p01]] {
+                        if clockwise {
+                            corners.swap(1, 2);
+                        }
+                        tri(corners, [1.0; 3]).raster(&clip, false, |s| {
+                            count[((s.y + 2) * 22 + s.x + 2) as usize] += 1;
+                        });
+                    }
+                }
+            }
+            for y in -2..16 {
+                for x in -2..20 {
+                    let want = u8::from((0..16).contains(&x) && (0..12).contains(&y));
+                    assert_eq!(
+                        count[((y + 2) * 22 + x + 2) as usize],
+                        want,
+                        "pixel {x},{y} clockwise {clockwise}"
+                    );
+                }
+            }
+        }
+        // Degenerate and non-finite triangles draw nothing.
+        let mut n = 0;
+        tri([Vec2::ZERO, Vec2::splat(5.0), Vec2::splat(10.0)], [1.0; 3]).raster(&clip, true, |_| n += 1);
+        tri([Vec2::ZERO, Vec2::new(f32::INFINITY, 0.0), Vec2::splat(10.0)], [1.0; 3]).raster(&clip, true, |_| n += 1);
+        assert_eq!(n, 0);
+    }
 }
