@@ -389,4 +389,313 @@ mod tests {
         c.counts = vec![5];
         assert_eq!(c.validate().unwrap_err().0, "curveVertexCounts");
     }
+
+    // UsdGeomBasisCurves' segment counts and the bases' matrix forms, written
+    // out here independently of `spans` and `weights`.
+
+    /// Segments of a curve of n vertices (UsdGeomBasisCurves' table).
+    fn segments(ty: CurveType, basis: Basis, wrap: Wrap, n: usize) -> usize {
+        match (ty, wrap) {
+            (CurveType::Linear, Wrap::Periodic) => n,
+            (CurveType::Linear, _) => n - 1,
+            (CurveType::Cubic, Wrap::Periodic) if basis == Basis::Bezier => n / 3,
+            (CurveType::Cubic, _) if basis == Basis::Bezier => (n - 4) / 3 + 1,
+            (CurveType::Cubic, Wrap::Periodic) => n,
+            (CurveType::Cubic, Wrap::Pinned) => n - 1,
+            (CurveType::Cubic, Wrap::Nonperiodic) => n - 3,
+        }
+    }
+
+    const BASES: [Basis; 3] = [Basis::Bezier, Basis::Bspline, Basis::CatmullRom];
+    const WRAPS: [Wrap; 3] = [Wrap::Nonperiodic, Wrap::Periodic, Wrap::Pinned];
+
+    #[test]
+    fn varying_primvars_have_one_value_per_segment_end() {
+        for ty in [CurveType::Linear, CurveType::Cubic] {
+            for basis in BASES {
+                for wrap in WRAPS {
+                    // Lengths valid for the basis (Bezier: 3k + 1, or 3k periodic).
+                    for n in [4usize, 6, 7, 9, 10] {
+                        let bezier = ty == CurveType::Cubic && basis == Basis::Bezier;
+                        let fits = match wrap {
+                            Wrap::Periodic => n % 3 == 0,
+                            _ => n % 3 == 1,
+                        };
+                        if bezier && !fits {
+                            continue;
+                        }
+                        let segs = segments(ty, basis, wrap, n);
+                        let want = if wrap == Wrap::Periodic { segs } else { segs + 1 };
+                        // Two curves: the varying count is the sum.
+                        let mut c = curves(ty, basis, wrap, line_pts(n));
+                        c.counts = vec![n, n];
+                        c.points = [line_pts(n), line_pts(n)].concat();
+                        c.widths = Primvar::Varying(vec![1.0; 2 * want]);
+                        c.opacities = Primvar::Uniform(vec![1.0; 2]);
+                        let case = format!("{ty:?} {basis:?} {wrap:?} n = {n}");
+                        assert_eq!(c.validate(), Ok(()), "{case}");
+                        c.widths = Primvar::Varying(vec![1.0; 2 * want + 1]);
+                        let (attr, msg) = c.validate().unwrap_err();
+                        assert_eq!(attr, "widths", "{case}");
+                        let expected = format!(
+                            "{} values with varying interpolation, expected {} (2 curves, {} points)",
+                            2 * want + 1,
+                            2 * want,
+                            2 * n
+                        );
+                        assert_eq!(msg, expected, "{case}");
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn every_primvar_and_interpolation_is_checked() {
+        let c = curves(CurveType::Linear, Basis::Bezier, Wrap::Nonperiodic, line_pts(4));
+        let bad = |c: CurvesData| c.validate().unwrap_err();
+        let with_colors = |colors| CurvesData { colors, ..c.clone() };
+        assert_eq!(
+            bad(with_colors(Primvar::Uniform(vec![Vec3::ONE; 2]))).0,
+            "primvars:displayColor"
+        );
+        assert_eq!(with_colors(Primvar::Vertex(vec![Vec3::ONE; 4])).validate(), Ok(()));
+        assert_eq!(with_colors(Primvar::FaceVarying(vec![Vec3::ONE; 4])).validate(), Ok(()));
+        let with_opacity = |opacities| CurvesData { opacities, ..c.clone() };
+        let (attr, msg) = bad(with_opacity(Primvar::Vertex(vec![1.0; 5])));
+        assert_eq!(attr, "primvars:displayOpacity");
+        assert_eq!(
+            msg,
+            "5 values with vertex interpolation, expected 4 (1 curves, 4 points)"
+        );
+        let (_, msg) = bad(with_opacity(Primvar::Uniform(vec![])));
+        assert_eq!(
+            msg,
+            "0 values with uniform interpolation, expected 1 (1 curves, 4 points)"
+        );
+        assert_eq!(with_opacity(Primvar::Constant(0.5)).validate(), Ok(()));
+        let (attr, msg) = bad(CurvesData {
+            counts: vec![2, 3],
+            ..c.clone()
+        });
+        assert_eq!(attr, "curveVertexCounts");
+        assert_eq!(msg, "counts sum to 5, but there are 4 points");
+        // Primvar helpers.
+        let v = Primvar::Varying(vec![1.0f32, 2.0]);
+        assert_eq!((v.len(), v.is_empty()), (2, false));
+        assert!(Primvar::<f32>::Uniform(vec![]).is_empty());
+        assert!(!Primvar::Constant(0.0f32).is_empty());
+        assert_eq!(v.map(|x| x * 3.0), Primvar::Varying(vec![3.0, 6.0]));
+        assert_eq!(Primvar::Constant(2.0f32).map(|x| x + 1.0), Primvar::Constant(3.0));
+        assert_eq!(Primvar::Uniform(vec![1.0f32]).map(|x| -x), Primvar::Uniform(vec![-1.0]));
+        assert_eq!(Primvar::Vertex(vec![1.0f32]).map(|x| -x), Primvar::Vertex(vec![-1.0]));
+        assert_eq!(
+            Primvar::FaceVarying(vec![1.0f32]).map(|x| -x),
+            Primvar::FaceVarying(vec![-1.0])
+        );
+    }
+
+    /// The basis matrix: row k holds the coefficients of t^k for the four
+    /// control points.
+    fn basis_matrix(b: Basis) -> [[f64; 4]; 4] {
+        match b {
+            Basis::Bezier => [
+                [1.0, 0.0, 0.0, 0.0],
+                [-3.0, 3.0, 0.0, 0.0],
+                [3.0, -6.0, 3.0, 0.0],
+                [-1.0, 3.0, -3.0, 1.0],
+            ],
+            Basis::Bspline => [
+                [1.0, 4.0, 1.0, 0.0],
+                [-3.0, 0.0, 3.0, 0.0],
+                [3.0, -6.0, 3.0, 0.0],
+                [-1.0, 3.0, -3.0, 1.0],
+            ]
+            .map(|r| r.map(|x| x / 6.0)),
+            Basis::CatmullRom => [
+                [0.0, 2.0, 0.0, 0.0],
+                [-1.0, 0.0, 1.0, 0.0],
+                [2.0, -5.0, 4.0, -1.0],
+                [-1.0, 3.0, -3.0, 1.0],
+            ]
+            .map(|r| r.map(|x| x / 2.0)),
+        }
+    }
+
+    fn matrix_weights(b: Basis, t: f64) -> [f64; 4] {
+        let m = basis_matrix(b);
+        let powers = [1.0, t, t * t, t * t * t];
+        std::array::from_fn(|j| (0..4).map(|k| powers[k] * m[k][j]).sum())
+    }
+
+    #[test]
+    fn weights_are_the_bases_matrix_forms() {
+        for b in BASES {
+            for k in 0..=16 {
+                let t = k as f64 / 16.0;
+                let (got, want) = (weights(b, t as f32), matrix_weights(b, t));
+                for j in 0..4 {
+                    assert!(
+                        (got[j] as f64 - want[j]).abs() < 1e-6,
+                        "{b:?} t = {t}: {got:?} vs {want:?}"
+                    );
+                }
+            }
+        }
+    }
+
+    /// The curve's points, vertex-interpolated widths and varying-interpolated
+    /// opacities, evaluated from the table above: spans of four control
+    /// vertices (mod n when periodic; pinned curves add 2P₀ − P₁ before and
+    /// 2Pₙ₋₁ − Pₙ₋₂ after), STEPS_PER_SPAN samples each, t = 1 closing the last.
+    fn reference(basis: Basis, wrap: Wrap, pts: &[DVec3], w: &[f64], op: &[f64]) -> Vec<(DVec3, f64, f64)> {
+        let n = pts.len();
+        let segs = segments(CurveType::Cubic, basis, wrap, n);
+        let vertex = |i: isize| -> (DVec3, f64) {
+            if wrap == Wrap::Periodic {
+                let i = i.rem_euclid(n as isize) as usize;
+                (pts[i], w[i])
+            } else if i < 0 {
+                (2.0 * pts[0] - pts[1], 2.0 * w[0] - w[1])
+            } else if i as usize >= n {
+                (2.0 * pts[n - 1] - pts[n - 2], 2.0 * w[n - 1] - w[n - 2])
+            } else {
+                (pts[i as usize], w[i as usize])
+            }
+        };
+        let mut out = Vec::new();
+        for s in 0..segs {
+            let first: isize = match (basis, wrap) {
+                (Basis::Bezier, _) => 3 * s as isize,
+                (_, Wrap::Pinned) => s as isize - 1,
+                _ => s as isize,
+            };
+            let last = s + 1 == segs;
+            for k in 0..STEPS_PER_SPAN + usize::from(last) {
+                let t = k as f64 / STEPS_PER_SPAN as f64;
+                let m = matrix_weights(basis, t);
+                let (mut p, mut width) = (DVec3::ZERO, 0.0);
+                for (j, mj) in m.iter().enumerate() {
+                    let (q, wq) = vertex(first + j as isize);
+                    p += q * *mj;
+                    width += wq * mj;
+                }
+                let nv = op.len();
+                let o = op[s % nv] * (1.0 - t) + op[(s + 1) % nv] * t;
+                out.push((p, width.max(0.0), o.clamp(0.0, 1.0)));
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn cubic_curves_follow_their_basis_wrap_and_primvars() {
+        use crate::interp::testutil::Lcg;
+        let mut rng = Lcg::new(5);
+        for basis in BASES {
+            for wrap in WRAPS {
+                let n = match (basis, wrap) {
+                    (Basis::Bezier, Wrap::Periodic) => 9,
+                    (Basis::Bezier, _) => 10,
+                    _ => 7,
+                };
+                // Two curves, so every offset into points and primvars counts.
+                let mut pts = Vec::new();
+                let mut widths = Vec::new();
+                for _ in 0..2 * n {
+                    pts.push(DVec3::new(
+                        rng.uniform(-5.0, 5.0),
+                        rng.uniform(-5.0, 5.0),
+                        rng.uniform(-5.0, 5.0),
+                    ));
+                    // Some negative: clamped to 0 after interpolation.
+                    widths.push(rng.uniform(-0.2, 1.0) as f32);
+                }
+                let segs = segments(CurveType::Cubic, basis, wrap, n);
+                let nv = if wrap == Wrap::Periodic { segs } else { segs + 1 };
+                let opacities: Vec<f32> = (0..2 * nv).map(|_| rng.uniform(-0.3, 1.3) as f32).collect();
+                let c = CurvesData {
+                    path: "/C".into(),
+                    curve_type: CurveType::Cubic,
+                    basis,
+                    wrap,
+                    counts: vec![n, n],
+                    points: pts.clone(),
+                    widths: Primvar::Vertex(widths.clone()),
+                    colors: Primvar::Uniform(vec![Vec3::X, Vec3::Y]),
+                    opacities: Primvar::Varying(opacities.clone()),
+                };
+                c.validate().unwrap();
+                let lines = c.polylines();
+                assert_eq!(lines.len(), 2);
+                for (curve, line) in lines.iter().enumerate() {
+                    let r =
+                        |v: &[f32], len: usize| v[curve * len..][..len].iter().map(|&x| x as f64).collect::<Vec<_>>();
+                    let want = reference(basis, wrap, &pts[curve * n..][..n], &r(&widths, n), &r(&opacities, nv));
+                    let case = format!("{basis:?} {wrap:?} curve {curve}");
+                    assert_eq!(line.points.len(), want.len(), "{case}");
+                    assert_eq!(line.points.len(), segs * STEPS_PER_SPAN + 1, "{case}");
+                    for (k, (p, w, o)) in want.iter().enumerate() {
+                        assert!((line.points[k] - *p).length() < 1e-5, "{case} sample {k}");
+                        assert!(
+                            (line.widths[k] as f64 - w).abs() < 1e-5,
+                            "{case} sample {k}: {} vs {w}",
+                            line.widths[k]
+                        );
+                        assert!((line.opacities[k] as f64 - o).abs() < 1e-5, "{case} sample {k}");
+                    }
+                    assert!(line.colors.iter().all(|&c| c == [Vec3::X, Vec3::Y][curve]), "{case}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn linear_curves_take_primvars_per_vertex_and_segment_end() {
+        // Two periodic triangles: closed, the varying value of vertex i is
+        // value i (one per segment end, the last end being the first).
+        let pts = [line_pts(3), line_pts(3)].concat();
+        let c = CurvesData {
+            path: "/C".into(),
+            curve_type: CurveType::Linear,
+            basis: Basis::Bezier,
+            wrap: Wrap::Periodic,
+            counts: vec![3, 3],
+            points: pts.clone(),
+            widths: Primvar::Varying(vec![1.0, 2.0, 3.0, 4.0, 5.0, 6.0]),
+            colors: Primvar::Vertex((0..6).map(|i| Vec3::splat(i as f32)).collect()),
+            opacities: Primvar::Uniform(vec![0.25, 0.75]),
+        };
+        c.validate().unwrap();
+        let l = c.polylines();
+        assert_eq!(l[0].points, [pts[0], pts[1], pts[2], pts[0]]);
+        assert_eq!(l[1].points, [pts[3], pts[4], pts[5], pts[3]]);
+        assert_eq!(l[0].widths, [1.0, 2.0, 3.0, 1.0]);
+        assert_eq!(l[1].widths, [4.0, 5.0, 6.0, 4.0]);
+        assert_eq!(l[1].colors, [3.0, 4.0, 5.0, 3.0].map(Vec3::splat));
+        assert_eq!((l[0].opacities[3], l[1].opacities[0]), (0.25, 0.75));
+        // A periodic curve of two points is not closed; nonperiodic varying
+        // values run one per point.
+        let two = CurvesData {
+            counts: vec![2],
+            points: line_pts(2),
+            widths: Primvar::Varying(vec![1.0, 2.0]),
+            colors: Primvar::Constant(Vec3::ONE),
+            opacities: Primvar::Constant(1.0),
+            ..c.clone()
+        };
+        assert_eq!(two.polylines()[0].points, line_pts(2));
+        let open = CurvesData {
+            wrap: Wrap::Nonperiodic,
+            counts: vec![4],
+            points: line_pts(4),
+            widths: Primvar::Varying(vec![1.0, 2.0, 3.0, 4.0]),
+            ..two
+        };
+        open.validate().unwrap();
+        assert_eq!(open.polylines()[0].widths, [1.0, 2.0, 3.0, 4.0]);
+        // Too short for a cubic span: an empty polyline.
+        let short = curves(CurveType::Cubic, Basis::Bspline, Wrap::Nonperiodic, line_pts(3));
+        assert_eq!(short.polylines()[0], Polyline::default());
+    }
 }
