@@ -217,6 +217,22 @@ def test_a_scene_without_strokes_with_bad_timing_is_refused(painterly, tmp_path,
     assert not any(out.iterdir())
 
 
+def test_a_sheet_of_more_than_2000_frames_is_refused_up_front(painterly, tmp_path, scene):
+    """README, Limits: the sheet holds every thumbnail until it is written, so its frames are capped."""
+    out = tmp_path / "out"
+    out.mkdir()
+    proc = painterly("render", scene, "--camera", "/Cam", "--frames", "1:2001", "-o", out / "f.####.exr",
+                     "--sheet", check=False)
+    assert proc.returncode == 2
+    assert proc.stderr == ("error: --sheet lays out at most 2000 frames, not 2001: use a coarser --frames step, "
+                           "or render without --sheet\n")
+    assert proc.stdout == "" and not any(out.iterdir())
+    # Without --sheet the same range is not refused for its length (here it
+    # fails later, on the one-frame output name, which shows the check passed).
+    proc = painterly("render", scene, "--camera", "/Cam", "--frames", "1:2001", "-o", out / "f.exr", check=False)
+    assert proc.returncode == 2 and "2001 frames would all write one file" in proc.stderr
+
+
 def rotation(rx, ry):
     return Gf.Matrix3d(Gf.Rotation(Gf.Vec3d(1, 0, 0), rx)) * Gf.Matrix3d(Gf.Rotation(Gf.Vec3d(0, 1, 0), ry))
 

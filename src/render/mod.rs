@@ -221,6 +221,13 @@ fn check_args(args: &RenderArgs) -> Result<Vec<f64>> {
         ))
         .in_file(out));
     }
+    if args.sheet && times.len() > sheet::MAX_SHEET_FRAMES {
+        return Err(Error::usage(format!(
+            "--sheet lays out at most {} frames, not {}: use a coarser --frames step, or render without --sheet",
+            sheet::MAX_SHEET_FRAMES,
+            times.len()
+        )));
+    }
     if !args.input.is_file() {
         return Err(Error::msg("cannot open input: no such file").in_file(&args.input));
     }

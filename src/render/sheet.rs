@@ -9,8 +9,13 @@ use super::image_io::srgb_encode;
 
 /// Widest sheet the layout aims for, in pixels.
 pub const MAX_SHEET_WIDTH: usize = 1600;
+/// Most frames a sheet lays out (`render --sheet` refuses more): keeps the
+/// thumbnails held until the sheet is written, and the sheet, bounded.
+pub const MAX_SHEET_FRAMES: usize = 2000;
 const MARGIN: usize = 12;
 const GAP: usize = 8;
+/// Most columns that fit in [`MAX_SHEET_WIDTH`] at one pixel per thumbnail.
+const MAX_COLUMNS: usize = (MAX_SHEET_WIDTH - 2 * MARGIN + GAP) / (1 + GAP);
 /// Label glyphs are 5 × 7 cells drawn at this scale.
 const GLYPH_SCALE: usize = 2;
 const LABEL_BAND: usize = 7 * GLYPH_SCALE + 8;
@@ -25,17 +30,21 @@ pub struct Thumbnail {
     pub rgb: Vec<Vec3>,
 }
 
-/// Columns for `n` thumbnails of aspect `aspect` so the sheet is roughly 16:10.
+/// Columns for `n` thumbnails of aspect `aspect` so the sheet is roughly
+/// 16:10, at most as many as fit in [`MAX_SHEET_WIDTH`].
 pub fn columns(n: usize, aspect: f64) -> usize {
     let c = ((n as f64) * 1.6 / aspect).sqrt().round() as usize;
-    c.clamp(1, n.max(1))
+    c.clamp(1, n.clamp(1, MAX_COLUMNS))
 }
 
-/// The integer reduction factor so `columns` thumbnails of a `width`-pixel
-/// frame fit in [`MAX_SHEET_WIDTH`].
+/// The smallest integer reduction factor so `columns` thumbnails of a
+/// `width`-pixel frame fit in [`MAX_SHEET_WIDTH`] (a thumbnail is
+/// ⌊width / factor⌋ wide).
 pub fn reduction(width: usize, columns: usize) -> usize {
+    let columns = columns.clamp(1, MAX_COLUMNS);
     let avail = (MAX_SHEET_WIDTH - 2 * MARGIN - (columns - 1) * GAP) / columns;
-    width.div_ceil(avail.max(1)).max(1)
+    // ⌊width / f⌋ ≤ avail exactly when f > width / (avail + 1).
+    width / (avail.max(1) + 1) + 1
 }
 
 /// Box-filters `frame` by `factor` and flattens it over `background`.
@@ -167,5 +176,169 @@ mod tests {
         assert_eq!(h, 2 * MARGIN + 2 * (1 + LABEL_BAND) + GAP);
         assert_eq!(columns(48, 16.0 / 9.0), 7);
         assert!(reduction(1920, 7) >= 1920 * 7 / MAX_SHEET_WIDTH);
+    }
+
+    /// sRGB 8-bit code of a linear value (IEC 61966-2-1), for expected pixels.
+    fn srgb8(v: f32) -> u8 {
+        let v = v.clamp(0.0, 1.0) as f64;
+        let e = if v <= 0.0031308 {
+            12.92 * v
+        } else {
+            1.055 * v.powf(1.0 / 2.4) - 0.055
+        };
+        (e * 255.0).round() as u8
+    }
+
+    #[test]
+    fn columns_aim_at_16_10_within_the_width() {
+        // round(√(n · 1.6 / aspect)), at least 1, at most n.
+        assert_eq!(columns(48, 16.0 / 9.0), 7); // √43.2 = 6.57
+        assert_eq!(columns(100, 1.6), 10);
+        assert_eq!(columns(3, 4.0), 1); // √1.2 = 1.10
+        assert_eq!(columns(10, 0.1), 10); // √160 = 12.6, capped at n
+        assert_eq!(columns(1, 1.0), 1);
+        assert_eq!(columns(0, 1.0), 1);
+        assert_eq!(columns(12, 0.8), 5); // √24 = 4.90
+        assert_eq!(columns(12, 1.0), 4); // √19.2 = 4.38
+                                         // Tall frames: no more columns than fit one pixel each with their
+                                         // gaps: (1600 − 2·12 + 8) / 9 = 176.
+        assert_eq!(columns(2000, 0.01), 176);
+        assert_eq!(columns(176, 0.001), 176);
+    }
+
+    #[test]
+    fn reduced_sheets_fit_the_width() {
+        // avail = (1600 − 24 − 8 (c − 1)) / c; factor = ⌈width / avail⌉.
+        assert_eq!(reduction(1920, 7), 9); // avail 218: 8 × 218 = 1744 < 1920
+        assert_eq!(reduction(1576, 1), 1);
+        assert_eq!(reduction(1577, 1), 2);
+        assert_eq!(reduction(100, 1), 1);
+        assert_eq!(reduction(16, 176), 9); // avail 1: ⌊16 / 8⌋ = 2 is too wide
+        assert_eq!(reduction(4096, 11), 30); // avail 136 = ⌊4096 / 30⌋
+        assert_eq!(reduction(16, 0), 1);
+        for c in 1..=176 {
+            for w in [1, 7, 100, 333, 1920, 4096] {
+                let f = reduction(w, c);
+                let tw = (w / f).max(1);
+                assert!(2 * MARGIN + c * tw + (c - 1) * GAP <= MAX_SHEET_WIDTH, "{c} × {w}");
+                // And the factor is the smallest that fits.
+                if f > 1 {
+                    let wider = w / (f - 1);
+                    assert!(
+                        2 * MARGIN + c * wider + (c - 1) * GAP > MAX_SHEET_WIDTH,
+                        "{c} × {w}: {f}"
+                    );
+                }
+            }
+        }
+    }
+
+    fn frame(width: usize, height: usize, f: impl Fn(usize, usize) -> [f32; 4]) -> Frame {
+        Frame {
+            width,
+            height,
+            rgba: (0..height)
+                .flat_map(|y| (0..width).map(move |x| (x, y)))
+                .map(|(x, y)| f(x, y))
+                .collect(),
+            z: vec![0.0; width * height],
+        }
+    }
+
+    #[test]
+    fn thumbnails_are_block_means_over_the_background() {
+        // 5 × 3 by 2: two 2 × 2 blocks; column 4 and row 2 are dropped.
+        let f = frame(5, 3, |x, y| {
+            let a = (x + 2 * y) as f32 / 8.0;
+            [a * 0.5, a * 0.25, 0.0, a]
+        });
+        let bg = Vec3::new(0.2, 0.4, 0.6);
+        let t = thumbnail(&f, 2, bg, "12".into());
+        assert_eq!((t.width, t.height, t.label.as_str()), (2, 1, "12"));
+        // Block 0: alphas (0, 1, 2, 3)/8, mean 1.5/8; block 1: (2, 3, 4, 5)/8, mean 3.5/8.
+        for (k, mean) in [(0, 1.5f32 / 8.0), (1, 3.5 / 8.0)] {
+            let want = Vec3::new(mean * 0.5, mean * 0.25, 0.0) + bg * (1.0 - mean);
+            assert!((t.rgb[k] - want).length() < 1e-6, "{k}: {} vs {want}", t.rgb[k]);
+        }
+        // A frame smaller than the factor still gives one pixel.
+        let one = thumbnail(&frame(3, 2, |_, _| [0.0, 0.0, 0.0, 0.0]), 4, bg, String::new());
+        assert_eq!((one.width, one.height, one.rgb[0]), (1, 1, bg));
+    }
+
+    #[test]
+    fn glyphs_cover_frame_numbers() {
+        let chars = "0123456789.-";
+        let all: Vec<[u8; 7]> = chars.chars().map(|c| glyph(c).unwrap()).collect();
+        for (i, g) in all.iter().enumerate() {
+            assert!(g.iter().all(|&row| row < 0x20), "{i}: five columns");
+            assert!(g.iter().any(|&row| row != 0));
+            for (j, h) in all.iter().enumerate().skip(i + 1) {
+                assert_ne!(g, h, "{} and {} look alike", &chars[i..=i], &chars[j..=j]);
+            }
+        }
+        assert_eq!(glyph('x'), None);
+        assert_eq!(glyph(' '), None);
+    }
+
+    #[test]
+    fn compose_lays_out_thumbnails_and_labels() {
+        let (bg, ink) = (Vec3::splat(0.5), Vec3::ZERO);
+        let thumb = |label: &str, c: f32| Thumbnail {
+            label: label.into(),
+            width: 30,
+            height: 20,
+            rgb: vec![Vec3::new(c, 0.0, 1.0 - c); 600],
+        };
+        let thumbs: Vec<Thumbnail> = (0..5).map(|k| thumb(&format!("{k}"), k as f32 / 4.0)).collect();
+        let (w, h, px) = compose(&thumbs, 2, bg, ink);
+        // 2 columns, 3 rows.
+        assert_eq!(w, 2 * MARGIN + 2 * 30 + GAP);
+        assert_eq!(h, 2 * MARGIN + 3 * (20 + LABEL_BAND) + 2 * GAP);
+        let at = |x: usize, y: usize| [px[3 * (y * w + x)], px[3 * (y * w + x) + 1], px[3 * (y * w + x) + 2]];
+        let code = |c: Vec3| [srgb8(c.x), srgb8(c.y), srgb8(c.z)];
+        for (k, t) in thumbs.iter().enumerate() {
+            let (x0, y0) = (
+                MARGIN + (k % 2) * (30 + GAP),
+                MARGIN + (k / 2) * (20 + LABEL_BAND + GAP),
+            );
+            // The thumbnail's corners, and background just outside them.
+            for (x, y) in [(x0, y0), (x0 + 29, y0 + 19)] {
+                assert_eq!(at(x, y), code(t.rgb[0]), "thumbnail {k}");
+            }
+            assert_eq!(at(x0 - 1, y0), code(bg));
+            assert_eq!(at(x0 + 30, y0 + 19), code(bg));
+            // Its one-digit label: 12 px advance, centred: (30 − 12) / 2 = 9 px in,
+            // 4 px under; each glyph cell is 2 × 2 pixels of ink.
+            let g = glyph(char::from(b'0' + k as u8)).unwrap();
+            let (lx, ly) = (x0 + 9, y0 + 20 + 4);
+            for (gy, bits) in g.iter().enumerate() {
+                for gx in 0..5 {
+                    let want = if bits & (0x10 >> gx) != 0 { code(ink) } else { code(bg) };
+                    for (sx, sy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+                        assert_eq!(at(lx + 2 * gx + sx, ly + 2 * gy + sy), want, "label {k} cell {gx},{gy}");
+                    }
+                }
+            }
+        }
+        // The sixth cell of the grid is empty.
+        assert_eq!(
+            at(MARGIN + 30 + GAP + 15, MARGIN + 2 * (20 + LABEL_BAND + GAP) + 10),
+            code(bg)
+        );
+        // More columns than thumbnails: one row; a label wider than its
+        // thumbnail starts at its left edge and is clipped at the sheet's.
+        let wide = Thumbnail {
+            label: "-1234567.5".into(),
+            ..thumb("", 0.0)
+        };
+        let (w1, h1, px1) = compose(&[wide], 4, bg, ink);
+        assert_eq!((w1, h1), (2 * MARGIN + 30, 2 * MARGIN + 20 + LABEL_BAND));
+        assert_eq!(px1.len(), w1 * h1 * 3);
+        // '-' is the first glyph: its middle row at the thumbnail's left edge.
+        let i = 3 * ((MARGIN + 20 + 4 + 2 * 3) * w1 + MARGIN);
+        assert_eq!(px1[i..i + 3], code(ink));
+        // No thumbnails: an empty sheet of margins.
+        let (w0, h0, _) = compose(&[], 3, bg, ink);
+        assert_eq!((w0, h0), (2 * MARGIN + 1, 2 * MARGIN + 1 + LABEL_BAND));
     }
 }
