@@ -233,6 +233,27 @@ def test_a_sheet_of_more_than_2000_frames_is_refused_up_front(painterly, tmp_pat
     assert proc.returncode == 2 and "2001 frames would all write one file" in proc.stderr
 
 
+def test_a_scene_at_48_time_codes_per_second_renders_its_own_times(painterly, tmp_path):
+    """The render's root layer must keep the input's timeCodesPerSecond, or
+    USD retimes the input (a sublayer's times scale by the rates' ratio)."""
+    path = tmp_path / "fast.usda"
+    stage = new_stage(path, end=20)
+    stage.SetTimeCodesPerSecond(48)
+    stage.SetFramesPerSecond(48)
+    q = quad(stage, "/Mover", (0.0, 0.0), 0.5, GREEN)
+    op = q.AddTranslateOp()
+    for t, x in [(1, -2.0), (10, 2.0), (20, -2.0)]:
+        op.Set(Gf.Vec3d(x, 0, 0), t)
+    stage.GetRootLayer().Save()
+    render(painterly, path, tmp_path, "10")
+    alpha = read_exr(tmp_path / "f.0010.exr")["A"]
+    # At time 10 the quad sits at x = 2; retimed by ×2 or ×½ it would be at
+    # x = -2 (time 20) or near x = -0.2 (time 5).
+    at = lambda x: alpha[pixel(path, (x, 0.0, 0.0), time=10)[::-1]]  # noqa: E731
+    assert at(2.0) == pytest.approx(1.0)
+    assert at(-2.0) == 0.0 and at(-0.2) == 0.0
+
+
 def rotation(rx, ry):
     return Gf.Matrix3d(Gf.Rotation(Gf.Vec3d(1, 0, 0), rx)) * Gf.Matrix3d(Gf.Rotation(Gf.Vec3d(0, 1, 0), ry))
 
