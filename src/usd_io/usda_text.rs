@@ -114,12 +114,13 @@ impl Iterator for Lexer<'_> {
         };
         match c {
             b'"' | b'\'' => {
+                // An unclosed triple quote lexes as an empty string and
+                // more, as in openusd (its longest match falls back).
                 let triple = [c, c, c];
                 if s[start..].starts_with(&triple) {
-                    return match find(&s[start + 3..], &triple) {
-                        Some(k) => tok(self, Kind::Str, start + 3 + k + 3),
-                        None => err("unterminated string"),
-                    };
+                    if let Some(k) = find(&s[start + 3..], &triple) {
+                        return tok(self, Kind::Str, start + 3 + k + 3);
+                    }
                 }
                 let mut j = start + 1;
                 while j < s.len() {
@@ -136,11 +137,11 @@ impl Iterator for Lexer<'_> {
                 None => err("unterminated path"),
             },
             b'@' => {
+                // An unclosed `@@@` falls back the same way (`@@` is empty).
                 if s[start..].starts_with(b"@@@") {
-                    return match find(&s[start + 3..], b"@@@") {
-                        Some(k) => tok(self, Kind::Asset, start + 3 + k + 3),
-                        None => err("unterminated asset path"),
-                    };
+                    if let Some(k) = find(&s[start + 3..], b"@@@") {
+                        return tok(self, Kind::Asset, start + 3 + k + 3);
+                    }
                 }
                 match s[start + 1..].iter().position(|&x| x == b'@') {
                     Some(k) => tok(self, Kind::Asset, start + 1 + k + 1),
@@ -288,5 +289,156 @@ mod tests {
         let text = format!("#usda 1.0\n{}{}", "def \"P\" {\n".repeat(n), "}\n".repeat(n));
         assert_eq!(max_nesting(text.as_bytes()).0, n);
         assert_eq!(unquote("\"a\\\"b\""), "a\"b");
+    }
+
+    /// openusd's lexer over `s`: (kind, span) up to its first error, and
+    /// that error's offset. Keywords and identifiers are our `Ident`; its
+    /// `#usda` header token is a comment to us.
+    fn openusd_tokens(s: &str) -> (Vec<(Kind, Range<usize>)>, Option<usize>) {
+        use logos::Logos;
+        use openusd::usda::token::Token as T;
+        let mut lex = T::lexer(s);
+        let mut out = Vec::new();
+        while let Some(t) = lex.next() {
+            let kind = match t {
+                Err(_) => return (out, Some(lex.span().start)),
+                Ok(T::Magic(_)) => continue,
+                Ok(T::String(_)) => Kind::Str,
+                Ok(T::Number(_)) => Kind::Num,
+                Ok(T::PathRef(_)) => Kind::PathRef,
+                Ok(T::AssetRef(_)) => Kind::Asset,
+                Ok(T::Punctuation(c)) => Kind::Punct(c as u8),
+                Ok(_) => Kind::Ident,
+            };
+            out.push((kind, lex.span()));
+        }
+        (out, None)
+    }
+
+    fn our_tokens(s: &str) -> (Vec<(Kind, Range<usize>)>, Option<usize>) {
+        let mut out = Vec::new();
+        for t in Lexer::new(s.as_bytes()) {
+            match t {
+                Ok(t) => out.push((t.kind, t.span)),
+                Err(e) => return (out, Some(e.offset)),
+            }
+        }
+        (out, None)
+    }
+
+    #[test]
+    fn tokens_match_openusds_lexer() {
+        use crate::interp::testutil::Lcg;
+        const PIECES: &[&str] = &[
+            "def",
+            "over",
+            "float3",
+            "primvars:displayColor",
+            "x:y:",
+            "_a1",
+            "inf",
+            "None",
+            "e",
+            "42",
+            "3.14",
+            "1e5",
+            "1.5E-3",
+            "-2",
+            "+.5",
+            "-.5e+2",
+            "7.",
+            "1e",
+            "2e+",
+            "0.5",
+            "\"a b\"",
+            "'x'",
+            "\"esc \\\" q\"",
+            "\"\"",
+            "'it\\'s'",
+            "\"\"\"multi\nline \" \"\" end\"\"\"",
+            "'''t ' '' '''",
+            "\"tab\\tnew\\n\"",
+            "</A/B.c>",
+            "<>",
+            "@a.usda@",
+            "@@@a@b@@b@@@",
+            "@@",
+            "=",
+            ",",
+            ":",
+            ";",
+            "&",
+            ".",
+            "(",
+            ")",
+            "{",
+            "}",
+            "[",
+            "]",
+            "+",
+            "-",
+            "# line comment { [\n",
+            "/* block ( */",
+            "/* multi\nline */",
+            "/**/",
+            "#usda 1.0\n",
+        ];
+        const BAD: &[&str] = &[
+            "\"open",
+            "'open",
+            "\"\"\"open\"\"",
+            "<open",
+            "@open",
+            "@@@open@@",
+            "$",
+            "/* open",
+            "/",
+            "!",
+        ];
+        const SPACE: &[&str] = &["", " ", "\n", "\t", "\r\n", "  "];
+        let mut rng = Lcg::new(11);
+        for case in 0..3000 {
+            let mut text = String::new();
+            for _ in 0..1 + rng.below(30) {
+                text.push_str(PIECES[rng.below(PIECES.len())]);
+                text.push_str(SPACE[rng.below(SPACE.len())]);
+            }
+            if case % 4 == 0 {
+                text.push_str(BAD[rng.below(BAD.len())]);
+                text.push_str(PIECES[rng.below(PIECES.len())]);
+            }
+            assert_eq!(our_tokens(&text), openusd_tokens(&text), "case {case}: {text:?}");
+        }
+    }
+
+    #[test]
+    fn nesting_counts_brackets_outside_strings_and_comments() {
+        let text = b"( [ \"(((\" { /* [[[ */ } ] # {{{\n ) [ ( ) ]";
+        // Depth 3 first reached at the '{' (offset 10).
+        assert_eq!(max_nesting(text), (3, 10));
+        // Closing more than was opened does not go below zero.
+        assert_eq!(max_nesting(b") ) ( ["), (2, 6));
+        // A lexing error ends the scan.
+        assert_eq!(max_nesting(b"( $ ( ( ("), (1, 0));
+        assert_eq!(max_nesting(b""), (0, 0));
+        assert_eq!(max_nesting(b"{ } { }"), (1, 0));
+    }
+
+    #[test]
+    fn lines_and_unquoting() {
+        let text = b"a\nbc\n\nd";
+        assert_eq!([0, 1, 2, 4, 5, 6, 99].map(|o| line_of(text, o)), [1, 1, 2, 2, 3, 4, 4]);
+        assert_eq!(unquote("\"plain\""), "plain");
+        assert_eq!(unquote("'single'"), "single");
+        assert_eq!(unquote("\"\"\"tri\"ple\"\"\""), "tri\"ple");
+        assert_eq!(unquote("'''x'''"), "x");
+        assert_eq!(unquote("\"\"\"\"\"\""), "");
+        assert_eq!(unquote("\"a\\nb\\tc\\rd\\\\e\\\"f\\qg\""), "a\nb\tc\rd\\e\"fqg");
+        assert_eq!(unquote("\"end\\\""), "end\\");
+        assert_eq!(unquote("\"\""), "");
+        assert_eq!(unquote("\""), "");
+        assert_eq!(unquote(""), "");
+        // Five characters cannot be a triple-quoted string.
+        assert_eq!(unquote("\"\"\"\"\""), "\"\"\"");
     }
 }
