@@ -7,6 +7,8 @@ numpy; pixel positions from usd-core's own camera frustum. Nothing is
 copied from painterly's output.
 """
 
+import json
+
 import numpy as np
 import OpenEXR
 import pytest
@@ -252,6 +254,130 @@ def test_a_scene_at_48_time_codes_per_second_renders_its_own_times(painterly, tm
     at = lambda x: alpha[pixel(path, (x, 0.0, 0.0), time=10)[::-1]]  # noqa: E731
     assert at(2.0) == pytest.approx(1.0)
     assert at(-2.0) == 0.0 and at(-0.2) == 0.0
+
+
+def test_render_json_counts_prims_and_drawn_elements(painterly, tmp_path, scene):
+    """curves/meshes count the prims found (guides excluded, visibility is per
+    frame); strokes/triangles the most drawn in one frame."""
+    proc = painterly("render", scene, "--camera", "/Cam", "--frames", "1:2", "-o", tmp_path / "j.####.exr",
+                     "--size", "40x32", "--json")
+    summary = json.loads(proc.stdout)
+    # BasisCurves /Off/Stroke, /Blue, /Yellow; Mesh /Red, /Green, /Hidden, /Blink.
+    assert (summary["curves"], summary["meshes"]) == (3, 4)
+    # Frame 1 draws /Blue and /Yellow, and the quads /Red, /Green, /Blink (2 triangles each).
+    assert (summary["strokes"], summary["triangles"]) == (2, 6)
+
+
+def flat_or_smooth_book(path, scheme):
+    """Two quads meeting at x = 0: A flat in z = 0, B turned 45° about y."""
+    stage = new_stage(path)
+    m = UsdGeom.Mesh.Define(stage, "/Book")
+    m.CreatePointsAttr([Gf.Vec3f(*p) for p in [(-2, -1, 0), (0, -1, 0), (0, 1, 0), (-2, 1, 0), (1.4, -1, 1.4), (1.4, 1, 1.4)]])
+    m.CreateFaceVertexCountsAttr([4, 4])
+    m.CreateFaceVertexIndicesAttr([0, 1, 2, 3, 1, 4, 5, 2])
+    if scheme is not None:
+        m.CreateSubdivisionSchemeAttr(scheme)
+    m.CreateDisplayColorPrimvar(UsdGeom.Tokens.constant).Set([Gf.Vec3f(0.6, 0.6, 0.6)])
+    stage.GetRootLayer().Save()
+
+
+def test_subdivision_scheme_none_is_faceted_and_the_fallback_smooth(painterly, tmp_path):
+    for scheme in ["none", None]:  # None: unauthored, catmullClark
+        path = tmp_path / f"book_{scheme}.usda"
+        flat_or_smooth_book(path, scheme)
+        out = tmp_path / f"out_{scheme}"
+        out.mkdir()
+        render(painterly, path, out)
+        exr = read_exr(out / "f.0001.exr")
+        rgb = np.stack([exr["R"], exr["G"], exr["B"]], axis=-1)
+        at = lambda p: rgb[pixel(path, p)[::-1]]  # noqa: E731
+        far_a, near_crease_a, b = at((-1.8, 0.0, 0.0)), at((-0.15, 0.0, 0.0)), at((0.7, 0.0, 0.7))
+        if scheme == "none":
+            np.testing.assert_allclose(far_a, warm_cool((0.6,) * 3, (0, 0, 1)), atol=2e-3)
+            np.testing.assert_allclose(near_crease_a, far_a, atol=1e-4)
+            np.testing.assert_allclose(b, warm_cool((0.6,) * 3, (-1, 0, 1)), atol=2e-3)
+        else:
+            # Smooth: the crease's vertex normals lean A's shading towards B's.
+            assert np.abs(near_crease_a - far_a).max() > 0.01, (near_crease_a, far_a)
+
+
+@pytest.mark.parametrize(
+    "counts,indices,message",
+    [
+        ([4], [0, 1, 2], "counts sum to 4, but there are 3 faceVertexIndices"),
+        ([-1, 5], [0, 1, 2, 3], "faceVertexCounts"),
+        ([4], [0, 1, -2, 3], "negative index -2"),
+    ],
+)
+def test_bad_mesh_topology_is_named(painterly, tmp_path, counts, indices, message):
+    path = tmp_path / "bad.usda"
+    stage = new_stage(path)
+    m = quad(stage, "/Bad", (0.0, 0.0), 0.8, RED)
+    m.GetFaceVertexCountsAttr().Set(counts)
+    m.GetFaceVertexIndicesAttr().Set(indices)
+    stage.GetRootLayer().Save()
+    out = tmp_path / "out"
+    out.mkdir()
+    proc = painterly("render", path, "--camera", "/Cam", "--frames", "1", "-o", out / "f.####.exr",
+                     "--size", "20x16", check=False)
+    assert proc.returncode == 1, proc.stderr
+    assert "bad.usda" in proc.stderr and "/Bad" in proc.stderr and message in proc.stderr, proc.stderr
+    assert not any(out.iterdir())
+
+
+def test_empty_faces_and_curves_are_skipped(painterly, tmp_path):
+    """A face of 0 vertices and a curve of 0 points are legal and draw nothing;
+    a negative curve count is named."""
+    path = tmp_path / "empty.usda"
+    stage = new_stage(path)
+    m = quad(stage, "/Quad", (0.0, 0.0), 0.8, RED)
+    m.GetFaceVertexCountsAttr().Set([0, 4])
+    c = stroke(stage, "/Stroke", (-1.0, -1.5), (1.0, -1.5), BLUE_STROKE, 1.0)
+    c.GetCurveVertexCountsAttr().Set([0, 2])
+    stage.GetRootLayer().Save()
+    render(painterly, path, tmp_path)
+    alpha = read_exr(tmp_path / "f.0001.exr")["A"]
+    assert alpha[pixel(path, (0.0, 0.0, 0.0))[::-1]] == pytest.approx(1.0)
+    assert alpha[pixel(path, (0.0, -1.5, 0.5))[::-1]] == pytest.approx(1.0)
+    c.GetCurveVertexCountsAttr().Set([-1, 3])
+    stage.GetRootLayer().Save()
+    proc = painterly("render", path, "--camera", "/Cam", "--frames", "1", "-o", tmp_path / "g.####.exr",
+                     "--size", "20x16", check=False)
+    assert proc.returncode == 1
+    assert "/Stroke" in proc.stderr and "curveVertexCounts" in proc.stderr and "negative count -1" in proc.stderr
+
+
+@pytest.mark.parametrize("value_type", ["Double2", "Half2"])
+def test_a_clipping_range_of_another_precision_is_honoured(painterly, tmp_path, value_type):
+    """clippingRange is float2 in the schema; double2 and half2 opinions are read too."""
+    path = tmp_path / "clip.usda"
+    stage = new_stage(path)
+    cam = stage.GetPrimAtPath("/Cam")
+    cam.RemoveProperty("clippingRange")
+    cam.CreateAttribute("clippingRange", getattr(Sdf.ValueTypeNames, value_type)).Set(Gf.Vec2d(0.5, 14.5))
+    quad(stage, "/Near", (-1.5, 0.0), 0.8, RED, z=1.0)  # depth 14: inside
+    quad(stage, "/Far", (1.5, 0.0), 0.8, GREEN, z=-1.0)  # depth 16: beyond far
+    stage.GetRootLayer().Save()
+    render(painterly, path, tmp_path)
+    alpha = read_exr(tmp_path / "f.0001.exr")["A"]
+    assert alpha[pixel(path, (-1.5, 0.0, 1.0))[::-1]] == pytest.approx(1.0)
+    assert alpha[pixel(path, (1.5, 0.0, -1.0))[::-1]] == 0.0
+
+
+@pytest.mark.parametrize("scale", [(-1, 1, 1), (1, 1, 0)])
+def test_mirrored_and_flattened_transforms_keep_front_faces(painterly, tmp_path, scale):
+    """A mirroring transform (det < 0) flips the winding, so the quad still
+    faces the camera; a flattening one (det = 0) does not flip it."""
+    path = tmp_path / "mirror.usda"
+    stage = new_stage(path)
+    UsdGeom.Xform.Define(stage, "/M").AddScaleOp().Set(Gf.Vec3f(*scale))
+    quad(stage, "/M/Quad", (1.5, 0.0), 0.8, RED)
+    stage.GetRootLayer().Save()
+    render(painterly, path, tmp_path)
+    alpha = read_exr(tmp_path / "f.0001.exr")["A"]
+    x = 1.5 * scale[0]
+    assert alpha[pixel(path, (x, 0.0, 0.0))[::-1]] == pytest.approx(1.0)
+    assert alpha[pixel(path, (-x, 0.0, 0.0))[::-1]] == 0.0
 
 
 def rotation(rx, ry):
