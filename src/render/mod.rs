@@ -130,7 +130,8 @@ pub struct RenderArgs {
     /// Image size.
     #[arg(long, default_value = "1920x1080", value_name = "WxH")]
     pub size: ImageSize,
-    /// Also write a contact sheet of all frames (NAME.sheet.png).
+    /// Also write a contact sheet of all frames (NAME.sheet.png; at most 2000
+    /// frames).
     #[arg(long)]
     pub sheet: bool,
     /// Grayscale PNG footprint modulating stroke alpha (x across the
