@@ -347,21 +347,37 @@ def test_empty_faces_and_curves_are_skipped(painterly, tmp_path):
     assert "/Stroke" in proc.stderr and "curveVertexCounts" in proc.stderr and "negative count -1" in proc.stderr
 
 
-@pytest.mark.parametrize("value_type", ["Double2", "Half2"])
+@pytest.mark.parametrize("value_type", ["double2", "half2"])
 def test_a_clipping_range_of_another_precision_is_honoured(painterly, tmp_path, value_type):
     """clippingRange is float2 in the schema; double2 and half2 opinions are read too."""
     path = tmp_path / "clip.usda"
     stage = new_stage(path)
-    cam = stage.GetPrimAtPath("/Cam")
-    cam.RemoveProperty("clippingRange")
-    cam.CreateAttribute("clippingRange", getattr(Sdf.ValueTypeNames, value_type)).Set(Gf.Vec2d(0.5, 14.5))
+    UsdGeom.Camera(stage.GetPrimAtPath("/Cam")).GetClippingRangeAttr().Set(Gf.Vec2f(0.5, 14.5))
     quad(stage, "/Near", (-1.5, 0.0), 0.8, RED, z=1.0)  # depth 14: inside
     quad(stage, "/Far", (1.5, 0.0), 0.8, GREEN, z=-1.0)  # depth 16: beyond far
     stage.GetRootLayer().Save()
+    # usd-core authors the schema's float2 whatever type is asked for: edit the text.
+    text = path.read_text()
+    assert text.count("float2 clippingRange = (0.5, 14.5)") == 1
+    path.write_text(text.replace("float2 clippingRange", f"{value_type} clippingRange"))
     render(painterly, path, tmp_path)
     alpha = read_exr(tmp_path / "f.0001.exr")["A"]
     assert alpha[pixel(path, (-1.5, 0.0, 1.0))[::-1]] == pytest.approx(1.0)
     assert alpha[pixel(path, (1.5, 0.0, -1.0))[::-1]] == 0.0
+
+
+@pytest.mark.parametrize("double_sided", [True, False, None])
+def test_back_faces_are_drawn_only_when_double_sided(painterly, tmp_path, double_sided):
+    path = tmp_path / "back.usda"
+    stage = new_stage(path)
+    m = quad(stage, "/Away", (0.0, 0.0), 0.8, RED)
+    m.GetFaceVertexIndicesAttr().Set([0, 3, 2, 1])  # clockwise as seen: facing away
+    if double_sided is not None:
+        m.CreateDoubleSidedAttr(double_sided)
+    stage.GetRootLayer().Save()
+    render(painterly, path, tmp_path)
+    alpha = read_exr(tmp_path / "f.0001.exr")["A"]
+    assert alpha[pixel(path, (0.0, 0.0, 0.0))[::-1]] == (1.0 if double_sided else 0.0)
 
 
 @pytest.mark.parametrize("scale", [(-1, 1, 1), (1, 1, 0)])
