@@ -282,4 +282,140 @@ mod tests {
         assert!((b.values[0] - (0.2126 + 0.7152 * 2.0 + 0.0722 * 3.0) / 255.0).abs() < 1e-6);
         std::fs::remove_dir_all(&dir).unwrap();
     }
+
+    /// A PNG of `color` type and `depth` with these raw samples.
+    fn png_bytes(
+        w: u32,
+        h: u32,
+        color: png::ColorType,
+        depth: png::BitDepth,
+        data: &[u8],
+        palette: Option<&[u8]>,
+    ) -> Vec<u8> {
+        let mut out = Vec::new();
+        let mut enc = png::Encoder::new(&mut out, w, h);
+        enc.set_color(color);
+        enc.set_depth(depth);
+        if let Some(p) = palette {
+            enc.set_palette(p.to_vec());
+        }
+        let mut wr = enc.write_header().unwrap();
+        wr.write_image_data(data).unwrap();
+        wr.finish().unwrap();
+        out
+    }
+
+    #[test]
+    fn brushes_read_every_png_colour_type() {
+        use png::{BitDepth as D, ColorType as C};
+        let dir = std::env::temp_dir().join(format!("painterly-brush-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let read = |name: &str, bytes: Vec<u8>| {
+            let p = dir.join(name);
+            std::fs::write(&p, bytes).unwrap();
+            read_brush(&p)
+        };
+        let luma = |r: f32, g: f32, b: f32| (0.2126 * r + 0.7152 * g + 0.0722 * b) / 255.0;
+        let close = |got: &[f32], want: &[f32]| {
+            assert_eq!(got.len(), want.len());
+            for (g, w) in got.iter().zip(want) {
+                assert!((g - w).abs() < 1e-6, "{got:?} vs {want:?}");
+            }
+        };
+        let b = read("g.png", png_bytes(3, 1, C::Grayscale, D::Eight, &[0, 51, 255], None)).unwrap();
+        assert_eq!((b.width, b.height), (3, 1));
+        close(&b.values, &[0.0, 0.2, 1.0]);
+        // Gray × alpha.
+        let b = read(
+            "ga.png",
+            png_bytes(2, 1, C::GrayscaleAlpha, D::Eight, &[255, 51, 102, 255], None),
+        )
+        .unwrap();
+        close(&b.values, &[0.2, 0.4]);
+        // Rec. 709 luma × alpha.
+        let b = read(
+            "rgba.png",
+            png_bytes(1, 2, C::Rgba, D::Eight, &[10, 20, 30, 255, 200, 100, 50, 51], None),
+        )
+        .unwrap();
+        close(&b.values, &[luma(10.0, 20.0, 30.0), luma(200.0, 100.0, 50.0) * 0.2]);
+        // 16 bits are cut to their high byte; 1-bit gray is expanded.
+        let b = read(
+            "g16.png",
+            png_bytes(2, 1, C::Grayscale, D::Sixteen, &[0x33, 0xff, 0xff, 0x00], None),
+        )
+        .unwrap();
+        close(&b.values, &[0.2, 1.0]);
+        let b = read("g1.png", png_bytes(8, 1, C::Grayscale, D::One, &[0b1010_0000], None)).unwrap();
+        close(&b.values, &[1.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0]);
+        // A palette expands to its colours.
+        let pal = [255, 0, 0, 0, 0, 255];
+        let b = read("p.png", png_bytes(2, 1, C::Indexed, D::Eight, &[1, 0], Some(&pal))).unwrap();
+        close(&b.values, &[luma(0.0, 0.0, 255.0), luma(255.0, 0.0, 0.0)]);
+        // Not a PNG: an error naming the file.
+        let e = read("bad.png", b"not a png".to_vec()).unwrap_err();
+        assert!(
+            e.to_string().contains("bad.png") && e.to_string().contains("cannot read brush PNG"),
+            "{e}"
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn exr_channels_hold_the_frames_values() {
+        let dir = std::env::temp_dir().join(format!("painterly-exr-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let frame = Frame {
+            width: 3,
+            height: 2,
+            rgba: (0..6)
+                .map(|i| [i as f32 * 0.1, 0.5 - i as f32 * 0.05, 0.25, i as f32 / 5.0])
+                .collect(),
+            z: (0..6)
+                .map(|i| if i == 2 { f32::INFINITY } else { i as f32 + 0.5 })
+                .collect(),
+        };
+        let path = dir.join("f.exr");
+        write_exr(&path, &frame).unwrap();
+        let img = exr::prelude::read_all_flat_layers_from_file(&path).unwrap();
+        let layer = &img.layer_data[0];
+        assert_eq!((layer.size.0, layer.size.1), (3, 2));
+        for ch in &layer.channel_data.list {
+            let got: Vec<f32> = ch.sample_data.values_as_f32().collect();
+            let want: Vec<f32> = match ch.name.to_string().as_str() {
+                "R" => frame.rgba.iter().map(|p| p[0]).collect(),
+                "G" => frame.rgba.iter().map(|p| p[1]).collect(),
+                "B" => frame.rgba.iter().map(|p| p[2]).collect(),
+                "A" => frame.rgba.iter().map(|p| p[3]).collect(),
+                _ => frame.z.clone(),
+            };
+            assert_eq!(got, want, "{}", ch.name);
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn srgb_codes_match_the_standard_at_every_8_bit_step() {
+        // IEC 61966-2-1 in f64, rounded.
+        let exact = |x: f64| {
+            let e = if x <= 0.0031308 {
+                12.92 * x
+            } else {
+                1.055 * x.powf(1.0 / 2.4) - 0.055
+            };
+            (e * 255.0).round() as i32
+        };
+        let lut = SrgbTable::new();
+        for i in 0..=20_000 {
+            let x = i as f64 / 20_000.0;
+            assert!((to_u8(srgb_encode(x as f32)) as i32 - exact(x)).abs() <= 1, "{x}");
+            assert!((lut.get(x as f32) as i32 - exact(x)).abs() <= 1, "{x}");
+        }
+        // Out of range, NaN and the steep foot.
+        assert_eq!((lut.get(-1.0), lut.get(2.0), lut.get(f32::NAN)), (0, 255, 0));
+        assert_eq!(lut.get(0.002) as i32, exact(0.002));
+        assert_eq!((to_u8(-0.5), to_u8(1.5), to_u8(0.5)), (0, 255, 128));
+        assert!((srgb_decode(0.5) - 0.214_041_14).abs() < 1e-6);
+        assert!((srgb_decode(0.04) - 0.04 / 12.92).abs() < 1e-9);
+    }
 }
