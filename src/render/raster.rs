@@ -400,6 +400,18 @@ mod tests {
     }
 
     #[test]
+    fn segments_shorter_than_a_millionth_of_a_pixel_are_dots() {
+        // 1e-6 is exact enough in f32 that its square is the threshold 1e-12:
+        // from there on the capped segment covers its length (nothing here),
+        // below it a dot covers its disc.
+        let a = v(0.0, 0.0, 2.0);
+        assert_eq!(1e-6f32 * 1e-6f32, 1e-12f32);
+        let at = |len: f32| segment_fragment(Vec2::new(1.0, 0.0), &a, &v(len, 0.0, 2.0), true, true);
+        assert_eq!(at(1e-6), None);
+        assert_eq!(at(0.99e-6).map(|f| f.coverage), Some(1.0));
+    }
+
+    #[test]
     fn a_segment_covers_by_distance_with_caps_and_joins() {
         // Horizontal, from x = 0 to 10, radius 2 → 4: r(t) = 2 + 2t.
         let (a, b) = (v(0.0, 0.0, 2.0), v(10.0, 0.0, 4.0));
@@ -459,6 +471,9 @@ mod tests {
         assert_eq!(r, Some(want));
         assert_eq!(PixelRect::around([(Vec2::new(f32::NAN, 0.0), 1.0)].into_iter()), None);
         assert_eq!(PixelRect::around(std::iter::empty()), None);
+        // One end finite, the other not: still no rect.
+        let half = [(Vec2::ZERO, 1.0), (Vec2::new(f32::INFINITY, 0.0), 1.0)];
+        assert_eq!(PixelRect::around(half.into_iter()), None);
         let huge = PixelRect::around([(Vec2::new(-1e30, 1e30), 0.0)].into_iter()).unwrap();
         // Clamped to ±1e8 (exact in f32) before the floor and ceil.
         assert_eq!((huge.x0, huge.y1), (-100_000_000, 100_000_001));
