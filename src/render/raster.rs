@@ -479,6 +479,9 @@ mod tests {
         assert_eq!((huge.x0, huge.y1), (-100_000_000, 100_000_001));
         let seg = segment_rect(&v(10.2, 20.7, 0.5), &v(15.5, 22.1, 0.0)).unwrap();
         assert_eq!(seg, want);
+        // Each end's own radius (+ half a pixel of fringe): b reaches 4.5 px.
+        let seg = segment_rect(&v(10.2, 20.7, 0.5), &v(15.5, 22.1, 4.0)).unwrap();
+        assert_eq!((seg.x0, seg.y0, seg.x1, seg.y1), (8, 16, 22, 29));
         let o = PixelRect {
             x0: 12,
             y0: 0,
@@ -519,6 +522,10 @@ mod tests {
         assert!((tri(rev, rev.map(z)).depth_slope() - 1.25).abs() < 1e-6);
         let flat = [Vec2::ZERO, Vec2::ONE, Vec2::splat(2.0)];
         assert_eq!(tri(flat, [1.0; 3]).depth_slope(), f32::INFINITY);
+        // Twice-area exactly 1e-12 (1e-6 squared in f32) is not degenerate yet:
+        // depth 0 → 1e-6 over 1e-6 px in x, 0 in y.
+        let tiny = [Vec2::ZERO, Vec2::new(1e-6, 0.0), Vec2::new(0.0, 1e-6)];
+        assert!((tri(tiny, [0.0, 1e-6, 0.0]).depth_slope() - 1.0).abs() < 1e-3);
     }
 
     #[test]
