@@ -262,19 +262,32 @@ mod tests {
         let frame = Frame {
             width: 3,
             height: 2,
-            rgba: (0..6).map(|i| [i as f32 * 0.1, 0.5, 0.25, 1.0]).collect(),
-            z: (0..6).map(|i| i as f32).collect(),
+            rgba: (0..6)
+                .map(|i| [i as f32 * 0.1, 0.5 - i as f32 * 0.05, 0.25, i as f32 / 5.0])
+                .collect(),
+            z: (0..6)
+                .map(|i| if i == 2 { f32::INFINITY } else { i as f32 + 0.5 })
+                .collect(),
         };
         let exr_path = dir.join("f.exr");
         write_exr(&exr_path, &frame).unwrap();
         let img = exr::prelude::read_all_flat_layers_from_file(&exr_path).unwrap();
-        let names: Vec<String> = img.layer_data[0]
-            .channel_data
-            .list
-            .iter()
-            .map(|c| c.name.to_string())
-            .collect();
+        let layer = &img.layer_data[0];
+        assert_eq!((layer.size.0, layer.size.1), (3, 2));
+        let names: Vec<String> = layer.channel_data.list.iter().map(|c| c.name.to_string()).collect();
         assert_eq!(names, ["A", "B", "G", "R", "Z"]);
+        // Every channel holds the frame's values, +∞ depth included.
+        for ch in &layer.channel_data.list {
+            let got: Vec<f32> = ch.sample_data.values_as_f32().collect();
+            let want: Vec<f32> = match ch.name.to_string().as_str() {
+                "R" => frame.rgba.iter().map(|p| p[0]).collect(),
+                "G" => frame.rgba.iter().map(|p| p[1]).collect(),
+                "B" => frame.rgba.iter().map(|p| p[2]).collect(),
+                "A" => frame.rgba.iter().map(|p| p[3]).collect(),
+                _ => frame.z.clone(),
+            };
+            assert_eq!(got, want, "{}", ch.name);
+        }
         let png_path = dir.join("g.png");
         write_png8(&png_path, 2, 1, 3, &[1, 2, 3, 4, 5, 6], true).unwrap();
         let b = read_brush(&png_path).unwrap();
@@ -358,39 +371,6 @@ mod tests {
             e.to_string().contains("bad.png") && e.to_string().contains("cannot read brush PNG"),
             "{e}"
         );
-        std::fs::remove_dir_all(&dir).unwrap();
-    }
-
-    #[test]
-    fn exr_channels_hold_the_frames_values() {
-        let dir = std::env::temp_dir().join(format!("painterly-exr-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let frame = Frame {
-            width: 3,
-            height: 2,
-            rgba: (0..6)
-                .map(|i| [i as f32 * 0.1, 0.5 - i as f32 * 0.05, 0.25, i as f32 / 5.0])
-                .collect(),
-            z: (0..6)
-                .map(|i| if i == 2 { f32::INFINITY } else { i as f32 + 0.5 })
-                .collect(),
-        };
-        let path = dir.join("f.exr");
-        write_exr(&path, &frame).unwrap();
-        let img = exr::prelude::read_all_flat_layers_from_file(&path).unwrap();
-        let layer = &img.layer_data[0];
-        assert_eq!((layer.size.0, layer.size.1), (3, 2));
-        for ch in &layer.channel_data.list {
-            let got: Vec<f32> = ch.sample_data.values_as_f32().collect();
-            let want: Vec<f32> = match ch.name.to_string().as_str() {
-                "R" => frame.rgba.iter().map(|p| p[0]).collect(),
-                "G" => frame.rgba.iter().map(|p| p[1]).collect(),
-                "B" => frame.rgba.iter().map(|p| p[2]).collect(),
-                "A" => frame.rgba.iter().map(|p| p[3]).collect(),
-                _ => frame.z.clone(),
-            };
-            assert_eq!(got, want, "{}", ch.name);
-        }
         std::fs::remove_dir_all(&dir).unwrap();
     }
 

@@ -200,15 +200,17 @@ mod tests {
         assert_eq!(columns(0, 1.0), 1);
         assert_eq!(columns(12, 0.8), 5); // √24 = 4.90
         assert_eq!(columns(12, 1.0), 4); // √19.2 = 4.38
-                                         // Tall frames: no more columns than fit one pixel each with their
-                                         // gaps: (1600 − 2·12 + 8) / 9 = 176.
+
+        // Tall frames: no more columns than fit one pixel each with their
+        // gaps: (1600 − 2·12 + 8) / 9 = 176.
         assert_eq!(columns(2000, 0.01), 176);
         assert_eq!(columns(176, 0.001), 176);
     }
 
     #[test]
     fn reduced_sheets_fit_the_width() {
-        // avail = (1600 − 24 − 8 (c − 1)) / c; factor = ⌈width / avail⌉.
+        // avail = (1600 − 24 − 8 (c − 1)) / c; the factor is the smallest f
+        // with ⌊width / f⌋ ≤ avail.
         assert_eq!(reduction(1920, 7), 9); // avail 218: 8 × 218 = 1744 < 1920
         assert_eq!(reduction(1576, 1), 1);
         assert_eq!(reduction(1577, 1), 2);
