@@ -125,6 +125,9 @@ impl Iterator for Lexer<'_> {
                 let mut j = start + 1;
                 while j < s.len() {
                     match s[j] {
+                        // An escape takes any character but a newline
+                        // (openusd's `\\.`): backslash-newline ends the lexeme.
+                        b'\\' if s.get(j + 1) == Some(&b'\n') => break,
                         b'\\' => j += 2,
                         x if x == c => return tok(self, Kind::Str, j + 1),
                         _ => j += 1,
@@ -386,6 +389,8 @@ mod tests {
         const BAD: &[&str] = &[
             "\"open",
             "'open",
+            "\"line\\\ncontinued\"",
+            "'line\\\ncontinued'",
             "\"\"\"open\"\"",
             "<open",
             "@open",
