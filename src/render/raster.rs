@@ -605,7 +605,8 @@ mod tests {
     fn edges_through_pixel_centres_go_to_one_triangle_either_winding() {
         // A 16 × 12 rectangle cut at x = 8.5 and y = 6.5 (lines of pixel
         // centres) into four quads, each split by a diagonal, in both
-        // windings: every pixel exactly once.
+        // windings and with each corner first (so every edge is once the
+        // b–c, c–a and a–b of its triangle): every pixel exactly once.
         let xs = [0.0, 8.5, 16.0];
         let ys = [0.0, 6.5, 12.0];
         let clip = PixelRect {
@@ -614,7 +615,7 @@ mod tests {
             x1: 20,
             y1: 16,
         };
-        for clockwise in [false, true] {
+        for (clockwise, first) in [false, true].into_iter().flat_map(|w| (0..3).map(move |k| (w, k))) {
             let mut count = vec![0u8; 22 * 18];
             for i in 0..2 {
                 for j in 0..2 {
@@ -624,6 +625,7 @@ mod tests {
                         if clockwise {
                             corners.swap(1, 2);
                         }
+                        corners.rotate_left(first);
                         tri(corners, [1.0; 3]).raster(&clip, false, |s| {
                             count[((s.y + 2) * 22 + s.x + 2) as usize] += 1;
                         });
@@ -636,7 +638,7 @@ mod tests {
                     assert_eq!(
                         count[((y + 2) * 22 + x + 2) as usize],
                         want,
-                        "pixel {x},{y} clockwise {clockwise}"
+                        "pixel {x},{y} clockwise {clockwise} first corner {first}"
                     );
                 }
             }
