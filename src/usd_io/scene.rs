@@ -148,7 +148,7 @@ impl Widths {
         };
         let alpha = (t - t0) / (t1 - t0);
         match (lower, next) {
-            (Some(a), Some(b)) if a.len() == b.len() && (t1 - t0).abs() > 1e-6 && alpha != 0.0 => {
+            (Some(a), Some(b)) if a.len() == b.len() && (t1 - t0).abs() >= 1e-6 && alpha != 0.0 => {
                 if alpha == 1.0 {
                     return crate::extent::max_width(b.iter().copied());
                 }
@@ -791,7 +791,8 @@ fn pose_channel<V>(
                  (an axis with scale 0?): two {channel} keys at one configuration",
                 paths[second]
             ),
-        ),
+        )
+        .rule(Rule::CoincidentKeys),
         e => duplicate_error(&paths, e, channel),
     };
     let interp = if dim == 0 {
@@ -1180,7 +1181,8 @@ impl StrokeLayer {
 
 #[cfg(test)]
 mod tests {
-    use super::Widths;
+    use super::*;
+    use crate::usd_io::memory::open_bytes;
 
     #[test]
     fn sampled_widths_interpolate_like_usd_core() {
@@ -1200,5 +1202,560 @@ mod tests {
         assert_eq!(w.max_at(9.0), 1.0); // sizes differ: held
         assert_eq!(w.max_at(11.0), 3.0); // held after the last sample
         assert_eq!(Widths::Constant(0.5).max_at(3.0), 0.5);
+    }
+
+    /// A stage read from usda text in memory.
+    fn stage(usda: &str) -> StageReader {
+        let path = std::env::temp_dir().join("painterly_scene_test.usda");
+        open_bytes(usda.as_bytes().to_vec(), &path).unwrap()
+    }
+
+    /// Two triangles over the unit square: 4 points, 6 face-vertex indices.
+    const SQUARE: &str = "int[] faceVertexCounts = [3, 3]
+        int[] faceVertexIndices = [0, 1, 2, 0, 2, 3]
+        point3f[] points = [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)]";
+
+    /// One stroke of three points.
+    const STROKE: &str = "int[] curveVertexCounts = [3]
+            point3f[] points = [(0.2, 0.2, 0), (0.5, 0.5, 0), (0.8, 0.2, 0)]";
+
+    /// A stage with the Mesh /World/Proxy (`mesh`: its body), the rig
+    /// /World/Rig on it and the stroke layer /World/Rig/Strokes (`layer`:
+    /// its body, children included).
+    fn rig(mesh: &str, layer: &str) -> String {
+        format!(
+            r#"#usda 1.0
+(
+    startTimeCode = 1
+    endTimeCode = 3
+)
+def Xform "World"
+{{
+    def Mesh "Proxy"
+    {{
+        {mesh}
+    }}
+    def Xform "Rig" (prepend apiSchemas = ["PainterlyRigAPI"])
+    {{
+        rel painterly:proxy = </World/Proxy>
+        def BasisCurves "Strokes" (prepend apiSchemas = ["PainterlyStrokeLayerAPI"])
+        {{
+            {layer}
+        }}
+    }}
+}}
+"#
+        )
+    }
+
+    /// The SQUARE proxy skinned to one joint that turns 90° about +Z from
+    /// time 0 to 1, with `extra` in the Mesh (`influences`: whether it has
+    /// joint influences at all).
+    fn skinned_rig(extra: &str, influences: bool) -> String {
+        let influences = if influences {
+            r#"int[] primvars:skel:jointIndices = [0, 0, 0, 0] (interpolation = "vertex"; elementSize = 1)
+        float[] primvars:skel:jointWeights = [1, 1, 1, 1] (interpolation = "vertex"; elementSize = 1)"#
+        } else {
+            ""
+        };
+        format!(
+            r#"#usda 1.0
+(
+    startTimeCode = 0
+    endTimeCode = 1
+)
+def SkelRoot "Char"
+{{
+    def Skeleton "Skel" (prepend apiSchemas = ["SkelBindingAPI"])
+    {{
+        uniform token[] joints = ["Root"]
+        uniform matrix4d[] bindTransforms = [((1, 0, 0, 0), (0, 1, 0, 0), (0, 0, 1, 0), (0, 0, 0, 1))]
+        uniform matrix4d[] restTransforms = [((1, 0, 0, 0), (0, 1, 0, 0), (0, 0, 1, 0), (0, 0, 0, 1))]
+        rel skel:animationSource = </Char/Skel/Anim>
+        def SkelAnimation "Anim"
+        {{
+            uniform token[] joints = ["Root"]
+            float3[] translations = [(0, 0, 0)]
+            quatf[] rotations.timeSamples = {{
+                0: [(1, 0, 0, 0)],
+                1: [(0.70710677, 0, 0, 0.70710677)],
+            }}
+            half3[] scales = [(1, 1, 1)]
+        }}
+    }}
+    def Mesh "Proxy" (prepend apiSchemas = ["SkelBindingAPI"])
+    {{
+        {SQUARE}
+        {influences}
+        {extra}
+        rel skel:skeleton = </Char/Skel>
+    }}
+    def Xform "Rig" (prepend apiSchemas = ["PainterlyRigAPI"])
+    {{
+        rel painterly:proxy = </Char/Proxy>
+        def BasisCurves "Strokes" (prepend apiSchemas = ["PainterlyStrokeLayerAPI"])
+        {{
+            {STROKE}
+        }}
+    }}
+}}
+"#
+        )
+    }
+
+    /// The prim, attribute and rule an error names.
+    fn named(e: &Error) -> (&str, &str, Option<Rule>) {
+        (
+            e.prim.as_deref().unwrap_or(""),
+            e.attribute.as_deref().unwrap_or(""),
+            e.rule,
+        )
+    }
+
+    fn near(a: &[Vec3], b: &[[f32; 3]]) -> bool {
+        a.len() == b.len()
+            && a.iter()
+                .zip(b)
+                .all(|(p, q)| (*p - Vec3::from(*q)).abs().max_element() < 1e-6)
+    }
+
+    #[test]
+    fn sampled_widths_hold_and_interpolate_where_usd_core_does() {
+        // Expected values are usd-core's `Get` of `widths` authored with
+        // these samples (UsdAttribute::Get interpolates linearly).
+        // Samples 5e-7 apart: usd-core holds the lower one (closer than 1e-6).
+        let close = Widths::Sampled(vec![(1.0, Some(vec![1.0])), (1.0 + 5e-7, Some(vec![3.0]))]);
+        assert_eq!(close.max_at(1.0 + 2.5e-7), 1.0);
+        // Exactly 1e-6 apart usd-core interpolates ([1] at 0, [3] at 1e-6
+        // give [2] at 5e-7); 9.9e-7 apart it holds.
+        let edge = Widths::Sampled(vec![(0.0, Some(vec![1.0])), (1e-6, Some(vec![3.0]))]);
+        assert_eq!(edge.max_at(5e-7), 2.0);
+        let below = Widths::Sampled(vec![(0.0, Some(vec![1.0])), (9.9e-7, Some(vec![3.0]))]);
+        assert_eq!(below.max_at(4.95e-7), 1.0);
+        // α = (t − t0) / (t1 − t0), with t0 ≠ 2 and t1 ≠ 4 (t1 / t0 would do there).
+        let w = Widths::Sampled(vec![(1.0, Some(vec![1.0])), (5.0, Some(vec![3.0]))]);
+        assert_eq!(w.max_at(2.0), 1.5);
+        // Samples on both sides of time 0 (t0 + t1 = 0).
+        let w = Widths::Sampled(vec![(-1.0, Some(vec![1.0, 0.5])), (1.0, Some(vec![3.0, 0.5]))]);
+        assert_eq!(w.max_at(0.5), 2.5);
+    }
+
+    #[test]
+    fn is_descendant_needs_a_separator_after_the_ancestor() {
+        assert!(is_descendant("/World/Rig/Strokes", "/World/Rig"));
+        assert!(is_descendant("/World", "/"));
+        // A sibling whose name starts with the ancestor's.
+        assert!(!is_descendant("/World/RigB", "/World/Rig"));
+        // A prim is not its own descendant, nor its parent's ancestor.
+        assert!(!is_descendant("/World/Rig", "/World/Rig"));
+        assert!(!is_descendant("/World", "/World/Rig"));
+        // A separator where the ancestor would end, under another prim.
+        assert!(!is_descendant("/Other/Rig", "/World"));
+    }
+
+    #[test]
+    fn configuration_multiplies_each_layer_axis_value_by_its_scale() {
+        let keys = LayerKeys {
+            axes: vec![2, 0],
+            scales: vec![0.5, 4.0],
+            ..Default::default()
+        };
+        assert_eq!(keys.configuration(&[3.0, 7.0, 10.0]), [5.0, 12.0]);
+        assert_eq!(LayerKeys::default().configuration(&[3.0]), [0.0]);
+    }
+
+    #[test]
+    fn a_cached_binding_is_checked_entry_by_entry() {
+        let w = [Vec3::new(0.2, 0.3, 0.5), Vec3::new(1.0, 0.0, 0.0)];
+        let b = check_binding("/L", &[[0, 1, 2], [3, 2, 0]], &w, 2, 4).unwrap();
+        assert_eq!(b.vertices, [[0, 1, 2], [3, 2, 0]]);
+        assert_eq!(b.weights, [[0.2, 0.3, 0.5], [1.0, 0.0, 0.0]]);
+        let bad = |verts: &[[i64; 3]], weights: &[Vec3]| {
+            let e = check_binding("/L", verts, weights, 2, 4).unwrap_err();
+            e.attribute.unwrap()
+        };
+        // A 4-point proxy has vertices 0..=3.
+        assert_eq!(bad(&[[0, 1, 2], [3, 4, 0]], &w), "painterly:bindVertices");
+        assert_eq!(bad(&[[0, 1, 2], [-1, 2, 0]], &w), "painterly:bindVertices");
+        // One entry per point, finite weights.
+        assert_eq!(bad(&[[0, 1, 2]], &w), "painterly:bindVertices");
+        assert_eq!(bad(&[[0, 1, 2], [3, 2, 0]], &w[..1]), "painterly:bindWeights");
+        let nan = [w[0], Vec3::new(f32::NAN, 0.0, 1.0)];
+        assert_eq!(bad(&[[0, 1, 2], [3, 2, 0]], &nan), "painterly:bindWeights");
+    }
+
+    #[test]
+    fn proxy_motion_is_named_as_inspect_documents_it() {
+        // docs/schemas/inspect.schema.json: a rig's "animation" is one of these.
+        let r = stage(&rig(SQUARE, STROKE));
+        let scene = Scene::read(&r).unwrap();
+        assert_eq!(scene.rigs[0].proxy.motion.describe(), "static points");
+        assert!(!scene.rigs[0].proxy.is_skinned());
+
+        let sampled = format!(
+            "{SQUARE}
+        point3f[] points.timeSamples = {{
+            1: [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)],
+            3: [(2, 0, 0), (3, 0, 0), (3, 1, 0), (2, 1, 0)],
+        }}"
+        );
+        let r = stage(&rig(&sampled, STROKE));
+        let scene = Scene::read(&r).unwrap();
+        let proxy = &scene.rigs[0].proxy;
+        assert_eq!(proxy.motion.describe(), "time-sampled points");
+        assert!(!proxy.is_skinned());
+        // Halfway between the samples: moved by (1, 0, 0).
+        let half = [[1.0, 0.0, 0.0], [2.0, 0.0, 0.0], [2.0, 1.0, 0.0], [1.0, 1.0, 0.0]];
+        assert!(near(&proxy.posed_points_f32(&r, 2.0).unwrap(), &half));
+
+        let r = stage(&skinned_rig("", true));
+        let scene = Scene::read(&r).unwrap();
+        assert_eq!(scene.rigs[0].proxy.motion.describe(), "UsdSkel");
+        assert!(scene.rigs[0].proxy.is_skinned());
+    }
+
+    #[test]
+    fn skinned_normals_are_deformed_where_bake_skinning_deforms_them() {
+        // usd-core's UsdSkel.BakeSkinning of these stages writes normals
+        // for the first two only; its values at time 1 are those below
+        // (the joint's quarter turn about +Z takes x to y and y to −x).
+        let vertex = r#"normal3f[] normals = [(1, 0, 0), (0, 1, 0), (0, 0, 1), (1, 0, 0)] (interpolation = "vertex")"#;
+        let face_varying = r#"normal3f[] normals = [(1, 0, 0), (0, 1, 0), (0, 0, 1), (1, 0, 0), (0, 0, 1), (0, 1, 0)] (interpolation = "faceVarying")"#;
+        let turned = |n: &[[f32; 3]]| -> Vec<[f32; 3]> { n.iter().map(|&[x, y, z]| [-y, x, z]).collect() };
+        let vertex_rest = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0]];
+        let fv_rest = [
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [0.0, 0.0, 1.0],
+            [1.0, 0.0, 0.0],
+            [0.0, 0.0, 1.0],
+            [0.0, 1.0, 0.0],
+        ];
+        for (extra, rest) in [(vertex, &vertex_rest[..]), (face_varying, &fv_rest[..])] {
+            let r = stage(&skinned_rig(extra, true));
+            let proxy = &Scene::read(&r).unwrap().rigs[0].proxy;
+            assert!(proxy.has_deformed_normals(), "{extra}");
+            assert!(
+                near(&proxy.posed_normals(&r, 1.0).unwrap().unwrap(), &turned(rest)),
+                "{extra}"
+            );
+            let points: Vec<Vec3> = proxy
+                .posed_points(&r, 1.0)
+                .unwrap()
+                .iter()
+                .map(|p| p.as_vec3())
+                .collect();
+            let square = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]];
+            assert!(near(&points, &turned(&square)), "{extra}");
+        }
+        // Sized for the other interpolation (4 points, 6 face vertices), or
+        // on a mesh nothing deforms: left alone.
+        let vertex_sized_6 = face_varying.replace("faceVarying", "vertex");
+        let face_varying_sized_4 = vertex.replace("vertex", "faceVarying");
+        for (extra, influences) in [
+            (vertex_sized_6.as_str(), true),
+            (face_varying_sized_4.as_str(), true),
+            (vertex, false),
+        ] {
+            let r = stage(&skinned_rig(extra, influences));
+            let proxy = &Scene::read(&r).unwrap().rigs[0].proxy;
+            assert!(!proxy.has_deformed_normals(), "{extra}");
+            assert_eq!(proxy.posed_normals(&r, 1.0).unwrap(), None, "{extra}");
+        }
+    }
+
+    #[test]
+    fn proxy_topology_is_refused_where_usd_core_finds_it_invalid() {
+        // UsdGeom.Mesh.ValidateTopology: counts must sum to the indices,
+        // indices lie in [0, points); a face of no vertices is valid.
+        let first = |mesh: &str| Scene::read(&stage(&rig(mesh, STROKE))).err();
+        let mesh = |counts: &str, indices: &str| {
+            format!(
+                "int[] faceVertexCounts = {counts}
+        int[] faceVertexIndices = {indices}
+        point3f[] points = [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)]"
+            )
+        };
+        let e = first(&mesh("[3, 4]", "[0, 1, 2, 0, 2, 3]")).unwrap();
+        assert_eq!(named(&e), ("/World/Proxy", "faceVertexCounts", Some(Rule::Mesh)));
+        for bad in ["[0, 1, 2, 0, 2, 4]", "[0, 1, 2, 0, 2, -1]"] {
+            let e = first(&mesh("[3, 3]", bad)).unwrap();
+            assert_eq!(
+                named(&e),
+                ("/World/Proxy", "faceVertexIndices", Some(Rule::Mesh)),
+                "{bad}"
+            );
+        }
+        assert!(first(&mesh("[3, 0, 3]", "[0, 1, 2, 0, 2, 3]")).is_none());
+        // No points at all: the points are what is missing.
+        let empty = "int[] faceVertexCounts = [3]
+        int[] faceVertexIndices = [0, 1, 2]
+        point3f[] points = []";
+        let e = first(empty).unwrap();
+        assert_eq!(named(&e), ("/World/Proxy", "points", Some(Rule::Mesh)));
+    }
+
+    #[test]
+    fn stroke_counts_are_refused_when_negative_or_over_the_limit() {
+        let read = |layer: &str| Scene::read(&stage(&rig(SQUARE, layer)));
+        let e = read(
+            "int[] curveVertexCounts = [-1, 4]
+            point3f[] points = [(0.2, 0.2, 0), (0.5, 0.5, 0), (0.8, 0.2, 0)]",
+        )
+        .err()
+        .unwrap();
+        assert_eq!(
+            named(&e),
+            ("/World/Rig/Strokes", "curveVertexCounts", Some(Rule::PointCounts))
+        );
+        // A curve of no points is an empty stroke.
+        let scene = read(
+            "int[] curveVertexCounts = [2, 0, 1]
+            point3f[] points = [(0.2, 0.2, 0), (0.5, 0.5, 0), (0.8, 0.2, 0)]",
+        )
+        .unwrap();
+        let layer = &scene.rigs[0].layers[0];
+        assert_eq!(layer.curve_counts, [2, 0, 1]);
+        assert_eq!(layer.num_points(), 3);
+        // README, Limits: at most 20,000,000 stroke points, refused from the
+        // counts before any point is read. At the limit the counts pass (and
+        // the missing points are the problem).
+        let e = read("int[] curveVertexCounts = [20000000]").err().unwrap();
+        assert_eq!(
+            named(&e),
+            ("/World/Rig/Strokes", "points", Some(Rule::MissingRestPoints))
+        );
+        let e = read("int[] curveVertexCounts = [20000001]").err().unwrap();
+        assert_eq!(
+            named(&e),
+            ("/World/Rig/Strokes", "curveVertexCounts", Some(Rule::PointCounts))
+        );
+        assert_eq!(
+            e.message,
+            "20000001 stroke points; painterly bakes at most 20000000 in one run (bake the character's stroke layers in several runs)"
+        );
+    }
+
+    #[test]
+    fn non_finite_points_are_refused_naming_their_attribute() {
+        let proxy = SQUARE.replace("(1, 1, 0)", "(1, inf, 0)");
+        let e = Scene::read(&stage(&rig(&proxy, STROKE))).err().unwrap();
+        assert_eq!(named(&e), ("/World/Proxy", "points", Some(Rule::NonFinite)));
+        let layer = STROKE.replace("(0.5, 0.5, 0)", "(0.5, -inf, 0)");
+        let e = Scene::read(&stage(&rig(SQUARE, &layer))).err().unwrap();
+        assert_eq!(named(&e), ("/World/Rig/Strokes", "points", Some(Rule::NonFinite)));
+        let rest =
+            format!("{STROKE}\n            point3f[] painterly:restPoints = [(0, 0, 0), (inf, 0, 0), (1, 0, 0)]");
+        let e = Scene::read(&stage(&rig(SQUARE, &rest))).err().unwrap();
+        assert_eq!(
+            named(&e),
+            ("/World/Rig/Strokes", "painterly:restPoints", Some(Rule::NonFinite))
+        );
+    }
+
+    #[test]
+    fn animated_layer_opacity_is_read_at_each_time() {
+        let r = stage(&rig(
+            SQUARE,
+            &format!("{STROKE}\n            float painterly:opacity.timeSamples = {{ 1: 0.2, 3: 0.6 }}"),
+        ));
+        let scene = Scene::read(&r).unwrap();
+        let layer = &scene.rigs[0].layers[0];
+        for (t, want) in [(1.0, 0.2), (2.0, 0.4), (3.0, 0.6)] {
+            assert!((layer.opacity_at(&r, t).unwrap() - want).abs() < 1e-6, "t = {t}");
+        }
+    }
+
+    #[test]
+    fn vertex_display_opacity_is_the_mean_over_each_curve() {
+        // docs/choices.md: vertex/varying displayOpacity is averaged over
+        // each curve's points.
+        let r = stage(&rig(
+            SQUARE,
+            r#"int[] curveVertexCounts = [2, 3]
+            point3f[] points = [(0.2, 0.2, 0), (0.5, 0.5, 0), (0.8, 0.2, 0), (0.6, 0.2, 0), (0.4, 0.2, 0)]
+            float[] primvars:displayOpacity = [0.5, 1, 0, 0.25, 0.5] (interpolation = "vertex")"#,
+        ));
+        let scene = Scene::read(&r).unwrap();
+        assert_eq!(scene.rigs[0].layers[0].display_opacity, [0.75, 0.25]);
+    }
+
+    #[test]
+    fn a_layer_outside_every_rig_is_a_problem_and_one_under_a_broken_rig_is_not() {
+        let r = stage(&format!(
+            r#"#usda 1.0
+def Xform "World"
+{{
+    def BasisCurves "Loose" (prepend apiSchemas = ["PainterlyStrokeLayerAPI"])
+    {{
+        {STROKE}
+    }}
+    def Xform "Broken" (prepend apiSchemas = ["PainterlyRigAPI"])
+    {{
+        def BasisCurves "Strokes" (prepend apiSchemas = ["PainterlyStrokeLayerAPI"])
+        {{
+            {STROKE}
+        }}
+    }}
+}}
+"#
+        ));
+        let (scene, problems) = Scene::read_lenient(&r).unwrap();
+        assert!(scene.rigs.is_empty());
+        // The broken rig's layer is the rig's problem (no proxy), not another.
+        let mut got: Vec<_> = problems.iter().map(|e| (e.prim.clone().unwrap(), e.rule)).collect();
+        got.sort_by(|a, b| a.0.cmp(&b.0));
+        assert_eq!(
+            got,
+            [
+                ("/World/Broken".to_string(), Some(Rule::MissingProxy)),
+                ("/World/Loose".to_string(), Some(Rule::LayerOutsideRig)),
+            ]
+        );
+    }
+
+    /// A pose key of the layer in [`rig`], with `body`.
+    fn pose_key(name: &str, body: &str) -> String {
+        format!("\n            def PainterlyPoseKey \"{name}\"\n            {{\n                {body}\n            }}")
+    }
+
+    const KEY_POINTS: &str = "point3f[] points = [(0.2, 0.3, 0), (0.5, 0.6, 0), (0.8, 0.3, 0)]";
+
+    #[test]
+    fn pose_keys_of_a_layer_without_axes() {
+        let keys = |bodies: &[&str]| {
+            let children: String = bodies
+                .iter()
+                .enumerate()
+                .map(|(i, b)| {
+                    pose_key(
+                        &format!("k{i}"),
+                        &format!("float[] coordinates = []\n                {b}"),
+                    )
+                })
+                .collect();
+            Scene::read(&stage(&rig(SQUARE, &format!("{STROKE}{children}"))))
+                .map(|mut s| s.rigs[0].layers.remove(0).keys)
+        };
+        // One position key: a constant at the origin of a 1-D space.
+        let one = keys(&[KEY_POINTS]).unwrap();
+        assert!(one.axes.is_empty());
+        assert_eq!(one.pose_points.as_ref().map(|c| c.values.len()), Some(1));
+        assert!(one.uses_axes());
+        // SPEC §4: two keys of a channel at one configuration are an error
+        // naming both; without axes every key sits at the origin.
+        for n in [2, 3] {
+            let e = keys(&vec![KEY_POINTS; n]).err().unwrap();
+            assert_eq!(
+                named(&e),
+                ("/World/Rig/Strokes/k0", "coordinates", Some(Rule::CoincidentKeys)),
+                "{n} keys"
+            );
+            assert!(e.message.contains("/World/Rig/Strokes/k1"), "{e}");
+        }
+        // Only opacity keys still need the axes; keys carrying neither
+        // points nor opacity do not.
+        let fade = keys(&["float opacity = 0.5"]).unwrap();
+        assert!(fade.pose_points.is_none() && fade.uses_axes());
+        let bare = keys(&[""]).unwrap();
+        assert!(bare.pose_points.is_none() && bare.pose_opacity.is_none());
+        assert!(!bare.uses_axes());
+    }
+
+    /// A rig with one attribute axis of `scale` and a layer with two
+    /// position keys at `a` and `b` (axis units).
+    fn two_keys_on_a_scaled_axis(scale: f64, a: f64, b: f64) -> Error {
+        let layer = format!(
+            "{STROKE}{}{}",
+            pose_key(
+                "a",
+                &format!("float[] coordinates = [{a}]\n                {KEY_POINTS}")
+            ),
+            pose_key(
+                "b",
+                &format!("float[] coordinates = [{b}]\n                {KEY_POINTS}")
+            ),
+        );
+        let axis = format!(
+            r#"def PainterlyAxis "knob"
+        {{
+            uniform token kind = "attribute"
+            rel source = </Knob.value>
+            float scale = {scale}
+        }}
+        def BasisCurves"#
+        );
+        let text = rig(SQUARE, &layer).replacen("def BasisCurves", &axis, 1)
+            + "def Scope \"Knob\"\n{\n    double value = 0\n}\n";
+        Scene::read(&stage(&text)).err().unwrap()
+    }
+
+    #[test]
+    fn keys_that_meet_only_once_scaled_are_told_apart_from_equal_keys() {
+        let equal = two_keys_on_a_scaled_axis(1.0, 0.5, 0.5);
+        assert_eq!(
+            named(&equal),
+            ("/World/Rig/Strokes/a", "coordinates", Some(Rule::CoincidentKeys))
+        );
+        assert!(
+            equal.message.contains("/World/Rig/Strokes/b") && !equal.message.contains("scale"),
+            "{equal}"
+        );
+        // Apart in axis units, together once multiplied by scale 0: the
+        // message says why.
+        let scaled = two_keys_on_a_scaled_axis(0.0, 0.0, 1.0);
+        assert_eq!(
+            named(&scaled),
+            ("/World/Rig/Strokes/a", "coordinates", Some(Rule::CoincidentKeys))
+        );
+        assert!(
+            scaled.message.contains("/World/Rig/Strokes/b") && scaled.message.contains("scale"),
+            "{scaled}"
+        );
+    }
+
+    #[test]
+    fn rbf_interpolation_needs_a_positive_radius() {
+        let read = |radius: &str| {
+            let layer = format!(
+                "{STROKE}
+            uniform token painterly:interpolation = \"rbf\"
+            uniform float painterly:rbfRadius = {radius}"
+            );
+            Scene::read(&stage(&rig(SQUARE, &layer))).err()
+        };
+        for bad in ["0", "-1"] {
+            let e = read(bad).unwrap();
+            assert_eq!(
+                named(&e),
+                ("/World/Rig/Strokes", "painterly:rbfRadius", Some(Rule::Interpolation)),
+                "{bad}"
+            );
+        }
+        assert!(read("0.5").is_none());
+    }
+
+    #[test]
+    fn a_non_finite_time_sample_is_an_authored_point_not_a_posed_one() {
+        // A point cache read as a view-dependent mesh is: its bad value is
+        // authored, so the error does not call it posed.
+        let r = stage(
+            "#usda 1.0
+def Mesh \"Cache\"
+{
+    int[] faceVertexCounts = [3, 3]
+    int[] faceVertexIndices = [0, 1, 2, 0, 2, 3]
+    point3f[] points = [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)]
+    point3f[] points.timeSamples = {
+        1: [(0, 0, 0), (inf, 0, 0), (1, 1, 0), (0, 1, 0)],
+        2: [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)],
+    }
+}
+",
+        );
+        let mesh = read_mesh(&r, r.require_prim("/Cache").unwrap(), None).unwrap();
+        let e = mesh.posed_points_f32(&r, 1.0).unwrap_err();
+        assert_eq!(named(&e), ("/Cache", "points", None));
+        assert!(e.message.starts_with("point 1 ") && e.message.contains("time 1"), "{e}");
     }
 }
