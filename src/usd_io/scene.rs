@@ -287,8 +287,8 @@ impl Scene {
                 layer_paths.push(p.clone());
             }
         }
+        check_stroke_point_total(r, &layer_paths, &rig_paths)?;
         let mut rigs = Vec::new();
-        let mut stroke_points = 0usize;
         for rp in &rig_paths {
             let prim = r.require_prim(rp)?;
             match read_proxy(r, &prim) {
@@ -324,19 +324,35 @@ impl Scene {
                 Ok(layer)
             });
             match layer {
-                Ok(layer) => {
-                    stroke_points += layer.num_points();
-                    if stroke_points > MAX_STROKE_POINTS {
-                        // Checked as layers are read, so memory stays bounded.
-                        return Err(Error::prim(lp, stroke_points_limit(stroke_points as i64)));
-                    }
-                    owner.layers.push(layer)
-                }
+                Ok(layer) => owner.layers.push(layer),
                 Err(e) => problems.push(e.or_rule(Rule::Unreadable)),
             }
         }
         Ok((Scene { rigs }, problems))
     }
+}
+
+/// README, Limits: the stroke points of all layers under a rig, summed
+/// from their `curveVertexCounts` before any layer's points are read, so a
+/// run over the limit fails fast and with bounded memory. The error names
+/// the layer whose counts cross the limit. Counts that cannot be read or
+/// are negative are left to the layer's own checks.
+fn check_stroke_point_total(r: &StageReader, layer_paths: &[String], rig_paths: &[String]) -> Result<()> {
+    let mut total = 0i64;
+    for lp in layer_paths {
+        if !rig_paths.iter().any(|rp| is_descendant(lp, rp)) {
+            continue;
+        }
+        let Ok(prim) = r.require_prim(lp) else { continue };
+        let Ok(Some(counts)) = r.typed(&prim, "curveVertexCounts", None, "int[]", values::int_array) else {
+            continue;
+        };
+        total = counts.iter().fold(total, |t, &c| t.saturating_add(c.max(0)));
+        if total > MAX_STROKE_POINTS as i64 {
+            return Err(Error::attr(lp, "curveVertexCounts", stroke_points_limit(total)).rule(Rule::PointCounts));
+        }
+    }
+    Ok(())
 }
 
 fn stroke_points_limit(n: i64) -> String {
@@ -1534,6 +1550,36 @@ def SkelRoot "Char"
             e.message,
             "20000001 stroke points; painterly bakes at most 20000000 in one run (bake the character's stroke layers in several runs)"
         );
+    }
+
+    #[test]
+    fn the_stroke_point_limit_sums_every_layers_counts_before_reading_points() {
+        // Two layers of 10,000,001 and `second` points, neither over the
+        // limit alone, no points authored: only the counts are read.
+        let read = |second: u32| {
+            let text = rig(SQUARE, "int[] curveVertexCounts = [10000001]").replacen(
+                "def BasisCurves",
+                &format!(
+                    "def BasisCurves \"A\" (prepend apiSchemas = [\"PainterlyStrokeLayerAPI\"])
+        {{
+            int[] curveVertexCounts = [{second}]
+        }}
+        def BasisCurves"
+                ),
+                1,
+            );
+            Scene::read(&stage(&text)).err().unwrap()
+        };
+        // 20,000,002 > 20,000,000: named at the layer whose counts cross it.
+        let e = read(10_000_001);
+        assert_eq!(
+            named(&e),
+            ("/World/Rig/Strokes", "curveVertexCounts", Some(Rule::PointCounts))
+        );
+        assert!(e.message.starts_with("20000002 stroke points; "), "{e}");
+        // Exactly at the limit the counts pass; the missing points fail.
+        let e = read(9_999_999);
+        assert_eq!(named(&e).1, "points");
     }
 
     #[test]
