@@ -766,6 +766,11 @@ mod tests {
         for v in &all[1..] {
             assert!(v.dot(&Vector3::z()) < 1e-12);
         }
+        // Base mode's cover: every closing triangle is a cell, and the
+        // whole sphere is covered.
+        let cover = Cover::enclosing(&all, &tris);
+        assert!(cover.encloses);
+        assert_eq!(cover.cells.len(), 8);
     }
 
     #[test]
@@ -783,6 +788,9 @@ mod tests {
             // spanning one.
             vec![[1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]],
             vec![[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]],
+            // Keys on exactly half of a small circle: the pyramid over them
+            // would have the centre on its face through the circle's axis.
+            vec![[2.0, 0.0, 1.0], [0.0, 2.0, 1.0], [-2.0, 0.0, 1.0]],
             // Equator ring plus pole; front, sides and top.
             vec![
                 [1.0, 0.0, 0.0],
@@ -824,6 +832,142 @@ mod tests {
         assert_eq!(all.len(), 5);
         assert!((all[4] + Vector3::z()).norm() < 1e-12);
         assert!(encloses(&all, &tris));
+    }
+
+    #[test]
+    fn perpendicular_uses_least_aligned_axis() {
+        // Crossing with the axis of the smallest component keeps |a × axis|
+        // ≥ √(2/3); the result has no component along that axis.
+        for (i, j, k) in [(0, 1, 2), (0, 2, 1), (1, 0, 2), (1, 2, 0), (2, 0, 1), (2, 1, 0)] {
+            let mut d = [0.0; 3];
+            (d[i], d[j], d[k]) = (0.2, -0.5, 0.84);
+            let a = unit(d).unwrap();
+            let p = perpendicular(&a);
+            assert!((p.norm() - 1.0).abs() < 1e-15 && p.dot(&a).abs() < 1e-15, "{d:?}");
+            assert_eq!(p[i], 0.0, "{d:?}: {p:?}");
+        }
+    }
+
+    #[test]
+    fn cell_score_is_min_coefficient_over_l1_norm() {
+        // Keys along the axes: the cone coefficients of e are e itself.
+        let p = units(&[[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]);
+        let cell = Cell::new(&p, [0, 1, 2]).unwrap();
+        for (e, want) in [
+            ([1.0, 2.0, 3.0], 1.0 / 6.0),
+            ([1.0, 2.0, -3.0], -0.5),
+            ([0.0, 0.0, -1.0], -1.0),
+        ] {
+            assert!((cell.score(&Vector3::from(e)) - want).abs() < 1e-15, "{e:?}");
+        }
+    }
+
+    #[test]
+    fn nearly_coplanar_keys_are_flat() {
+        // Keys on the equator lifted by at most 1e-7, the last one 1e-3 rad
+        // from the first: within FLAT_TOLERANCE of the plane z = 0. A plane
+        // through that close pair would tilt by ~1e-4 and call the set solid.
+        let d: Vec<[f64; 3]> = [(0.0f64, 0.0), (1.7, 1e-7), (3.5, -1e-7), (5.0, 1e-7), (1e-3, 1e-7)]
+            .iter()
+            .map(|&(a, z)| [a.cos(), a.sin(), z])
+            .collect();
+        let s = shape(&units(&d)).unwrap();
+        let Shape::Flat { normal, offset } = &s else {
+            panic!("expected flat, got {s:?}")
+        };
+        assert!(normal.z.abs() > 1.0 - 1e-9 && *offset < 1e-6, "{s:?}");
+    }
+
+    #[test]
+    fn tiny_cap_hull_is_solid_and_outward() {
+        // Four keys within 0.01 rad of an oblique axis c: too thin for
+        // parry3d (0.17) on the raw keys, so the hull comes from the
+        // whitened ones, a map that here reverses orientation. A tetrahedron
+        // has four faces; each must face away from the keys' centroid.
+        let c = Vector3::new(1.0, 2.0, 2.0) / 3.0;
+        let e1 = c.cross(&Vector3::x()).normalize();
+        let e2 = c.cross(&e1);
+        let d: Vec<[f64; 3]> = [(0.3f64, 0.0f64), (0.825, 97.4), (0.65, 209.8), (0.475, 337.0)]
+            .iter()
+            .map(|&(r, a)| {
+                let (t, a) = (0.01 * r, a.to_radians());
+                let v = c * t.cos() + (e1 * a.cos() + e2 * a.sin()) * t.sin();
+                [v.x, v.y, v.z]
+            })
+            .collect();
+        let p = units(&d);
+        let s = shape(&p).unwrap();
+        let Shape::Solid { faces } = &s else {
+            panic!("expected a solid hull, got {s:?}")
+        };
+        assert_eq!(faces.len(), 4);
+        let centroid = p.iter().sum::<Vector3<f64>>() / 4.0;
+        for f in faces {
+            let a = p[f.keys[0]];
+            assert!(f.normal.dot(&(centroid - a)) < 0.0, "{f:?}");
+        }
+        // The cap's cone contains its axis.
+        assert!(Cover::new(&p, &s).cells.iter().any(|cell| cell.score(&c) >= 0.0));
+    }
+
+    #[test]
+    fn hull_from_rejects_a_non_convex_triangulation() {
+        // Cube corners with (1,1,1) moved along x: face x = 1 is then no
+        // longer planar, and which of its diagonals is a hull edge depends
+        // on the direction of the move. Triangulating an image moved the
+        // other way gives a closed, consistently oriented surface with every
+        // key a vertex and a reflex edge, which only the convexity check sees.
+        let corners = |x: f64| -> Vec<Vector3<f64>> {
+            let mut v = Vec::new();
+            for sx in [-1.0, 1.0] {
+                for sy in [-1.0, 1.0] {
+                    for sz in [-1.0, 1.0] {
+                        v.push(Vector3::new(sx, sy, sz));
+                    }
+                }
+            }
+            v[7].x = x;
+            v
+        };
+        let image = |v: &[Vector3<f64>]| v.iter().map(|p| Point3::from(*p)).collect::<Vec<_>>();
+        let p = corners(1.1);
+        // Its own hull: all eight vertices, so 2·8 − 4 triangles.
+        assert_eq!(hull_from(&p, &image(&p)).unwrap().len(), 12);
+        let r = hull_from(&p, &image(&corners(0.9)));
+        assert!(
+            matches!(&r, Err(ViewError::Hull(m)) if m.contains("not convex")),
+            "{r:?}"
+        );
+    }
+
+    #[test]
+    fn small_circle_closure_keeps_the_covered_cells() {
+        // Keys around a small circle: inside the polygon both uncovered
+        // modes are the plain hull blend, so Base mode's closure must
+        // triangulate the key polygon exactly as the covered region does.
+        let r = 0.75f64.sqrt();
+        let d: Vec<[f64; 3]> = [0.0f64, 80.0, 150.0, 230.0, 300.0]
+            .iter()
+            .map(|a| [r * a.to_radians().cos(), r * a.to_radians().sin(), 0.5])
+            .collect();
+        let p = units(&d);
+        fn sorted(tris: impl Iterator<Item = [usize; 3]>) -> Vec<[usize; 3]> {
+            let mut v: Vec<[usize; 3]> = tris
+                .map(|mut t| {
+                    t.sort_unstable();
+                    t
+                })
+                .collect();
+            v.sort_unstable();
+            v
+        }
+        let cells = sorted(Cover::new(&p, &shape(&p).unwrap()).cells.iter().map(|c| c.keys));
+        let (all, tris) = enclose(&p).unwrap();
+        let real = sorted(tris.into_iter().filter(|t| t.iter().all(|&k| k < p.len())));
+        // One virtual key (the apex at −z); a pentagon is three triangles.
+        assert_eq!(all.len(), p.len() + 1);
+        assert_eq!(cells.len(), 3);
+        assert_eq!(real, cells);
     }
 
     proptest::proptest! {
