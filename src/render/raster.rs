@@ -643,6 +643,45 @@ mod tests {
                 }
             }
         }
+        // Which triangle gets a shared edge's centres is the top-left rule
+        // (y down): a vertical edge goes to the triangle right of it (its
+        // left edge), a horizontal one to the triangle below it (its top
+        // edge), whatever the winding and first corner.
+        let owner = |left_or_top: [Vec2; 3], right_or_bottom: [Vec2; 3], on_edge: &dyn Fn(i32, i32) -> bool| {
+            let mut seen = [0usize; 2];
+            for clockwise in [false, true] {
+                for first in 0..3 {
+                    for (side, mut corners) in [left_or_top, right_or_bottom].into_iter().enumerate() {
+                        if clockwise {
+                            corners.swap(1, 2);
+                        }
+                        corners.rotate_left(first);
+                        tri(corners, [1.0; 3]).raster(&clip, false, |s| {
+                            if on_edge(s.x, s.y) {
+                                seen[side] += 1;
+                            }
+                        });
+                    }
+                }
+            }
+            seen
+        };
+        let (top, bottom) = (Vec2::new(8.5, 0.0), Vec2::new(8.5, 12.0));
+        let seen = owner(
+            [Vec2::new(0.0, 0.0), top, bottom],
+            [top, Vec2::new(16.0, 0.0), bottom],
+            &|x, _| x == 8,
+        );
+        assert_eq!(seen, [0, 6 * 12], "centres on x = 8.5 (left, right)");
+        let (left, right) = (Vec2::new(0.0, 6.5), Vec2::new(16.0, 6.5));
+        let seen = owner(
+            [Vec2::new(0.0, 0.0), right, left],
+            [left, right, Vec2::new(0.0, 13.0)],
+            &|_, y| y == 6,
+        );
+        // Below y = 6.5 the triangle holds the centres x + 0.5 ≤ 16·(1 − 0/6.5):
+        // the whole row.
+        assert_eq!(seen, [0, 6 * 16], "centres on y = 6.5 (above, below)");
         // Degenerate and non-finite triangles draw nothing.
         let mut n = 0;
         tri([Vec2::ZERO, Vec2::splat(5.0), Vec2::splat(10.0)], [1.0; 3]).raster(&clip, true, |_| n += 1);
