@@ -174,8 +174,16 @@ pub fn conform_match_horizontally(w: Window, aspect: f64) -> Window {
 /// with handedness made right-handed by mirroring x, as GfFrustum does.
 fn orthonormalize(m: DMat3) -> DMat3 {
     let mut r = m;
-    if r.determinant() < 0.0 {
+    let det = r.determinant();
+    if det < 0.0 {
         r.x_axis = -r.x_axis;
+    }
+    // The polar factor of s·M is that of M (s > 0): dividing by ∛|det|
+    // starts Newton at unit scale, which it otherwise leaves only by
+    // halving (a camera scaled by 1e9 would need 30 steps for that alone).
+    let scale = det.abs().cbrt();
+    if scale.is_normal() {
+        r /= scale;
     }
     for _ in 0..30 {
         let next = (r + r.inverse().transpose()) * 0.5;
@@ -404,5 +412,97 @@ mod tests {
         );
         assert_eq!(bad(CameraParams { near: 0.0, ..d }), "clippingRange");
         assert!(d.validate().is_ok());
+    }
+
+    #[test]
+    fn orthonormalize_ignores_a_uniform_scale_of_any_size() {
+        // The rotation of s·R is R for every s > 0; mirrored, R with x flipped.
+        let rot = DMat3::from_axis_angle(DVec3::new(1.0, 2.0, 3.0).normalize(), 0.7);
+        for s in [1e-12, 1e-9, 1.0, 1e9, 1e12] {
+            let got = orthonormalize(rot * s);
+            assert!(got.abs_diff_eq(rot, 1e-12), "scale {s}: {got}");
+            let mirror = DMat3::from_diagonal(DVec3::new(-1.0, 1.0, 1.0));
+            let got = orthonormalize(rot * mirror * s);
+            assert!(got.abs_diff_eq(rot, 1e-12), "mirrored, scale {s}: {got}");
+        }
+    }
+
+    #[test]
+    fn validation_refuses_non_finite_clipping_and_singular_transforms() {
+        let attr = |c: CameraParams| c.validate().map_err(|e| e.attribute);
+        let d = CameraParams::default();
+        assert_eq!(attr(CameraParams { near: f64::NAN, ..d }), Err("clippingRange"));
+        assert_eq!(attr(CameraParams { far: f64::NAN, ..d }), Err("clippingRange"));
+        // Flattened (determinant 0) and not finite.
+        for m in [
+            DMat4::from_scale(DVec3::new(1.0, 1.0, 0.0)),
+            DMat4::from_translation(DVec3::splat(f64::NAN)),
+        ] {
+            let mut c = d;
+            c.camera_to_world = m;
+            assert_eq!(attr(c), Err("xformOp"), "{m}");
+        }
+    }
+
+    #[test]
+    fn project_keeps_both_ends_of_the_clipping_range() {
+        // The range is closed, as prepare.rs's clipping is.
+        let cam = CameraParams {
+            near: 0.5,
+            far: 20.0,
+            ..Default::default()
+        };
+        let p = Projector::new(&cam, 100, 100);
+        for d in [0.5, 20.0] {
+            assert_eq!(p.project(DVec3::new(0.0, 0.0, -d)).map(|(_, depth)| depth), Some(d));
+        }
+        assert!(p.project(DVec3::new(0.0, 0.0, -20.25)).is_none());
+    }
+
+    #[test]
+    fn scaled_and_mirrored_camera_projects_as_gf_frustum() {
+        // Reference from usd-core: Gf.Camera(m, Perspective, 36, 24, 2, -1.5, 35, (0.5, 200)).frustum
+        // with m = scale (±2, 3, 0.5) · rotate(axis (1, 2, 3), 0.7 rad) · translate (1.5, -2, 8) in
+        // Gf's row-vector order, window conformed to 320×200 as test_render.py's predict() does.
+        // usd-core gives one frustum for both signs: it orthonormalises, then mirrors x back. Scales
+        // off 1 make the first Newton step change every entry, so a premature stop would show.
+        let rot = DMat4::from_axis_angle(DVec3::new(1.0, 2.0, 3.0).normalize(), 0.7);
+        let eye = DVec3::new(1.5, -2.0, 8.0);
+        for sx in [2.0, -2.0] {
+            let cam = CameraParams {
+                focal_length: 35.0,
+                horizontal_aperture: 36.0,
+                vertical_aperture: 24.0,
+                horizontal_aperture_offset: 2.0,
+                vertical_aperture_offset: -1.5,
+                near: 0.5,
+                far: 200.0,
+                camera_to_world: DMat4::from_translation(eye) * rot * DMat4::from_scale(DVec3::new(sx, 3.0, 0.5)),
+                ..Default::default()
+            };
+            let p = Projector::new(&cam, 320, 200);
+            for (world, pixel, depth) in [
+                (
+                    DVec3::ZERO,
+                    DVec2::new(230.17427180434285, 78.76433270658143),
+                    8.06301523119499,
+                ),
+                (
+                    DVec3::new(1.0, -1.0, 2.0),
+                    DVec2::new(246.00295363098212, 117.11711403400646),
+                    5.76485279982868,
+                ),
+            ] {
+                let (px, d) = p.project(world).unwrap();
+                assert!(
+                    (px - pixel).length() < 1e-9 && close(d, depth, 1e-12),
+                    "x scale {sx}: {px:?} {d}"
+                );
+            }
+            // Gf.Frustum's position and ComputeViewDirection().
+            assert!((p.eye() - eye).length() < 1e-12);
+            let forward = DVec3::new(-0.39473979817379956, 0.07139249941787584, -0.9160150668873174);
+            assert!((p.forward() - forward).length() < 1e-12, "{:?}", p.forward());
+        }
     }
 }
