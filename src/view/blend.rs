@@ -870,6 +870,43 @@ mod tests {
         assert!((out[0] - want).length() < 1e-6);
     }
 
+    #[test]
+    fn accessors_report_what_new_was_given() {
+        // Base mode adds −z to the cap; key_count counts the real keys only.
+        let vb = ViewBlender::new(&cap(), 2.5, Uncovered::Base).unwrap();
+        assert_eq!(vb.virtual_directions().len(), 1);
+        assert_eq!((vb.key_count(), vb.sharpness(), vb.mode()), (5, 2.5, Uncovered::Base));
+        let vb = ViewBlender::new(&octahedron(), 0.5, Uncovered::Cosine).unwrap();
+        assert_eq!((vb.key_count(), vb.sharpness(), vb.mode()), (6, 0.5, Uncovered::Cosine));
+    }
+
+    #[test]
+    fn base_scale_is_base_plus_key_weights() {
+        // Hand-built weights that do not sum to one show the formula.
+        let mut w = ViewWeights::base_only();
+        w.base = 0.5;
+        w.push(0, 0.125);
+        w.push(2, 0.25);
+        assert_eq!(w.base_scale(), 0.875);
+    }
+
+    #[test]
+    fn covered_border_is_the_plain_hull_blend() {
+        // Cosine mode, eyes on the arcs bounding the cap's cells (its rim
+        // and the arcs to +z): covered, so exactly the chord point's
+        // barycentric split with no base, not the falloff formula.
+        let dirs = cap();
+        let vb = ViewBlender::new(&dirs, 1.0, Uncovered::Cosine).unwrap();
+        for (i, j) in [(0, 1), (1, 2), (2, 3), (3, 0), (0, 4), (1, 4), (2, 4), (3, 4)] {
+            for t in [0.5, 0.25, 0.1] {
+                let (a, b) = (dirs[i], dirs[j]);
+                let w = vb.weights([0, 1, 2].map(|c| (1.0 - t) * a[c] + t * b[c]));
+                assert_eq!(w.base(), 0.0, "{i} {j} {t} {w:?}");
+                assert!((w.weight_of(i) - (1.0 - t)).abs() < EPS && (w.weight_of(j) - t).abs() < EPS);
+            }
+        }
+    }
+
     /// Random sets of unit directions, pairwise at least ~3° apart.
     fn direction_sets() -> impl Strategy<Value = Vec<[f64; 3]>> {
         prop::collection::vec(
