@@ -272,13 +272,20 @@ impl ViewBlender {
     /// Nearest covered direction `p` over all arcs and keys, `d = cos∠(e,p)`,
     /// then `max(0,d)·blend(p)` and base `1 − max(0,d)`.
     fn cosine_falloff(&self, e: &Vector3<f64>) -> ViewWeights {
+        // Candidates are ranked by their angle to e, atan2(|e×p|, e·p), not
+        // by the cosine: within about 1.5e-8 rad of a key every cosine
+        // rounds to 1, and an arc through the key would lose to it there,
+        // snapping the blend to the key (a jump of (1.5e-8)^α for α < 1).
+        let angle = |p: &Vector3<f64>| e.cross(p).norm().atan2(e.dot(p));
         // Best candidate: (d, keys, coefficients).
         let mut best_d = f64::NEG_INFINITY;
+        let mut best_angle = f64::INFINITY;
         let mut best: ([usize; 2], [f64; 2], usize) = ([0, 0], [0.0, 0.0], 0);
         for (i, k) in self.keys.iter().enumerate() {
-            let d = k.dot(e);
-            if d > best_d {
-                best_d = d;
+            let a = angle(k);
+            if a < best_angle {
+                best_angle = a;
+                best_d = k.dot(e);
                 best = ([i, i], [1.0, 0.0], 1);
             }
         }
@@ -293,10 +300,11 @@ impl ViewBlender {
             let ma = (ea - g * eb) / det;
             let mb = (eb - g * ea) / det;
             if ma > 0.0 && mb > 0.0 {
-                // |q|² = q·e for an orthogonal projection q.
-                let d = (ma * ea + mb * eb).max(0.0).sqrt().min(1.0);
-                if d > best_d {
-                    best_d = d;
+                let to_arc = angle(&(a * ma + b * mb));
+                if to_arc < best_angle {
+                    best_angle = to_arc;
+                    // |q|² = q·e for an orthogonal projection q.
+                    best_d = (ma * ea + mb * eb).max(0.0).sqrt().min(1.0);
                     best = ([i, j], [ma, mb], 2);
                 }
             }
@@ -560,6 +568,25 @@ mod tests {
                     }
                 }
             }
+        }
+    }
+
+    #[test]
+    fn cosine_mode_follows_an_arc_right_up_to_its_key() {
+        // Keys +x and +y, eye (1, t, 0) on the arc between them: the nearest
+        // covered direction is the eye itself (d = 1), with cone coefficients
+        // in the ratio 1 : t, so w_y = t^α / (1 + t^α). For α = 1/4 that is
+        // about 0.0099 at t = 1e-8, where cosines can no longer tell the eye
+        // from +x; only the snap (1e-12) may take the key.
+        let vb = ViewBlender::new(&[[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], 0.25, Uncovered::Cosine).unwrap();
+        for t in [1e-11f64, 1e-9, 1e-8, 2e-8, 1e-3] {
+            let w = vb.weights([1.0, t, 0.0]);
+            let want = t.powf(0.25) / (1.0 + t.powf(0.25));
+            assert!((w.weight_of(1) - want).abs() < 1e-12, "t = {t}: {w:?}");
+            assert!(
+                (w.weight_of(0) - (1.0 - want)).abs() < 1e-12 && w.base().abs() < 1e-12,
+                "t = {t}: {w:?}"
+            );
         }
     }
 
