@@ -468,11 +468,10 @@ fn polar(m: DMat3) -> (DMat3, DMat3) {
         return (DMat3::IDENTITY, m);
     };
     let mut r = u * vt;
+    // A mirroring M: the rotation is −U·Vᵀ and S takes all three scales
+    // negative, as GfMatrix4d::Factor (and so UsdSkel's DQS) splits it.
     if r.determinant() < 0.0 {
-        let mut u2 = u;
-        let mut col = u2.column_mut(2);
-        col *= -1.0;
-        r = u2 * vt;
+        r = -r;
     }
     let rg = DMat3::from_cols_slice(r.as_slice());
     (rg, rg.transpose() * m)
@@ -704,5 +703,225 @@ mod tests {
         let local = [DMat4::from_translation(DVec3::X), DMat4::from_translation(DVec3::Y)];
         let skel = local_to_skel(&local, &[None, Some(0)]);
         assert_eq!(skel[1].transform_point3(DVec3::ZERO), DVec3::new(1.0, 1.0, 0.0));
+    }
+
+    /// Where `s` at weight `w` moves a point at the origin.
+    fn shape_at(s: &BlendShape, w: f64) -> DVec3 {
+        let mut p = vec![DVec3::ZERO];
+        s.apply(w, &mut p);
+        p[0]
+    }
+
+    #[test]
+    fn shape_weights_below_1e6_are_skipped_and_1e6_applies() {
+        // UsdSkelApplyBlendShape skips a weight when GfIsClose(w, 0, 1e-6),
+        // i.e. |w| < 1e-6 (strict).
+        let s = BlendShape {
+            offsets: vec![DVec3::X * 1e6],
+            ..Default::default()
+        };
+        assert_eq!(shape_at(&s, 5e-7), DVec3::ZERO);
+        assert_eq!(shape_at(&s, -5e-7), DVec3::ZERO);
+        assert!((shape_at(&s, 1e-6) - DVec3::X).length() < 1e-9);
+    }
+
+    #[test]
+    fn the_top_segment_extrapolates_among_three_inbetweens() {
+        // Breakpoints 0, 0.25, 0.5, 0.75, 1 (inbetweens listed out of order):
+        // above 1 the (0.75, 1) segment extrapolates, alpha = 3, so
+        // 3·X − 2·(0.5·X) = 2·X.
+        let s = BlendShape {
+            offsets: vec![DVec3::X],
+            inbetweens: vec![
+                ib(0.75, vec![DVec3::X * 0.5]),
+                ib(0.25, vec![DVec3::Y]),
+                ib(0.5, vec![DVec3::Z]),
+            ],
+            ..Default::default()
+        };
+        assert!((shape_at(&s, 1.5) - DVec3::X * 2.0).length() < 1e-12);
+        assert!((shape_at(&s, 0.375) - (DVec3::Y + DVec3::Z) * 0.5).length() < 1e-12);
+    }
+
+    #[test]
+    fn a_weight_shared_by_two_inbetweens_applies_the_later_one() {
+        // As UsdSkel.BlendShapeQuery does (checked with usd-core): at the shared
+        // weight the later inbetween, below it the earlier one, above it the later.
+        let s = BlendShape {
+            offsets: vec![DVec3::X],
+            inbetweens: vec![ib(0.5, vec![DVec3::Y]), ib(0.5, vec![DVec3::Z])],
+            ..Default::default()
+        };
+        assert_eq!(shape_at(&s, 0.5), DVec3::Z);
+        assert!((shape_at(&s, 0.25) - DVec3::Y * 0.5).length() < 1e-12);
+        assert!((shape_at(&s, 0.75) - (DVec3::X + DVec3::Z) * 0.5).length() < 1e-12);
+    }
+
+    #[test]
+    fn normal_offsets_on_an_inbetween_alone_deform_normals() {
+        let only_points = BlendShape {
+            offsets: vec![DVec3::X],
+            inbetweens: vec![ib(0.5, vec![DVec3::Y])],
+            ..Default::default()
+        };
+        assert!(!only_points.has_normal_offsets());
+        let s = BlendShape {
+            inbetweens: vec![Inbetween {
+                weight: 0.5,
+                offsets: vec![],
+                normal_offsets: vec![DVec3::Y],
+            }],
+            ..Default::default()
+        };
+        assert!(s.has_normal_offsets());
+        let mut d = deformer(SkinningMethod::ClassicLinear);
+        d.influences = None;
+        d.blend_shapes = vec![s];
+        let out = d.deform_normals(&[DVec3::X], None, None, &[0.5]);
+        let want = DVec3::new(1.0, 1.0, 0.0).normalize();
+        assert!((out[0] - want).length() < 1e-12, "{}", out[0]);
+    }
+
+    #[test]
+    fn normals_of_a_joint_scaled_to_zero_keep_their_direction() {
+        // No inverse transpose exists: Gf's inverse is then FLT_MAX·I, which
+        // leaves a lone influence's normal where it was, as our identity does.
+        let mut d = deformer(SkinningMethod::ClassicLinear);
+        d.influences.as_mut().unwrap().weights = vec![1.0, 0.0, 1.0, 0.0];
+        let flat = DMat4::from_scale(DVec3::new(1.0, 0.0, 1.0));
+        let n = DVec3::new(1.0, 1.0, 0.0).normalize();
+        let out = d.deform_normals(&[n], None, Some(&[flat, DMat4::IDENTITY]), &[]);
+        assert!((out[0] - n).length() < 1e-12, "{}", out[0]);
+    }
+
+    #[test]
+    fn a_degenerate_normal_matrix_gets_an_identity_stretch() {
+        // Its orthonormalisation is singular: the stretch must not turn NaN.
+        let dq = DqJoints::normal_rotations(&[DMat3::ZERO]);
+        assert_eq!(dq.stretch[0], DMat3::IDENTITY);
+    }
+
+    /// One point skinned by dual quaternions with the given influences.
+    fn dqs_point(xf: &[DMat4], joints: &[u32], weights: &[f64], p: DVec3) -> DVec3 {
+        let d = SkelDeformer {
+            rest_points: vec![p],
+            influences: Some(Influences {
+                per_point: joints.len(),
+                joints: joints.to_vec(),
+                weights: weights.to_vec(),
+                rigid: false,
+            }),
+            ..deformer(SkinningMethod::DualQuaternion)
+        };
+        d.deform(Some(xf), &[])[0]
+    }
+
+    fn rot_z(deg: f64) -> DQuat {
+        DQuat::from_rotation_z(deg.to_radians())
+    }
+
+    #[test]
+    fn dqs_pivot_ties_go_to_the_first_joint() {
+        // +120° and -120° share the largest weight; usd-core takes the first as
+        // pivot (checked with UsdSkel.SkinPoints), so -120° is the one flipped.
+        let xf = [0.0, 120.0, -120.0].map(|deg: f64| DMat4::from_rotation_z(deg.to_radians()));
+        let p = dqs_point(&xf, &[1, 2, 0], &[0.4, 0.4, 0.2], DVec3::X);
+        let blend = (rot_z(120.0) * 0.4 - rot_z(-120.0) * 0.4 + rot_z(0.0) * 0.2).normalize();
+        assert!((p - blend * DVec3::X).length() < 1e-12, "{p}");
+    }
+
+    #[test]
+    fn dqs_does_not_flip_a_joint_orthogonal_to_the_pivot() {
+        // A half turn about z is at exactly 90° (dot 0) from the identity pivot
+        // in quaternion space; usd-core flips only below 0: (0, 0, 0.3, 0.7).
+        let half_turn = DMat4::from_scale(DVec3::new(-1.0, -1.0, 1.0));
+        let p = dqs_point(&[DMat4::IDENTITY, half_turn], &[0, 1], &[0.7, 0.3], DVec3::X);
+        let angle = 2.0 * 0.3f64.atan2(0.7);
+        assert!((p - DVec3::new(angle.cos(), angle.sin(), 0.0)).length() < 1e-12, "{p}");
+    }
+
+    #[test]
+    fn dqs_points_without_weight_stay_unless_a_joint_stretches() {
+        let t = DVec3::new(1.0, 2.0, 3.0);
+        let moved = DMat4::from_translation(t);
+        let p = DVec3::new(0.3, 1.0, 0.4);
+        // The zero dual quaternion normalises to the identity (GfDualQuat)...
+        assert_eq!(dqs_point(&[moved], &[0], &[0.0], p), p);
+        // ...applied to the stretch blend, which with no weight is the origin
+        // (UsdSkel.SkinPoints gives the same).
+        let stretched = DMat4::from_scale(DVec3::new(2.0, 1.0, 1.0));
+        assert_eq!(dqs_point(&[stretched, moved], &[0, 1], &[0.0, 0.0], p), DVec3::ZERO);
+        // Only a length below 1e-10 counts as zero (Normalize's strict <).
+        assert!((dqs_point(&[moved], &[0], &[1e-10], p) - (p + t)).length() < 1e-12);
+    }
+
+    #[test]
+    fn dqs_blends_the_rotations_and_keeps_a_shared_translation() {
+        // Both joints rotate then move by t: the dual parts are t/2 times the
+        // real ones, so after normalising the translation is t exactly.
+        let t = DVec3::new(1.0, -2.0, 0.5);
+        let xf = [0.0, 90.0].map(|deg: f64| DMat4::from_translation(t) * DMat4::from_rotation_z(deg.to_radians()));
+        let p = DVec3::new(0.3, 1.0, 0.4);
+        let rot = (rot_z(0.0) * 0.75 + rot_z(90.0) * 0.25).normalize();
+        let got = dqs_point(&xf, &[0, 1], &[0.75, 0.25], p);
+        assert!((got - (rot * p + t)).length() < 1e-12, "{got}");
+    }
+
+    #[test]
+    fn dqs_of_a_lone_mirrored_joint_is_its_transform() {
+        // Negative determinant: the rotation must stay proper and the mirror go
+        // into the stretch, or one joint would not reproduce its own transform.
+        let m = DMat4::from_translation(DVec3::new(0.5, 0.2, -0.3))
+            * DMat4::from_rotation_z(0.6)
+            * DMat4::from_scale(DVec3::new(-1.5, 1.0, 0.8));
+        let p = DVec3::new(0.3, 1.0, 0.4);
+        let got = dqs_point(&[m], &[0], &[1.0], p);
+        assert!((got - m.transform_point3(p)).length() < 1e-12, "{got}");
+    }
+
+    #[test]
+    fn dqs_of_a_mirrored_joint_blended_with_another_matches_usd_core() {
+        // usd-core 26.11: UsdSkel.SkinPoints(dualQuaternion, identity,
+        // [S(-1, 1, 1)·T(0.5, 0.2, 0), rotate z 0.6 rad] (row vectors),
+        // indices [0, 1], weights [0.6, 0.4], 2 per point, (0.3, 1, 0.4))
+        // = (0.30230263, 0.28625697, -0.1819558), in float.
+        let mirrored =
+            DMat4::from_translation(DVec3::new(0.5, 0.2, 0.0)) * DMat4::from_scale(DVec3::new(-1.0, 1.0, 1.0));
+        let turned = DMat4::from_rotation_z(0.6);
+        let got = dqs_point(&[mirrored, turned], &[0, 1], &[0.6, 0.4], DVec3::new(0.3, 1.0, 0.4));
+        let want = DVec3::new(0.30230263, 0.28625697, -0.1819558);
+        assert!((got - want).abs().max_element() < 1e-6, "{got}");
+    }
+
+    #[test]
+    fn orthonormalized_stops_where_gf_stops() {
+        // Expected: usd-core's Gf.Matrix4d.GetOrthonormalized of these rows. It
+        // stops after the first round moving less than 1e-12 (squared), about
+        // 2e-9 short of where all 20 rounds would get.
+        let m = DMat3::from_cols(DVec3::X, DVec3::new(0.8, 0.6, 0.0), DVec3::new(0.6, 0.2, 0.7));
+        let gf = DMat3::from_cols(
+            DVec3::new(0.885225033639539, -0.4505438270964198, -0.11570177044102796),
+            DVec3::new(0.4232627573625968, 0.8833409595818685, -0.20138864753206762),
+            DVec3::new(0.1929385248704092, 0.1293020248241101, 0.9726539528512778),
+        );
+        let o = orthonormalized(m);
+        assert!((o - gf).to_cols_array().iter().all(|d| d.abs() < 1e-12), "{o}");
+    }
+
+    #[test]
+    fn orthonormalized_leaves_nearly_colinear_vectors_normalised() {
+        // Two vectors within 1e-6 once normalised: Gf gives up and returns
+        // them normalised (iterating would spread them 90° apart).
+        let m = DMat3::from_cols(DVec3::X * 2.0, DVec3::new(1.0, 9e-7, 0.0), DVec3::Z);
+        let want = DMat3::from_cols(DVec3::X, DVec3::new(1.0, 9e-7, 0.0).normalize(), DVec3::Z);
+        let o = orthonormalized(m);
+        assert!((o - want).to_cols_array().iter().all(|d| d.abs() < 1e-15), "{o}");
+    }
+
+    #[test]
+    fn a_parent_not_before_its_joint_is_not_composed() {
+        // Refused when read; here such a joint is a root, not an index ahead.
+        let local = [DMat4::from_translation(DVec3::X), DMat4::from_translation(DVec3::Y)];
+        assert_eq!(local_to_skel(&local, &[Some(1), Some(1)]), local.to_vec());
     }
 }
