@@ -610,4 +610,39 @@ mod tests {
             .transform_point3(turn.transform_point3(p));
         assert!((back - p).length() < 1e-12);
     }
+
+    #[test]
+    fn an_unnamed_key_takes_the_first_free_name_after_an_existing_one() {
+        // Only the key this test names exists when the unnamed one is set: a
+        // broken free-name search then returns it at once instead of scanning
+        // forever (the fixture's Hair layer has no children of its own).
+        use crate::usd_io::edit::EditTarget;
+        let input = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/blowfish.usda");
+        let dir = std::env::temp_dir().join(format!("painterly_author_names_{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let target = EditTarget::Layer(dir.join("e.usda"));
+        let time_key = |time, name: Option<&str>| KeyOptions {
+            layer: "/Blowfish/Paint/Hair".into(),
+            time,
+            kind: KeyKind::Time,
+            name: name.map(String::from),
+            points: true,
+            opacity: None,
+            replace: false,
+            camera: None,
+        };
+        let session = EditSession::open(&input, &target).unwrap();
+        assert_eq!(
+            key(&session, &time_key(2.0, Some("time1"))).unwrap(),
+            "/Blowfish/Paint/Hair/time1"
+        );
+        session.save().unwrap();
+        // The CLI's help: "default: key1, time1, sentinel1, ...", the first free one.
+        let session = EditSession::open(&input, &target).unwrap();
+        assert_eq!(
+            key(&session, &time_key(3.0, None)).unwrap(),
+            "/Blowfish/Paint/Hair/time2"
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 }
