@@ -69,11 +69,6 @@ impl NaturalCubicSpline {
         })
     }
 
-    /// The key times.
-    pub fn times(&self) -> &[f64] {
-        &self.times
-    }
-
     /// Writes the weights `c_k(t)` over the key times into `out` (length =
     /// number of key times). They sum to one. Before the first / after the
     /// last key time they select that key alone; NaN is treated as before
