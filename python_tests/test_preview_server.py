@@ -312,3 +312,127 @@ def test_bake_layer_frames_are_served_as_baked(tmp_path):
         timeout=120,
     )
     assert r.returncode == 1 and "not from the input" in r.stderr
+
+
+def gf_flat(m):
+    """A GfMatrix4d as the frame format's 16 floats: Gf's rows (row vectors) are glam's columns."""
+    return np.array(m, dtype=np.float64).ravel()
+
+
+def test_frame_xforms_are_usd_local_to_world(fish):
+    t = 12
+    scene = fish.scene()
+    stage = Usd.Stage.Open(str(FISH))
+    header, arrays = fish.frame(time=t, proxy=True)
+    paths = [(f"layer/{i}", l["path"]) for i, l in enumerate(scene["layers"])]
+    paths += [(f"proxy/{i}", p["path"]) for i, p in enumerate(scene["proxies"])]
+    assert any(k.startswith("proxy/") and f"{k}/xform" in arrays for k, _ in paths)
+    for key, path in paths:
+        if f"{key}/xform" not in arrays:
+            continue
+        want = gf_flat(UsdGeom.Xformable(stage.GetPrimAtPath(path)).ComputeLocalToWorldTransform(t))
+        np.testing.assert_allclose(arrays[f"{key}/xform"], want, atol=1e-5, err_msg=path)
+
+
+def test_layer_time_keys_and_axis_kinds_come_from_the_stage(fish):
+    scene = fish.scene()
+    stage = Usd.Stage.Open(str(FISH))
+    for info in scene["layers"]:
+        # Sentinels (hold markers, no pose) are counted apart.
+        keys = [c for c in stage.GetPrimAtPath(info["path"]).GetChildren() if c.GetTypeName() == "PainterlyTimeKey"]
+        assert info["time_keys"] == sum(not k.GetAttribute("sentinel").Get() for k in keys), info["path"]
+    assert {l["path"].rsplit("/", 1)[1]: l["time_keys"] for l in scene["layers"]}["Spikes"] == 2
+    for a in scene["axes"]:
+        assert a["kind"] == stage.GetPrimAtPath(a["path"]).GetAttribute("kind").Get(), a["path"]
+
+
+def fish_axis_values(stage, path, t):
+    """An attribute or blend-shape axis's value at `t`, read with usd-core."""
+    axis = stage.GetPrimAtPath(path)
+    kind = axis.GetAttribute("kind").Get()
+    if kind == "attribute":
+        return stage.GetAttributeAtPath("/Blowfish.blink").Get(t)
+    if kind == "blendShape":
+        anim = stage.GetPrimAtPath("/Blowfish/Rig/Skel/Anim")
+        names = list(anim.GetAttribute("blendShapes").Get())
+        return anim.GetAttribute("blendShapeWeights").Get(t)[names.index(axis.GetAttribute("name").Get())]
+    raise AssertionError(f"{path}: kind {kind}")
+
+
+def test_axis_ranges_pad_the_key_marks_and_the_timeline_by_a_tenth(fish):
+    # Slider range: the hull of the axis's key coordinates and its values
+    # over the frames (48 frames: every integer frame), padded by 10 %.
+    # The eye axes' values are the rig's own measure; blink and inflate are
+    # read straight from their sources.
+    scene = fish.scene()
+    stage = Usd.Stage.Open(str(FISH))
+    for a in scene["axes"]:
+        if a["kind"] not in ("attribute", "blendShape"):
+            continue
+        values = [fish_axis_values(stage, a["path"], t) for t in range(1, 49)]
+        for layer in stage.GetPrimAtPath("/Blowfish/Paint").GetChildren():
+            axes = [str(p) for p in layer.GetRelationship("painterly:axes").GetTargets()] if layer.HasRelationship("painterly:axes") else []
+            if a["path"] not in axes:
+                continue
+            j = axes.index(a["path"])
+            for key in layer.GetChildren():
+                if key.GetTypeName() == "PainterlyPoseKey":
+                    values.append(key.GetAttribute("coordinates").Get()[j])
+        lo, hi = min(values), max(values)
+        pad = 0.1 * (hi - lo) if hi - lo > 1e-9 else 1.0
+        assert a["min"] == pytest.approx(lo - pad, abs=1e-6), a["path"]
+        assert a["max"] == pytest.approx(hi + pad, abs=1e-6), a["path"]
+
+
+def test_scene_bounds_are_the_start_frames_world_box(fish, tmp_path):
+    # Every layer's points as baked, and the posed proxy, in world space.
+    scene = fish.scene()
+    t = scene["start"]
+    bake = bake_frame(tmp_path, FISH, int(t))
+    stage = Usd.Stage.Open(str(FISH))
+    _, arrays = fish.frame(time=t, proxy=True)
+    pts = []
+    for info in scene["layers"]:
+        p = np.array(bake.GetPrimAtPath(info["path"]).GetAttribute("points").Get(t), dtype=np.float64)
+        pts.append((p, info["path"]))
+    for i, p in enumerate(scene["proxies"]):
+        if f"proxy/{i}/points" in arrays:
+            pts.append((arrays[f"proxy/{i}/points"].reshape(-1, 3).astype(np.float64), p["path"]))
+    world = []
+    for p, path in pts:
+        m = np.array(UsdGeom.Xformable(stage.GetPrimAtPath(path)).ComputeLocalToWorldTransform(t))
+        world.append(p @ m[:3, :3] + m[3, :3])
+    world = np.concatenate(world)
+    np.testing.assert_allclose(scene["bounds"], [world.min(axis=0), world.max(axis=0)], atol=1e-4)
+
+
+def test_render_shows_the_evaluated_pose_not_the_authored_curves(fish):
+    # Inflating changes the spikes and cheeks: two renders must differ.
+    from PIL import Image
+    import io
+
+    v = fish.scene()["view"]
+    cam = {"position": v["position"], "target": v["target"], "up": v["up"], "fov_y": v["fov_y"], "near": 0.1, "far": 10000}
+    imgs = []
+    for w in [0.0, 1.0]:
+        frame = {"time": 1, "overrides": {"/Blowfish/Paint/inflate": w}}
+        status, _, body = fish.request("api/render", body={"frame": frame, "camera": cam, "width": 96, "height": 64})
+        assert status == 200, body
+        imgs.append(np.array(Image.open(io.BytesIO(body)).convert("RGBA"), dtype=np.int16))
+    assert np.abs(imgs[0] - imgs[1]).max() > 0
+
+
+def test_the_orbit_starts_at_the_view_meshes_camera():
+    stage = Usd.Stage.Open(str(HEAD))
+    t = stage.GetStartTimeCode()
+    prim = stage.GetPrimAtPath("/Head/Camera")
+    m = UsdGeom.Xformable(prim).ComputeLocalToWorldTransform(t)
+    cam = UsdGeom.Camera(prim).GetCamera(t)
+    fov = 2 * np.degrees(np.arctan(0.5 * cam.verticalAperture / cam.focalLength))
+    up = np.array(m.TransformDir(Gf.Vec3d(0, 1, 0)).GetNormalized())
+    with PreviewServer(HEAD) as s:
+        v = s.scene()["view"]
+    assert v["camera"] == "/Head/Camera"
+    np.testing.assert_allclose(v["position"], np.array(m.ExtractTranslation()), atol=1e-6)
+    np.testing.assert_allclose(v["up"], up, atol=1e-6)
+    assert v["fov_y"] == pytest.approx(fov, abs=1e-4)

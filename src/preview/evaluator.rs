@@ -716,4 +716,97 @@ mod tests {
         let half = (0.5 * c.vertical_aperture / c.focal_length).atan().to_degrees();
         assert!((2.0 * half - 45.0).abs() < 1e-9);
     }
+
+    #[test]
+    fn primvars_of_the_wrong_length_fall_back_and_vertex_ones_pass_through() {
+        let counts = [2, 3];
+        // A uniform primvar with one value too many is not per curve.
+        assert_eq!(per_point(&Primvar::Uniform(vec![1.0; 3]), &counts, 9.0), [9.0; 5]);
+        let v = vec![1.0, 2.0, 3.0, 4.0, 5.0];
+        assert_eq!(per_point(&Primvar::Vertex(v.clone()), &counts, 9.0), v);
+    }
+
+    #[test]
+    fn timings_are_milliseconds_since_the_start() {
+        let t0 = Instant::now();
+        std::thread::sleep(std::time::Duration::from_millis(20));
+        let t = ms(t0);
+        assert!((20.0..1000.0).contains(&t), "{t}");
+    }
+
+    #[test]
+    fn xforms_are_sent_column_major() {
+        let m = DMat4::from_translation(DVec3::new(1.0, 2.0, 3.0));
+        let got: Vec<f32> = mat(&m).collect();
+        assert_eq!(got, [1., 0., 0., 0., 0., 1., 0., 0., 0., 0., 1., 0., 1., 2., 3., 1.]);
+    }
+
+    fn close(a: [f64; 3], b: DVec3) -> bool {
+        (DVec3::from_array(a) - b).length() < 1e-12
+    }
+
+    const BOUNDS: [DVec3; 2] = [DVec3::new(-1.0, -2.0, -3.0), DVec3::new(3.0, 2.0, 1.0)];
+
+    #[test]
+    fn without_a_camera_the_orbit_starts_at_a_three_quarter_view() {
+        // Centre (1, 0, −1), radius half the diagonal √48; 2.8 radii out.
+        let centre = DVec3::new(1.0, 0.0, -1.0);
+        let far = 12f64.sqrt() * 2.8;
+        let v = start_view(None, None, &BOUNDS, "Y");
+        assert!(close(v.target, centre));
+        let dir = DVec3::new(0.6, 0.5, 1.0) / 1.61f64.sqrt();
+        assert!(close(v.position, centre + dir * far), "{:?}", v.position);
+        assert_eq!((v.up, v.fov_y, v.camera), ([0.0, 1.0, 0.0], 40.0, None));
+        let v = start_view(None, None, &BOUNDS, "Z");
+        let dir = DVec3::new(0.6, -1.0, 0.5) / 1.61f64.sqrt();
+        assert!(close(v.position, centre + dir * far), "{:?}", v.position);
+        assert_eq!(v.up, [0.0, 0.0, 1.0]);
+        // An orthographic camera is no orbit start.
+        let ortho = CameraParams {
+            projection: Projection::Orthographic,
+            ..CameraParams::default()
+        };
+        let v = start_view(Some(&ortho), Some("/C".into()), &BOUNDS, "Y");
+        assert_eq!(v.camera, None);
+        assert!(close(v.target, centre));
+    }
+
+    #[test]
+    fn a_perspective_camera_gives_the_orbit_its_pose_and_field_of_view() {
+        // Rolled 90° about Z: its up is −X. Aperture 100 at focal 50: 90°.
+        let cam = CameraParams {
+            focal_length: 50.0,
+            vertical_aperture: 100.0,
+            camera_to_world: DMat4::from_rotation_translation(
+                glam::DQuat::from_rotation_z(std::f64::consts::FRAC_PI_2),
+                DVec3::new(5.0, 6.0, 7.0),
+            ),
+            ..CameraParams::default()
+        };
+        let v = start_view(Some(&cam), Some("/C".into()), &BOUNDS, "Y");
+        assert!(close(v.position, DVec3::new(5.0, 6.0, 7.0)));
+        assert!(close(v.target, DVec3::new(1.0, 0.0, -1.0)));
+        assert!(close(v.up, DVec3::new(-1.0, 0.0, 0.0)), "{:?}", v.up);
+        assert!((v.fov_y - 90.0).abs() < 1e-9, "{}", v.fov_y);
+        assert_eq!(v.camera.as_deref(), Some("/C"));
+    }
+
+    #[test]
+    fn an_orbit_camera_off_the_origin_keeps_its_pose_and_clipping() {
+        // Looking down −Z from (1, 2, 3): the pose is a pure translation.
+        let v = ViewCamera {
+            position: [1.0, 2.0, 3.0],
+            target: [1.0, 2.0, -7.0],
+            up: [0.0, 1.0, 0.0],
+            fov_y: 90.0,
+            near: 0.5,
+            far: 250.0,
+        };
+        let c = camera_params(&v, 300, 100);
+        let want = DMat4::from_translation(DVec3::new(1.0, 2.0, 3.0));
+        assert!(c.camera_to_world.abs_diff_eq(want, 1e-12), "{:?}", c.camera_to_world);
+        assert!((c.vertical_aperture - 100.0).abs() < 1e-9);
+        assert!((c.horizontal_aperture - 300.0).abs() < 1e-9);
+        assert_eq!((c.near, c.far), (0.5, 250.0));
+    }
 }
