@@ -400,4 +400,74 @@ mod tests {
         let it = Interpolator::new(Method::Shepard, 2, &[0.0, 0.0, 1.0, 1.0]).unwrap();
         it.weights_vec(&[0.5]);
     }
+
+    #[test]
+    fn several_keys_report_their_count_and_are_not_empty() {
+        let it = Interpolator::new(Method::Shepard, 2, &[0.0, 0.0, 1.0, 0.0, 0.0, 1.0]).unwrap();
+        assert_eq!(it.len(), 3);
+        assert_eq!(it.dim(), 2);
+        assert!(!it.is_empty());
+        assert_eq!(it.method(), Method::Shepard);
+        // Shepard (eq. 5) by hand on keys 0 and 1 at x = 0.25: 1/d² = 16 and
+        // 16/9, so the weights are 9/10 and 1/10.
+        let two = Interpolator::new(Method::Shepard, 1, &[0.0, 1.0]).unwrap();
+        let w = two.weights_vec(&[0.25]);
+        assert_eq!(w.len(), 2);
+        assert!((w[0] - 0.9).abs() < 1e-12 && (w[1] - 0.1).abs() < 1e-12, "{w:?}");
+    }
+
+    #[test]
+    fn non_finite_error_names_the_key_not_the_coordinate() {
+        let m = Method::SmoothVoronoi;
+        // Flat index 5 is coordinate 1 of key 2 (dimension 2).
+        assert_eq!(
+            Interpolator::new(m, 2, &[0.0, 0.0, 1.0, 0.0, 0.0, f64::NAN]).unwrap_err(),
+            InterpError::NonFinite { key: 2 }
+        );
+        // Flat index 6 is coordinate 0 of key 2 (dimension 3).
+        assert_eq!(
+            Interpolator::new(m, 3, &[0.0, 0.0, 0.0, 1.0, 1.0, 1.0, f64::INFINITY, 2.0, 2.0]).unwrap_err(),
+            InterpError::NonFinite { key: 2 }
+        );
+    }
+
+    #[test]
+    fn duplicate_tolerance_uses_the_extent_of_every_axis() {
+        let m = Method::Shepard;
+        // Keys spanning [-1000, 1000]: the box diagonal is 2000, so keys
+        // 1e-10 apart (squared 1e-20 ≤ 1e-24 · 2000² = 4e-18) are one point,
+        // and keys 1e-6 apart (squared 1e-12) are not.
+        assert_eq!(
+            Interpolator::new(m, 1, &[-1000.0, 1000.0, 1000.0 + 1e-10]).unwrap_err(),
+            InterpError::DuplicateKeys { first: 1, second: 2 }
+        );
+        assert!(Interpolator::new(m, 1, &[-1000.0, 1000.0, 1000.0 + 1e-6]).is_ok());
+        // The same in 2D with the extent on the second axis only: diagonal
+        // 1000, threshold 1e-18, keys 1 and 2 are 1e-10 apart.
+        assert_eq!(
+            Interpolator::new(m, 2, &[0.0, 0.0, 0.0, 1000.0, 0.0, 1000.0 + 1e-10]).unwrap_err(),
+            InterpError::DuplicateKeys { first: 1, second: 2 }
+        );
+        assert!(Interpolator::new(m, 2, &[0.0, 0.0, 0.0, 1000.0, 0.0, 1000.0 + 1e-6]).is_ok());
+    }
+
+    #[test]
+    fn squared_distances_in_three_dimensions() {
+        // k0 = (0,0,0), k1 = (1,2,2), k2 = (3,0,4): squared distances
+        // |k1−k0|² = 1+4+4 = 9, |k2−k0|² = 9+0+16 = 25, |k2−k1|² = 4+4+4 = 12.
+        let keys = [0.0, 0.0, 0.0, 1.0, 2.0, 2.0, 3.0, 0.0, 4.0];
+        let (n, sq) = validate_keys(3, &keys).unwrap();
+        assert_eq!(n, 3);
+        #[rustfmt::skip]
+        let want = [
+            0.0, 9.0, 25.0,
+            9.0, 0.0, 12.0,
+            25.0, 12.0, 0.0,
+        ];
+        assert_eq!(sq, want);
+        // From x = (1,1,1): 1+1+1 = 3, 0+1+1 = 2, 4+1+9 = 14.
+        let mut out = [f64::NAN; 3];
+        sq_dists_to(&keys, 3, &[1.0, 1.0, 1.0], &mut out);
+        assert_eq!(out, [3.0, 2.0, 14.0]);
+    }
 }
