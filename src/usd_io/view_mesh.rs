@@ -256,6 +256,17 @@ fn read_view_mesh(r: &StageReader, prim: usd::Prim) -> Result<ViewMesh> {
         }
         g.sort_by(|&a, &b| keys[a].time.unwrap_or(0.0).total_cmp(&keys[b].time.unwrap_or(0.0)));
         for w in g.windows(2) {
+            if keys[w[0]].time.is_none() {
+                return Err(Error::attr(
+                    &keys[w[1]].path,
+                    "direction",
+                    format!(
+                        "{} has the same direction and neither has a time: one viewpoint needs one key, or keys at different times",
+                        keys[w[0]].path
+                    ),
+                )
+                .rule(Rule::ViewKeyTimes));
+            }
             if keys[w[0]].time == keys[w[1]].time {
                 return Err(Error::attr(
                     &keys[w[0]].path,
@@ -291,16 +302,6 @@ fn read_view_mesh(r: &StageReader, prim: usd::Prim) -> Result<ViewMesh> {
                 NaturalCubicSpline::new(&times)
                     .map_err(|e| Error::prim(&keys[g[0]].path, format!("{e}")).rule(Rule::ViewKeyTimes))?,
             )
-        } else if g.len() > 1 {
-            return Err(Error::attr(
-                &keys[g[1]].path,
-                "direction",
-                format!(
-                    "{} has the same direction and neither has a time: one viewpoint needs one key, or keys at different times",
-                    keys[g[0]].path
-                ),
-            )
-            .rule(Rule::ViewKeyTimes));
         } else {
             None
         };
@@ -366,11 +367,6 @@ pub fn check_camera(r: &StageReader, path: &str, origin: &str) -> Result<()> {
 }
 
 impl ViewMesh {
-    /// `painterly:sharpness` at `t` (it may be animated), checked positive.
-    pub fn sharpness_at(&self, r: &StageReader, t: f64) -> Result<f64> {
-        sharpness_at(r, &self.path, t)
-    }
-
     /// The camera for this mesh: the bake's `--camera`, else `painterly:camera`.
     pub fn camera_for<'a>(&'a self, bake_camera: Option<&'a str>) -> Result<&'a str> {
         bake_camera.or(self.camera.as_deref()).ok_or_else(|| {
@@ -458,3 +454,114 @@ const NOT_XFORMABLE: &[&str] = &[
     "PainterlyTimeKey",
     "PainterlyViewKey",
 ];
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::usd_io::memory::open_bytes;
+
+    const MESH: &str = "/World/Ball";
+
+    /// A stage read from usda text in memory.
+    fn stage(usda: &str) -> StageReader {
+        let path = std::env::temp_dir().join("painterly_view_mesh_test.usda");
+        open_bytes(usda.as_bytes().to_vec(), &path).unwrap()
+    }
+
+    /// A tetrahedron Mesh /World/Ball with PainterlyViewDependentAPI:
+    /// `attrs` are more of its properties, `keys` its children.
+    fn view_stage(attrs: &str, keys: &str) -> String {
+        format!(
+            r#"#usda 1.0
+(
+    startTimeCode = 1
+    endTimeCode = 6
+)
+def Xform "World"
+{{
+    def Mesh "Ball" (prepend apiSchemas = ["PainterlyViewDependentAPI"])
+    {{
+        int[] faceVertexCounts = [3, 3, 3, 3]
+        int[] faceVertexIndices = [0, 2, 1, 0, 1, 3, 1, 2, 3, 0, 3, 2]
+        point3f[] points = [(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1)]
+        {attrs}
+        {keys}
+    }}
+}}
+"#
+        )
+    }
+
+    /// A key with 4 points (the mesh's count) or 3 (one too few).
+    fn key(name: &str, direction: &str, four_points: bool) -> String {
+        let points = if four_points {
+            "(0, 0, 0.5), (1, 0, 0), (0, 1, 0), (0, 0, 1)"
+        } else {
+            "(0, 0, 0.5), (1, 0, 0), (0, 1, 0)"
+        };
+        format!(
+            r#"def PainterlyViewKey "{name}"
+        {{
+            uniform float3 direction = {direction}
+            uniform point3f[] points = [{points}]
+        }}
+        "#
+        )
+    }
+
+    fn read_err(usda: &str) -> Error {
+        let r = stage(usda);
+        match read_view_meshes(&r, &r.prim_paths().unwrap()) {
+            Ok(m) => panic!("read {} view meshes, expected an error", m.len()),
+            Err(e) => e,
+        }
+    }
+
+    #[test]
+    fn sharpness_is_read_at_each_time_and_refused_where_it_is_not_positive() {
+        // Default 2 (what the bake's hull is built with); samples 2, 4, 0
+        // at 1, 3, 5, linearly interpolated (USD) and held after the last.
+        let attrs = "float painterly:sharpness = 2
+        float painterly:sharpness.timeSamples = { 1: 2, 3: 4, 5: 0 }";
+        let r = stage(&view_stage(attrs, &key("Front", "(0, 0, 1)", true)));
+        let meshes = read_view_meshes(&r, &r.prim_paths().unwrap()).unwrap();
+        assert_eq!(meshes.len(), 1);
+        let vm = &meshes[0];
+        assert_eq!(vm.path, MESH);
+        assert_eq!(vm.sharpness, 2.0);
+        assert_eq!(sharpness_at(&r, MESH, 2.0).unwrap(), 3.0);
+        assert_eq!(sharpness_at(&r, MESH, 3.0).unwrap(), 4.0);
+        assert_eq!(sharpness_at(&r, MESH, 4.0).unwrap(), 2.0);
+        for t in [5.0, 6.0] {
+            let e = sharpness_at(&r, MESH, t).unwrap_err();
+            assert_eq!(e.prim.as_deref(), Some(MESH), "t={t}: {e}");
+            assert_eq!(e.attribute.as_deref(), Some("painterly:sharpness"), "t={t}: {e}");
+        }
+    }
+
+    #[test]
+    fn a_zero_sharpness_is_named_before_a_broken_key() {
+        // The mesh's own attribute is checked before its keys are read.
+        let usda = view_stage("float painterly:sharpness = 0", &key("Short", "(0, 0, 1)", false));
+        let e = read_err(&usda);
+        assert_eq!(e.prim.as_deref(), Some(MESH), "{e}");
+        assert_eq!(e.attribute.as_deref(), Some("painterly:sharpness"), "{e}");
+        assert_eq!(e.rule, Some(Rule::ViewMesh), "{e}");
+    }
+
+    #[test]
+    fn a_zero_or_infinite_direction_is_named_before_a_later_broken_key() {
+        for bad in ["(0, 0, 0)", "(inf, 0, 0)", "(0, -inf, 1)"] {
+            let keys = key("Bad", bad, true) + &key("Short", "(0, 0, 1)", false);
+            let e = read_err(&view_stage("", &keys));
+            assert_eq!(e.prim.as_deref(), Some("/World/Ball/Bad"), "{bad}: {e}");
+            assert_eq!(e.attribute.as_deref(), Some("direction"), "{bad}: {e}");
+            assert_eq!(e.rule, Some(Rule::ViewKeyDirections), "{bad}: {e}");
+        }
+        // Each alone is named too (the broken key after a good one).
+        let keys = key("Good", "(0, 0, 1)", true) + &key("Short", "(1, 0, 0)", false);
+        let e = read_err(&view_stage("", &keys));
+        assert_eq!(e.prim.as_deref(), Some("/World/Ball/Short"), "{e}");
+        assert_eq!(e.attribute.as_deref(), Some("points"), "{e}");
+    }
+}
