@@ -8,6 +8,8 @@ against the codeless schema in `schemas/painterly/`.
 import importlib.util
 import os
 import pathlib
+import pty
+import select
 import subprocess
 
 REPO = pathlib.Path(__file__).resolve().parent.parent
@@ -36,6 +38,29 @@ def painterly_binary() -> pathlib.Path:
     if env:
         return pathlib.Path(env)
     return REPO / "target" / "release" / "painterly"
+
+
+def run_on_pty(args):
+    """Run with stderr (and stdout) on a pseudo-terminal; return (exit code, what the terminal got)."""
+    master, slave = pty.openpty()
+    proc = subprocess.Popen([str(painterly_binary()), *map(str, args)], stdout=slave, stderr=slave, stdin=subprocess.DEVNULL)
+    os.close(slave)
+    out = b""
+    while True:
+        ready, _, _ = select.select([master], [], [], 0.1)
+        if ready:
+            try:
+                chunk = os.read(master, 65536)
+            except OSError:  # EIO: the child closed the terminal
+                break
+            if not chunk:
+                break
+            out += chunk
+        elif proc.poll() is not None:
+            break
+    code = proc.wait(timeout=300)
+    os.close(master)
+    return code, out.decode("utf-8", "replace")
 
 
 def run_painterly(*args, check=True, cwd=None, env=None, input=None):

@@ -8,9 +8,7 @@ one exact code, never "non-zero".
 import json
 import os
 import pathlib
-import pty
 import re
-import select
 import shlex
 import shutil
 import subprocess
@@ -18,7 +16,7 @@ import urllib.request
 
 import pytest
 
-from conftest import REPO, painterly_binary
+from conftest import REPO, painterly_binary, run_on_pty
 
 FIX = REPO / "fixtures"
 TUBE = FIX / "tube.usda"
@@ -181,29 +179,6 @@ def test_quiet_render_hides_warnings_it_would_print(tmp_path):
     assert loud.returncode == 0 and "warning:" in loud.stderr
     quiet = run([*args, "-q"])
     assert (quiet.returncode, quiet.stdout, quiet.stderr) == (0, "", "")
-
-
-def run_on_pty(args):
-    """Run with stderr (and stdout) on a pseudo-terminal; return (exit code, what the terminal got)."""
-    master, slave = pty.openpty()
-    proc = subprocess.Popen([str(painterly_binary()), *map(str, args)], stdout=slave, stderr=slave, stdin=subprocess.DEVNULL)
-    os.close(slave)
-    out = b""
-    while True:
-        ready, _, _ = select.select([master], [], [], 0.1)
-        if ready:
-            try:
-                chunk = os.read(master, 65536)
-            except OSError:  # EIO: the child closed the terminal
-                break
-            if not chunk:
-                break
-            out += chunk
-        elif proc.poll() is not None:
-            break
-    code = proc.wait(timeout=300)
-    os.close(master)
-    return code, out.decode("utf-8", "replace")
 
 
 @pytest.mark.parametrize("command", ["bake", "render"])

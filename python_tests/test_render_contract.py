@@ -8,6 +8,7 @@ copied from painterly's output.
 """
 
 import json
+import re
 
 import numpy as np
 import OpenEXR
@@ -15,6 +16,8 @@ import pytest
 from PIL import Image
 from pxr import Gf, Sdf, Usd, UsdGeom, Vt
 from scipy.spatial import ConvexHull
+
+from conftest import run_on_pty
 
 W, H = 200, 160
 CAM_Z = 15.0
@@ -502,3 +505,81 @@ def test_contact_sheet_grid_and_labels(painterly, tmp_path):
         assert ink.any(), "no label under a frame"
         labels.append(ink)
     assert len({lab.tobytes() for lab in labels}) == frames
+
+
+
+def test_json_reports_a_positive_median_frame_time(painterly, tmp_path, scene):
+    """One frame: its own time is the median, so neither 0 nor above the run's total."""
+    proc = painterly("render", scene, "--camera", "/Cam", "--frames", "1", "-o", tmp_path / "m.####.exr",
+                     "--size", "40x32", "--json")
+    summary = json.loads(proc.stdout)
+    assert summary["frames"] == 1
+    assert 0 < summary["median_frame_seconds"] <= summary["seconds"], summary
+
+
+@pytest.mark.parametrize("background,dark_ink", [("#ffffff", True), ("#000000", False)])
+def test_sheet_labels_are_dark_on_light_backgrounds_and_light_on_dark(painterly, tmp_path, background, dark_ink):
+    """Nothing in view: every pixel of the sheet that is not background is label ink."""
+    path = tmp_path / "nothing.usda"
+    stage = new_stage(path, end=2)
+    stage.GetRootLayer().Save()
+    painterly("render", path, "--camera", "/Cam", "--frames", "1:2", "-o", tmp_path / "f.####.exr",
+              "--size", "64x40", "--sheet", "--background", background)
+    sheet = np.asarray(Image.open(tmp_path / "f.sheet.png").convert("L"), dtype=int)
+    bg = 255 if dark_ink else 0
+    ink = sheet[sheet != bg]
+    assert ink.size > 0, "no label drawn"
+    if dark_ink:
+        assert ink.min() < 100, ink.min()
+    else:
+        assert ink.max() > 150, ink.max()
+
+
+def test_errors_composing_the_input_name_the_input_not_the_root_layer(painterly, tmp_path):
+    """With --bake the input is first composed under the render's temporary
+    root layer; an error there names the input."""
+    path = tmp_path / "cycle.usda"
+    path.write_text('#usda 1.0\n(\n    startTimeCode = 1\n    endTimeCode = 1\n)\n\ndef Camera "Cam" {}\n'
+                    'def "A" (inherits = </B>) {}\ndef "B" (inherits = </A>) {}\n')
+    # A bake layer's provenance as `painterly bake` records it (customLayerData["painterly"]).
+    bake = tmp_path / "bake.usda"
+    bake.write_text('#usda 1.0\n(\n    customLayerData = {\n        dictionary painterly = {\n'
+                    f'            string frames = "1:1:1"\n            string input = "{path.resolve()}"\n'
+                    '        }\n    }\n)\n')
+    proc = painterly("render", path, "--bake", bake, "--camera", "/Cam", "--frames", "1", "-o",
+                     tmp_path / "f.####.exr", "--size", "20x16", check=False)
+    assert proc.returncode == 1, proc.stderr
+    assert proc.stderr.startswith(f"error: {path}: ") and "cycle" in proc.stderr, proc.stderr
+    assert "render_root" not in proc.stderr
+
+
+def test_a_scene_without_a_time_range_is_baked_for_the_frames_asked(painterly, tmp_path, repo_root):
+    """No startTimeCode/endTimeCode: the bake on the fly takes --frames, and
+    matches a bake given the same frames."""
+    wrapper = tmp_path / "fish_untimed.usda"
+    stage = Usd.Stage.CreateNew(str(wrapper))
+    stage.GetRootLayer().subLayerPaths.append(str(repo_root / "fixtures" / "blowfish.usda"))
+    cam = UsdGeom.Camera.Define(stage, "/Cam")
+    cam.CreateFocalLengthAttr(35.0)
+    cam.CreateClippingRangeAttr(Gf.Vec2f(0.1, 1000))
+    UsdGeom.Xformable(cam).AddTranslateOp().Set(Gf.Vec3d(-0.9, 4.2, 40))
+    stage.GetRootLayer().Save()
+    assert not Sdf.Layer.FindOrOpen(str(wrapper)).HasStartTimeCode()
+    a_dir, b_dir = tmp_path / "a", tmp_path / "b"
+    a_dir.mkdir()
+    b_dir.mkdir()
+    render(painterly, wrapper, a_dir, "24")
+    painterly("bake", wrapper, "-o", tmp_path / "bake.usdc", "--frames", "24")
+    render(painterly, wrapper, b_dir, "24", "--bake", tmp_path / "bake.usdc")
+    a, b = read_exr(a_dir / "f.0024.exr"), read_exr(b_dir / "f.0024.exr")
+    assert a["A"].sum() > 50, "the fish is in view"
+    for c in "RGBAZ":
+        np.testing.assert_array_equal(a[c], b[c])
+
+
+def test_progress_bar_on_a_terminal_unless_quiet(tmp_path, scene):
+    args = ["render", scene, "--camera", "/Cam", "--frames", "1:2", "-o", tmp_path / "f.####.exr", "--size", "64x40"]
+    code, seen = run_on_pty(args)
+    assert code == 0 and "rendering" in seen and re.search(r"\d/2 frames", seen), seen[:500]
+    code, seen = run_on_pty([*args, "--quiet"])
+    assert (code, seen) == (0, "")

@@ -166,16 +166,21 @@ pub fn frame_path(pattern: &Path, t: f64) -> PathBuf {
         return pattern.to_path_buf();
     };
     let len = name[start..].chars().take_while(|&c| c == '#').count();
-    let whole = t.trunc();
-    let mut num = if whole < 0.0 {
-        format!("-{:0len$}", (-whole) as i64, len = len.saturating_sub(1))
+    // Round to thousandths first, so 12.9996 is frame 13 and 0.0001 frame 0;
+    // the sign is shown only when what is shown is not zero (−0.5: `-000.5`).
+    let mut whole = t.abs().trunc();
+    let mut thousandths = ((t.abs() - whole) * 1000.0).round();
+    if thousandths >= 1000.0 {
+        whole += 1.0;
+        thousandths = 0.0;
+    }
+    let mut num = if t < 0.0 && (whole > 0.0 || thousandths > 0.0) {
+        format!("-{:0len$}", whole as i64, len = len.saturating_sub(1))
     } else {
         format!("{:0len$}", whole as i64)
     };
-    let frac = t - whole;
-    if frac.abs() > 1e-9 {
-        let f = format!("{:.3}", frac.abs());
-        num.push_str(f.trim_start_matches('0').trim_end_matches('0'));
+    if thousandths > 0.0 {
+        num.push_str(format!(".{:03}", thousandths as u32).trim_end_matches('0'));
     }
     let out = format!("{}{}{}", &name[..start], num, &name[start + len..]);
     pattern.with_file_name(out)
@@ -539,5 +544,135 @@ mod tests {
         let c: Rgb = "0.5,0,1".parse().unwrap();
         assert!((c.0.x - 0.214).abs() < 1e-3);
         assert!("1,2,3".parse::<Rgb>().is_err() && "#12".parse::<Rgb>().is_err());
+    }
+
+    #[test]
+    fn sizes_up_to_16384_on_either_side_parse() {
+        // The message's own bounds: "between 1 and 16384", inclusive.
+        let max = ImageSize {
+            width: 16384,
+            height: 16384,
+        };
+        assert_eq!("16384x16384".parse::<ImageSize>(), Ok(max));
+        for bad in ["16385x2", "2x16385", "2x99999", "3x0"] {
+            assert!(bad.parse::<ImageSize>().is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn fractional_frames_round_to_three_decimals_and_keep_their_sign() {
+        let name = |t: f64| {
+            frame_path(Path::new("out/fish.####.exr"), t)
+                .to_string_lossy()
+                .into_owned()
+        };
+        assert_eq!(name(0.0), "out/fish.0000.exr");
+        assert_eq!(name(0.25), "out/fish.0000.25.exr");
+        assert_eq!(name(12.125), "out/fish.0012.125.exr");
+        // Three decimals at most: what rounds to a whole frame is that frame.
+        assert_eq!(name(1e-9), "out/fish.0000.exr");
+        assert_eq!(name(0.0001), "out/fish.0000.exr");
+        assert_eq!(name(12.9996), "out/fish.0013.exr");
+        assert_eq!(name(12.0004), "out/fish.0012.exr");
+        // Between −1 and 0 the sign stays (−0.5 and 0.5 are two files),
+        // unless the frame shown is 0.
+        assert_eq!(name(-0.5), "out/fish.-000.5.exr");
+        assert_eq!(name(-2.75), "out/fish.-002.75.exr");
+        assert_eq!(name(-0.0001), "out/fish.0000.exr");
+        assert_eq!(name(-0.9996), "out/fish.-001.exr");
+    }
+
+    fn args(input: &Path, output: &str, frames: (f64, f64), sheet: bool) -> RenderArgs {
+        RenderArgs {
+            input: input.to_path_buf(),
+            bake: None,
+            camera: "/Cam".into(),
+            frames: FrameRange {
+                start: frames.0,
+                end: frames.1,
+                step: 1.0,
+            },
+            output: PathBuf::from(output),
+            png: false,
+            size: ImageSize { width: 4, height: 4 },
+            sheet,
+            brush: None,
+            background: None,
+            quiet: true,
+            json: false,
+        }
+    }
+
+    #[test]
+    fn output_folders_and_sheet_lengths_are_checked() {
+        let tmp = TempDir::new().unwrap();
+        let input = tmp.path().join("in.usda");
+        std::fs::write(&input, "#usda 1.0\n").unwrap();
+        // A bare file name is in the current folder, which exists.
+        assert_eq!(
+            check_args(&args(&input, "f.####.exr", (1.0, 2.0), false)).unwrap(),
+            [1.0, 2.0]
+        );
+        let missing = tmp.path().join("nope").join("f.####.exr");
+        let err = check_args(&args(&input, missing.to_str().unwrap(), (1.0, 1.0), false)).unwrap_err();
+        assert!(err.to_string().contains("does not exist"), "{err}");
+        // README, Limits: a sheet holds at most 2000 frames; 2000 is allowed.
+        let out = tmp.path().join("f.####.exr");
+        let out = out.to_str().unwrap();
+        assert_eq!(check_args(&args(&input, out, (1.0, 2000.0), true)).unwrap().len(), 2000);
+        assert!(check_args(&args(&input, out, (1.0, 2001.0), true)).is_err());
+    }
+
+    #[test]
+    fn frames_before_or_after_the_bake_are_warned_about() {
+        let tmp = TempDir::new().unwrap();
+        let input = tmp.path().join("in.usda");
+        std::fs::write(&input, "#usda 1.0\n").unwrap();
+        let abs = input.canonicalize().unwrap();
+        let bake = tmp.path().join("bake.usda");
+        let layer = format!(
+            "#usda 1.0\n(\n    customLayerData = {{\n        dictionary painterly = {{\n            \
+             string frames = \"3:5:1\"\n            string input = \"{}\"\n        }}\n    }}\n)\n",
+            abs.display()
+        );
+        std::fs::write(&bake, layer).unwrap();
+        let warned = |times: &[f64]| {
+            let mut w = Vec::new();
+            check_bake(&input, &bake, times, &mut w).unwrap();
+            w
+        };
+        assert_eq!(
+            warned(&[1.0, 2.0, 3.0, 4.0, 5.0]),
+            ["2 frames outside the bake's frames 3:5 (1, 2): strokes there show their authored points"]
+        );
+        assert_eq!(
+            warned(&[5.0, 6.0]),
+            ["1 frame outside the bake's frames 3:5 (6): strokes there show their authored points"]
+        );
+        assert!(warned(&[3.0, 5.0]).is_empty());
+        // Within 1e-9 of the ends (A:B:STEP arithmetic's rounding) is inside.
+        assert!(warned(&[3.0 - 1e-9, 5.0 + 1e-9]).is_empty());
+    }
+
+    #[test]
+    fn render_png_encodes_the_frame_at_its_size() {
+        let decode = |bytes: Vec<u8>| {
+            let mut reader = png::Decoder::new(std::io::Cursor::new(bytes)).read_info().unwrap();
+            let mut buf = vec![0u8; reader.output_buffer_size().unwrap()];
+            let info = reader.next_frame(&mut buf).unwrap();
+            buf.truncate(info.buffer_size());
+            (info.width, info.height, info.color_type, buf)
+        };
+        let cam = camera::CameraParams::default();
+        let size = ImageSize { width: 5, height: 3 };
+        // Nothing in view: every pixel is the background (linear red is sRGB
+        // 255, 0, 0), or transparent without one.
+        let png = render_png(&cam, &[], &[], size, Some(Vec3::new(1.0, 0.0, 0.0))).unwrap();
+        let (w, h, ct, px) = decode(png);
+        assert_eq!((w, h, ct), (5, 3, png::ColorType::Rgb));
+        assert_eq!(px, [255, 0, 0].repeat(15));
+        let (w, h, ct, px) = decode(render_png(&cam, &[], &[], size, None).unwrap());
+        assert_eq!((w, h, ct), (5, 3, png::ColorType::Rgba));
+        assert_eq!(px, vec![0; 60]);
     }
 }
