@@ -766,6 +766,12 @@ mod tests {
         for v in &all[1..] {
             assert!(v.dot(&Vector3::z()) < 1e-12);
         }
+        // Six distinct vertices in opposite pairs (the signed-volume check
+        // above takes absolute values, so it cannot see a doubled half).
+        assert!(all.iter().sum::<Vector3<f64>>().norm() < 1e-12);
+        for (i, a) in all.iter().enumerate() {
+            assert!(all[i + 1..].iter().all(|b| (a - b).norm() > 0.5), "{all:?}");
+        }
         // Base mode's cover: every closing triangle is a cell, and the
         // whole sphere is covered.
         let cover = Cover::enclosing(&all, &tris);
