@@ -136,7 +136,8 @@ def _second_untimed_view_key(stage):
     key = stage.DefinePrim(f"{FACE}/front2", "PainterlyViewKey")
     key.CreateAttribute("direction", T.Float3).Set(Gf.Vec3f(0, 0, 2))
     key.CreateAttribute("points", T.Point3fArray).Set(prim(stage, f"{FACE}/front").GetAttribute("points").Get())
-    return f"{FACE}/front", "time"
+    # Neither key has a time: the second one's direction is what repeats.
+    return f"{FACE}/front2", "direction"
 
 
 def _missing_proxy(stage):
