@@ -615,18 +615,27 @@ mod tests {
             x1: 20,
             y1: 16,
         };
-        for (clockwise, first) in [false, true].into_iter().flat_map(|w| (0..3).map(move |k| (w, k))) {
+        // Each triangle in both windings and with each corner first.
+        let orders = || {
+            [false, true]
+                .into_iter()
+                .flat_map(|cw| (0..3).map(move |first| (cw, first)))
+        };
+        let reorder = |mut corners: [Vec2; 3], clockwise: bool, first: usize| {
+            if clockwise {
+                corners.swap(1, 2);
+            }
+            corners.rotate_left(first);
+            corners
+        };
+        for (clockwise, first) in orders() {
             let mut count = vec![0u8; 22 * 18];
             for i in 0..2 {
                 for j in 0..2 {
                     let (p00, p10) = (Vec2::new(xs[i], ys[j]), Vec2::new(xs[i + 1], ys[j]));
                     let (p11, p01) = (Vec2::new(xs[i + 1], ys[j + 1]), Vec2::new(xs[i], ys[j + 1]));
-                    for mut corners in [[p00, p10, p11], [p00, p11, p01]] {
-                        if clockwise {
-                            corners.swap(1, 2);
-                        }
-                        corners.rotate_left(first);
-                        tri(corners, [1.0; 3]).raster(&clip, false, |s| {
+                    for corners in [[p00, p10, p11], [p00, p11, p01]] {
+                        tri(reorder(corners, clockwise, first), [1.0; 3]).raster(&clip, false, |s| {
                             count[((s.y + 2) * 22 + s.x + 2) as usize] += 1;
                         });
                     }
@@ -649,19 +658,13 @@ mod tests {
         // edge), whatever the winding and first corner.
         let owner = |left_or_top: [Vec2; 3], right_or_bottom: [Vec2; 3], on_edge: &dyn Fn(i32, i32) -> bool| {
             let mut seen = [0usize; 2];
-            for clockwise in [false, true] {
-                for first in 0..3 {
-                    for (side, mut corners) in [left_or_top, right_or_bottom].into_iter().enumerate() {
-                        if clockwise {
-                            corners.swap(1, 2);
+            for (clockwise, first) in orders() {
+                for (side, corners) in [left_or_top, right_or_bottom].into_iter().enumerate() {
+                    tri(reorder(corners, clockwise, first), [1.0; 3]).raster(&clip, false, |s| {
+                        if on_edge(s.x, s.y) {
+                            seen[side] += 1;
                         }
-                        corners.rotate_left(first);
-                        tri(corners, [1.0; 3]).raster(&clip, false, |s| {
-                            if on_edge(s.x, s.y) {
-                                seen[side] += 1;
-                            }
-                        });
-                    }
+                    });
                 }
             }
             seen
@@ -679,8 +682,7 @@ mod tests {
             [left, right, Vec2::new(0.0, 13.0)],
             &|_, y| y == 6,
         );
-        // Below y = 6.5 the triangle holds the centres x + 0.5 ≤ 16·(1 − 0/6.5):
-        // the whole row.
+        // The edge runs from x = 0 to 16: all 16 centres of the row, 6 times.
         assert_eq!(seen, [0, 6 * 16], "centres on y = 6.5 (above, below)");
         // Degenerate and non-finite triangles draw nothing.
         let mut n = 0;
