@@ -20,6 +20,8 @@ pub mod scene;
 pub mod skel;
 pub mod spill;
 pub mod stage;
+#[cfg(test)]
+pub(crate) mod testutil;
 pub mod usda_splice;
 pub mod usda_text;
 pub mod usdc;

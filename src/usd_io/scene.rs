@@ -1198,7 +1198,7 @@ impl StrokeLayer {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::usd_io::memory::open_bytes;
+    use crate::usd_io::testutil::stage_from_usda as stage;
 
     #[test]
     fn sampled_widths_interpolate_like_usd_core() {
@@ -1218,12 +1218,6 @@ mod tests {
         assert_eq!(w.max_at(9.0), 1.0); // sizes differ: held
         assert_eq!(w.max_at(11.0), 3.0); // held after the last sample
         assert_eq!(Widths::Constant(0.5).max_at(3.0), 0.5);
-    }
-
-    /// A stage read from usda text in memory.
-    fn stage(usda: &str) -> StageReader {
-        let path = std::env::temp_dir().join("painterly_scene_test.usda");
-        open_bytes(usda.as_bytes().to_vec(), &path).unwrap()
     }
 
     /// Two triangles over the unit square: 4 points, 6 face-vertex indices.

@@ -458,15 +458,9 @@ const NOT_XFORMABLE: &[&str] = &[
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::usd_io::memory::open_bytes;
+    use crate::usd_io::testutil::stage_from_usda as stage;
 
     const MESH: &str = "/World/Ball";
-
-    /// A stage read from usda text in memory.
-    fn stage(usda: &str) -> StageReader {
-        let path = std::env::temp_dir().join("painterly_view_mesh_test.usda");
-        open_bytes(usda.as_bytes().to_vec(), &path).unwrap()
-    }
 
     /// A tetrahedron Mesh /World/Ball with PainterlyViewDependentAPI:
     /// `attrs` are more of its properties, `keys` its children.
