@@ -349,14 +349,14 @@ fn check_stroke_point_total(r: &StageReader, layer_paths: &[String], rig_paths: 
         };
         total = counts.iter().fold(total, |t, &c| t.saturating_add(c.max(0)));
         if total > MAX_STROKE_POINTS as i64 {
-            return Err(Error::attr(lp, "curveVertexCounts", stroke_points_limit(total)).rule(Rule::PointCounts));
+            let message = format!(
+                "{total} stroke points; painterly bakes at most {MAX_STROKE_POINTS} in one run \
+                 (bake the character's stroke layers in several runs)"
+            );
+            return Err(Error::attr(lp, "curveVertexCounts", message).rule(Rule::PointCounts));
         }
     }
     Ok(())
-}
-
-fn stroke_points_limit(n: i64) -> String {
-    format!("{n} stroke points; painterly bakes at most {MAX_STROKE_POINTS} in one run (bake the character's stroke layers in several runs)")
 }
 
 fn is_descendant(path: &str, ancestor: &str) -> bool {
@@ -670,10 +670,8 @@ fn read_layer(r: &StageReader, path: &str, proxy_points: usize) -> Result<Stroke
     if let Some(bad) = counts.iter().find(|&&c| c < 0) {
         return Err(Error::attr(path, "curveVertexCounts", format!("negative count {bad}")).rule(Rule::PointCounts));
     }
+    // At most MAX_STROKE_POINTS: check_stroke_point_total ran first.
     let total: i64 = counts.iter().sum();
-    if total > MAX_STROKE_POINTS as i64 {
-        return Err(Error::attr(path, "curveVertexCounts", stroke_points_limit(total)).rule(Rule::PointCounts));
-    }
     let points = r.typed(&prim, "points", None, "point3f[]", values::vec3_array)?;
     let rest = r.typed(&prim, "painterly:restPoints", None, "point3f[]", values::vec3_array)?;
     if let Some(p) = &points {
