@@ -552,7 +552,7 @@ fn large_arrays() {
     let points: Vec<gf::Vec3f> = (0..n)
         .map(|i| gf::vec3f(i as f32 * 0.001, (i % 977) as f32, -(i as f32).sqrt()))
         .collect();
-    let indices: Vec<i32> = (0..n as i32).map(|i| (i * 7919) % 100_003).collect();
+    let indices: Vec<i32> = (0..n as i32).map(|i| i.wrapping_mul(7919) % 100_003).collect();
     let data = layer_of(&[
         ("points", Value::Vec3fVec(points)),
         ("indices", Value::IntVec(indices)),
