@@ -254,19 +254,19 @@ fn read_view_mesh(r: &StageReader, prim: usd::Prim) -> Result<ViewMesh> {
             )
             .rule(Rule::ViewKeyTimes));
         }
+        if timed == 0 && g.len() > 1 {
+            return Err(Error::attr(
+                &keys[g[1]].path,
+                "direction",
+                format!(
+                    "{} has the same direction and neither has a time: one viewpoint needs one key, or keys at different times",
+                    keys[g[0]].path
+                ),
+            )
+            .rule(Rule::ViewKeyTimes));
+        }
         g.sort_by(|&a, &b| keys[a].time.unwrap_or(0.0).total_cmp(&keys[b].time.unwrap_or(0.0)));
         for w in g.windows(2) {
-            if keys[w[0]].time.is_none() {
-                return Err(Error::attr(
-                    &keys[w[1]].path,
-                    "direction",
-                    format!(
-                        "{} has the same direction and neither has a time: one viewpoint needs one key, or keys at different times",
-                        keys[w[0]].path
-                    ),
-                )
-                .rule(Rule::ViewKeyTimes));
-            }
             if keys[w[0]].time == keys[w[1]].time {
                 return Err(Error::attr(
                     &keys[w[0]].path,
