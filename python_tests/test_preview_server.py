@@ -12,7 +12,7 @@ import subprocess
 
 import numpy as np
 import pytest
-from pxr import Gf, Usd, UsdGeom
+from pxr import Gf, Sdf, Usd, UsdGeom
 
 from conftest import REPO, painterly_binary
 from preview_helpers import PreviewServer, decode_frame
@@ -154,12 +154,11 @@ def test_scene_describes_the_character(fish):
     assert scene["problems"] == []
 
 
-def test_stroke_widths_and_colours_come_from_the_stage(fish):
-    status, _, data = fish.request("api/strokes")
+def assert_strokes_come_from_the_stage(server, stage):
+    status, _, data = server.request("api/strokes")
     assert status == 200
     _, arrays = decode_frame(data)
-    scene = fish.scene()
-    stage = Usd.Stage.Open(str(FISH))
+    scene = server.scene()
     for i, info in enumerate(scene["layers"]):
         prim = stage.GetPrimAtPath(info["path"])
         curves = UsdGeom.BasisCurves(prim)
@@ -171,6 +170,32 @@ def test_stroke_widths_and_colours_come_from_the_stage(fish):
         colours = np.array(UsdGeom.PrimvarsAPI(prim).GetPrimvar("displayColor").Get(), dtype=np.float32)
         per_point = np.repeat(colours, info["curve_counts"], axis=0)
         np.testing.assert_allclose(arrays[f"layer/{i}/colors"].reshape(-1, 3), per_point, rtol=1e-6, err_msg=info["path"])
+    return scene
+
+
+def test_stroke_widths_and_colours_come_from_the_stage(fish):
+    assert_strokes_come_from_the_stage(fish, Usd.Stage.Open(str(FISH)))
+
+
+def test_a_layer_shaped_like_another_keeps_its_own_colours(tmp_path):
+    # A copy of Spikes after it, green: the same curve and point counts, so
+    # only its path tells the copy's widths and colours from the original's.
+    path = tmp_path / "blowfish.usda"
+    shutil.copy(FISH, path)
+    stage = Usd.Stage.Open(str(path))
+    layer = stage.GetRootLayer()
+    assert Sdf.CopySpec(layer, "/Blowfish/Paint/Spikes", layer, "/Blowfish/Paint/SpikesCopy")
+    copy = UsdGeom.BasisCurves(stage.GetPrimAtPath("/Blowfish/Paint/SpikesCopy"))
+    n = len(copy.GetCurveVertexCountsAttr().Get())
+    UsdGeom.PrimvarsAPI(copy).GetPrimvar("displayColor").Set([(0.1, 0.9, 0.2)] * n)
+    copy.GetWidthsAttr().Set([2 * w for w in copy.GetWidthsAttr().Get()])
+    stage.Save()
+    with PreviewServer(path) as s:
+        scene = assert_strokes_come_from_the_stage(s, stage)
+    # The copy is drawn after the original (traversal order), so a match by
+    # counts alone would find the original first.
+    paths = [l["path"] for l in scene["layers"]]
+    assert paths.index("/Blowfish/Paint/Spikes") < paths.index("/Blowfish/Paint/SpikesCopy")
 
 
 def bake_frame(tmp_path, src, t):
@@ -359,17 +384,14 @@ def fish_axis_values(stage, path, t):
     raise AssertionError(f"{path}: kind {kind}")
 
 
-def test_axis_ranges_pad_the_key_marks_and_the_timeline_by_a_tenth(fish):
-    # Slider range: the hull of the axis's key coordinates and its values
-    # over the frames (48 frames: every integer frame), padded by 10 %.
-    # The eye axes' values are the rig's own measure; blink and inflate are
-    # read straight from their sources.
-    scene = fish.scene()
-    stage = Usd.Stage.Open(str(FISH))
+def assert_axis_ranges(scene, stage, frames):
+    """Slider range: the hull of the axis's key coordinates and its values
+    at `frames`, padded by 10 %. The eye axes' values are the rig's own
+    measure; blink and inflate are read straight from their sources."""
     for a in scene["axes"]:
         if a["kind"] not in ("attribute", "blendShape"):
             continue
-        values = [fish_axis_values(stage, a["path"], t) for t in range(1, 49)]
+        values = [fish_axis_values(stage, a["path"], t) for t in frames]
         for layer in stage.GetPrimAtPath("/Blowfish/Paint").GetChildren():
             axes = [str(p) for p in layer.GetRelationship("painterly:axes").GetTargets()] if layer.HasRelationship("painterly:axes") else []
             if a["path"] not in axes:
@@ -382,6 +404,36 @@ def test_axis_ranges_pad_the_key_marks_and_the_timeline_by_a_tenth(fish):
         pad = 0.1 * (hi - lo) if hi - lo > 1e-9 else 1.0
         assert a["min"] == pytest.approx(lo - pad, abs=1e-6), a["path"]
         assert a["max"] == pytest.approx(hi + pad, abs=1e-6), a["path"]
+
+
+def test_axis_ranges_pad_the_key_marks_and_the_timeline_by_a_tenth(fish):
+    # 48 frames: the timeline is sampled at every integer frame.
+    assert_axis_ranges(fish.scene(), Usd.Stage.Open(str(FISH)), range(1, 49))
+
+
+def test_axis_ranges_cover_the_animation_beyond_the_keys(tmp_path):
+    # The fish's blink stays inside its keys' [0, 1], so its range test sees
+    # no sample of the timeline. Here blink leaves the keys both ways: 2 at
+    # the first frame (2, not 1, so a start that multiplies is not a start
+    # that adds) and a one-frame dip to -5 at frame 17, which only a sample
+    # on that integer frame sees (linear interpolation between samples).
+    # The hull's ends sum to less than zero: the pad depends on hi - lo only.
+    path = tmp_path / "blowfish.usda"
+    shutil.copy(FISH, path)
+    stage = Usd.Stage.Open(str(path))
+    stage.SetStartTimeCode(2)
+    blink = stage.GetAttributeAtPath("/Blowfish.blink")
+    blink.Clear()
+    for t, v in {2: 2.0, 16: 0.0, 17: -5.0, 18: 0.0, 48: 0.5}.items():
+        blink.Set(v, t)
+    stage.Save()
+    with PreviewServer(path) as s:
+        scene = s.scene()
+    assert (scene["start"], scene["end"]) == (2, 48)
+    blink_axis = next(a for a in scene["axes"] if a["path"] == "/Blowfish/Paint/blink")
+    # By hand: the hull is [-5, 2] (keys within [0, 1]), padded by 0.7.
+    assert (blink_axis["min"], blink_axis["max"]) == (pytest.approx(-5.7, abs=1e-6), pytest.approx(2.7, abs=1e-6))
+    assert_axis_ranges(scene, stage, range(2, 49))
 
 
 def test_scene_bounds_are_the_start_frames_world_box(fish, tmp_path):
@@ -436,3 +488,34 @@ def test_the_orbit_starts_at_the_view_meshes_camera():
     np.testing.assert_allclose(v["position"], np.array(m.ExtractTranslation()), atol=1e-6)
     np.testing.assert_allclose(v["up"], up, atol=1e-6)
     assert v["fov_y"] == pytest.approx(fov, abs=1e-4)
+
+
+def test_render_shows_the_view_mesh_the_eye_drives(tmp_path):
+    # The building's one view key (cosine mode): seen from the key's own
+    # direction the box is the key's points, from the opposite side the
+    # base model (SPEC §6), 85 units apart. The render camera stays put, so
+    # the two renders differ only if the evaluated mesh replaces the
+    # authored one.
+    from PIL import Image
+    import io
+
+    path = REPO / "fixtures" / "building.usda"
+    stage = Usd.Stage.Open(str(path))
+    box = stage.GetPrimAtPath("/Building/Box")
+    pts = np.array(box.GetAttribute("points").Get(1), dtype=np.float64)
+    centre = (pts.min(axis=0) + pts.max(axis=0)) / 2
+    d = np.array(stage.GetPrimAtPath("/Building/Box/Front").GetAttribute("direction").Get(), dtype=np.float64)
+    d /= np.linalg.norm(d)
+    m = np.array(UsdGeom.Xformable(box).ComputeLocalToWorldTransform(1))
+    imgs = []
+    with PreviewServer(path) as s:
+        v = s.scene()["view"]
+        cam = {"position": v["position"], "target": v["target"], "up": v["up"], "fov_y": v["fov_y"], "near": 1, "far": 100000}
+        for side in [1.0, -1.0]:
+            eye = np.append(centre + side * 2000 * d, 1.0) @ m
+            frame = {"time": 1, "eye": eye[:3].tolist()}
+            status, _, body = s.request("api/render", body={"frame": frame, "camera": cam, "width": 96, "height": 64})
+            assert status == 200, body
+            imgs.append(np.array(Image.open(io.BytesIO(body)).convert("RGBA"), dtype=np.int16))
+    assert imgs[0][..., 3].max() > 0, "the building is in view"
+    assert np.abs(imgs[0] - imgs[1]).max() > 0
