@@ -583,3 +583,35 @@ def test_progress_bar_on_a_terminal_unless_quiet(tmp_path, scene):
     assert code == 0 and "rendering" in seen and re.search(r"\d/2 frames", seen), seen[:500]
     code, seen = run_on_pty([*args, "--quiet"])
     assert (code, seen) == (0, "")
+
+
+def test_the_bake_on_the_fly_takes_the_render_camera(painterly, tmp_path, repo_root):
+    """`render --help`: without --bake the input is baked first with the same
+    camera. The building's view-dependent box follows --camera over its own
+    painterly:camera: seen from the side (90 degrees from its one key, so the
+    base model), not as its own camera (near the key) would show it."""
+    wrapper = tmp_path / "building_side.usda"
+    stage = Usd.Stage.CreateNew(str(wrapper))
+    stage.GetRootLayer().subLayerPaths.append(str(repo_root / "fixtures" / "building.usda"))
+    # The box's local +x axis, 3000 units out from its centre, in world space.
+    box = UsdGeom.Xformable(stage.GetPrimAtPath("/Building/Box")).ComputeLocalToWorldTransform(1)
+    eye, centre = box.Transform(Gf.Vec3d(3000, 500, 0)), box.Transform(Gf.Vec3d(0, 500, 0))
+    cam = UsdGeom.Camera.Define(stage, "/Cam")
+    cam.CreateFocalLengthAttr(20.0)
+    cam.CreateClippingRangeAttr(Gf.Vec2f(1, 100000))
+    UsdGeom.Xformable(cam).AddTransformOp().Set(Gf.Matrix4d().SetLookAt(eye, centre, Gf.Vec3d(0, 1, 0)).GetInverse())
+    stage.GetRootLayer().Save()
+    dirs = {name: tmp_path / name for name in ["fly", "cam", "own"]}
+    for d in dirs.values():
+        d.mkdir()
+    render(painterly, wrapper, dirs["fly"])
+    painterly("bake", wrapper, "-o", tmp_path / "cam.usdc", "--frames", "1", "--camera", "/Cam")
+    render(painterly, wrapper, dirs["cam"], "1", "--bake", tmp_path / "cam.usdc")
+    painterly("bake", wrapper, "-o", tmp_path / "own.usdc", "--frames", "1")
+    render(painterly, wrapper, dirs["own"], "1", "--bake", tmp_path / "own.usdc")
+    fly, cam_bake, own = (read_exr(dirs[n] / "f.0001.exr") for n in ["fly", "cam", "own"])
+    assert fly["A"].sum() > 50, "the building is in view"
+    for c in "RGBAZ":
+        np.testing.assert_array_equal(fly[c], cam_bake[c])
+    # Baked for the box's own camera, the box has another outline.
+    assert np.abs(fly["A"] - own["A"]).sum() > 50
