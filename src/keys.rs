@@ -24,16 +24,6 @@ impl PoseChannel {
         })
     }
 
-    /// Number of keys.
-    pub fn len(&self) -> usize {
-        self.interp.len()
-    }
-
-    /// True when there are no keys.
-    pub fn is_empty(&self) -> bool {
-        self.interp.is_empty()
-    }
-
     /// Basis weights of each key at configuration `x`.
     pub fn weights(&self, x: &[f64]) -> KeyWeights {
         let w = self.interp.weights_vec(x);
@@ -90,8 +80,6 @@ pub enum TimeKeyError {
 pub struct TimeChannel {
     /// Normal keys' times, in the order the caller gave them.
     key_times: Vec<f64>,
-    /// Sorted sentinel times.
-    sentinels: Vec<f64>,
     /// Events sorted by time: (time, Some(normal key index) or None for a sentinel).
     events: Vec<(f64, Option<usize>)>,
     /// Per run of normal keys between two sentinels (or the ends of time):
@@ -146,16 +134,10 @@ impl TimeChannel {
         flush(&mut current, &mut groups);
         Ok(TimeChannel {
             key_times: key_times.to_vec(),
-            sentinels,
             events,
             groups,
             group_of,
         })
-    }
-
-    /// True when the channel has no normal keys (it never overrides).
-    pub fn is_empty(&self) -> bool {
-        self.key_times.is_empty()
     }
 
     /// The temporal weights at time `t` (SPEC §5).
@@ -203,11 +185,6 @@ impl TimeChannel {
                 }
             }
         }
-    }
-
-    /// Sorted sentinel times.
-    pub fn sentinels(&self) -> &[f64] {
-        &self.sentinels
     }
 }
 
