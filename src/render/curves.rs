@@ -698,4 +698,21 @@ mod tests {
         let short = curves(CurveType::Cubic, Basis::Bspline, Wrap::Nonperiodic, line_pts(3));
         assert_eq!(short.polylines()[0], Polyline::default());
     }
+
+    #[test]
+    fn linear_curves_take_vertex_opacities_from_their_own_points() {
+        // Two open curves of three points, one opacity per point: each point
+        // keeps its own value, the second curve reading from offset 3.
+        let c = CurvesData {
+            counts: vec![3, 3],
+            points: [line_pts(3), line_pts(3)].concat(),
+            widths: Primvar::Constant(1.0),
+            opacities: Primvar::Vertex(vec![0.1, 0.2, 0.3, 0.4, 0.5, 0.6]),
+            ..curves(CurveType::Linear, Basis::Bezier, Wrap::Nonperiodic, vec![])
+        };
+        c.validate().unwrap();
+        let l = c.polylines();
+        assert_eq!(l[0].opacities, [0.1, 0.2, 0.3]);
+        assert_eq!(l[1].opacities, [0.4, 0.5, 0.6]);
+    }
 }

@@ -398,4 +398,16 @@ mod tests {
         assert!((srgb_decode(0.5) - 0.214_041_14).abs() < 1e-6);
         assert!((srgb_decode(0.04) - 0.04 / 12.92).abs() < 1e-9);
     }
+
+    #[test]
+    fn transparent_pixels_are_black_whatever_their_colour() {
+        // Straight alpha has no colour where A = 0: (0, 0, 0, 0), not RGB / 0.
+        let frame = Frame {
+            width: 1,
+            height: 1,
+            rgba: vec![[0.5, 0.25, 1.0, 0.0]],
+            z: vec![1.0],
+        };
+        assert_eq!(frame_to_srgb8(&frame, None), vec![0, 0, 0, 0]);
+    }
 }

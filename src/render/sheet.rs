@@ -343,4 +343,63 @@ mod tests {
         let (w0, h0, _) = compose(&[], 3, bg, ink);
         assert_eq!((w0, h0), (2 * MARGIN + 1, 2 * MARGIN + 1 + LABEL_BAND));
     }
+
+    #[test]
+    fn thumbnail_rows_below_the_first_average_their_own_block() {
+        // 4 × 4 by 2, opaque, R = (x + 4y) / 16: block means by hand.
+        let f = frame(4, 4, |x, y| [(x + 4 * y) as f32 / 16.0, 0.0, 0.0, 1.0]);
+        let t = thumbnail(&f, 2, Vec3::ONE, String::new());
+        assert_eq!((t.width, t.height), (2, 2));
+        let r: Vec<f32> = t.rgb.iter().map(|c| c.x).collect();
+        assert_eq!(r, [10.0 / 64.0, 18.0 / 64.0, 42.0 / 64.0, 50.0 / 64.0]);
+    }
+
+    #[test]
+    fn the_label_band_is_22_pixels() {
+        // 4 px gap, 7 glyph rows × 2 px, 4 px below: the sheet's height and the
+        // second row's top in literal pixels, one 30 × 20 thumbnail per row.
+        let t = Thumbnail {
+            label: "7".into(),
+            width: 30,
+            height: 20,
+            rgb: vec![Vec3::ONE; 600],
+        };
+        let (w, h, px) = compose(&[t.clone(), t], 1, Vec3::ZERO, Vec3::ZERO);
+        assert_eq!((w, h), (12 + 30 + 12, 12 + 20 + 22 + 8 + 20 + 22 + 12));
+        let at = |x: usize, y: usize| px[3 * (y * w + x)];
+        assert_eq!((at(12, 61), at(12, 62)), (0, 255));
+    }
+
+    #[test]
+    fn labels_run_left_to_right_and_clip_at_the_sheet_edge() {
+        let (bg, ink) = (Vec3::splat(0.5), Vec3::ZERO);
+        let thumb = |label: &str| Thumbnail {
+            label: label.into(),
+            width: 30,
+            height: 20,
+            rgb: vec![Vec3::ONE; 600],
+        };
+        let (b, i) = (srgb8(0.5), srgb8(0.0));
+        // "10": 24 px of text centred in 30, 3 px in; '0' starts 12 px after '1'.
+        let (w, _, px) = compose(&[thumb("10")], 1, bg, ink);
+        let at = |x: usize, y: usize| px[3 * (y * w + x)];
+        let (lx, ly) = (MARGIN + 3, MARGIN + 20 + 4);
+        for (k, c) in ['1', '0'].into_iter().enumerate() {
+            for (gy, bits) in glyph(c).unwrap().iter().enumerate() {
+                for gx in 0..5 {
+                    let want = if bits & (0x10 >> gx) != 0 { i } else { b };
+                    let (x, y) = (lx + 12 * k + 2 * gx, ly + 2 * gy);
+                    assert_eq!([at(x, y), at(x + 1, y + 1)], [want; 2], "{c} cell {gx},{gy}");
+                }
+            }
+        }
+        // A label wider than the sheet is cut at its right edge: nothing wraps
+        // into the next rows' left margin.
+        let (w, h, px) = compose(&[thumb("-1234567.5")], 1, bg, ink);
+        for y in 0..h {
+            for x in 0..MARGIN {
+                assert_eq!(px[3 * (y * w + x)], b, "{x},{y}");
+            }
+        }
+    }
 }
