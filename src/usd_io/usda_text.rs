@@ -233,8 +233,11 @@ pub fn line_of(text: &[u8], offset: usize) -> usize {
     text[..offset.min(text.len())].iter().filter(|&&c| c == b'\n').count() + 1
 }
 
-/// The unquoted content of a string token (escapes resolved for `\"`, `\\`,
-/// `\n`, `\t`; other escapes kept as written).
+/// The unquoted content of a string token, escapes resolved as USD's text
+/// format reads them (and openusd's parser, whose names usda_splice must
+/// match): `\a \b \f \n \r \t \v`, `\xH[H]`, octal `\O[O[O]]`; any other
+/// escaped character stands for itself, and a final lone backslash (possible
+/// only in a triple-quoted string) is dropped.
 pub fn unquote(raw: &str) -> String {
     let inner = if raw.len() >= 6 && (raw.starts_with("\"\"\"") || raw.starts_with("'''")) {
         &raw[3..raw.len() - 3]
@@ -244,19 +247,38 @@ pub fn unquote(raw: &str) -> String {
         return String::new();
     };
     let mut out = String::with_capacity(inner.len());
-    let mut chars = inner.chars();
+    let mut chars = inner.chars().peekable();
     while let Some(c) = chars.next() {
         if c != '\\' {
             out.push(c);
             continue;
         }
-        match chars.next() {
-            Some('n') => out.push('\n'),
-            Some('t') => out.push('\t'),
-            Some('r') => out.push('\r'),
-            Some(o) => out.push(o),
-            None => out.push('\\'),
+        let Some(e) = chars.next() else { break };
+        let (radix, first, max_digits) = match e {
+            'a' => (0, 0x7, 0),
+            'b' => (0, 0x8, 0),
+            'f' => (0, 0xc, 0),
+            'n' => (0, u32::from('\n'), 0),
+            'r' => (0, u32::from('\r'), 0),
+            't' => (0, u32::from('\t'), 0),
+            'v' => (0, 0xb, 0),
+            'x' => (16, 0, 2),
+            '0'..='7' => (8, u32::from(e) - u32::from('0'), 2),
+            other => (0, u32::from(other), 0),
+        };
+        // A numeric escape takes as many of its digits as follow, up to its
+        // maximum; `\x` with none names NUL, as in C++.
+        let mut value = first;
+        for _ in 0..max_digits {
+            match chars.peek().and_then(|d| d.to_digit(radix)) {
+                Some(d) => {
+                    value = value * radix + d;
+                    chars.next();
+                }
+                None => break,
+            }
         }
+        out.extend(char::from_u32(value));
     }
     out
 }
@@ -266,7 +288,9 @@ mod tests {
     use super::*;
 
     fn kinds(s: &str) -> Vec<(Kind, String)> {
+        // Bounded like `our_tokens` below.
         Lexer::new(s.as_bytes())
+            .take(s.len() + 1)
             .map(|t| t.unwrap())
             .map(|t| (t.kind, s[t.span].to_string()))
             .collect()
@@ -320,7 +344,9 @@ mod tests {
 
     fn our_tokens(s: &str) -> (Vec<(Kind, Range<usize>)>, Option<usize>) {
         let mut out = Vec::new();
-        for t in Lexer::new(s.as_bytes()) {
+        // Every token takes a byte, so a lexer that stops advancing fails
+        // here (one token too many) instead of hanging.
+        for t in Lexer::new(s.as_bytes()).take(s.len() + 1) {
             match t {
                 Ok(t) => out.push((t.kind, t.span)),
                 Err(e) => return (out, Some(e.offset)),
@@ -439,11 +465,69 @@ mod tests {
         assert_eq!(unquote("'''x'''"), "x");
         assert_eq!(unquote("\"\"\"\"\"\""), "");
         assert_eq!(unquote("\"a\\nb\\tc\\rd\\\\e\\\"f\\qg\""), "a\nb\tc\rd\\e\"fqg");
-        assert_eq!(unquote("\"end\\\""), "end\\");
+        // A lone final backslash is dropped, as openusd's parser drops it.
+        assert_eq!(unquote("\"end\\\""), "end");
         assert_eq!(unquote("\"\""), "");
         assert_eq!(unquote("\""), "");
         assert_eq!(unquote(""), "");
         // Five characters cannot be a triple-quoted string.
         assert_eq!(unquote("\"\"\"\"\""), "\"\"\"");
+    }
+
+    #[test]
+    fn tokens_ending_the_text_and_sign_edges_match_openusd() {
+        // A sign before a letter is punctuation ("-e5" is '-' then `e5`, not
+        // an exponent-only number); a sign before a bare '.' stays a sign;
+        // every token kind and a comment may end the text.
+        for text in [
+            "-e5",
+            "+e-2 x",
+            "-.",
+            "-.x",
+            "+. 1",
+            "7.",
+            "1e",
+            "2e+",
+            "3e-",
+            "1.5",
+            "9",
+            "a:b",
+            "a # c",
+            "# c\r{",
+            "a /* c */",
+        ] {
+            assert_eq!(our_tokens(text), openusd_tokens(text), "{text:?}");
+        }
+        // By hand, so the comparison above cannot pass with both lexers wrong.
+        let by_hand: Vec<_> = Lexer::new(b"-e5 -. 7.")
+            .take(9)
+            .map(|t| t.unwrap())
+            .map(|t| (t.kind, t.span))
+            .collect();
+        let (minus, dot) = (Kind::Punct(b'-'), Kind::Punct(b'.'));
+        assert_eq!(
+            by_hand,
+            [
+                (minus, 0..1),
+                (Kind::Ident, 1..3),
+                (minus, 4..5),
+                (dot, 5..6),
+                (Kind::Num, 7..8),
+                (dot, 8..9)
+            ]
+        );
+    }
+
+    #[test]
+    fn unquote_resolves_numeric_and_control_escapes_like_usd() {
+        // usd-core (TfEscapeString) reads `doc = "\x41\101\a\v"` as
+        // "AA\x07\x0b" and `def "\x41"` as /A; so does openusd's parser.
+        assert_eq!(unquote("\"\\x41\\101\\a\\v\""), "AA\u{7}\u{b}");
+        // Digits stop at their maximum or at a non-digit; `\x` alone is NUL
+        // (usd-core reads this one as "A4A1\x04g8\x00z\x00").
+        assert_eq!(unquote("'\\x414\\1011\\x4g\\8\\xz\\0'"), "A4A1\u{4}g8\u{0}z\u{0}");
+        // `\377` is the byte 0xFF to usd-core, which no Rust string holds;
+        // openusd names it U+00FF, and so does painterly.
+        assert_eq!(unquote("'\\b\\f\\377'"), "\u{8}\u{c}\u{ff}");
     }
 }
