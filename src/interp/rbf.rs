@@ -147,4 +147,41 @@ mod tests {
             Err(e) => assert_eq!(e, super::InterpError::SingularSystem),
         }
     }
+
+    #[test]
+    fn weights_are_the_papers_normalized_gaussians() {
+        // Bassett eq. 3 with φ_i = exp(−‖x − x_i‖² / r²), solved by numpy
+        // (np.linalg.solve(N.T, ψ(x))) without the nearest-key shift. The
+        // properties above hold for any kernel of ‖x − x_i‖²; these pin
+        // the Gaussian and its radius.
+        let keys = [0.0, 1.0, 2.0, 4.0];
+        for (radius, x, want) in [
+            (
+                0.5,
+                3.0,
+                [
+                    1.7080289505111982e-4,
+                    -9.496437538839617e-3,
+                    0.50932717071104294,
+                    0.49999846393274561,
+                ],
+            ),
+            (
+                1.5,
+                2.7,
+                [
+                    0.2399226690614408,
+                    -0.7955323286355852,
+                    1.3311525235625499,
+                    0.2244571360115943,
+                ],
+            ),
+        ] {
+            let it = Interpolator::new(Method::Rbf { radius }, 1, &keys).unwrap();
+            let w = it.weights_vec(&[x]);
+            for (g, e) in w.iter().zip(want) {
+                assert!((g - e).abs() < 1e-9, "radius {radius}, x {x}: {w:?}");
+            }
+        }
+    }
 }
