@@ -170,6 +170,31 @@ mod tests {
     }
 
     #[test]
+    fn weighted_sum_keeps_each_point_in_place_across_chunks() {
+        // More points than one 4096-point parallel chunk, each different, so
+        // a point read from the wrong index shows.
+        let n = 4096 + 10;
+        let a: Vec<Vec3> = (0..n).map(|p| Vec3::new(p as f32, 1.0, 0.0)).collect();
+        let mut out = vec![Vec3::ZERO; n];
+        weighted_sum(&mut out, &[(2.0, &a)]);
+        for (p, o) in out.iter().enumerate() {
+            assert_eq!(*o, Vec3::new(2.0 * p as f32, 2.0, 0.0), "point {p}");
+        }
+    }
+
+    #[test]
+    fn one_rings_count_vertices() {
+        let none = OneRings::new(0, &[], &[]);
+        assert_eq!(none.len(), 0);
+        assert!(none.is_empty());
+        // Vertex 3 is in no face: counted, and its ring is itself.
+        let tri = OneRings::new(4, &[3], &[0, 1, 2]);
+        assert_eq!(tri.len(), 4);
+        assert!(!tri.is_empty());
+        assert_eq!(tri.ring(3), &[3]);
+    }
+
+    #[test]
     fn bounds_of_points() {
         let b = bounds(&[Vec3::new(1.0, -2.0, 0.0), Vec3::new(-1.0, 3.0, 0.5)]).unwrap();
         assert_eq!(b, [Vec3::new(-1.0, -2.0, 0.0), Vec3::new(1.0, 3.0, 0.5)]);

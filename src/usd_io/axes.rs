@@ -476,4 +476,60 @@ mod tests {
         let v = Value::Vec3fVec(vec![gf::vec3f(1.0, 2.0, 3.0), gf::vec3f(4.0, 5.0, 6.0)]);
         assert_eq!(pick(&v, 1, 2).unwrap(), 6.0);
     }
+
+    #[test]
+    fn pick_element_equal_to_length_is_out_of_range() {
+        use openusd::gf;
+        // The last valid element is len - 1; len itself is an error, not a panic.
+        assert_eq!(pick(&Value::DoubleVec(vec![1.0, 2.0]), 2, 0).unwrap_err().0, "element");
+        let v = Value::Vec3fVec(vec![gf::vec3f(1.0, 2.0, 3.0)]);
+        assert_eq!(pick(&v, 1, 0).unwrap_err().0, "element");
+    }
+
+    #[test]
+    fn rotation_vector_of_a_half_turn_with_zero_w_keeps_its_axis() {
+        // w = 0 is already the short way (w >= 0): a half turn about +Y is
+        // (0, pi, 0), not the flipped (0, -pi, 0).
+        let v = rotation_vector(DQuat::from_xyzw(0.0, 1.0, 0.0, 0.0));
+        assert!((v - DVec3::new(0.0, std::f64::consts::PI, 0.0)).length() < 1e-12, "{v}");
+    }
+
+    /// The rest rotation of joint "a" of /Skel, read through a jointRotation
+    /// axis, with `rest` as the Skeleton's restTransforms.
+    fn rest_of_joint_a(rest: &str) -> DQuat {
+        let r = crate::usd_io::testutil::stage_from_usda(&format!(
+            r#"#usda 1.0
+def Skeleton "Skel"
+{{
+    uniform token[] joints = ["a", "b"]
+    uniform matrix4d[] restTransforms = {rest}
+}}
+def PainterlyAxis "Ax"
+{{
+    token kind = "jointRotation"
+    token name = "a"
+    rel source = </Skel>
+}}
+"#
+        ));
+        match Axis::read(&r, "/Ax").unwrap().source {
+            AxisSource::JointRotation { rest, anim, index } => {
+                assert!(anim.is_none() && index.is_none());
+                rest
+            }
+            _ => panic!("not a jointRotation source"),
+        }
+    }
+
+    #[test]
+    fn joint_rest_rotation_needs_one_rest_transform_per_joint() {
+        // +90 degrees about X in USD's row-vector convention.
+        let x90 = "((1, 0, 0, 0), (0, 0, 1, 0), (0, -1, 0, 0), (0, 0, 0, 1))";
+        let id = "((1, 0, 0, 0), (0, 1, 0, 0), (0, 0, 1, 0), (0, 0, 0, 1))";
+        let want = DQuat::from_axis_angle(DVec3::X, std::f64::consts::FRAC_PI_2);
+        let got = rest_of_joint_a(&format!("[{x90}, {id}]"));
+        assert!(got.dot(want).abs() > 1.0 - 1e-12, "{got}");
+        // One transform for two joints: not a rest pose, so the identity.
+        assert_eq!(rest_of_joint_a(&format!("[{x90}]")), DQuat::IDENTITY);
+    }
 }
