@@ -130,7 +130,7 @@ impl NaiveSmoothVoronoi {
     /// Basis weights `w(x) = Σ_i φ_i(x) (e_i + G_iᵀ (x − x_i))` (eq. 9).
     ///
     /// # Panics
-    /// If `x.len() != self.dim()` or `out.len() != self.len()`.
+    /// If `x` is not a point of the keys' dimension or `out` is not one weight per key.
     pub fn weights(&self, x: &[f64], out: &mut [f64]) {
         assert_eq!(x.len(), self.dim, "query has the wrong dimension");
         assert_eq!(out.len(), self.n, "output has the wrong length");
@@ -149,20 +149,5 @@ impl NaiveSmoothVoronoi {
                 *o += phi[i] * along;
             }
         }
-    }
-
-    /// Number of keys.
-    pub fn len(&self) -> usize {
-        self.n
-    }
-
-    /// Always false: there is at least one key.
-    pub fn is_empty(&self) -> bool {
-        self.n == 0
-    }
-
-    /// Dimension of the configuration space.
-    pub fn dim(&self) -> usize {
-        self.dim
     }
 }
