@@ -463,3 +463,190 @@ impl SkelProxy {
             .deform_normals(normals, point_of, skinning.as_deref(), &weights))
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::usd_io::testutil::stage_from_usda;
+    use openusd::gf;
+
+    const ID: &str = "( (1, 0, 0, 0), (0, 1, 0, 0), (0, 0, 1, 0), (0, 0, 0, 1) )";
+    const INFL: &str = r#"int[] primvars:skel:jointIndices = [0, 0, 0] (interpolation = "vertex")
+        float[] primvars:skel:jointWeights = [1, 1, 1] (interpolation = "vertex")"#;
+
+    /// Skeleton /R/Skel (with `skel` lines) and a 3-point mesh /R/M bound to it.
+    fn stage(skel: &str, mesh: &str) -> StageReader {
+        stage_from_usda(&format!(
+            r#"#usda 1.0
+def SkelRoot "R"
+{{
+    def Skeleton "Skel"
+    {{
+        {skel}
+    }}
+    def Mesh "M"
+    {{
+        point3f[] points = [(0, 0, 0), (1, 0, 0), (0, 1, 0)]
+        int[] faceVertexCounts = [3]
+        int[] faceVertexIndices = [0, 1, 2]
+        {mesh}
+        rel skel:skeleton = </R/Skel>
+    }}
+}}
+"#
+        ))
+    }
+
+    fn mesh(r: &StageReader) -> usd::Prim {
+        r.prim("/R/M").unwrap().unwrap()
+    }
+
+    fn proxy(r: &StageReader) -> Result<SkelProxy> {
+        let rest = [DVec3::ZERO, DVec3::X, DVec3::Y];
+        SkelProxy::read(r, &mesh(r), "/R/Skel", &rest)
+    }
+
+    #[test]
+    fn indexed_values_pick_whole_tuples() {
+        // elementSize 2: index i picks elements 2i and 2i + 1, by hand.
+        let idx = [2, 0, 2];
+        assert_eq!(
+            expand_indexed(&Value::IntVec(vec![0, 1, 2, 3, 4, 5]), &idx, 2),
+            Some(Value::IntVec(vec![4, 5, 0, 1, 4, 5]))
+        );
+        assert_eq!(
+            expand_indexed(&Value::FloatVec(vec![0.0, 0.5, 1.0, 1.5, 2.0, 2.5]), &idx, 2),
+            Some(Value::FloatVec(vec![2.0, 2.5, 0.0, 0.5, 2.0, 2.5]))
+        );
+        assert_eq!(
+            expand_indexed(&Value::DoubleVec(vec![0.0, 0.5, 1.0, 1.5, 2.0, 2.5]), &idx, 2),
+            Some(Value::DoubleVec(vec![2.0, 2.5, 0.0, 0.5, 2.0, 2.5]))
+        );
+        let h = |v: &[f32]| v.iter().map(|&x| gf::f16::from_f32(x)).collect::<Vec<_>>();
+        assert_eq!(
+            expand_indexed(&Value::HalfVec(h(&[0.0, 0.5, 1.0, 1.5, 2.0, 2.5])), &idx, 2),
+            Some(Value::HalfVec(h(&[2.0, 2.5, 0.0, 0.5, 2.0, 2.5])))
+        );
+        // Out of range (a whole tuple must exist), negative, or not a number array.
+        assert_eq!(expand_indexed(&Value::IntVec(vec![0, 1, 2]), &[1], 2), None);
+        assert_eq!(expand_indexed(&Value::IntVec(vec![0, 1]), &[-1], 1), None);
+        assert_eq!(expand_indexed(&Value::String("x".into()), &[0], 1), None);
+    }
+
+    #[test]
+    fn missing_influences_note_says_which_primvar() {
+        let why = |m: &str| {
+            read_influences(&stage("", m), &mesh(&stage("", m)), 3)
+                .unwrap()
+                .err()
+                .unwrap()
+        };
+        assert_eq!(why(""), "/R/M has no joint influences (primvars:skel:jointIndices)");
+        assert_eq!(
+            why("float[] primvars:skel:jointWeights = [1, 1, 1] (interpolation = \"vertex\")"),
+            "/R/M has primvars:skel:jointWeights but no primvars:skel:jointIndices"
+        );
+        assert_eq!(
+            why("int[] primvars:skel:jointIndices = [0, 0, 0] (interpolation = \"vertex\")"),
+            "/R/M has primvars:skel:jointIndices but no primvars:skel:jointWeights"
+        );
+    }
+
+    #[test]
+    fn influences_not_sized_for_the_mesh_are_refused() {
+        // 3 points, elementSize 1: constant needs 1 value, vertex 3.
+        for (interp, n) in [("constant", 3), ("vertex", 2), ("vertex", 4)] {
+            let vals = vec!["0"; n].join(", ");
+            let m = format!(
+                r#"int[] primvars:skel:jointIndices = [{vals}] (interpolation = "{interp}")
+                float[] primvars:skel:jointWeights = [{vals}] (interpolation = "{interp}")"#
+            );
+            let r = stage("", &m);
+            let err = read_influences(&r, &mesh(&r), 3).err().expect(&m).to_string();
+            assert!(err.contains("do not fit a mesh of 3 points"), "{err}");
+        }
+    }
+
+    #[test]
+    fn skeleton_without_joints_is_noted() {
+        let r = stage("uniform token[] joints = []", INFL);
+        assert_eq!(
+            proxy(&r).unwrap().notes,
+            [
+                "/R/Skel has no joints: usd-core ignores the joint influences of /R/M",
+                "nothing deforms /R/M: usd-core leaves it in its authored pose",
+            ]
+        );
+    }
+
+    #[test]
+    fn animation_without_joints_and_no_rest_pose_does_not_skin() {
+        // The SkelAnimation drives no joint (no joints authored) and there is
+        // no restTransforms: usd-core cannot pose the skeleton, so it does
+        // not skin the mesh; that is a note, not an error.
+        let skel = format!(
+            r#"uniform token[] joints = ["a"]
+        uniform matrix4d[] bindTransforms = [{ID}]
+        rel skel:animationSource = </R/Skel/Anim>
+        def SkelAnimation "Anim"
+        {{
+        }}"#
+        );
+        let p = proxy(&stage(&skel, INFL)).unwrap();
+        assert!(!p.skins_joints());
+        assert_eq!(
+            p.notes[0],
+            "no animation drives the joints of /R/Skel and it has no restTransforms: usd-core does not skin /R/M by joints"
+        );
+    }
+
+    #[test]
+    fn joints_alone_deforming_need_no_note() {
+        let skel = format!(
+            r#"uniform token[] joints = ["a"]
+        uniform matrix4d[] bindTransforms = [{ID}]
+        uniform matrix4d[] restTransforms = [{ID}]"#
+        );
+        let p = proxy(&stage(&skel, INFL)).unwrap();
+        assert!(p.skins_joints());
+        assert!(p.notes.is_empty(), "{:?}", p.notes);
+    }
+
+    #[test]
+    fn blend_shapes_without_normal_offsets_leave_normals() {
+        // BakeSkinning rewrites normals for joint skinning or for blend
+        // shapes with normalOffsets; point offsets alone move no normal.
+        let skel = r#"rel skel:animationSource = </R/Skel/Anim>
+        def SkelAnimation "Anim"
+        {
+            uniform token[] blendShapes = ["s"]
+            float[] blendShapeWeights = [0.5]
+        }"#;
+        let mesh = r#"uniform token[] skel:blendShapes = ["s"]
+        rel skel:blendShapeTargets = </R/M/s>
+        def BlendShape "s"
+        {
+            uniform vector3f[] offsets = [(0, 0, 1), (0, 0, 0), (0, 0, 0)]
+        }"#;
+        let p = proxy(&stage(skel, mesh)).unwrap();
+        assert!(!p.skins_joints());
+        // The shape does deform the mesh: point 0 rises by half its offset.
+        assert_eq!(p.deform(0.0).unwrap()[0], DVec3::new(0.0, 0.0, 0.5));
+        assert!(!p.deforms_normals());
+    }
+
+    #[test]
+    fn skeleton_with_empty_animation_source_is_at_rest() {
+        // An authored but empty skel:animationSource names no animation:
+        // usd-core poses the skeleton at rest.
+        let skel = format!(
+            r#"uniform token[] joints = ["a"]
+        uniform matrix4d[] bindTransforms = [{ID}]
+        uniform matrix4d[] restTransforms = [{ID}]
+        rel skel:animationSource = None"#
+        );
+        let p = proxy(&stage(&skel, INFL)).unwrap();
+        assert_eq!(p.animation, None);
+        assert!(p.skins_joints());
+    }
+}

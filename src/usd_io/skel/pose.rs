@@ -212,16 +212,28 @@ pub(super) fn read_joint_pose(
             ),
         ));
     }
+    // A singular bind transform has no inverse. usd-core's GfMatrix4d
+    // inverse is then a scale by FLT_MAX, which throws the joint's points to
+    // infinity; painterly takes the identity instead, and says so.
+    let mut singular = Vec::new();
     let inverse_bind: Vec<DMat4> = bind
         .iter()
-        .map(|m| {
+        .zip(joints)
+        .map(|(m, joint)| {
             if m.determinant().abs() > 0.0 {
                 m.inverse()
             } else {
+                singular.push(joint.as_str());
                 DMat4::IDENTITY
             }
         })
         .collect();
+    if !singular.is_empty() {
+        notes.push(format!(
+            "{skeleton}.bindTransforms of {} cannot be inverted: usd-core would scale the points they move by FLT_MAX; painterly leaves them unscaled",
+            quoted(&singular)
+        ));
+    }
     let rest_all = mats("restTransforms")?;
     let rest_len = rest_all.as_ref().map_or(0, |m| m.len());
     let rest = rest_all.filter(|m| m.len() == nj);
@@ -375,4 +387,219 @@ pub(super) fn read_joint_pose(
         anim,
         mesh_map,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::usd_io::skel::joint_parents;
+    use crate::usd_io::testutil::stage_from_usda;
+
+    const ID: &str = "( (1, 0, 0, 0), (0, 1, 0, 0), (0, 0, 1, 0), (0, 0, 0, 1) )";
+    const UP: &str = "( (1, 0, 0, 0), (0, 1, 0, 0), (0, 0, 1, 0), (0, 1, 0, 1) )";
+    const TR: &str = "float3[] translations = [(0, 0, 0), (0, 1, 0)]";
+    const ROT: &str = "quatf[] rotations = [(1, 0, 0, 0), (1, 0, 0, 0)]";
+    const SC: &str = "half3[] scales = [(1, 1, 1), (1, 1, 1)]";
+
+    /// Skeleton `/R/Skel` (joints a, a/b) with `skel` extra lines, and its
+    /// animation `/R/Skel/Anim` over `anim_joints` with the `anim` lines.
+    fn stage(skel: &str, anim_joints: &str, anim: &str) -> StageReader {
+        stage_from_usda(&format!(
+            r#"#usda 1.0
+def SkelRoot "R"
+{{
+    def Skeleton "Skel"
+    {{
+        uniform token[] joints = ["a", "a/b"]
+        uniform matrix4d[] bindTransforms = [{ID}, {UP}]
+        {skel}
+        def SkelAnimation "Anim"
+        {{
+            uniform token[] joints = {anim_joints}
+            {anim}
+        }}
+    }}
+    def Mesh "M"
+    {{
+    }}
+}}
+"#
+        ))
+    }
+
+    /// read_joint_pose of /R/M bound to /R/Skel, animated by /R/Skel/Anim.
+    fn read(r: &StageReader) -> (Result<JointPose>, Vec<String>) {
+        let skel = r.prim("/R/Skel").unwrap().unwrap();
+        let anim = r.prim("/R/Skel/Anim").unwrap().unwrap();
+        let mesh = r.prim("/R/M").unwrap().unwrap();
+        let joints: Vec<String> = r
+            .typed(&skel, "joints", None, "token[]", values::token_array)
+            .unwrap()
+            .unwrap();
+        let anim_joints: Vec<String> = r
+            .typed(&anim, "joints", None, "token[]", values::token_array)
+            .unwrap()
+            .unwrap();
+        let map = OrderMap::new(&anim_joints, &joints);
+        let mut notes = Vec::new();
+        let pose = read_joint_pose(
+            r,
+            &skel,
+            "/R/Skel",
+            &joints,
+            joint_parents(&joints),
+            Some((&anim, &anim_joints, map)),
+            &mesh,
+            &mut notes,
+        );
+        (pose, notes)
+    }
+
+    fn anim_joints(r: &StageReader) -> AnimJoints {
+        let prim = r.prim("/R/Skel/Anim").unwrap().unwrap();
+        AnimJoints {
+            path: "/R/Skel/Anim".into(),
+            joints: 2,
+            translations: AttributeQuery::new(&prim.attribute("translations")),
+            rotations: AttributeQuery::new(&prim.attribute("rotations")),
+            scales: AttributeQuery::new(&prim.attribute("scales")),
+            scale_times: r.sample_times(&prim, "scales").unwrap(),
+        }
+    }
+
+    #[test]
+    fn half_scales_between_samples_round_as_usd_core() {
+        // Expected values: usd-core 25's Get(t) of the same half3[] samples
+        // (pxr Usd attribute interpolation); rounding once, as openusd does,
+        // differs in at least one component at each time.
+        let r = stage(
+            "",
+            r#"["a", "a/b"]"#,
+            &format!(
+                "{TR}\n{ROT}\nhalf3[] scales.timeSamples = {{
+                1: [(1.0009765625, 3, 0.7), (2.5, -1.25, 1)],
+                3: [(3, 0.1, 1.3), (0.5, 2, 1)],
+                6: [(1.5, 7, -0.3), (1, 1, 1)],
+            }}"
+            ),
+        );
+        let aj = anim_joints(&r);
+        let f = |h: &[gf::Vec3h]| -> Vec<[f64; 3]> {
+            h.iter().map(|v| [v.x.to_f64(), v.y.to_f64(), v.z.to_f64()]).collect()
+        };
+        let at = |t: f64| f(&aj.half_scales_between_samples(t).unwrap().unwrap());
+        assert_eq!(
+            at(2.2),
+            [
+                [2.19921875, 1.259765625, 1.0595703125],
+                [1.2998046875, 0.7001953125, 1.0]
+            ]
+        );
+        assert_eq!(
+            at(4.1),
+            [[2.44921875, 2.62890625, 0.71337890625], [0.68359375, 1.6328125, 1.0]]
+        );
+        // At, before and after the samples usd-core holds a sample: no interpolation.
+        for t in [0.5, 1.0, 3.0, 6.0, 7.0] {
+            assert!(aj.half_scales_between_samples(t).unwrap().is_none(), "t={t}");
+        }
+    }
+
+    #[test]
+    fn sparse_animation_error_says_how_rest_transforms_fail() {
+        // "a/b" alone is animated: "a" needs its rest transform.
+        let anim =
+            "float3[] translations = [(0, 1, 0)]\nquatf[] rotations = [(1, 0, 0, 0)]\nhalf3[] scales = [(1, 1, 1)]";
+        let err = |skel: &str| read(&stage(skel, r#"["a/b"]"#, anim)).0.err().unwrap().to_string();
+        let none = err("");
+        assert!(none.ends_with("but /R/Skel has no restTransforms"), "{none}");
+        let one = err(&format!("uniform matrix4d[] restTransforms = [{ID}]"));
+        assert!(one.ends_with("but /R/Skel has 1 restTransforms for 2 joints"), "{one}");
+    }
+
+    #[test]
+    fn notes_name_every_time_the_animation_is_ignored() {
+        let rest = format!("uniform matrix4d[] restTransforms = [{ID}, {UP}]");
+        let rot = |bad: &[u32]| {
+            let s: Vec<String> = [1, 3, 6]
+                .iter()
+                .map(|t| {
+                    let q = if bad.contains(t) {
+                        "(1, 0, 0, 0)"
+                    } else {
+                        "(1, 0, 0, 0), (1, 0, 0, 0)"
+                    };
+                    format!("{t}: [{q}],")
+                })
+                .collect();
+            format!("{TR}\n{SC}\nquatf[] rotations.timeSamples = {{ {} }}", s.join(" "))
+        };
+        let notes = |bad: &[u32]| read(&stage(&rest, r#"["a", "a/b"]"#, &rot(bad))).1;
+        let tail = ": usd-core ignores the animation there and poses /R/Skel at rest";
+        assert_eq!(
+            notes(&[3]),
+            [format!(
+                "/R/Skel/Anim: rotations has 1 values for 2 joints at time 3{tail}"
+            )]
+        );
+        assert_eq!(
+            notes(&[1, 6]),
+            [format!(
+                "/R/Skel/Anim: rotations has 1 values for 2 joints at time 1 (and at 6){tail}"
+            )]
+        );
+    }
+
+    #[test]
+    fn full_animation_without_rest_transforms_has_no_note() {
+        // Nothing needs a rest pose and none is authored: nothing to say.
+        let (pose, notes) = read(&stage("", r#"["a", "a/b"]"#, &format!("{TR}\n{ROT}\n{SC}")));
+        assert!(pose.is_ok());
+        assert!(notes.is_empty(), "{notes:?}");
+    }
+
+    #[test]
+    fn a_singular_bind_transform_is_left_out_with_a_note() {
+        // usd-core (GfMatrix4d::GetInverse) would give a/b's skinning
+        // transform diag(FLT_MAX) with translation (0, 2, 0); painterly
+        // takes the identity for the inverse and notes it, so a/b skins by
+        // its rest transform alone: a translation by (0, 2, 0).
+        let r = stage_from_usda(&format!(
+            r#"#usda 1.0
+def SkelRoot "R"
+{{
+    def Skeleton "Skel"
+    {{
+        uniform token[] joints = ["a", "a/b"]
+        uniform matrix4d[] bindTransforms = [{ID}, ( (1, 0, 0, 0), (0, 0, 0, 0), (0, 0, 1, 0), (0, 0, 0, 1) )]
+        uniform matrix4d[] restTransforms = [{ID}, ( (1, 0, 0, 0), (0, 1, 0, 0), (0, 0, 1, 0), (0, 2, 0, 1) )]
+    }}
+    def Mesh "M"
+    {{
+    }}
+}}
+"#
+        ));
+        let skel = r.prim("/R/Skel").unwrap().unwrap();
+        let mesh = r.prim("/R/M").unwrap().unwrap();
+        let joints = vec!["a".to_string(), "a/b".to_string()];
+        let mut notes = Vec::new();
+        let pose = read_joint_pose(
+            &r,
+            &skel,
+            "/R/Skel",
+            &joints,
+            joint_parents(&joints),
+            None,
+            &mesh,
+            &mut notes,
+        );
+        let s = pose.unwrap().skinning(0.0).unwrap();
+        assert_eq!(s[0], DMat4::IDENTITY);
+        assert_eq!(s[1], DMat4::from_translation(glam::DVec3::new(0.0, 2.0, 0.0)));
+        assert_eq!(
+            notes,
+            ["/R/Skel.bindTransforms of \"a/b\" cannot be inverted: usd-core would scale the points they move by FLT_MAX; painterly leaves them unscaled"]
+        );
+    }
 }
