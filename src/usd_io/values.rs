@@ -126,8 +126,30 @@ pub fn matrix4(v: &Value) -> Option<DMat4> {
 
 /// A short name for a value's kind, for error messages ("expected point3f[], found int[]").
 pub fn kind_name(v: &Value) -> String {
+    // The variant's name (`Vec3fVec`, `Matrix4d`, `TokenVec`) spelled as the
+    // USD type users author (`float3[]`, `matrix4d`, `token[]`).
     let dbg = format!("{v:?}");
-    dbg.split(['(', ' ', '{']).next().unwrap_or("value").to_string()
+    let variant = dbg.split(['(', ' ', '{']).next().unwrap_or("value");
+    let (base, array) = match variant.strip_suffix("Vec") {
+        Some(b) if !b.is_empty() => (b, "[]"),
+        _ => (variant, ""),
+    };
+    let scalar = |c: &str| match c {
+        "h" => "half",
+        "f" => "float",
+        "d" => "double",
+        _ => "int",
+    };
+    let name = match base {
+        "AssetPath" => "asset".to_string(),
+        "ValueBlock" => return "blocked (None)".to_string(),
+        b if b.len() == 5 && b.starts_with("Vec") => format!("{}{}", scalar(&b[4..]), &b[3..4]),
+        b => {
+            let mut c = b.chars();
+            c.next().map_or(String::new(), |f| f.to_lowercase().chain(c).collect())
+        }
+    };
+    format!("{name}{array}")
 }
 
 /// A binding as the values of `painterly:bindVertices` (`int3[]`) and
@@ -173,5 +195,28 @@ mod tests {
         assert_eq!(vec3_array(&v).unwrap(), vec![Vec3::new(1.0, 2.0, 3.0)]);
         assert_eq!(f32_array(&Value::DoubleVec(vec![0.5])).unwrap(), vec![0.5]);
         assert!(vec3_array(&Value::IntVec(vec![1])).is_none());
+    }
+
+    #[test]
+    fn kind_names_are_usd_type_names() {
+        // As USD spells the types (Sdf.ValueTypeNames), by hand.
+        let cases = [
+            (Value::FloatVec(vec![]), "float[]"),
+            (Value::Vec3fVec(vec![]), "float3[]"),
+            (Value::Vec3hVec(vec![]), "half3[]"),
+            (Value::Vec2i(gf::Vec2i { x: 0, y: 0 }), "int2"),
+            (Value::Vec4dVec(vec![]), "double4[]"),
+            (Value::QuatfVec(vec![]), "quatf[]"),
+            (Value::Matrix4dVec(vec![]), "matrix4d[]"),
+            (Value::TokenVec(vec![]), "token[]"),
+            (Value::Int64(3), "int64"),
+            (Value::Double(1.0), "double"),
+            (Value::Bool(true), "bool"),
+            (Value::String(String::new()), "string"),
+            (Value::AssetPathVec(vec![]), "asset[]"),
+        ];
+        for (v, want) in cases {
+            assert_eq!(kind_name(&v), want, "{v:?}");
+        }
     }
 }
