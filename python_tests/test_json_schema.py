@@ -204,7 +204,13 @@ def test_inspect_json_problems_and_clip_set(painterly, tmp_path):
 
     out = tmp_path / "shot.usda"
     painterly("bake", FIXTURES / "tube.usda", "-o", out, "--chunk", 12, "-q")
-    (tmp_path / "shot.clips" / "shot.0001.13-24.usdc").unlink()
+    # Every chunk on disk: a done chunk is no problem.
+    proc = painterly("inspect", out, "--json", check=False)
+    doc = validate("inspect", json.loads(proc.stdout))
+    assert [c["state"] for c in doc["clip_set"]["chunks"]] == ["done", "done"]
+    assert (doc["problems"], proc.returncode) == ([], 0)
+    missing = tmp_path / "shot.clips" / "shot.0001.13-24.usdc"
+    missing.unlink()
     proc = painterly("inspect", out, "--json", check=False)
     doc = validate("inspect", json.loads(proc.stdout))
     assert doc["clip_set"]["chunk_size"] == 12
@@ -212,7 +218,7 @@ def test_inspect_json_problems_and_clip_set(painterly, tmp_path):
         ("shot.0000.1-12.usdc", "done"),
         ("shot.0001.13-24.usdc", "missing"),
     ]
-    assert [p["rule"] for p in doc["problems"]] == ["chunks"]
+    assert [(p["rule"], p["message"]) for p in doc["problems"]] == [("chunks", f"chunk {missing} is missing")]
     assert proc.returncode == 1
 
 

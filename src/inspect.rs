@@ -477,3 +477,121 @@ impl Report {
         s
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::usd_io::memory::open_bytes;
+
+    fn tube() -> PathBuf {
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/tube.usda")
+    }
+
+    /// A report with nothing in it but `problems` and `clip_set`.
+    fn bare(problems: Vec<Problem>, clip_set: Option<ClipSetReport>) -> Report {
+        Report {
+            file: PathBuf::from("/shots/a.usda"),
+            start_time_code: Some(1.0),
+            end_time_code: Some(24.0),
+            time_codes_per_second: Some(24.0),
+            up_axis: Some("Y".into()),
+            rigs: Vec::new(),
+            axes: Vec::new(),
+            view_dependent_meshes: Vec::new(),
+            unresolved_assets: Vec::new(),
+            clip_set,
+            problems,
+        }
+    }
+
+    #[test]
+    fn text_problem_lines_name_prim_and_attribute() {
+        // Error's documented form: `prim.attribute: message`, `prim: message`.
+        let problem = |prim: Option<&str>, attribute: Option<&str>, message: &str| Problem {
+            prim: prim.map(String::from),
+            attribute: attribute.map(String::from),
+            message: message.into(),
+            rule: Rule::Unreadable,
+        };
+        let text = bare(
+            vec![
+                problem(Some("/A/Layer"), Some("points"), "too few"),
+                problem(Some("/A/Rig"), None, "no proxy"),
+            ],
+            None,
+        )
+        .to_text();
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(
+            lines[lines.len() - 3..],
+            ["2 problem(s):", "  /A/Layer.points: too few", "  /A/Rig: no proxy"]
+        );
+    }
+
+    #[test]
+    fn text_counts_chunks_by_state() {
+        let chunk = |name: &str, state: &'static str| ChunkReport {
+            path: PathBuf::from(name),
+            state,
+            detail: None,
+        };
+        let clips = ClipSetReport {
+            chunk_size: 12,
+            chunks: vec![chunk("a", "done"), chunk("b", "missing"), chunk("c", "done")],
+        };
+        let text = bare(Vec::new(), Some(clips)).to_text();
+        assert!(
+            text.contains("\nclip set: 3 chunks of 12 frames: 2 done, 1 missing, 0 stale\n"),
+            "{text}"
+        );
+    }
+
+    #[test]
+    fn missing_reference_problem_names_its_prim() {
+        let usda =
+            "#usda 1.0\ndef Xform \"Char\" (\n    prepend references = @./painterly_no_such_asset.usda@\n)\n{\n}\n";
+        let path = std::env::temp_dir().join("painterly_inspect_missing_ref.usda");
+        let r = open_bytes(usda.as_bytes().to_vec(), &path).unwrap();
+        let report = inspect_stage(&r).unwrap();
+        // The stage has nothing else wrong: one problem, on the prim that
+        // authors the reference.
+        assert_eq!(report.problems.len(), 1, "{:?}", report.problems);
+        let missing = &report.problems[0];
+        assert!(
+            missing.message.starts_with("missing asset: reference @"),
+            "{}",
+            missing.message
+        );
+        assert!(
+            missing.message.contains("painterly_no_such_asset.usda@"),
+            "{}",
+            missing.message
+        );
+        assert_eq!(missing.prim.as_deref(), Some("/Char"));
+    }
+
+    #[test]
+    fn skel_proxy_reports_its_skeleton_and_animation() {
+        // fixtures/tube.usda: the proxy binds rel skel:skeleton = </Tube/Rig/Skel>,
+        // whose rel skel:animationSource = </Tube/Rig/Skel/Anim>.
+        let r = StageReader::open(&tube()).unwrap();
+        let report = inspect_stage(&r).unwrap();
+        assert_eq!(report.rigs.len(), 1);
+        assert_eq!(report.rigs[0].skeleton.as_deref(), Some("/Tube/Rig/Skel"));
+        assert_eq!(report.rigs[0].animation_source.as_deref(), Some("/Tube/Rig/Skel/Anim"));
+    }
+
+    #[test]
+    fn a_camera_that_is_not_there_is_a_problem() {
+        // The stage itself is clean; only evaluating the frames with
+        // --camera /NoCam (what bake --camera /NoCam does) fails.
+        assert!(inspect(&tube(), None).unwrap().problems.is_empty());
+        let report = inspect(&tube(), Some("/NoCam")).unwrap();
+        assert_eq!(report.problems.len(), 1, "{:?}", report.problems);
+        // The problem is bake's own error (`/NoCam: the camera named by
+        // --camera does not exist`), on the prim --camera names.
+        let p = &report.problems[0];
+        assert_eq!(p.prim.as_deref(), Some("/NoCam"));
+        assert!(p.message.contains("--camera"), "{}", p.message);
+    }
+}
