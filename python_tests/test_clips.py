@@ -243,3 +243,26 @@ def test_a_stale_or_broken_binding_cache_is_ignored(painterly, tmp_path, repo_ro
     _chunk_task(painterly, src, fresh, 2)
     name = "shot.0002.11-15.usdc"
     assert (shot.parent / "shot.clips" / name).read_bytes() == (fresh.parent / "shot.clips" / name).read_bytes()
+
+
+def test_a_chunk_from_another_painterly_version_is_stale(painterly, tmp_path, repo_root):
+    """Same input, other version stamp: inspect reports the chunk stale
+    (not done) and the assembly refuses it."""
+    src, shot = repo_root / "fixtures" / "tube.usda", tmp_path / "shot.usda"
+    painterly("bake", src, "-o", shot, "--chunk", "10", "--quiet")
+    chunk = tmp_path / "shot.clips" / "shot.0001.11-20.usdc"
+    layer = Sdf.Layer.FindOrOpen(str(chunk))
+    data = dict(layer.customLayerData)
+    info = dict(data["painterly"])
+    assert info["version"] != "0.0.1-other"
+    info["version"] = "0.0.1-other"
+    data["painterly"] = info
+    layer.customLayerData = data
+    layer.Save()
+    proc = painterly("inspect", shot, "--json", check=False)
+    chunks = json.loads(proc.stdout)["clip_set"]["chunks"]
+    assert [c["state"] for c in chunks] == ["done", "stale", "done"]
+    assert chunks[1]["detail"] == "baked by painterly 0.0.1-other"
+    proc = painterly("bake", src, "-o", shot, "--chunk", "10", "--assemble", check=False)
+    assert proc.returncode == 1
+    assert "1 stale: shot.0001.11-20.usdc (baked by painterly 0.0.1-other)" in proc.stderr

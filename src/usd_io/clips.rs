@@ -442,3 +442,85 @@ pub fn clip_set_status(path: &Path) -> Result<Option<ClipSetStatus>> {
         chunks,
     }))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::usd_io::bake_layer::{BakeAttr, SampleKind};
+
+    #[test]
+    fn frame_step_is_the_gap_between_the_first_two_frames() {
+        assert_eq!(frame_step(&[10.0, 10.25, 10.5]), 0.25);
+        // One frame or none: a step of 1, as `--frames A:A:1` would say.
+        assert_eq!(frame_step(&[3.0]), 1.0);
+        assert_eq!(frame_step(&[]), 1.0);
+    }
+
+    /// Two attributes on /A/B (one a primvar), B's skeleton blocked, frames
+    /// 1, 2, 3 in chunks of 2: the manifest declares the attributes, the
+    /// clip-set layer also their interpolation and the blocked relationship,
+    /// nested like the prims (written out by hand from the module docs).
+    #[test]
+    fn clip_set_and_manifest_text() {
+        let dir = std::env::temp_dir().join(format!("painterly-clipset-text-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let output = dir.join("shot.usda");
+        let times = [1.0, 2.0, 3.0];
+        let plan = ClipPlan::new(&output, &times, 2).unwrap();
+        let layout = BakeLayout {
+            meta: Default::default(),
+            attrs: vec![
+                BakeAttr {
+                    prim: "/A/B".into(),
+                    name: "points",
+                    kind: SampleKind::Points,
+                    interpolation: None,
+                },
+                BakeAttr {
+                    prim: "/A/B".into(),
+                    name: "primvars:displayOpacity",
+                    kind: SampleKind::Floats,
+                    interpolation: Some("vertex"),
+                },
+            ],
+            blocked_skeletons: vec!["/A/B".into()],
+            provenance: Default::default(),
+        };
+        plan.create_dir().unwrap();
+        write_clip_set(&plan, &layout, &times).unwrap();
+        let manifest = std::fs::read_to_string(dir.join("shot.clips/shot.manifest.usda")).unwrap();
+        assert_eq!(
+            manifest,
+            "#usda 1.0\n\nover \"A\"\n{\n    over \"B\"\n    {\n        point3f[] points\n        \
+             float[] primvars:displayOpacity\n    }\n}\n"
+        );
+        let text = std::fs::read_to_string(&output).unwrap();
+        let body = r#"
+over "A" (
+    clips = {
+        dictionary painterly = {
+            double2[] active = [(1, 0), (3, 1)]
+            asset[] assetPaths = [@./shot.clips/shot.0000.1-2.usdc@, @./shot.clips/shot.0001.3-3.usdc@]
+            asset manifestAssetPath = @./shot.clips/shot.manifest.usda@
+            string primPath = "/A"
+            double2[] times = [(1, 1), (2, 2), (3, 3)]
+        }
+    }
+    prepend clipSets = ["painterly"]
+)
+{
+    over "B"
+    {
+        point3f[] points
+        float[] primvars:displayOpacity (
+            interpolation = "vertex"
+        )
+        rel skel:skeleton = None
+    }
+}
+"#;
+        assert!(text.ends_with(body), "{text}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}
