@@ -415,6 +415,11 @@ def test_openjd_template_runs_locally_and_resubmits_only_missing_chunks(painterl
     assert check.returncode == 0, check.stdout + check.stderr
     st = status(painterly, None, shot)
     assert states(st) == ["missing"] * 4 and not st["scheduler_queried"]
+    assert st["counts"] == counts(missing=4)
+    # Not asked (openjd keeps no state) and nothing assembled: the assembly
+    # step is missing, not failed, and no clip set is there to explain.
+    assert st["assembly"] == {"job": "Assemble", "state": "missing", "scheduler_state": None, "detail": None}
+    assert (st["assembled"], st["input_changed"]) == (False, False)
 
     def run():
         proc = subprocess.run([str(openjd), "run", str(template), "-p", f"file://{params}"],
@@ -425,6 +430,7 @@ def test_openjd_template_runs_locally_and_resubmits_only_missing_chunks(painterl
     run()
     st = status(painterly, None, shot)
     assert st["complete"] and states(st) == ["done"] * 4 and st["assembly"]["state"] == "done"
+    assert st["counts"] == counts(done=4) and (st["assembled"], st["input_changed"]) == (True, False)
     painterly("bake", BLOWFISH, "-o", single, "--quiet")
     compare(single, shot, BLOWFISH, list(range(1, 49)), exact=True)
     compare(single, shot, BLOWFISH, [11.5, 12.5, 24.5, 36.5], exact=False)
@@ -448,3 +454,104 @@ def test_openjd_template_runs_locally_and_resubmits_only_missing_chunks(painterl
     assert [s["name"] for s in doc["steps"]] == ["Assemble"] and "dependencies" not in doc["steps"][0]
     run()
     assert status(painterly, None, shot)["complete"]
+
+    assert_status_reads_the_files_of_a_complete_bake(painterly, tmp_path, shot)
+
+
+def counts(**n):
+    return {k: n.get(k, 0) for k in ("done", "running", "pending", "failed", "missing", "stale")}
+
+
+NOT_CURRENT = "the clip set on disk is not current: missing or stale chunks, or another input"
+
+
+def assert_status_reads_the_files_of_a_complete_bake(painterly, tmp_path, shot):
+    """Status of an assembled bake whose files are then changed one at a time
+    (each change undone before the next, the lost chunk last)."""
+    plan_path = tmp_path / "shot.clips" / "farm" / "plan.json"
+    plan_text = plan_path.read_text()
+    plan = json.loads(plan_text)
+
+    # Every chunk done but no clip set: not complete (exit 1).
+    shot.rename(tmp_path / "away.usda")
+    st = status(painterly, None, shot)
+    assert states(st) == ["done"] * 4 and st["counts"] == counts(done=4)
+    assert (st["assembled"], st["complete"]) == (False, False)
+    assert (st["assembly"]["state"], st["assembly"]["detail"]) == ("missing", None)
+    (tmp_path / "away.usda").rename(shot)
+    assert status(painterly, None, shot)["complete"]
+
+    # The plan's input changed (a copy with one more comment byte): every
+    # chunk and the clip set were baked from another input.
+    changed = tmp_path / "changed.usda"
+    changed.write_text(BLOWFISH.read_text() + "\n# changed\n")
+    plan_path.write_text(json.dumps(dict(plan, input=str(changed))))
+    st = status(painterly, None, shot)
+    assert states(st) == ["stale"] * 4 and st["counts"] == counts(stale=4)
+    assert st["chunks"][0]["detail"] == "baked from a different input"
+    assert (st["input_changed"], st["assembled"], st["complete"]) == (True, False, False)
+    assert (st["assembly"]["state"], st["assembly"]["detail"]) == ("missing", NOT_CURRENT)
+
+    # A plan that lost its last chunk does not match its frames.
+    plan_path.write_text(json.dumps(dict(plan, chunks=plan["chunks"][:3])))
+    proc = painterly("farm", "status", shot, "--json", check=False)
+    assert proc.returncode == 1 and proc.stdout == ""
+    assert "the plan's chunks do not match its frames and chunk size" in proc.stderr
+    plan_path.write_text(plan_text)
+
+    # A chunk lost after the assembly: the clip set is no longer assembled.
+    (tmp_path / "shot.clips" / chunk_names(shot)[1]).unlink()
+    st = status(painterly, None, shot)
+    assert states(st) == ["done", "missing", "done", "done"] and st["counts"] == counts(done=3, missing=1)
+    assert (st["assembled"], st["complete"]) == (False, False)
+    assert (st["assembly"]["state"], st["assembly"]["detail"]) == ("missing", NOT_CURRENT)
+
+
+def test_a_clip_set_of_another_chunk_size_is_not_assembled(painterly, tmp_path):
+    # Frames 1:3 in one chunk have the same chunk name at --chunk 3 and 4;
+    # the clip set records its chunk size, and a plan of another size does
+    # not count it as assembled even though its one chunk is done.
+    shot = tmp_path / "shot.usda"
+    submit(painterly, None, BLOWFISH, shot, "--chunk", "3", "--frames", "1:3", "--scheduler", "openjd")
+    painterly("bake", BLOWFISH, "-o", shot, "--chunk", "3", "--frames", "1:3", "--quiet")
+    assert status(painterly, None, shot)["complete"]
+    plan_path = tmp_path / "shot.clips" / "farm" / "plan.json"
+    plan_path.write_text(json.dumps(dict(json.loads(plan_path.read_text()), chunk_size=4)))
+    st = status(painterly, None, shot)
+    assert states(st) == ["done"] and st["counts"] == counts(done=1)
+    assert (st["assembled"], st["complete"]) == (False, False)
+    assert (st["assembly"]["state"], st["assembly"]["detail"]) == ("missing", NOT_CURRENT)
+
+
+def test_status_asks_slurm_about_every_task(painterly, tmp_path):
+    # Stand-ins for sbatch (array job 4242, assembly 4243) and squeue (one
+    # task of each kind; 4242_3 no longer known): what a real cluster cannot
+    # be made to show at once, and it runs without Slurm.
+    bin_dir = tmp_path / "bin"
+    bin_dir.mkdir()
+    (bin_dir / "sbatch").write_text(
+        "#!/bin/sh\n"
+        f"if [ -e {bin_dir}/once ]; then echo 4243; exit 0; fi\n"
+        f": > {bin_dir}/once; echo '4242;cluster'\n")
+    (bin_dir / "squeue").write_text(
+        "#!/bin/sh\n"
+        'case "$*" in *--jobs=4242,4243\\ *) ;; *) echo "squeue: error: Invalid job id specified" >&2; exit 1;; esac\n'
+        "printf '%s\\n' '4242_0|PENDING|Priority' '4242_1|RUNNING|None' '4242_2|FAILED|NonZeroExitCode' "
+        "'4243|PENDING|Dependency'\n")
+    for f in ("sbatch", "squeue"):
+        (bin_dir / f).chmod(0o755)
+    env = dict(os.environ, PATH=str(bin_dir))
+    shot = tmp_path / "shot.usda"
+    sub, _ = submit(painterly, env, BLOWFISH, shot, "--chunk", "12", "--scheduler", "slurm")
+    assert (sub["job"], sub["assemble_job"]) == ("4242", "4243")
+    st = status(painterly, env, shot)
+    assert st["scheduler_queried"] and not st["complete"]
+    assert states(st) == ["pending", "running", "failed", "failed"]
+    assert st["counts"] == counts(pending=1, running=1, failed=2)
+    assert [(c["task"], c["scheduler_state"], c["detail"]) for c in st["chunks"]] == [
+        ("4242_0", "PENDING", "Priority"),
+        ("4242_1", "RUNNING", None),
+        ("4242_2", "FAILED", "task 4242_2 ended FAILED (NonZeroExitCode) and the chunk is missing"),
+        ("4242_3", None, "task 4242_3 is no longer known to the scheduler and the chunk is missing"),
+    ]
+    assert st["assembly"] == {"job": "4243", "state": "pending", "scheduler_state": "PENDING", "detail": "Dependency"}

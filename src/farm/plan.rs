@@ -222,4 +222,40 @@ mod tests {
         assert_eq!(plan_path(&clips), plan_path_for_output(Path::new("/x/shot.usda")));
         assert_eq!(plan_path(&clips), Path::new("/x/shot.clips/farm/plan.json"));
     }
+
+    #[test]
+    fn utc_dates_of_every_day_from_1970_to_2400() {
+        // Counted day by day with the Gregorian leap rule, independently of
+        // the civil-from-days formula: covers 2000 (leap) and 2100, 2200,
+        // 2300 (not), every month's first and last day.
+        let leap = |y: u64| y.is_multiple_of(4) && (!y.is_multiple_of(100) || y.is_multiple_of(400));
+        let mut days = 0u64;
+        for year in 1970..=2400u64 {
+            for month in 1..=12u64 {
+                let len = match month {
+                    2 if leap(year) => 29,
+                    2 => 28,
+                    4 | 6 | 9 | 11 => 30,
+                    _ => 31,
+                };
+                for day in 1..=len {
+                    let t = UNIX_EPOCH + Duration::from_secs(days * 86_400 + 3_723);
+                    let want = format!("{year:04}-{month:02}-{day:02}T01:02:03Z");
+                    assert_eq!(rfc3339_utc(t), want);
+                    days += 1;
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn an_unreadable_plan_is_an_error_and_no_plan_is_none() {
+        // A folder where the plan should be cannot be read: an error, not
+        // "no plan" (which would let submit go on and status say "submit").
+        let e = FarmPlan::read_if_any(Path::new("/")).unwrap_err();
+        assert!(e.message.starts_with("cannot read the farm plan: "), "{e}");
+        assert!(FarmPlan::read_if_any(Path::new("/nonexistent/x.clips/farm/plan.json"))
+            .unwrap()
+            .is_none());
+    }
 }

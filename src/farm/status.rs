@@ -360,4 +360,122 @@ mod tests {
         let stale = ChunkState::Stale("baked from a different input".into());
         assert_eq!(chunk_state(&stale, None, None, false).0, "stale");
     }
+
+    #[test]
+    fn the_assembly_takes_its_tasks_state_until_the_clip_set_is_assembled() {
+        let mut pending = task(TaskState::Pending, "PENDING");
+        pending.reason = Some("Dependency".into());
+        let running = task(TaskState::Running, "RUNNING");
+        let mut cancelled = task(TaskState::Failed, "CANCELLED");
+        cancelled.reason = Some("DependencyNeverSatisfied".into());
+        let completed = task(TaskState::Completed, "COMPLETED");
+        let job = || Some("7".to_string());
+        let got = |a: AssemblyStatus| (a.state, a.scheduler_state, a.detail);
+        let s = |x: &str| Some(x.to_string());
+        // Assembled is done whatever the task says, but its word is kept.
+        assert_eq!(
+            got(assembly_state(true, true, job(), Some(&cancelled), true)),
+            ("done", s("CANCELLED"), None)
+        );
+        assert_eq!(
+            got(assembly_state(false, true, job(), Some(&pending), true)),
+            ("pending", s("PENDING"), s("Dependency"))
+        );
+        assert_eq!(
+            got(assembly_state(false, true, job(), Some(&running), true)),
+            ("running", s("RUNNING"), None)
+        );
+        assert_eq!(
+            got(assembly_state(false, false, job(), Some(&cancelled), true)),
+            (
+                "failed",
+                s("CANCELLED"),
+                s("ended CANCELLED (DependencyNeverSatisfied) without a current clip set")
+            )
+        );
+        assert_eq!(
+            got(assembly_state(false, false, job(), Some(&completed), true)),
+            (
+                "failed",
+                s("COMPLETED"),
+                s("ended COMPLETED without a current clip set")
+            )
+        );
+        assert_eq!(
+            got(assembly_state(false, false, job(), None, true)),
+            (
+                "failed",
+                None,
+                s("no longer known to the scheduler, and the clip set is not assembled")
+            )
+        );
+        let stale = "the clip set on disk is not current: missing or stale chunks, or another input";
+        // Not asked, or no assembly task to ask about: the files answer.
+        assert_eq!(
+            got(assembly_state(false, true, job(), None, false)),
+            ("missing", None, s(stale))
+        );
+        assert_eq!(
+            got(assembly_state(false, true, None, None, true)),
+            ("missing", None, s(stale))
+        );
+        assert_eq!(
+            got(assembly_state(false, false, job(), None, false)),
+            ("missing", None, None)
+        );
+    }
+
+    #[test]
+    fn the_text_report_has_a_line_per_chunk_and_the_counts() {
+        let chunk = |index: usize, name: &str, state: &'static str, detail: Option<&str>| ChunkStatus {
+            index,
+            name: name.into(),
+            path: PathBuf::from("/x/shot.clips").join(name),
+            frames: String::new(),
+            state,
+            task: Some(format!("4242_{index}")),
+            scheduler_state: None,
+            detail: detail.map(str::to_string),
+        };
+        let st = FarmStatus {
+            output: "/x/shot.usda".into(),
+            plan: "/x/shot.clips/farm/plan.json".into(),
+            input: "/x/in.usda".into(),
+            scheduler: SchedulerKind::Slurm,
+            submitted_at: "2026-12-03T20:00:00Z".into(),
+            scheduler_queried: false,
+            input_changed: true,
+            chunk_size: 12,
+            job: Some("4242".into()),
+            chunks: vec![
+                chunk(0, "shot.0000.1-12.usdc", "done", None),
+                chunk(1, "shot.0001.13-24.usdc", "failed", Some("why")),
+            ],
+            counts: Counts {
+                done: 1,
+                failed: 1,
+                ..Counts::default()
+            },
+            assembly: AssemblyStatus {
+                job: Some("4243".into()),
+                state: "pending",
+                scheduler_state: None,
+                detail: Some("Dependency".into()),
+            },
+            assembled: false,
+            complete: false,
+        };
+        // Names padded to the longest (20 characters), states to 8; a done
+        // chunk's task is not shown.
+        assert_eq!(
+            st.to_text(),
+            "/x/shot.usda: 2 chunks of 12 frames, slurm job 4242, submitted 2026-12-03T20:00:00Z\n\
+             \x20 (scheduler not asked: states come from the files)\n\
+             \x20 (the input changed since the submission)\n\
+             \x20 shot.0000.1-12.usdc   done\n\
+             \x20 shot.0001.13-24.usdc  failed   task 4242_1 (why)\n\
+             \x20 assembly: pending (job 4243): Dependency\n\
+             1 done, 0 running, 0 pending, 1 failed, 0 missing, 0 stale; clip set not assembled\n"
+        );
+    }
 }
