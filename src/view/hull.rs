@@ -623,7 +623,28 @@ mod tests {
             }
             total += 2.0 * num.atan2(den);
         }
-        (total - 4.0 * std::f64::consts::PI).abs() < 1e-9
+        if (total - 4.0 * std::f64::consts::PI).abs() >= 1e-9 {
+            return false;
+        }
+        // Absolute solid angles cannot see a half covered twice and the
+        // other half not at all (a bipyramid with both apexes on one side),
+        // so every one of 64 directions must also lie in some triangle's cone.
+        let mut seed = 0x9e37_79b9_7f4a_7c15_u64;
+        let mut next = || {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        };
+        let axes = [1.0, -1.0]
+            .into_iter()
+            .flat_map(|s| [Vector3::x() * s, Vector3::y() * s, Vector3::z() * s]);
+        let random: Vec<_> = (0..58).map(|_| Vector3::new(next(), next(), next())).collect();
+        axes.chain(random).all(|d| {
+            tris.iter().any(|t| {
+                let m = nalgebra::Matrix3::from_columns(&[p[t[0]], p[t[1]], p[t[2]]]);
+                m.try_inverse()
+                    .is_some_and(|inv| (inv * d).iter().all(|&x| x >= -1e-12))
+            })
+        })
     }
 
     #[test]
