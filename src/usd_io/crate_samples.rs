@@ -377,6 +377,29 @@ mod tests {
     }
 
     #[test]
+    fn a_time_sample_field_inlined_compressed_or_of_another_type_is_not_read() {
+        // USD's `ValueRep`: bit 62 inlined, bit 61 compressed, bits 48..56 the
+        // type (46: `TimeSamples`). openusd refuses such a table; this reader
+        // must not follow its payload as if it were one. The bits are written
+        // out here, not taken from the module's constants.
+        let dir = TempDir::new().unwrap();
+        let layer = sample_layer(dir.path(), &[1.0, 2.0, 3.0]);
+        let path = sdf::Path::new("/M.points").unwrap();
+        let with_rep = |edit: fn(u64) -> u64| {
+            let mut file = map_crate(&layer).unwrap();
+            let token = file.tokens.iter().position(|t| t == "timeSamples").unwrap();
+            for f in file.fields.iter_mut().filter(|f| f.token_index == token) {
+                f.value_rep.0 = edit(f.value_rep.0);
+            }
+            locate_time_samples(&file, &path).map(|(times, _)| times)
+        };
+        assert_eq!(with_rep(|b| b), Some(vec![1.0, 2.0, 3.0]), "as written");
+        assert_eq!(with_rep(|b| b | (1 << 62)), None, "inlined");
+        assert_eq!(with_rep(|b| b | (1 << 61)), None, "compressed");
+        assert_eq!(with_rep(|b| (b & !(0xff << 48)) | (45 << 48)), None, "another type");
+    }
+
+    #[test]
     fn unsorted_or_repeated_sample_times_are_left_to_openusd() {
         // openusd sorts a crate file's samples and keeps the last of a
         // repeated time; this reader takes only strictly ascending tables.
