@@ -374,3 +374,26 @@ def test_next_run_removes_temporaries_of_killed_runs(tmp_path):
     assert proc.returncode == 0, proc.stderr
     assert not stale.exists()
     assert live.exists() and remote.exists()
+
+
+def test_host_name_in_temporaries_keeps_letters_digits_and_dots(tmp_path):
+    """On a farm host "render-07.farm" temporaries say "render_07.farm": '-'
+    becomes '_', '.' stays; the sweep must match that name. The host name is
+    set in a UTS namespace of its own (unshare -ru), skipped where none can be made."""
+    name = "render-07.farm"
+    probe = subprocess.run(["unshare", "-ru", "hostname", name], capture_output=True)
+    if probe.returncode != 0:
+        pytest.skip(f"cannot set a host name in a namespace: {probe.stderr!r}")
+    out_dir = tmp_path / "out"
+    out_dir.mkdir()
+    dead = subprocess.Popen(["true"])
+    dead.wait()
+    stale = out_dir / f".bake.usdc.painterly-render_07.farm-{dead.pid}.tmp"
+    stale.write_bytes(b"x")
+    proc = subprocess.run(
+        ["unshare", "-ru", "sh", "-c", f'hostname {name} && exec "$@"', "sh", str(painterly_binary()),
+         "bake", str(BLOWFISH), "-o", str(out_dir / "bake.usdc"), "--frames", "1:2", "-q"],
+        capture_output=True, text=True, timeout=HANG,
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert not stale.exists()

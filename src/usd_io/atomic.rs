@@ -210,16 +210,22 @@ pub fn sweep_stale(dir: &Path) -> Vec<PathBuf> {
 /// a signal never finds it created but unregistered.
 fn create_registered(tmp: &Path) -> std::io::Result<File> {
     let mut reg = registry();
+    let live = reg.live.iter().any(|p| p == tmp);
     // A leftover with our own pid belongs to a dead process (pid reuse).
-    if tmp.exists() && !reg.live.iter().any(|p| p == tmp) {
+    // It may be a symlink, even a dangling one: remove the link itself
+    // (symlink_metadata does not follow it), then create the file only if
+    // nothing is there, so a link put back meanwhile is never followed.
+    if !live && tmp.symlink_metadata().is_ok() {
         let _ = std::fs::remove_file(tmp);
     }
-    let f = File::options()
-        .read(true)
-        .write(true)
-        .create(true)
-        .truncate(true)
-        .open(tmp)?;
+    let mut opts = File::options();
+    opts.read(true).write(true);
+    if live {
+        opts.create(true).truncate(true);
+    } else {
+        opts.create_new(true);
+    }
+    let f = opts.open(tmp)?;
     reg.live.push(tmp.to_path_buf());
     Ok(f)
 }
@@ -503,6 +509,197 @@ mod tests {
         write_atomic(&out, b"ok").unwrap();
         assert_eq!(std::fs::read(&out).unwrap(), b"ok");
         assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// A fresh empty folder for one test (the registry sweeps each folder once).
+    fn fresh_dir(tag: &str) -> PathBuf {
+        let dir = std::env::temp_dir().join(format!("painterly-atomic-{tag}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        dir
+    }
+
+    #[test]
+    fn temporaries_go_in_the_target_folder_or_the_current_one() {
+        assert_eq!(dir_of(Path::new("/x/out.usdc")), Path::new("/x"));
+        assert_eq!(dir_of(Path::new("sub/out.usdc")), Path::new("sub"));
+        // No folder in the path: the current one, "." (read_dir("") fails).
+        assert_eq!(dir_of(Path::new("out.usdc")), Path::new("."));
+    }
+
+    #[test]
+    fn long_multibyte_names_are_cut_on_a_char_boundary() {
+        // '€' is 3 bytes: with 0, 1 or 2 ASCII bytes before them, one of the
+        // three names has its 255-byte cut inside a '€', whatever the tail's length.
+        for prefix in ["", "a", "aa"] {
+            let long = format!("{prefix}{}.usdc", "€".repeat(100));
+            let t = temp_path(Path::new(&long), TMP_SUFFIX).unwrap();
+            let name = t.file_name().unwrap().to_str().unwrap();
+            // The longest whole-char prefix that fits: within 2 bytes of 255.
+            assert!((253..=255).contains(&name.len()), "{} bytes: {name}", name.len());
+            assert!(name.starts_with(&format!(".{prefix}€")), "{name}");
+        }
+    }
+
+    #[test]
+    fn sweep_removes_unregistered_temporaries_of_our_own_pid() {
+        let dir = fresh_dir("own-pid");
+        let me = std::process::id();
+        // Left by a dead process that had our pid: nobody here registered it.
+        let stale = dir.join(format!(".a.usdc{MARK}{}-{me}{TMP_SUFFIX}", host()));
+        // Ours and live: registered.
+        let live = dir.join(format!(".b.usdc{MARK}{}-{me}{TMP_SUFFIX}", host()));
+        // Another host's, with the same pid number: not ours to judge.
+        let remote = dir.join(format!(".c.usdc{MARK}otherhost-{me}{TMP_SUFFIX}"));
+        std::fs::write(&stale, b"x").unwrap();
+        std::fs::write(&remote, b"x").unwrap();
+        let _live_file = create_registered(&live).unwrap();
+        let removed = sweep_stale(&dir);
+        let kept = (live.exists(), remote.exists());
+        discard(&live);
+        assert_eq!(removed, vec![stale.clone()]);
+        assert!(!stale.exists());
+        assert_eq!(kept, (true, true));
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn a_leftover_symlink_is_replaced_not_followed() {
+        use std::os::unix::fs::symlink;
+        let dir = fresh_dir("symlink");
+        // Another live temporary, so the registry holds a path other than tmp.
+        let other = dir.join(format!(".o.usdc{MARK}{}-{}{TMP_SUFFIX}", host(), std::process::id()));
+        let _other_file = create_registered(&other).unwrap();
+        let victim = dir.join("victim.usda");
+        std::fs::write(&victim, b"keep").unwrap();
+        let tmp = dir.join(format!(".t.usdc{MARK}{}-{}{TMP_SUFFIX}", host(), std::process::id()));
+        symlink(&victim, &tmp).unwrap();
+        let f = create_registered(&tmp);
+        let is_symlink = std::fs::symlink_metadata(&tmp).unwrap().file_type().is_symlink();
+        let victim_bytes = std::fs::read(&victim).unwrap();
+        discard(&tmp);
+        discard(&other);
+        assert!(f.is_ok());
+        // Opening through the link would have truncated the victim.
+        assert_eq!(victim_bytes, b"keep");
+        assert!(!is_symlink);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn creating_a_live_temporary_again_keeps_its_file() {
+        use std::os::unix::fs::MetadataExt;
+        let dir = fresh_dir("again");
+        let tmp = dir.join(format!(".t.usdc{MARK}{}-{}{TMP_SUFFIX}", host(), std::process::id()));
+        let first = create_registered(&tmp).unwrap();
+        let _second = create_registered(&tmp).unwrap();
+        // Registered, so not a dead process's leftover: the same inode, not unlinked.
+        let same = first.metadata().unwrap().ino() == std::fs::metadata(&tmp).unwrap().ino();
+        discard(&tmp);
+        assert!(same);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn discard_removes_and_forgets_the_temporary() {
+        let dir = fresh_dir("discard");
+        let tmp = dir.join(format!(".t.usdc{MARK}{}-{}{TMP_SUFFIX}", host(), std::process::id()));
+        drop(create_registered(&tmp).unwrap());
+        assert!(registry().live.contains(&tmp));
+        discard(&tmp);
+        // A forgotten path is no longer removed on signals nor kept by sweeps.
+        assert!(!registry().live.contains(&tmp));
+        assert!(!tmp.exists());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn temp_file_is_named_after_target_and_tag_beside_it() {
+        let dir = fresh_dir("tempfile");
+        let target = dir.join("out.usdc");
+        let (tmp, _file) = TempFile::create(&target, ".samples").unwrap();
+        // The documented name: .<target name><tag>.painterly-<host>-<pid>.tmp
+        let want = dir.join(format!(
+            ".out.usdc.samples.painterly-{}-{}.tmp",
+            host(),
+            std::process::id()
+        ));
+        assert_eq!(tmp.path(), want);
+        assert!(want.is_file());
+        drop(tmp);
+        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 0);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn scratch_file_holds_its_contents_until_dropped() {
+        let dir = fresh_dir("scratch");
+        let s = ScratchFile::create(&dir.join("e.usda"), b"#usda 1.0\n").unwrap();
+        let want = dir.join(format!(
+            ".e.usda.painterly-{}-{}.scratch.usda",
+            host(),
+            std::process::id()
+        ));
+        assert_eq!(s.path(), want);
+        assert_eq!(std::fs::read(&want).unwrap(), b"#usda 1.0\n");
+        drop(s);
+        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 0);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn temp_dir_is_in_the_system_temp_dir_until_dropped() {
+        let d = TempDir::new().unwrap();
+        let path = d.path().to_path_buf();
+        assert_eq!(path.parent(), Some(std::env::temp_dir().as_path()));
+        assert!(path
+            .file_name()
+            .unwrap()
+            .to_str()
+            .unwrap()
+            .starts_with("painterly-render-"));
+        assert!(path.is_dir());
+        std::fs::write(path.join("f"), b"x").unwrap();
+        drop(d);
+        assert!(!path.exists());
+    }
+
+    #[test]
+    fn sweep_removes_only_dead_local_render_folders() {
+        let base = fresh_dir("render-sweep");
+        // pid_max on Linux is at most 2^22: 4194305 cannot be running; pid 1 is.
+        let dead = base.join(format!("{RENDER_DIR_PREFIX}{}-4194305-7", host()));
+        let alive = base.join(format!("{RENDER_DIR_PREFIX}{}-1-7", host()));
+        let remote = base.join(format!("{RENDER_DIR_PREFIX}otherhost-4194305-7"));
+        for d in [&dead, &alive, &remote] {
+            std::fs::create_dir_all(d).unwrap();
+            std::fs::write(d.join("frame.exr"), b"x").unwrap();
+        }
+        sweep_stale_dirs(&base);
+        if Path::new("/proc/self").exists() {
+            assert!(!dead.exists());
+        }
+        assert!(alive.exists() && remote.exists());
+        std::fs::remove_dir_all(&base).unwrap();
+    }
+
+    #[test]
+    fn a_dangling_leftover_symlink_creates_nothing_at_its_target() {
+        use std::os::unix::fs::symlink;
+        let dir = fresh_dir("dangling");
+        let elsewhere = dir.join("elsewhere.usda");
+        let tmp = dir.join(format!(".t.usdc{MARK}{}-{}{TMP_SUFFIX}", host(), std::process::id()));
+        symlink(&elsewhere, &tmp).unwrap();
+        let f = create_registered(&tmp);
+        let is_symlink = std::fs::symlink_metadata(&tmp).unwrap().file_type().is_symlink();
+        let created = elsewhere.exists();
+        discard(&tmp);
+        assert!(f.is_ok());
+        // Opening through the link creates the file it names (and persist
+        // would then rename the link itself onto the target).
+        assert!(!created, "created the link's target");
+        assert!(!is_symlink);
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }
