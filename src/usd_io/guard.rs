@@ -414,4 +414,132 @@ mod tests {
         let text = format!("#usda 1.0\n{}{}", "def \"P\" {\n".repeat(n), "}\n".repeat(n));
         Guard::default().check_layer("d.usda", &layer(&text)).unwrap();
     }
+
+    /// Answers every query with a value no default resolver gives, so a
+    /// wrapper that stops forwarding one shows.
+    struct Stub;
+
+    impl ar::Resolver for Stub {
+        fn create_identifier(&self, asset_path: &str, _anchor: Option<&ResolvedPath>) -> String {
+            format!("id:{asset_path}")
+        }
+        fn resolve(&self, asset_path: &str) -> Option<ResolvedPath> {
+            Some(ResolvedPath::new(format!("/resolved/{asset_path}")))
+        }
+        fn resolve_for_new_asset(&self, asset_path: &str) -> Option<ResolvedPath> {
+            Some(ResolvedPath::new(format!("/new/{asset_path}")))
+        }
+        fn open_asset(&self, _resolved_path: &ResolvedPath) -> io::Result<Box<dyn Asset>> {
+            Err(io::Error::other("stub"))
+        }
+        fn get_extension<'a>(&self, asset_path: &'a str) -> &'a str {
+            &asset_path[1..]
+        }
+        fn is_context_dependent_path(&self, asset_path: &str) -> bool {
+            asset_path == "yes"
+        }
+        fn in_memory_identifier<'a>(&self, asset_path: &'a str) -> std::borrow::Cow<'a, str> {
+            std::borrow::Cow::Owned(format!("mem:{asset_path}"))
+        }
+        fn get_asset_info(&self, _asset_path: &str, _resolved_path: &ResolvedPath) -> ar::AssetInfo {
+            ar::AssetInfo {
+                version: "7".into(),
+                ..Default::default()
+            }
+        }
+        fn get_modification_timestamp(&self, _: &str, _: &ResolvedPath) -> Option<std::time::SystemTime> {
+            Some(std::time::UNIX_EPOCH + std::time::Duration::from_secs(5))
+        }
+        fn identity(&self) -> String {
+            "stub".into()
+        }
+        fn cache_id(&self) -> Option<u64> {
+            Some(42)
+        }
+    }
+
+    #[test]
+    fn guarded_resolver_forwards_every_query_to_the_inner_one() {
+        // The guard only looks at bytes; openusd must see the wrapped
+        // resolver's answers (a memory layer's identifiers, its cache id).
+        use ar::Resolver as _;
+        let r = Guard::default().resolver_over(Stub);
+        let at = ResolvedPath::new("/x/a.usda");
+        assert_eq!(r.create_identifier("a.usda", None), "id:a.usda");
+        assert_eq!(r.resolve("a.usda").unwrap().to_str(), Some("/resolved/a.usda"));
+        assert_eq!(r.resolve_for_new_asset("a.usda").unwrap().to_str(), Some("/new/a.usda"));
+        assert_eq!(r.get_extension("xusda"), "usda");
+        assert!(r.is_context_dependent_path("yes"));
+        assert!(!r.is_context_dependent_path("no"));
+        assert_eq!(r.in_memory_identifier("a.usda"), "mem:a.usda");
+        assert_eq!(r.get_asset_info("a.usda", &at).version, "7");
+        assert_eq!(
+            r.get_modification_timestamp("a.usda", &at),
+            Some(std::time::UNIX_EPOCH + std::time::Duration::from_secs(5))
+        );
+        assert_eq!(r.identity(), "stub");
+        assert_eq!(r.cache_id(), Some(42));
+    }
+
+    #[test]
+    fn text_nesting_of_exactly_the_limit_is_read() {
+        // "at most 1000 levels": 1000 nested brackets pass, 1001 do not.
+        let bytes = |n: usize| format!("#usda 1.0\n{}{}\n", "[".repeat(n), "]".repeat(n)).into_bytes();
+        let at = ResolvedPath::new("/x/n.usda");
+        let g = Guard::default();
+        g.check_bytes(&at, &bytes(1000)).unwrap();
+        let e = g.check_bytes(&at, &bytes(1001)).unwrap_err();
+        assert!(e.message.contains("nested 1001 deep (line 2)"), "{e}");
+    }
+
+    #[test]
+    fn namespace_error_names_the_first_deepest_prim_cut_to_100_bytes() {
+        // /A/P/... and /B/P/... are both 257 deep; the message names the first
+        // in path order, cut after 100 bytes: "/A" and 49 "/P".
+        let chain = |name: &str| {
+            format!(
+                "def \"{name}\" {{\n{}{}}}\n",
+                "def \"P\" {\n".repeat(256),
+                "}\n".repeat(256)
+            )
+        };
+        let text = format!("#usda 1.0\n{}{}", chain("A"), chain("B"));
+        let e = Guard::default().check_layer("d.usda", &layer(&text)).unwrap_err();
+        let at = format!("(at /A{}…)", "/P".repeat(49));
+        assert!(e.message.contains(&format!("namespace 257 prims deep {at}")), "{e}");
+    }
+
+    #[test]
+    fn shorten_keeps_short_paths_and_cuts_at_a_char_boundary() {
+        assert_eq!(shorten("/A/B"), "/A/B");
+        assert_eq!(shorten(&"a".repeat(120)), "a".repeat(120));
+        // Byte 100 falls inside the first "é" (bytes 99..101): cut before it.
+        let p = format!("{}{}", "a".repeat(99), "é".repeat(20));
+        assert_eq!(shorten(&p), format!("{}…", "a".repeat(99)));
+    }
+
+    #[test]
+    fn layers_loaded_by_composition_are_checked() {
+        // The root stack is fine; the referenced layer is 257 deep. It is
+        // loaded only while composing and must be refused then.
+        let dir = std::env::temp_dir().join(format!("painterly-guard-ref-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let deep = format!(
+            "#usda 1.0\n(\n    defaultPrim = \"P\"\n)\n{}{}",
+            "def \"P\" {\n".repeat(257),
+            "}\n".repeat(257)
+        );
+        std::fs::write(dir.join("ref.usda"), deep).unwrap();
+        let root = dir.join("root.usda");
+        std::fs::write(
+            &root,
+            "#usda 1.0\ndef \"R\" (\n    references = @./ref.usda@\n)\n{\n}\n",
+        )
+        .unwrap();
+        let result = super::super::stage::StageReader::open(&root);
+        std::fs::remove_dir_all(&dir).unwrap();
+        let e = result.err().expect("a 257-deep referenced layer is refused");
+        assert!(e.message.contains("namespace 257 prims deep"), "{e}");
+        assert!(e.to_string().contains("ref.usda"), "{e}");
+    }
 }
