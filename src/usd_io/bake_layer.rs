@@ -605,3 +605,217 @@ impl PrimTree {
         writeln!(out, "{pad}}}")
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn scratch_dir(tag: &str) -> PathBuf {
+        let dir = std::env::temp_dir().join(format!("painterly-bake-layer-{tag}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        dir
+    }
+
+    fn attr(prim: &str, name: &'static str, kind: SampleKind, interpolation: Option<&'static str>) -> BakeAttr {
+        BakeAttr {
+            prim: prim.to_string(),
+            name,
+            kind,
+            interpolation,
+        }
+    }
+
+    /// Every field of the `painterly` dictionary, as a hand-written layer
+    /// (another writer's) records it, comes back: strings, ints, the chunk list.
+    #[test]
+    fn read_provenance_reads_every_field() {
+        let dir = scratch_dir("prov");
+        let path = dir.join("stamped.usda");
+        std::fs::write(
+            &path,
+            r#"#usda 1.0
+(
+    customLayerData = {
+        dictionary painterly = {
+            string chunks = "not read: chunks is a string[]"
+            int chunkCount = 4
+            int chunkIndex = 1
+            int chunkSize = 12
+            string frames = "2:10:2"
+            string input = "/shots/a.usda"
+            string inputHash = "abc123"
+            string version = "9.8.7"
+        }
+    }
+)
+"#,
+        )
+        .unwrap();
+        let p = read_provenance(&path).unwrap().unwrap();
+        assert_eq!(p.input, "/shots/a.usda");
+        assert_eq!(p.frames, "2:10:2");
+        assert_eq!(p.version, "9.8.7");
+        assert_eq!(p.input_hash.as_deref(), Some("abc123"));
+        assert_eq!(p.chunk, Some((1, 4)));
+        // `chunks` of the wrong type: no chunk list.
+        assert_eq!(p.chunks, None);
+
+        std::fs::write(
+            &path,
+            r#"#usda 1.0
+(
+    customLayerData = {
+        dictionary painterly = {
+            int64 chunkCount = 7
+            int64 chunkIndex = 3
+            int64 chunkSize = 5
+            string[] chunks = ["c0.usdc", "c1.usdc"]
+        }
+    }
+)
+"#,
+        )
+        .unwrap();
+        // int64 values count as well as int ones; absent strings are empty.
+        let p = read_provenance(&path).unwrap().unwrap();
+        assert_eq!(p.chunk, Some((3, 7)));
+        assert_eq!(p.chunks, Some((5, vec!["c0.usdc".to_string(), "c1.usdc".to_string()])));
+        assert_eq!((p.input.as_str(), p.frames.as_str(), p.input_hash), ("", "", None));
+
+        // A layer painterly did not write has no provenance.
+        std::fs::write(&path, "#usda 1.0\n").unwrap();
+        assert_eq!(read_provenance(&path).unwrap(), None);
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    /// `A:B:STEP` gives (A, B, STEP); anything else gives None.
+    #[test]
+    fn frame_range_parses_first_last_step() {
+        let range = |s: &str| {
+            Provenance {
+                frames: s.to_string(),
+                ..Default::default()
+            }
+            .frame_range()
+        };
+        assert_eq!(range("2:10:0.5"), Some((2.0, 10.0, 0.5)));
+        assert_eq!(range("-3:1:2"), Some((-3.0, 1.0, 2.0)));
+        assert_eq!(range("1:3"), None);
+        assert_eq!(range("1:x:1"), None);
+        assert_eq!(range(""), None);
+    }
+
+    /// A sample whose kind does not match its attribute's type is an error
+    /// in either format, not a layer with a wrongly typed value.
+    #[test]
+    fn a_sample_of_the_wrong_kind_is_refused() {
+        let dir = scratch_dir("kind");
+        for ext in ["usda", "usdc"] {
+            let layout = BakeLayout {
+                meta: StageMetadata::default(),
+                attrs: vec![attr("/A", "widths", SampleKind::Floats, None)],
+                blocked_skeletons: vec![],
+                provenance: Provenance::default(),
+            };
+            let mut sink = create(&dir.join(format!("out.{ext}")), layout).unwrap();
+            let err = sink.write_frame(1.0, vec![Sample::Vec3s(vec![Vec3::ONE])]).unwrap_err();
+            assert!(err.to_string().contains("wrong kind"), "{ext}: {err}");
+        }
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    /// The whole text of a small usda bake, written out by hand: an attribute
+    /// on a root prim (with its interpolation), two children (a blank line
+    /// between siblings only), sample lines two levels inside their prim,
+    /// samples in frame order, the blocked skeleton only on /Root/B.
+    #[test]
+    fn usda_bake_text() {
+        let dir = scratch_dir("text");
+        let path = dir.join("bake.usda");
+        let layout = BakeLayout {
+            meta: StageMetadata {
+                end_time_code: Some(2.0),
+                up_axis: Some("Z".into()),
+                ..Default::default()
+            },
+            attrs: vec![
+                attr("/Root", "widths", SampleKind::Floats, Some("vertex")),
+                attr("/Root/A", "points", SampleKind::Points, None),
+                attr("/Root/B", "points", SampleKind::Points, None),
+            ],
+            blocked_skeletons: vec!["/Root/B".into()],
+            provenance: Provenance {
+                input: "/in.usda".into(),
+                frames: "1:2:1".into(),
+                version: "v".into(),
+                ..Default::default()
+            },
+        };
+        let mut sink = create(&path, layout).unwrap();
+        let v = |x: f32, y: f32, z: f32| Vec3::new(x, y, z);
+        sink.write_frame(
+            1.0,
+            vec![
+                Sample::Floats(vec![0.5, 2.0]),
+                Sample::Vec3s(vec![v(1.0, 2.0, 3.0), v(4.0, 5.0, 6.0)]),
+                Sample::Vec3s(vec![v(0.0, 0.0, 0.0)]),
+            ],
+        )
+        .unwrap();
+        sink.write_frame(
+            2.5,
+            vec![
+                Sample::Floats(vec![1.0, 1.5, 3.0]),
+                Sample::Vec3s(vec![v(-1.0, 0.25, 0.0)]),
+                Sample::Vec3s(vec![v(7.0, 8.0, 9.0), v(1.0, 1.0, 1.0)]),
+            ],
+        )
+        .unwrap();
+        sink.finish().unwrap();
+        let text = std::fs::read_to_string(&path).unwrap();
+        let expected = r#"#usda 1.0
+(
+    customLayerData = {
+        dictionary painterly = {
+            string frames = "1:2:1"
+            string input = "/in.usda"
+            string version = "v"
+        }
+    }
+    doc = "Baked by painterly: over specs only; sublayer above the input."
+    endTimeCode = 2
+    upAxis = "Z"
+)
+
+over "Root"
+{
+    float[] widths (
+        interpolation = "vertex"
+    )
+    float[] widths.timeSamples = {
+        1: [0.5, 2],
+        2.5: [1, 1.5, 3],
+    }
+    over "A"
+    {
+        point3f[] points.timeSamples = {
+            1: [(1, 2, 3), (4, 5, 6)],
+            2.5: [(-1, 0.25, 0)],
+        }
+    }
+
+    over "B"
+    {
+        point3f[] points.timeSamples = {
+            1: [(0, 0, 0)],
+            2.5: [(7, 8, 9), (1, 1, 1)],
+        }
+        rel skel:skeleton = None
+    }
+}
+"#;
+        assert_eq!(text, expected);
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}
