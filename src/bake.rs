@@ -15,7 +15,7 @@ use std::time::Instant;
 
 use glam::Vec3;
 
-use crate::character::{Character, FrameOutput, Model, RigModel};
+use crate::character::{Character, FrameInput, FrameOutput, Model, RigModel};
 use crate::error::{Error, Result};
 use crate::extent::{pad_curves_extent, point_based_extent};
 use crate::frames::FrameRange;
@@ -449,10 +449,26 @@ fn stream(
     ch: &Character,
     times: &[f64],
     with_proxies: bool,
-    mut sink: Box<dyn FrameSink>,
+    sink: Box<dyn FrameSink>,
     progress: Progress,
 ) -> Result<()> {
     let model: &Model = &ch.model;
+    let mask = baked_proxy_mask(model);
+    let evaluate = |input| model.evaluate(input, with_proxies).map(|o| frame_samples(o, &mask));
+    stream_with(ch, times, &evaluate, sink, progress)
+}
+
+/// Evaluates one frame's input into its samples.
+type FrameStep<'a> = dyn Fn(FrameInput) -> Result<Vec<Sample>> + Sync + 'a;
+
+/// [`stream`] with the evaluation step given.
+fn stream_with(
+    ch: &Character,
+    times: &[f64],
+    evaluate: &FrameStep,
+    mut sink: Box<dyn FrameSink>,
+    progress: Progress,
+) -> Result<()> {
     let window = 2 * rayon::current_num_threads() + 2;
     let (done_tx, done_rx) = mpsc::sync_channel::<(usize, Result<Vec<Sample>>)>(window);
     // A permit per frame in flight: taken before a read, returned by the writer.
@@ -461,11 +477,14 @@ fn stream(
         let _ = permit_tx.send(());
     }
     let total = times.len();
-    let mask = baked_proxy_mask(model);
-    let mask = &mask;
     // Time spent in each stage, for --verbose (evaluation summed over threads).
     let evaluating = std::sync::atomic::AtomicU64::new(0);
     let evaluating = &evaluating;
+    // A panic while evaluating a frame (a bug) is kept here and raised again
+    // once the pipeline is down: the frame it lost would otherwise leave the
+    // writer waiting for it and the reader waiting for a permit.
+    let panicked = std::sync::Mutex::new(None);
+    let panicked = &panicked;
     let started = Instant::now();
     let result = std::thread::scope(|s| {
         let writer = s.spawn(move || -> Result<f64> {
@@ -503,7 +522,14 @@ fn stream(
                 let tx = done_tx.clone();
                 scope.spawn(move |_| {
                     let t0 = Instant::now();
-                    let out = model.evaluate(input, with_proxies).map(|o| frame_samples(o, mask));
+                    let out = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| evaluate(input)))
+                        .unwrap_or_else(|payload| {
+                            panicked
+                                .lock()
+                                .unwrap_or_else(|e| e.into_inner())
+                                .get_or_insert(payload);
+                            Err(Error::msg("internal error: evaluating a frame panicked"))
+                        });
                     let ns = t0.elapsed().as_nanos() as u64;
                     evaluating.fetch_add(ns, std::sync::atomic::Ordering::Relaxed);
                     let _ = tx.send((i, out));
@@ -514,9 +540,12 @@ fn stream(
         drop(done_tx);
         let written = writer
             .join()
-            .unwrap_or_else(|_| Err(Error::msg("internal error: the layer writer panicked")));
+            .unwrap_or_else(|payload| std::panic::resume_unwind(payload));
         read.and(written).map(|writing| (reading, writing))
     });
+    if let Some(payload) = panicked.lock().unwrap_or_else(|e| e.into_inner()).take() {
+        std::panic::resume_unwind(payload);
+    }
     let (reading, writing) = result?;
     crate::vlog!(
         "{}: read {reading:.3} s, evaluate {:.3} s (summed over threads), write {writing:.3} s; {:.3} s wall",
@@ -525,4 +554,118 @@ fn stream(
         started.elapsed().as_secs_f64()
     );
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::any::Any;
+    use std::sync::Mutex;
+    use std::time::Duration;
+
+    /// Streams the tube fixture's 24 frames through `evaluate` into `sink`
+    /// on a thread of its own, and fails the test if that takes a minute
+    /// (a hang) instead of returning or panicking.
+    fn stream_tube<E>(evaluate: E, sink: Box<dyn FrameSink>) -> std::result::Result<Result<()>, Box<dyn Any + Send>>
+    where
+        E: Fn(FrameInput) -> Result<Vec<Sample>> + Sync + Send + 'static,
+    {
+        let (tx, rx) = mpsc::channel();
+        std::thread::spawn(move || {
+            let out = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                let tube = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/tube.usda");
+                let ch = Character::open(&tube, None).unwrap();
+                let times = resolve_frames(&ch.reader, None).unwrap();
+                assert_eq!(times.len(), 24);
+                stream_with(&ch, &times, &evaluate, sink, &|_, _| {})
+            }));
+            let _ = tx.send(out);
+        });
+        rx.recv_timeout(Duration::from_secs(60))
+            .expect("the stream hung instead of ending")
+    }
+
+    /// A sink recording the times it was given; `panic_at` panics there.
+    struct Recorder {
+        times: std::sync::Arc<Mutex<Vec<f64>>>,
+        panic_at: Option<f64>,
+    }
+
+    impl FrameSink for Recorder {
+        fn write_frame(&mut self, time: f64, _samples: Vec<Sample>) -> Result<()> {
+            assert_ne!(Some(time), self.panic_at, "writer bug at {time}");
+            self.times.lock().unwrap().push(time);
+            Ok(())
+        }
+
+        fn finish(self: Box<Self>) -> Result<()> {
+            Ok(())
+        }
+    }
+
+    fn recorder(panic_at: Option<f64>) -> (Box<dyn FrameSink>, std::sync::Arc<Mutex<Vec<f64>>>) {
+        let times = std::sync::Arc::new(Mutex::new(Vec::new()));
+        (
+            Box::new(Recorder {
+                times: times.clone(),
+                panic_at,
+            }),
+            times,
+        )
+    }
+
+    fn message(payload: &(dyn Any + Send)) -> String {
+        payload
+            .downcast_ref::<String>()
+            .cloned()
+            .or_else(|| payload.downcast_ref::<&str>().map(|s| s.to_string()))
+            .unwrap_or_default()
+    }
+
+    #[test]
+    fn every_frame_reaches_the_sink_in_time_order() {
+        let (sink, written) = recorder(None);
+        stream_tube(|_| Ok(Vec::new()), sink).unwrap().unwrap();
+        assert_eq!(*written.lock().unwrap(), (1..=24).map(f64::from).collect::<Vec<_>>());
+    }
+
+    #[test]
+    fn a_frame_that_panics_ends_the_stream_with_its_panic() {
+        // A bug at one frame must reach main's handler (exit 3), not leave
+        // the writer waiting for the lost frame and the reader for a permit.
+        let (sink, written) = recorder(None);
+        let evaluate = |input: FrameInput| {
+            assert!(input.time != 3.0, "evaluation bug at frame 3");
+            Ok(Vec::new())
+        };
+        let payload = stream_tube(evaluate, sink).expect_err("the panic is raised again");
+        assert_eq!(message(payload.as_ref()), "evaluation bug at frame 3");
+        assert_eq!(*written.lock().unwrap(), vec![1.0, 2.0]);
+    }
+
+    #[test]
+    fn a_writer_that_panics_ends_the_stream_with_its_panic() {
+        let (sink, written) = recorder(Some(5.0));
+        let payload = stream_tube(|_| Ok(Vec::new()), sink).expect_err("the panic is raised again");
+        assert!(
+            message(payload.as_ref()).contains("writer bug at 5"),
+            "{}",
+            message(payload.as_ref())
+        );
+        assert_eq!(*written.lock().unwrap(), vec![1.0, 2.0, 3.0, 4.0]);
+    }
+
+    #[test]
+    fn a_frame_that_fails_ends_the_stream_with_its_error() {
+        let (sink, written) = recorder(None);
+        let evaluate = |input: FrameInput| {
+            if input.time == 7.0 {
+                return Err(Error::msg("frame 7 cannot be evaluated"));
+            }
+            Ok(Vec::new())
+        };
+        let err = stream_tube(evaluate, sink).unwrap().unwrap_err();
+        assert_eq!(err.to_string(), "frame 7 cannot be evaluated");
+        assert_eq!(*written.lock().unwrap(), (1..=6).map(f64::from).collect::<Vec<_>>());
+    }
 }

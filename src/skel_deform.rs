@@ -41,8 +41,19 @@ pub struct Inbetween {
     pub normal_offsets: Vec<DVec3>,
 }
 
-/// usd-core's tolerance for inbetween weights and interpolation parameters.
-const SHAPE_EPS: f64 = 1e-6;
+/// UsdSkelBlendShapeQuery's tolerance for inbetween weights and segment
+/// parameters: a float 1e-6, so 9.99999997e-7 here (an inbetween authored
+/// at `1e-6` is a breakpoint to usd-core).
+const QUERY_EPS: f64 = 1e-6_f32 as f64;
+
+/// UsdSkelApplyBlendShape's tolerance for a sub-shape's weight: a double.
+const APPLY_EPS: f64 = 1e-6;
+
+/// GfIsClose: strictly closer than `eps`, so a difference of exactly `eps`
+/// counts as apart.
+fn gf_is_close(a: f64, b: f64, eps: f64) -> bool {
+    (a - b).abs() < eps
+}
 
 /// A sub-shape of a blend shape: the primary or an inbetween.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -58,7 +69,7 @@ impl BlendShape {
     /// Without inbetweens the primary shape scales linearly with the weight
     /// (also below 0 and above 1). With inbetweens, the sub-shapes (rest at
     /// weight 0, the primary at 1, each inbetween at its weight; inbetweens
-    /// within 1e-6 of 0 or 1 are ignored) are piecewise-linear breakpoints
+    /// closer than a float 1e-6 to 0 or 1 are ignored) are piecewise-linear breakpoints
     /// along the weight axis, and outside the outermost breakpoints the
     /// outermost segment extrapolates.
     fn sub_shapes(&self, weight: f64) -> Vec<(SubShape, f64)> {
@@ -68,7 +79,7 @@ impl BlendShape {
             self.inbetweens
                 .iter()
                 .enumerate()
-                .filter(|(_, ib)| (ib.weight - 0.0).abs() > SHAPE_EPS && (ib.weight - 1.0).abs() > SHAPE_EPS)
+                .filter(|(_, ib)| !gf_is_close(ib.weight, 0.0, QUERY_EPS) && !gf_is_close(ib.weight, 1.0, QUERY_EPS))
                 .map(|(k, ib)| (ib.weight, Some(SubShape::Inbetween(k)))),
         );
         if subs.len() == 2 {
@@ -84,18 +95,18 @@ impl BlendShape {
         };
         let ((w0, s0), (w1, s1)) = (subs[lo], subs[hi]);
         let span = w1 - w0;
-        if span <= SHAPE_EPS {
+        if span <= QUERY_EPS {
             return Vec::new();
         }
         let alpha = (weight - w0) / span;
         let mut out = Vec::new();
         if let Some(s0) = s0 {
-            if (alpha - 1.0).abs() > SHAPE_EPS {
+            if !gf_is_close(alpha, 1.0, QUERY_EPS) {
                 out.push((s0, 1.0 - alpha));
             }
         }
         if let Some(s1) = s1 {
-            if alpha.abs() > SHAPE_EPS {
+            if !gf_is_close(alpha, 0.0, QUERY_EPS) {
                 out.push((s1, alpha));
             }
         }
@@ -103,7 +114,7 @@ impl BlendShape {
     }
 
     fn add(&self, target: &mut [DVec3], offsets: &[DVec3], scale: f64) {
-        if scale.abs() < SHAPE_EPS || offsets.is_empty() {
+        if gf_is_close(scale, 0.0, APPLY_EPS) || offsets.is_empty() {
             return;
         }
         match &self.point_indices {
@@ -319,17 +330,20 @@ struct DualQuat {
 struct DqJoints {
     rigid: Vec<DualQuat>,
     stretch: Vec<DMat3>,
-    /// Whether any stretch differs from identity (by more than 1e-6 in an
-    /// entry); when none does, points are not multiplied by the weight sum.
+    /// Whether any stretch differs from identity (by 1e-6 or more in an
+    /// entry, GfIsClose's strict test); when none does, points are not multiplied by the weight sum.
     has_stretch: bool,
 }
 
 impl DqJoints {
     /// Joints from their rigid and stretch parts; `has_stretch` follows.
     fn from_parts(rigid: Vec<DualQuat>, stretch: Vec<DMat3>) -> Self {
-        let has_stretch = stretch
-            .iter()
-            .any(|s| (*s - DMat3::IDENTITY).to_cols_array().iter().any(|d| d.abs() > 1e-6));
+        let has_stretch = stretch.iter().any(|s| {
+            (*s - DMat3::IDENTITY)
+                .to_cols_array()
+                .iter()
+                .any(|d| !gf_is_close(*d, 0.0, 1e-6))
+        });
         DqJoints {
             rigid,
             stretch,
@@ -923,5 +937,70 @@ mod tests {
         // Refused when read; here such a joint is a root, not an index ahead.
         let local = [DMat4::from_translation(DVec3::X), DMat4::from_translation(DVec3::Y)];
         assert_eq!(local_to_skel(&local, &[Some(1), Some(1)]), local.to_vec());
+    }
+
+    #[test]
+    fn an_inbetween_at_a_float_1e6_is_a_breakpoint() {
+        // usd-core's BlendShapeQuery skips an inbetween only when its weight
+        // is strictly closer than its float EPS to 0 or 1, so one authored at
+        // 1e-6 (as a float) stays, and at that weight it is the whole shape
+        // (ComputeSubShapeWeights([1e-6]) gives the inbetween at 1).
+        let eps = 1e-6_f32 as f64;
+        let at_eps = BlendShape {
+            offsets: vec![DVec3::X],
+            inbetweens: vec![ib(eps, vec![DVec3::Y * 100.0])],
+            ..Default::default()
+        };
+        assert_eq!(at_eps.sub_shapes(eps), vec![(SubShape::Inbetween(0), 1.0)]);
+        assert_eq!(shape_at(&at_eps, eps), DVec3::Y * 100.0);
+        // Below it, the (0, 1e-6) segment is no wider than EPS: nothing
+        // (weightDelta > EPS fails), as usd-core gives for w = 5e-7.
+        assert!(at_eps.sub_shapes(eps / 2.0).is_empty());
+        // The float just below 1e-6 is close to 0: skipped, the primary is linear.
+        let below = f32::from_bits(1e-6_f32.to_bits() - 1) as f64;
+        let skipped = BlendShape {
+            inbetweens: vec![ib(below, vec![DVec3::Y * 100.0])],
+            ..at_eps.clone()
+        };
+        assert_eq!(skipped.sub_shapes(0.5), vec![(SubShape::Primary, 0.5)]);
+    }
+
+    #[test]
+    fn a_segment_parameter_of_exactly_eps_keeps_its_sub_shape() {
+        // Breakpoints -1, 0, 1: at w = 1e-6f the (0, 1) segment has alpha =
+        // EPS, not close to 0, so the primary comes at EPS (usd-core:
+        // ComputeSubShapeWeights([1e-6]) = primary at 9.99999997e-7); just
+        // below, alpha is close to 0 and nothing comes.
+        let eps = 1e-6_f32 as f64;
+        let s = BlendShape {
+            offsets: vec![DVec3::X],
+            inbetweens: vec![ib(-1.0, vec![DVec3::Y])],
+            ..Default::default()
+        };
+        assert_eq!(s.sub_shapes(eps), vec![(SubShape::Primary, eps)]);
+        let below = f32::from_bits(1e-6_f32.to_bits() - 1) as f64;
+        assert!(s.sub_shapes(below).is_empty());
+        // Near the top of a segment: alpha = 1 - EPS keeps the lower
+        // sub-shape at EPS, alpha = 1 - EPS/2 drops it.
+        let s = BlendShape {
+            offsets: vec![DVec3::X],
+            inbetweens: vec![ib(2.0, vec![DVec3::Y])],
+            ..Default::default()
+        };
+        assert_eq!(s.sub_shapes(1.0 - eps), vec![(SubShape::Primary, 1.0 - eps)]);
+        let at = |w: f64| s.sub_shapes(w).into_iter().map(|(k, _)| k).collect::<Vec<_>>();
+        assert_eq!(at(1.0 + eps), vec![SubShape::Primary, SubShape::Inbetween(0)]);
+        assert_eq!(at(2.0 - eps), vec![SubShape::Primary, SubShape::Inbetween(0)]);
+        assert_eq!(at(2.0 - eps / 2.0), vec![SubShape::Inbetween(0)]);
+    }
+
+    #[test]
+    fn a_stretch_of_exactly_1e6_counts_as_a_stretch() {
+        // GfIsClose(scale, identity, 1e-6) is strict per entry (checked with
+        // Gf.IsClose on Matrix3d): an entry off by exactly 1e-6 is a stretch.
+        let off = |d: f64| DMat3::from_cols(DVec3::X, DVec3::new(d, 1.0, 0.0), DVec3::Z);
+        assert!(DqJoints::from_parts(vec![], vec![DMat3::IDENTITY, off(1e-6)]).has_stretch);
+        assert!(DqJoints::from_parts(vec![], vec![off(-1e-6)]).has_stretch);
+        assert!(!DqJoints::from_parts(vec![], vec![off(0.999_999e-6), DMat3::IDENTITY]).has_stretch);
     }
 }

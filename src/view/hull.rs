@@ -997,6 +997,32 @@ mod tests {
         assert_eq!(real, cells);
     }
 
+    #[test]
+    fn virtual_keys_of_a_small_arc_stay_a_quarter_turn_from_the_keys() {
+        // Keys on a third of a small circle at z = 0.5: the pyramid over them
+        // misses the centre, so faces are closed one by one, starting from
+        // the plane's far side (−z). Virtual keys are copies of the base
+        // model, so each must stay at least 90° from every real key.
+        let r = 0.75f64.sqrt();
+        let d: Vec<[f64; 3]> = [0.0f64, 40.0, 80.0, 120.0]
+            .iter()
+            .map(|a| [r * a.to_radians().cos(), r * a.to_radians().sin(), 0.5])
+            .collect();
+        let p = units(&d);
+        let (all, tris) = enclose(&p).unwrap();
+        assert!(all.len() > p.len() + 1, "{all:?}");
+        for v in &all[p.len()..] {
+            for k in &p {
+                assert!(
+                    v.dot(k) <= 1e-12,
+                    "virtual {v:?} is {:.1}° from key {k:?}",
+                    v.dot(k).acos().to_degrees()
+                );
+            }
+        }
+        assert!(encloses(&all, &tris));
+    }
+
     proptest::proptest! {
         #[test]
         fn prop_enclose_surrounds_centre(
