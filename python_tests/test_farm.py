@@ -328,19 +328,26 @@ def test_submit_without_sbatch_on_path(painterly, tmp_path):
     assert not (tmp_path / "shot.clips").exists()
 
 
+def stand_ins(bin_dir, scripts):
+    """Writes each `name: body` as an executable /bin/sh script in `bin_dir`
+    and returns an environment whose PATH is that folder alone: stand-ins
+    for Slurm's commands, for what a real cluster cannot show on cue."""
+    bin_dir.mkdir()
+    for name, body in scripts.items():
+        (bin_dir / name).write_text("#!/bin/sh\n" + body)
+        (bin_dir / name).chmod(0o755)
+    return dict(os.environ, PATH=str(bin_dir))
+
+
 def test_a_refused_assembly_takes_the_chunk_tasks_back(painterly, tmp_path):
     # A stand-in sbatch that accepts the job array and refuses the assembly
     # job: the one failure the real cluster cannot be made to produce on cue.
     bin_dir = tmp_path / "bin"
-    bin_dir.mkdir()
-    (bin_dir / "sbatch").write_text(
-        "#!/bin/sh\n"
-        f"if [ -e {bin_dir}/once ]; then echo 'sbatch: error: Batch job submission failed: QOSMaxSubmitJobPerUserLimit' >&2; exit 1; fi\n"
-        f": > {bin_dir}/once; echo '4242;cluster'\n")
-    (bin_dir / "scancel").write_text(f"#!/bin/sh\necho \"$@\" > {bin_dir}/cancelled\n")
-    for f in ("sbatch", "scancel"):
-        (bin_dir / f).chmod(0o755)
-    env = dict(os.environ, PATH=str(bin_dir))
+    env = stand_ins(bin_dir, {
+        "sbatch": f"if [ -e {bin_dir}/once ]; then echo 'sbatch: error: Batch job submission failed: "
+                  f"QOSMaxSubmitJobPerUserLimit' >&2; exit 1; fi\n: > {bin_dir}/once; echo '4242;cluster'\n",
+        "scancel": f"echo \"$@\" > {bin_dir}/cancelled\n",
+    })
     out = tmp_path / "out"
     out.mkdir()
     proc = painterly("farm", "submit", BLOWFISH, "-o", out / "shot.usda", "--chunk", "12", "--scheduler", "slurm",
@@ -528,19 +535,13 @@ def test_status_asks_slurm_about_every_task(painterly, tmp_path):
     # task of each kind; 4242_3 no longer known): what a real cluster cannot
     # be made to show at once, and it runs without Slurm.
     bin_dir = tmp_path / "bin"
-    bin_dir.mkdir()
-    (bin_dir / "sbatch").write_text(
-        "#!/bin/sh\n"
-        f"if [ -e {bin_dir}/once ]; then echo 4243; exit 0; fi\n"
-        f": > {bin_dir}/once; echo '4242;cluster'\n")
-    (bin_dir / "squeue").write_text(
-        "#!/bin/sh\n"
-        'case "$*" in *--jobs=4242,4243\\ *) ;; *) echo "squeue: error: Invalid job id specified" >&2; exit 1;; esac\n'
-        "printf '%s\\n' '4242_0|PENDING|Priority' '4242_1|RUNNING|None' '4242_2|FAILED|NonZeroExitCode' "
-        "'4243|PENDING|Dependency'\n")
-    for f in ("sbatch", "squeue"):
-        (bin_dir / f).chmod(0o755)
-    env = dict(os.environ, PATH=str(bin_dir))
+    env = stand_ins(bin_dir, {
+        "sbatch": f"if [ -e {bin_dir}/once ]; then echo 4243; exit 0; fi\n: > {bin_dir}/once; echo '4242;cluster'\n",
+        "squeue": 'case "$*" in *--jobs=4242,4243\\ *) ;; *) echo "squeue: error: Invalid job id specified" >&2; '
+                  'exit 1;; esac\n'
+                  "printf '%s\\n' '4242_0|PENDING|Priority' '4242_1|RUNNING|None' '4242_2|FAILED|NonZeroExitCode' "
+                  "'4243|PENDING|Dependency'\n",
+    })
     shot = tmp_path / "shot.usda"
     sub, _ = submit(painterly, env, BLOWFISH, shot, "--chunk", "12", "--scheduler", "slurm")
     assert (sub["job"], sub["assemble_job"]) == ("4242", "4243")

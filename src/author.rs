@@ -618,8 +618,7 @@ mod tests {
         // forever (the fixture's Hair layer has no children of its own).
         use crate::usd_io::edit::EditTarget;
         let input = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/blowfish.usda");
-        let dir = std::env::temp_dir().join(format!("painterly_author_names_{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let dir = crate::test_dir::ScratchDir::new("author-names");
         let target = EditTarget::Layer(dir.join("e.usda"));
         let time_key = |time, name: Option<&str>| KeyOptions {
             layer: "/Blowfish/Paint/Hair".into(),
@@ -643,6 +642,5 @@ mod tests {
             key(&session, &time_key(3.0, None)).unwrap(),
             "/Blowfish/Paint/Hair/time2"
         );
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -47,6 +47,8 @@ pub mod render;
 pub mod rule;
 pub mod skel_deform;
 pub mod skinning;
+#[cfg(test)]
+mod test_dir;
 pub mod tools;
 pub mod usd_io;
 pub mod view;

@@ -257,8 +257,7 @@ mod tests {
 
     #[test]
     fn exr_and_png_files_round_trip_through_their_decoders() {
-        let dir = std::env::temp_dir().join(format!("painterly-image-io-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let dir = crate::test_dir::ScratchDir::new("image-io");
         let frame = Frame {
             width: 3,
             height: 2,
@@ -293,7 +292,6 @@ mod tests {
         let b = read_brush(&png_path).unwrap();
         assert_eq!((b.width, b.height), (2, 1));
         assert!((b.values[0] - (0.2126 + 0.7152 * 2.0 + 0.0722 * 3.0) / 255.0).abs() < 1e-6);
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     /// A PNG of `color` type and `depth` with these raw samples.
@@ -321,8 +319,7 @@ mod tests {
     #[test]
     fn brushes_read_every_png_colour_type() {
         use png::{BitDepth as D, ColorType as C};
-        let dir = std::env::temp_dir().join(format!("painterly-brush-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let dir = crate::test_dir::ScratchDir::new("brush");
         let read = |name: &str, bytes: Vec<u8>| {
             let p = dir.join(name);
             std::fs::write(&p, bytes).unwrap();
@@ -371,7 +368,6 @@ mod tests {
             e.to_string().contains("bad.png") && e.to_string().contains("cannot read brush PNG"),
             "{e}"
         );
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]

@@ -446,6 +446,30 @@ fn sweep_stale_dirs(base: &Path) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::test_dir::ScratchDir;
+
+    /// A fresh empty folder for one test (the registry sweeps each folder
+    /// once), removed when the test ends, passed or failed.
+    fn fresh_dir(tag: &str) -> ScratchDir {
+        ScratchDir::new(&format!("atomic-{tag}"))
+    }
+
+    /// The temporary name a write of `target` in `dir` by process `pid` on
+    /// `host` uses (as `temp_path` builds it for this process).
+    fn leftover(dir: &Path, target: &str, host: &str, pid: u32) -> PathBuf {
+        dir.join(format!(".{target}{MARK}{host}-{pid}{TMP_SUFFIX}"))
+    }
+
+    /// This process's temporary for `target` in `dir`.
+    fn ours(dir: &Path, target: &str) -> PathBuf {
+        temp_path(&dir.join(target), TMP_SUFFIX).unwrap()
+    }
+
+    #[test]
+    fn leftover_names_are_the_names_temp_path_gives() {
+        let dir = Path::new("/x");
+        assert_eq!(ours(dir, "t.usdc"), leftover(dir, "t.usdc", host(), std::process::id()));
+    }
 
     #[test]
     fn temp_names_round_trip() {
@@ -473,13 +497,11 @@ mod tests {
 
     #[test]
     fn sweep_removes_only_dead_local_temporaries() {
-        let dir = std::env::temp_dir().join(format!("painterly-atomic-test-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
+        let dir = fresh_dir("test");
         // pid_max on Linux is at most 2^22: this pid cannot be running.
-        let dead = dir.join(format!(".a.usdc{MARK}{}-4194305{TMP_SUFFIX}", host()));
-        let alive = dir.join(format!(".b.usdc{MARK}{}-1{TMP_SUFFIX}", host()));
-        let remote = dir.join(format!(".c.usdc{MARK}otherhost-4194305{TMP_SUFFIX}"));
+        let dead = leftover(&dir, "a.usdc", host(), 4194305);
+        let alive = leftover(&dir, "b.usdc", host(), 1);
+        let remote = leftover(&dir, "c.usdc", "otherhost", 4194305);
         let user = dir.join("notes.tmp");
         for p in [&dead, &alive, &remote, &user] {
             std::fs::write(p, b"x").unwrap();
@@ -490,14 +512,11 @@ mod tests {
             assert!(!dead.exists());
         }
         assert!(alive.exists() && remote.exists() && user.exists());
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]
     fn failed_write_leaves_nothing() {
-        let dir = std::env::temp_dir().join(format!("painterly-atomic-fail-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
+        let dir = fresh_dir("fail");
         let out = dir.join("out.usda");
         let e = write_atomic_with(&out, |w| {
             w.write_all(b"partial").unwrap();
@@ -509,15 +528,6 @@ mod tests {
         write_atomic(&out, b"ok").unwrap();
         assert_eq!(std::fs::read(&out).unwrap(), b"ok");
         assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1);
-        std::fs::remove_dir_all(&dir).unwrap();
-    }
-
-    /// A fresh empty folder for one test (the registry sweeps each folder once).
-    fn fresh_dir(tag: &str) -> PathBuf {
-        let dir = std::env::temp_dir().join(format!("painterly-atomic-{tag}-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        dir
     }
 
     #[test]
@@ -547,11 +557,11 @@ mod tests {
         let dir = fresh_dir("own-pid");
         let me = std::process::id();
         // Left by a dead process that had our pid: nobody here registered it.
-        let stale = dir.join(format!(".a.usdc{MARK}{}-{me}{TMP_SUFFIX}", host()));
+        let stale = leftover(&dir, "a.usdc", host(), me);
         // Ours and live: registered.
-        let live = dir.join(format!(".b.usdc{MARK}{}-{me}{TMP_SUFFIX}", host()));
+        let live = leftover(&dir, "b.usdc", host(), me);
         // Another host's, with the same pid number: not ours to judge.
-        let remote = dir.join(format!(".c.usdc{MARK}otherhost-{me}{TMP_SUFFIX}"));
+        let remote = leftover(&dir, "c.usdc", "otherhost", me);
         std::fs::write(&stale, b"x").unwrap();
         std::fs::write(&remote, b"x").unwrap();
         let _live_file = create_registered(&live).unwrap();
@@ -561,7 +571,6 @@ mod tests {
         assert_eq!(removed, vec![stale.clone()]);
         assert!(!stale.exists());
         assert_eq!(kept, (true, true));
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]
@@ -569,11 +578,11 @@ mod tests {
         use std::os::unix::fs::symlink;
         let dir = fresh_dir("symlink");
         // Another live temporary, so the registry holds a path other than tmp.
-        let other = dir.join(format!(".o.usdc{MARK}{}-{}{TMP_SUFFIX}", host(), std::process::id()));
+        let other = ours(&dir, "o.usdc");
         let _other_file = create_registered(&other).unwrap();
         let victim = dir.join("victim.usda");
         std::fs::write(&victim, b"keep").unwrap();
-        let tmp = dir.join(format!(".t.usdc{MARK}{}-{}{TMP_SUFFIX}", host(), std::process::id()));
+        let tmp = ours(&dir, "t.usdc");
         symlink(&victim, &tmp).unwrap();
         let f = create_registered(&tmp);
         let is_symlink = std::fs::symlink_metadata(&tmp).unwrap().file_type().is_symlink();
@@ -584,34 +593,31 @@ mod tests {
         // Opening through the link would have truncated the victim.
         assert_eq!(victim_bytes, b"keep");
         assert!(!is_symlink);
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]
     fn creating_a_live_temporary_again_keeps_its_file() {
         use std::os::unix::fs::MetadataExt;
         let dir = fresh_dir("again");
-        let tmp = dir.join(format!(".t.usdc{MARK}{}-{}{TMP_SUFFIX}", host(), std::process::id()));
+        let tmp = ours(&dir, "t.usdc");
         let first = create_registered(&tmp).unwrap();
         let _second = create_registered(&tmp).unwrap();
         // Registered, so not a dead process's leftover: the same inode, not unlinked.
         let same = first.metadata().unwrap().ino() == std::fs::metadata(&tmp).unwrap().ino();
         discard(&tmp);
         assert!(same);
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]
     fn discard_removes_and_forgets_the_temporary() {
         let dir = fresh_dir("discard");
-        let tmp = dir.join(format!(".t.usdc{MARK}{}-{}{TMP_SUFFIX}", host(), std::process::id()));
+        let tmp = ours(&dir, "t.usdc");
         drop(create_registered(&tmp).unwrap());
         assert!(registry().live.contains(&tmp));
         discard(&tmp);
         // A forgotten path is no longer removed on signals nor kept by sweeps.
         assert!(!registry().live.contains(&tmp));
         assert!(!tmp.exists());
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]
@@ -629,7 +635,6 @@ mod tests {
         assert!(want.is_file());
         drop(tmp);
         assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 0);
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]
@@ -645,7 +650,6 @@ mod tests {
         assert_eq!(std::fs::read(&want).unwrap(), b"#usda 1.0\n");
         drop(s);
         assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 0);
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]
@@ -681,7 +685,6 @@ mod tests {
             assert!(!dead.exists());
         }
         assert!(alive.exists() && remote.exists());
-        std::fs::remove_dir_all(&base).unwrap();
     }
 
     #[test]
@@ -689,7 +692,7 @@ mod tests {
         use std::os::unix::fs::symlink;
         let dir = fresh_dir("dangling");
         let elsewhere = dir.join("elsewhere.usda");
-        let tmp = dir.join(format!(".t.usdc{MARK}{}-{}{TMP_SUFFIX}", host(), std::process::id()));
+        let tmp = ours(&dir, "t.usdc");
         symlink(&elsewhere, &tmp).unwrap();
         let f = create_registered(&tmp);
         let is_symlink = std::fs::symlink_metadata(&tmp).unwrap().file_type().is_symlink();
@@ -700,6 +703,5 @@ mod tests {
         // would then rename the link itself onto the target).
         assert!(!created, "created the link's target");
         assert!(!is_symlink);
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -610,11 +610,8 @@ impl PrimTree {
 mod tests {
     use super::*;
 
-    fn scratch_dir(tag: &str) -> PathBuf {
-        let dir = std::env::temp_dir().join(format!("painterly-bake-layer-{tag}-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        dir
+    fn scratch_dir(tag: &str) -> crate::test_dir::ScratchDir {
+        crate::test_dir::ScratchDir::new(&format!("bake-layer-{tag}"))
     }
 
     fn attr(prim: &str, name: &'static str, kind: SampleKind, interpolation: Option<&'static str>) -> BakeAttr {
@@ -686,7 +683,6 @@ mod tests {
         // A layer painterly did not write has no provenance.
         std::fs::write(&path, "#usda 1.0\n").unwrap();
         assert_eq!(read_provenance(&path).unwrap(), None);
-        let _ = std::fs::remove_dir_all(&dir);
     }
 
     /// `A:B:STEP` gives (A, B, STEP); anything else gives None.
@@ -722,7 +718,6 @@ mod tests {
             let err = sink.write_frame(1.0, vec![Sample::Vec3s(vec![Vec3::ONE])]).unwrap_err();
             assert!(err.to_string().contains("wrong kind"), "{ext}: {err}");
         }
-        let _ = std::fs::remove_dir_all(&dir);
     }
 
     /// The whole text of a small usda bake, written out by hand: an attribute
@@ -816,6 +811,5 @@ over "Root"
 }
 "#;
         assert_eq!(text, expected);
-        let _ = std::fs::remove_dir_all(&dir);
     }
 }

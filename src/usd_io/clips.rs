@@ -462,9 +462,7 @@ mod tests {
     /// nested like the prims (written out by hand from the module docs).
     #[test]
     fn clip_set_and_manifest_text() {
-        let dir = std::env::temp_dir().join(format!("painterly-clipset-text-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
+        let dir = crate::test_dir::ScratchDir::new("clipset-text");
         let output = dir.join("shot.usda");
         let times = [1.0, 2.0, 3.0];
         let plan = ClipPlan::new(&output, &times, 2).unwrap();
@@ -521,6 +519,5 @@ over "A" (
 }
 "#;
         assert!(text.ends_with(body), "{text}");
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -522,8 +522,7 @@ mod tests {
     fn layers_loaded_by_composition_are_checked() {
         // The root stack is fine; the referenced layer is 257 deep. It is
         // loaded only while composing and must be refused then.
-        let dir = std::env::temp_dir().join(format!("painterly-guard-ref-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let dir = crate::test_dir::ScratchDir::new("guard-ref");
         let deep = format!(
             "#usda 1.0\n(\n    defaultPrim = \"P\"\n)\n{}{}",
             "def \"P\" {\n".repeat(257),
@@ -537,7 +536,6 @@ mod tests {
         )
         .unwrap();
         let result = super::super::stage::StageReader::open(&root);
-        std::fs::remove_dir_all(&dir).unwrap();
         let e = result.err().expect("a 257-deep referenced layer is refused");
         assert!(e.message.contains("namespace 257 prims deep"), "{e}");
         assert!(e.to_string().contains("ref.usda"), "{e}");

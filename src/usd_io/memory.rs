@@ -113,8 +113,7 @@ mod tests {
 
     #[test]
     fn reads_text_as_if_at_a_path_with_relative_sublayers_from_disk() {
-        let dir = std::env::temp_dir().join(format!("painterly_memory_{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let dir = crate::test_dir::ScratchDir::new("memory");
         std::fs::write(
             dir.join("base.usda"),
             "#usda 1.0\ndef Xform \"World\" { def Sphere \"Ball\" { double radius = 2 } }\n",
@@ -137,7 +136,6 @@ mod tests {
             .err()
             .unwrap();
         assert!(err.to_string().contains("bad.usda"), "{err}");
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     /// Every question but "what is at our path" goes to the filesystem
@@ -145,8 +143,7 @@ mod tests {
     /// layer would resolve differently from the same layer on disk.
     #[test]
     fn answers_like_the_filesystem_resolver_except_for_its_own_layer() {
-        let dir = std::env::temp_dir().join(format!("painterly_memory_fwd_{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let dir = crate::test_dir::ScratchDir::new("memory-fwd");
         let on_disk = dir.join("real.usda");
         std::fs::write(&on_disk, "#usda 1.0\n").unwrap();
         let ours = dir.join("held.usdc").to_str().unwrap().to_string();
@@ -188,6 +185,5 @@ mod tests {
         // composed from the file on disk.
         assert_eq!(r.identity(), format!("painterly-memory:{ours}"));
         assert_ne!(r.identity(), plain.identity());
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 }
