@@ -755,6 +755,21 @@ def test_edit_layer_composes_and_appends(painterly, tmp_path):
             assert b.Get(Usd.TimeCode.Default()) == a.Get(Usd.TimeCode.Default())
 
 
+def test_edit_layer_given_as_a_bare_file_name_is_in_the_working_folder(painterly, tmp_path):
+    """`--edit-layer e.usda` (no folder) is the working folder, which exists:
+    the layer is written there and sublayers the input beside it as ./name."""
+    rig = skel_rig(tmp_path, n_strokes=4)
+    lp = rig.layers[0]
+    before = sorted(os.listdir(tmp_path))
+    p = painterly("bind", rig.path.name, "--edit-layer", "e.usda", "--quiet", cwd=tmp_path, check=False)
+    assert (p.returncode, p.stderr) == (0, ""), p.stderr
+    assert sorted(os.listdir(tmp_path)) == sorted(before + ["e.usda"])
+    fresh(tmp_path / "e.usda")
+    layer = Sdf.Layer.FindOrOpen(str(tmp_path / "e.usda"))
+    assert list(layer.subLayerPaths) == [f"./{rig.path.name}"]
+    assert layer.GetPropertyAtPath(f"{lp}.painterly:restPoints"), "the bind is not in the edit layer"
+
+
 def test_edit_layer_keeps_time_metadata(painterly, tmp_path):
     """Opened on its own, the edit layer shows the input's animation as authored:
     same time range and timeCodesPerSecond (else usd-core retimes the input)."""

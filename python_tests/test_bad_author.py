@@ -198,3 +198,22 @@ def test_usage_errors(painterly, case, tmp_path, argv):
     inp, refused = case
     args = [str(a).format(inp=inp, e=tmp_path / "e.usda") for a in argv]
     refused(painterly, *args, code=2, edit_layer=None)
+
+
+def test_in_place_usdz_with_an_upper_case_extension(painterly, case, tmp_path):
+    """usd-core finds file formats by extension whatever its case, so
+    `X.USDZ` is a package like `x.usdz`, and editing it in place must be
+    refused the same way (else the package is overwritten by a bare crate
+    layer that usd-core can no longer open)."""
+    inp, refused = case
+    shutil.copy(inp, tmp_path / "copy.usda")
+    from pxr import UsdUtils
+    assert UsdUtils.CreateNewUsdzPackage(str(tmp_path / "copy.usda"), str(tmp_path / "lower.usdz"))
+    os.remove(tmp_path / "copy.usda")
+    z = tmp_path / "X.USDZ"
+    os.rename(tmp_path / "lower.usdz", z)
+    assert Sdf.FileFormat.FindByExtension(str(z)).formatId == "usdz"
+    assert Usd.Stage.Open(str(z)), "test setup: usd-core does not open the package"
+    before = Au.file_hash(z)
+    refused(painterly, "bind", z, "--in-place", edit_layer=None, file=z)
+    assert Au.file_hash(z) == before

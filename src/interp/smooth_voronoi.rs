@@ -602,6 +602,46 @@ mod tests {
         // A plain kink is rejected too, a smooth function accepted.
         assert!(!looks_c1(|s| (s - 0.4321).abs()));
         assert!(looks_c1(|s| (3.0 * s).sin()));
+        // A small kink (slope jump 2e-3) on a smooth function is still
+        // rejected, also at a grid point, and near the ends of [0, 1]. (The
+        // base is gentle: only the 5 largest coarse quotients are looked at,
+        // so the kink must outrank the smooth curvature there.)
+        for p in [0.3, 0.5, 0.0003, 0.9999] {
+            assert!(!looks_c1(|s| (0.5 * s).sin() + 1e-3 * (s - p).abs()), "kink at {p}");
+        }
+    }
+
+    #[test]
+    fn r2_segment_clipping_a_sliver_of_a_quadratic_piece_is_c1() {
+        // Proptest case (d, n, seed) = (3, 2, 15099038323540161588). Two keys:
+        // f = y_1 + (y_0 − y_1) S_γ(t) along the line through them. The third
+        // segment starts at t = 1 − 2e-5, so only s ∈ [0, 5.4e-5] lies on
+        // S_γ's upper quadratic piece (f'' ≈ −0.289 there, 0 after): C¹ with
+        // a jump in f'' narrower than the h/8 step, which the first
+        // refinement undersamples (max quotient 0.028 at h/8, 0.289 at h/128).
+        let (d, n, seed) = (3usize, 2usize, 15099038323540161588u64);
+        let mut rng = Lcg::new(seed);
+        let keys = separated_keys(&mut rng, n, d);
+        let it = build(d, &keys);
+        let y: Vec<f64> = (0..n).map(|_| rng.uniform(-1.0, 1.0)).collect();
+        for seg in 0..3 {
+            let a = random_point(&mut rng, d, -0.2, 1.2);
+            let b = random_point(&mut rng, d, -0.2, 1.2);
+            let f = |s: f64| {
+                let x: Vec<f64> = a.iter().zip(&b).map(|(p, q)| p + s * (q - p)).collect();
+                dot(&weights(&it, &x), &y)
+            };
+            assert!(looks_c1(f), "segment {seg}");
+            if seg == 2 {
+                // Really C¹ at the joint (s ≈ 5.4e-5): the one-sided slopes
+                // differ by ≈ f''·e, shrinking with e (no kink).
+                let s0 = 5.4e-5;
+                for e in [1e-5, 1e-6, 1e-7] {
+                    let jump = (f(s0 + e) - f(s0)) / e - (f(s0) - f(s0 - e)) / e;
+                    assert!(jump.abs() < 0.5 * e, "e {e}: {jump}");
+                }
+            }
+        }
     }
 
     /// Keys of Bassett Fig. 9.

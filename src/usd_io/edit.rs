@@ -96,8 +96,9 @@ impl EditSession {
         };
         match target {
             EditTarget::InPlace => {
+                // usd-core finds a format by its extension in any case.
                 let ext = input.extension().and_then(|e| e.to_str()).unwrap_or("");
-                if ext == "usdz" {
+                if ext.eq_ignore_ascii_case("usdz") {
                     return Err(Error::msg("cannot edit a .usdz package in place; use --edit-layer").in_file(input));
                 }
                 let text = read_text(input)?;
@@ -321,4 +322,87 @@ fn check_round_trip(text: &str, expected: &dyn AbstractData) -> std::result::Res
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(text: &str) -> sdf::LayerData {
+        sdf::LayerRegistry::read_bytes(openusd::ar::AssetBuffer::Owned(text.as_bytes().to_vec()), "t.usda").unwrap()
+    }
+
+    const BASE: &str = "#usda 1.0\n\ndef Xform \"A\"\n{\n    float x = 1\n    double y = nan\n\n    def Xform \"B\"\n    {\n    }\n}\n";
+
+    #[test]
+    fn field_values_compare_by_value_and_nan_by_its_printed_form() {
+        // NaN != NaN under ==, yet an unchanged NaN default is no change.
+        assert!(same_value(&Value::Double(f64::NAN), &Value::Double(f64::NAN)));
+        assert!(same_value(&Value::Float(1.0), &Value::Float(1.0)));
+        assert!(!same_value(&Value::Float(1.0), &Value::Float(2.0)));
+        assert!(!same_value(&Value::Double(f64::NAN), &Value::Double(0.0)));
+    }
+
+    #[test]
+    fn only_custom_false_and_varying_variability_are_fallbacks() {
+        // The Sdf schema's fallbacks: custom = false, variability = varying.
+        assert!(is_fallback("custom", &Value::Bool(false)));
+        assert!(is_fallback(
+            "variability",
+            &Value::Variability(sdf::Variability::Varying)
+        ));
+        assert!(!is_fallback("custom", &Value::Bool(true)));
+        assert!(!is_fallback(
+            "variability",
+            &Value::Variability(sdf::Variability::Uniform)
+        ));
+        assert!(!is_fallback("default", &Value::Bool(false)));
+        assert!(!is_fallback("documentation", &Value::String(String::new())));
+    }
+
+    #[test]
+    fn round_trip_check_names_the_first_spec_or_field_that_would_change() {
+        let base = parse(BASE);
+        // The same text (with its NaN default) holds exactly the layer.
+        assert_eq!(check_round_trip(BASE, &base), Ok(()));
+        // /A/B dropped from the text: lost.
+        let without_b = BASE.replace("\n    def Xform \"B\"\n    {\n    }\n", "");
+        assert!(!without_b.contains("\"B\""));
+        assert_eq!(
+            check_round_trip(&without_b, &base),
+            Err("spec /A/B would be lost".to_string())
+        );
+        // /A/B only in the text: it would appear.
+        assert_eq!(
+            check_round_trip(BASE, &parse(&without_b)),
+            Err("spec /A/B would appear".to_string())
+        );
+        // A changed default.
+        assert_eq!(
+            check_round_trip(&BASE.replace("float x = 1", "float x = 2"), &base),
+            Err("field default of /A.x would change".to_string())
+        );
+        // A field only the text has (prim documentation): not a fallback.
+        let documented = BASE.replace("def Xform \"A\"\n", "def Xform \"A\" (\n    doc = \"d\"\n)\n");
+        let e = check_round_trip(&documented, &base).unwrap_err();
+        assert!(e.starts_with("field ") && e.ends_with(" of /A would change"), "{e}");
+        // ... and only the layer has it.
+        let e = check_round_trip(BASE, &parse(&documented)).unwrap_err();
+        assert!(e.starts_with("field ") && e.ends_with(" of /A would change"), "{e}");
+    }
+
+    #[test]
+    fn a_new_edit_layer_session_names_the_edit_layer_not_its_scratch_header() {
+        let input = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/blowfish.usda");
+        let dir = crate::usd_io::atomic::TempDir::new().unwrap();
+        let edit = dir.path().join("e.usda");
+        let session = EditSession::open(&input, &EditTarget::Layer(edit.clone())).unwrap();
+        // StageReader::file is "the root layer's path, as given by the user".
+        assert_eq!(session.reader.file, edit);
+        assert_eq!(session.target(), edit.as_path());
+        drop(session);
+        let session = EditSession::open(&input, &EditTarget::InPlace).unwrap();
+        assert_eq!(session.target(), input.as_path());
+        assert_eq!(session.reader.file, input);
+    }
 }

@@ -59,9 +59,15 @@ pub enum Format {
 impl Format {
     /// `.usda` or `.usdc` (`.usd` is written as crate).
     pub fn from_path(path: &Path) -> Result<Format> {
-        match path.extension().and_then(|e| e.to_str()) {
-            Some("usda") => Ok(Format::Usda),
-            Some("usdc") | Some("usd") => Ok(Format::Usdc),
+        // In any case, as usd-core's Sdf.FileFormat.FindByExtension.
+        let ext = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .unwrap_or("")
+            .to_ascii_lowercase();
+        match ext.as_str() {
+            "usda" => Ok(Format::Usda),
+            "usdc" | "usd" => Ok(Format::Usdc),
             _ => Err(Error::usage("output must end in .usdc, .usd or .usda").in_file(path)),
         }
     }
@@ -330,6 +336,76 @@ impl OverLayer {
         match Format::from_path(path)? {
             Format::Usdc => super::usdc::write_layer_file(path, &self.into_data()?),
             Format::Usda => write_atomic(path, &self.into_bytes(Format::Usda)?),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn formats_follow_the_extension_in_any_case() {
+        // As Sdf.FileFormat.FindByExtension: "x.USDA" is usda, "x.UsdC" and
+        // "x.USD" are crate files (usd-core writes a created x.USDA as text).
+        for (name, want) in [
+            ("x.USDA", Format::Usda),
+            ("x.UsdC", Format::Usdc),
+            ("x.USD", Format::Usdc),
+        ] {
+            assert_eq!(Format::from_path(Path::new(name)).unwrap(), want, "{name}");
+        }
+        assert!(Format::from_path(Path::new("x.USDZ")).is_err());
+    }
+
+    #[test]
+    fn write_keeps_defaults_sibling_prims_and_every_blocked_relationship() {
+        let dir = super::super::atomic::TempDir::new().unwrap();
+        for name in ["cache.usdc", "cache.usda"] {
+            let mut l = OverLayer::new(StageMetadata::default());
+            l.set_default("/R/A", "v", "int[]", Value::IntVec(vec![1, 2, 3]));
+            l.set_default("/R/B", "v", "int[]", Value::IntVec(vec![4]));
+            l.block_relationship("/R/A", "skel:skeleton");
+            l.block_relationship("/R/A", "proxyPrim");
+            l.block_relationship("/R/A", "skel:skeleton");
+            let path = dir.path().join(name);
+            l.write(&path).unwrap();
+            let bytes = std::fs::read(&path).unwrap();
+            let back = sdf::LayerRegistry::read_bytes(openusd::ar::AssetBuffer::Owned(bytes), name).unwrap();
+            let p = |s: &str| sdf::Path::new(s).unwrap();
+            let tokens = |v: &[&str]| Value::TokenVec(v.iter().map(|&t| t.into()).collect());
+            let field = |path: &str, f: &str| back.get_field(&p(path), f).map(|v| v.into_owned()).ok();
+            // Over specs for /R and its two children, in order, and nothing else.
+            let children = ChildrenKey::PrimChildren.as_str();
+            assert_eq!(field("/", children), Some(tokens(&["R"])), "{name}");
+            assert_eq!(field("/R", children), Some(tokens(&["A", "B"])), "{name}");
+            assert_eq!(field("/R/A.v", "default"), Some(Value::IntVec(vec![1, 2, 3])), "{name}");
+            assert_eq!(field("/R/B.v", "default"), Some(Value::IntVec(vec![4])), "{name}");
+            let props = ChildrenKey::PropertyChildren.as_str();
+            assert_eq!(
+                field("/R/A", props),
+                Some(tokens(&["v", "skel:skeleton", "proxyPrim"])),
+                "{name}"
+            );
+            for rel in ["/R/A.skel:skeleton", "/R/A.proxyPrim"] {
+                assert_eq!(back.spec_type(&p(rel)), Some(SpecType::Relationship), "{name} {rel}");
+            }
+            let mut paths: Vec<String> = back.spec_paths().iter().map(|s| s.as_str().to_string()).collect();
+            paths.sort();
+            assert_eq!(
+                paths,
+                [
+                    "/",
+                    "/R",
+                    "/R/A",
+                    "/R/A.proxyPrim",
+                    "/R/A.skel:skeleton",
+                    "/R/A.v",
+                    "/R/B",
+                    "/R/B.v"
+                ],
+                "{name}"
+            );
         }
     }
 }

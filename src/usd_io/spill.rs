@@ -161,4 +161,19 @@ mod tests {
         assert!(s.push_row(&[[0, 0]]).is_err());
         assert!(s.column(2).is_err());
     }
+
+    #[test]
+    fn a_block_is_reserved_once_and_never_outgrown() {
+        // The module's memory bound: at most `block` entries per column in
+        // memory, reserved when the block starts rather than grown by doubling.
+        let dir = folder();
+        let mut s = ColumnSpill::<u64>::with_block(&dir.path().join("out.usdc"), 2, 100);
+        for r in 0..250u64 {
+            s.push_row(&[r, r + 1]).unwrap();
+            for col in &s.current {
+                assert!(col.capacity() <= 100, "after row {r}: capacity {}", col.capacity());
+            }
+        }
+        assert_eq!(s.column(1).unwrap(), (1..251u64).collect::<Vec<_>>());
+    }
 }
