@@ -204,4 +204,15 @@ mod tests {
             assert!((smooth_step(t, 0.0) - f64::clamp(t, 0.0, 1.0)).abs() < 1e-15);
         }
     }
+
+    #[test]
+    fn t_at_one_minus_gamma_is_on_the_linear_piece() {
+        // The upper quadratic covers (1 − γ, 1), open at 1 − γ, as documented:
+        // there S' is the linear piece's slope exactly. The quadratic's
+        // 2(1 − t)/(2γ(1 − γ)) is the same number in exact arithmetic but
+        // rounds differently for these γ (e.g. 1.25 − 2⁻⁵² at γ = 0.2).
+        for g in [0.05, 0.1, 0.2, 0.35] {
+            assert_eq!(smooth_step_derivative(1.0 - g, g), 1.0 / (1.0 - g), "γ={g}");
+        }
+    }
 }
