@@ -321,4 +321,68 @@ mod tests {
         .unwrap();
         assert!(r.check(&axes).unwrap_err().0.contains("width"));
     }
+
+    fn render_request(camera: serde_json::Value, width: usize, height: usize) -> RenderRequest {
+        serde_json::from_value(serde_json::json!({
+            "frame": {"time": 1}, "camera": camera, "width": width, "height": height
+        }))
+        .unwrap()
+    }
+
+    fn camera(fov_y: f64, near: f64, far: f64) -> serde_json::Value {
+        serde_json::json!({"position": [0, 0, 5], "target": [0, 0, 0], "up": [0, 1, 0],
+            "fov_y": fov_y, "near": near, "far": far})
+    }
+
+    #[test]
+    fn render_bounds_are_open_where_documented() {
+        // fov_y in the open interval (0.1, 179) degrees, 0 < near < far, and
+        // 1..=MAX_RENDER_SIDE pixels a side: each bound and its neighbour.
+        let axes: Vec<String> = Vec::new();
+        let verdict = |c: serde_json::Value, w: usize, h: usize| render_request(c, w, h).check(&axes).map_err(|e| e.0);
+        let err = |c, w, h| verdict(c, w, h).unwrap_err();
+        assert!(verdict(camera(45.0, 0.1, 100.0), 64, 64).is_ok());
+        assert!(err(camera(0.1, 0.1, 100.0), 64, 64).contains("fov_y 0.1 is not in"));
+        assert!(verdict(camera(0.1001, 0.1, 100.0), 64, 64).is_ok());
+        assert!(err(camera(179.0, 0.1, 100.0), 64, 64).contains("fov_y 179"));
+        assert!(verdict(camera(178.99, 0.1, 100.0), 64, 64).is_ok());
+        assert!(err(camera(45.0, 0.0, 100.0), 64, 64).contains("near 0 and far 100"));
+        assert!(err(camera(45.0, 2.0, 2.0), 64, 64).contains("0 < near < far"));
+        assert!(err(camera(45.0, 2.0, 1.0), 64, 64).contains("0 < near < far"));
+        assert!(verdict(camera(45.0, 1e-9, 2e-9), MAX_RENDER_SIDE, 1).is_ok());
+        assert!(err(camera(45.0, 0.1, 100.0), MAX_RENDER_SIDE + 1, 1).contains("width 4097"));
+        assert!(err(camera(45.0, 0.1, 100.0), 1, 0).contains("height 0 is not in 1..=4096"));
+        assert!(err(camera(45.0, 0.1, 100.0), 1, MAX_RENDER_SIDE + 1).contains("height 4097"));
+    }
+
+    #[test]
+    fn numbers_that_json_cannot_carry_are_refused_too() {
+        // serde_json refuses 1e999 and JSON has no NaN, so these come only
+        // from requests built in Rust (the evaluator's own, other front doors).
+        assert!(serde_json::from_str::<FrameRequest>(r#"{"time": 1e999}"#).is_err());
+        let axes = vec!["/A/x".to_string()];
+        let frame = |time: f64, eye: Option<[f64; 3]>, x: f64| FrameRequest {
+            id: 0,
+            time,
+            overrides: [("/A/x".to_string(), x)].into_iter().collect(),
+            eye,
+            proxy: false,
+            bake: false,
+        };
+        assert!(frame(1.0, Some([0.0, 1.0, 2.0]), 0.5).check(&axes).is_ok());
+        let msg = |f: FrameRequest| f.check(&axes).unwrap_err().0;
+        assert_eq!(msg(frame(f64::NAN, None, 0.5)), "time must be finite, got [NaN]");
+        assert!(msg(frame(1.0, Some([0.0, f64::INFINITY, 0.0]), 0.5)).starts_with("eye must be finite"));
+        assert!(msg(frame(1.0, None, f64::NEG_INFINITY)).starts_with("/A/x must be finite"));
+        let mut r = render_request(camera(45.0, 0.1, 100.0), 8, 8);
+        r.camera.up[2] = f64::NAN;
+        assert!(r.check(&axes).unwrap_err().0.starts_with("camera.up must be finite"));
+        let mut r = render_request(camera(45.0, 0.1, 100.0), 8, 8);
+        r.camera.far = f64::INFINITY;
+        assert!(r
+            .check(&axes)
+            .unwrap_err()
+            .0
+            .starts_with("camera fov_y, near and far must be finite"));
+    }
 }
