@@ -189,6 +189,7 @@ def test_tasks_of_a_shot_bind_once_through_the_binding_cache(painterly, tmp_path
     assert cache.is_file() and "from the binding cache" not in first
     info = Sdf.Layer.FindOrOpen(str(cache)).customLayerData["painterly"]
     assert info["version"] and len(info["inputHash"]) == 64
+    assert info["input"] == str(src)  # the root layer's path as given
     # usd-core reads the cache as an override layer of bindings, one per point.
     stage = Usd.Stage.Open(str(cache))
     layers = [p for p in stage.TraverseAll() if p.HasAttribute("painterly:bindVertices")]
