@@ -556,3 +556,139 @@ def test_status_asks_slurm_about_every_task(painterly, tmp_path):
         ("4242_3", None, "task 4242_3 is no longer known to the scheduler and the chunk is missing"),
     ]
     assert st["assembly"] == {"job": "4243", "state": "pending", "scheduler_state": "PENDING", "detail": "Dependency"}
+
+
+# --------------------------------------------------------------------------
+# Slurm's answers a real cluster cannot give on cue (stand-ins)
+# --------------------------------------------------------------------------
+
+TWO_JOBS_SBATCH = "if [ -e {d}/once ]; then echo 4243; exit 0; fi\n: > {d}/once; echo '4242;cluster'\n"
+
+
+def only_jobs(jobs, body):
+    """A stand-in body that answers `body` when asked about exactly `jobs`
+    (`--jobs=...` followed by more options), and otherwise fails as squeue
+    and sacct do for a job they do not know."""
+    return (f'case "$*" in *--jobs={jobs}\\ *) ;; *) echo "slurm_load_jobs error: Invalid job id specified" >&2; '
+            f"exit 1;; esac\n{body}")
+
+
+@pytest.mark.parametrize("printed", ["", "Submitted batch job 4242"])
+def test_sbatch_that_prints_no_job_id_is_refused(painterly, tmp_path, printed):
+    # sbatch exits 0 without the --parsable "ID[;CLUSTER]" line: nothing at
+    # all, or its default "Submitted batch job N" (sbatch(1) without
+    # --parsable, e.g. from a wrapper). No task id can be recorded.
+    bin_dir = tmp_path / "bin"
+    env = stand_ins(bin_dir, {"sbatch": f"echo '{printed}'\n" if printed else "exit 0\n"})
+    out = tmp_path / "out"
+    out.mkdir()
+    proc = painterly("farm", "submit", BLOWFISH, "-o", out / "shot.usda", "--chunk", "12", "--scheduler", "slurm",
+                     env=env, check=False)
+    assert proc.returncode == 1, proc.stdout
+    assert "sbatch printed no job id for the chunk tasks" in proc.stderr
+    assert f'(stdout "{printed}")' in proc.stderr
+    assert not (out / "shot.clips" / "farm" / "plan.json").exists()
+
+
+def test_a_refused_assembly_whose_scancel_fails_says_what_to_run(painterly, tmp_path):
+    # As test_a_refused_assembly_takes_the_chunk_tasks_back, but scancel
+    # fails too (exit 1, as scancel does when it may not cancel the job).
+    bin_dir = tmp_path / "bin"
+    env = stand_ins(bin_dir, {
+        "sbatch": f"if [ -e {bin_dir}/once ]; then echo 'sbatch: error: Batch job submission failed: "
+                  f"QOSMaxSubmitJobPerUserLimit' >&2; exit 1; fi\n: > {bin_dir}/once; echo '4242;cluster'\n",
+        "scancel": "echo 'scancel: error: Kill job error on job id 4242: Access/permission denied' >&2; exit 1\n",
+    })
+    out = tmp_path / "out"
+    out.mkdir()
+    proc = painterly("farm", "submit", BLOWFISH, "-o", out / "shot.usda", "--chunk", "12", "--scheduler", "slurm",
+                     env=env, check=False)
+    assert proc.returncode == 1
+    assert "sbatch refused the assembly job" in proc.stderr
+    assert "cancelling the chunk tasks failed: run scancel 4242" in proc.stderr
+    assert "were cancelled" not in proc.stderr
+    assert not (out / "shot.clips" / "farm" / "plan.json").exists()
+
+
+@pytest.mark.parametrize("purged", [False, True])
+def test_status_when_squeue_fails(painterly, tmp_path, purged):
+    # squeue exits 1 in two ways: the controller does not answer (then
+    # nothing is known and the files alone answer), or every job asked
+    # about has left the controller's memory ("Invalid job id specified",
+    # after MinJobAge): then Slurm was asked, and no task waits or runs.
+    bin_dir = tmp_path / "bin"
+    message = ("slurm_load_jobs error: Invalid job id specified" if purged
+               else "slurm_load_jobs error: Unable to contact slurm controller (connect failure)")
+    env = stand_ins(bin_dir, {
+        "sbatch": TWO_JOBS_SBATCH.format(d=bin_dir),
+        "squeue": f"echo '{message}' >&2; exit 1\n",
+    })
+    shot = tmp_path / "shot.usda"
+    sub, _ = submit(painterly, env, BLOWFISH, shot, "--chunk", "12", "--scheduler", "slurm")
+    assert (sub["job"], sub["assemble_job"]) == ("4242", "4243")
+    st = status(painterly, env, shot)
+    assert not st["complete"]
+    assert st["scheduler_queried"] is purged
+    if purged:
+        assert states(st) == ["failed"] * 4 and st["counts"] == counts(failed=4)
+        assert [c["detail"] for c in st["chunks"]] == [
+            f"task 4242_{k} is no longer known to the scheduler and the chunk is missing" for k in range(4)
+        ]
+        assert (st["assembly"]["state"], st["assembly"]["scheduler_state"]) == ("failed", None)
+    else:
+        assert states(st) == ["missing"] * 4 and st["counts"] == counts(missing=4)
+        assert [c["detail"] for c in st["chunks"]] == [None] * 4
+        assert st["assembly"] == {"job": "4243", "state": "missing", "scheduler_state": None, "detail": None}
+
+
+def test_status_reads_sacct_for_tasks_squeue_forgot(painterly, tmp_path):
+    # With accounting, sacct (-n -P -X: "JobID|State|Reason") still knows
+    # tasks that ended before the controller's MinJobAge, which squeue no
+    # longer lists; squeue's live view wins where both answer (4242_3:
+    # sacct's record is older). sacct prints "CANCELLED by UID".
+    bin_dir = tmp_path / "bin"
+    env = stand_ins(bin_dir, {
+        "sbatch": TWO_JOBS_SBATCH.format(d=bin_dir),
+        "sacct": only_jobs("4242,4243", "printf '%s\\n' '4242_0|COMPLETED|None' '4242_1|CANCELLED by 1000|None' "
+                                        "'4242_2|TIMEOUT|None' '4242_3|PENDING|Priority' '4243|PENDING|Dependency'\n"),
+        "squeue": only_jobs("4242,4243", "printf '%s\\n' '4242_3|RUNNING|None' '4243|PENDING|Dependency'\n"),
+    })
+    shot = tmp_path / "shot.usda"
+    submit(painterly, env, BLOWFISH, shot, "--chunk", "12", "--scheduler", "slurm")
+    st = status(painterly, env, shot)
+    assert st["scheduler_queried"] and not st["complete"]
+    assert states(st) == ["failed", "failed", "failed", "running"]
+    assert st["counts"] == counts(running=1, failed=3)
+    assert [c["scheduler_state"] for c in st["chunks"]] == ["COMPLETED", "CANCELLED", "TIMEOUT", "RUNNING"]
+    assert st["chunks"][1]["detail"] == "task 4242_1 ended CANCELLED and the chunk is missing"
+    assert st["chunks"][3]["detail"] is None
+    assert st["assembly"] == {"job": "4243", "state": "pending", "scheduler_state": "PENDING", "detail": "Dependency"}
+    # A task still runs and the assembly waits: a new submission is refused,
+    # naming how to cancel each job (scancel JOBID).
+    _, proc = submit(painterly, env, BLOWFISH, shot, "--chunk", "12", "--scheduler", "slurm", check=False)
+    assert proc.returncode == 1
+    assert "tasks of the previous submission still wait or run (4242_3, 4243)" in proc.stderr
+    assert "(scancel 4242; scancel 4243)" in proc.stderr
+
+
+def test_a_plan_without_task_ids_asks_no_scheduler(painterly, tmp_path):
+    # A plan that records no task id (edited by hand, or kept from a
+    # submission whose ids were lost) has nothing to ask Slurm about: squeue
+    # and sacct are not run, and the files alone answer.
+    bin_dir = tmp_path / "bin"
+    asked = "echo \"$0 $*\" >> " + str(bin_dir / "asked") + "\n"
+    env = stand_ins(bin_dir, {
+        "sbatch": TWO_JOBS_SBATCH.format(d=bin_dir),
+        "squeue": asked + "exit 0\n",
+        "sacct": asked + "exit 0\n",
+    })
+    shot = tmp_path / "shot.usda"
+    submit(painterly, env, BLOWFISH, shot, "--chunk", "12", "--scheduler", "slurm")
+    plan_path = tmp_path / "shot.clips" / "farm" / "plan.json"
+    plan = json.loads(plan_path.read_text())
+    plan.update(job=None, assemble_job=None, chunks=[dict(c, task=None) for c in plan["chunks"]])
+    plan_path.write_text(json.dumps(plan))
+    st = status(painterly, env, shot)
+    assert not st["scheduler_queried"]
+    assert states(st) == ["missing"] * 4
+    assert not (bin_dir / "asked").exists()

@@ -2,6 +2,7 @@
 usdview at the baked frames, with nothing for UsdValidation to report."""
 
 import json
+import shutil
 
 import numpy as np
 from pxr import Sdf, Usd, UsdGeom, UsdValidation
@@ -77,3 +78,21 @@ def test_view_of_a_clip_set_bake(painterly, tmp_path, repo_root):
             rtol=0, atol=1e-6,
         )
     assert validation_errors(stage) == []
+
+
+def test_view_layer_paths_are_relative_to_its_own_folder(painterly, tmp_path, repo_root):
+    """Sublayer paths are relative to the view layer's folder, as USD
+    resolves them: `./` beside it, `../` up to a sibling folder (no `./`
+    before it), also when -o is a bare file name (the current folder)."""
+    assets, shot = tmp_path / "assets", tmp_path / "shot"
+    assets.mkdir(), shot.mkdir()
+    src = assets / "tube.usda"
+    shutil.copy(repo_root / "fixtures" / "tube.usda", src)
+    painterly("bake", src, "-o", shot / "bake.usdc", "--frames", "1:3")
+    painterly("view", src, "--bake", "bake.usdc", "-o", "view.usda", cwd=shot)
+    layer = Sdf.Layer.FindOrOpen(str(shot / "view.usda"))
+    assert list(layer.subLayerPaths) == ["./bake.usdc", "../assets/tube.usda"]
+    stage = Usd.Stage.Open(str(shot / "view.usda"))
+    assert [l.realPath for l in stage.GetLayerStack(includeSessionLayers=False)[1:]] == [
+        str(shot / "bake.usdc"), str(src)]
+    assert stage.GetPrimAtPath("/Tube/Paint/Rings").IsValid()

@@ -294,4 +294,17 @@ mod tests {
         assert_eq!(known["12_1"].state, TaskState::Failed);
         assert_eq!(known["12_1"].raw, "CANCELLED");
     }
+
+    #[test]
+    fn a_line_without_a_state_says_nothing() {
+        // `ID|STATE|REASON` with an empty STATE field (or one of blanks) names
+        // no state: the task is not recorded, and an earlier line's state
+        // (sacct's, before squeue's) stands.
+        let mut known = HashMap::new();
+        parse_into("20_0|COMPLETED|None\n", &mut known);
+        parse_into("20_0||None\n20_1| |None\n21||\n", &mut known);
+        assert_eq!(known.len(), 1, "{known:?}");
+        assert_eq!(known["20_0"].state, TaskState::Completed);
+        assert_eq!(known["20_0"].raw, "COMPLETED");
+    }
 }
