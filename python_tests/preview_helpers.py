@@ -2,16 +2,20 @@
 its HTTP protocol (docs/preview.md), drive Debian's chromium through
 browser_tests/driver.mjs (playwright-core)."""
 
+import base64
+import hashlib
 import json
 import os
 import pathlib
 import re
 import shutil
 import signal
+import socket
 import struct
 import subprocess
 import time
 import urllib.error
+import urllib.parse
 import urllib.request
 
 from conftest import REPO, painterly_binary
@@ -95,6 +99,69 @@ class PreviewServer:
         status, _, data = self.request("api/frame", body=req)
         assert status == 200, data
         return decode_frame(data)
+
+
+class WebSocket:
+    """A minimal RFC 6455 client for `GET /api/ws`: masked messages out,
+    whole (unfragmented) messages in, handshake checked as the RFC says."""
+
+    GUID = b"258EAFA5-E914-47DA-95CA-C5AB0DC85B11"
+
+    def __init__(self, url, timeout=120):
+        u = urllib.parse.urlsplit(url)
+        self.sock = socket.create_connection((u.hostname, u.port), timeout=timeout)
+        self.buf = b""
+        key = base64.b64encode(os.urandom(16))
+        self.sock.sendall(
+            (f"GET {u.path}api/ws HTTP/1.1\r\nHost: {u.netloc}\r\nUpgrade: websocket\r\n"
+             f"Connection: Upgrade\r\nSec-WebSocket-Key: {key.decode()}\r\nSec-WebSocket-Version: 13\r\n\r\n").encode())
+        while b"\r\n\r\n" not in self.buf:
+            self.buf += self._recv_some()
+        head, self.buf = self.buf.split(b"\r\n\r\n", 1)
+        lines = head.decode().split("\r\n")
+        assert lines[0].split()[1] == "101", lines[0]
+        headers = {k.strip().lower(): v.strip() for k, v in (line.split(":", 1) for line in lines[1:])}
+        assert headers["sec-websocket-accept"] == base64.b64encode(hashlib.sha1(key + self.GUID).digest()).decode()
+
+    def _recv_some(self):
+        chunk = self.sock.recv(65536)
+        if not chunk:
+            raise EOFError("the server closed the connection")
+        return chunk
+
+    def _read(self, n):
+        while len(self.buf) < n:
+            self.buf += self._recv_some()
+        out, self.buf = self.buf[:n], self.buf[n:]
+        return out
+
+    def send(self, payload, opcode=1):
+        """Sends a text (opcode 1) or binary (2) message."""
+        data = payload.encode() if isinstance(payload, str) else bytes(payload)
+        n = len(data)
+        if n < 126:
+            head = bytes([0x80 | opcode, 0x80 | n])
+        elif n < 1 << 16:
+            head = bytes([0x80 | opcode, 0x80 | 126]) + struct.pack(">H", n)
+        else:
+            head = bytes([0x80 | opcode, 0x80 | 127]) + struct.pack(">Q", n)
+        mask = os.urandom(4)
+        masked = bytes(b ^ mask[i % 4] for i, b in enumerate(data))
+        self.sock.sendall(head + mask + masked)
+
+    def recv(self):
+        """(opcode, payload) of the next message: 1 text, 2 binary, 8 close."""
+        b0, b1 = self._read(2)
+        assert b0 & 0x80 and not b1 & 0x80, "whole, unmasked server messages"
+        n = b1 & 0x7F
+        if n == 126:
+            n = struct.unpack(">H", self._read(2))[0]
+        elif n == 127:
+            n = struct.unpack(">Q", self._read(8))[0]
+        return b0 & 0x0F, self._read(n)
+
+    def close(self):
+        self.sock.close()
 
 
 def browser_available():

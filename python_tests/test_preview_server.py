@@ -15,7 +15,7 @@ import pytest
 from pxr import Gf, Sdf, Usd, UsdGeom
 
 from conftest import REPO, painterly_binary
-from preview_helpers import PreviewServer, decode_frame
+from preview_helpers import PreviewServer, WebSocket, decode_frame
 
 FISH = REPO / "fixtures" / "blowfish.usda"
 HEAD = REPO / "fixtures" / "head.usda"
@@ -519,3 +519,59 @@ def test_render_shows_the_view_mesh_the_eye_drives(tmp_path):
             imgs.append(np.array(Image.open(io.BytesIO(body)).convert("RGBA"), dtype=np.int16))
     assert imgs[0][..., 3].max() > 0, "the building is in view"
     assert np.abs(imgs[0] - imgs[1]).max() > 0
+
+
+def test_the_slider_stream_answers_like_the_frame_route(fish):
+    """`GET /api/ws` (docs/preview.md): each text message is a frame request,
+    answered by the bytes `POST /api/frame` gives for it, or by a text
+    {"id", "status", "error"}; a request of a few KiB is fine."""
+    axis = fish.scene()["axes"][0]["path"]
+    req = {"id": 7, "time": 12, "overrides": {axis: 0.25}}
+    status, _, http = fish.request("api/frame", body=req)
+    assert status == 200
+    want_header, want_arrays = decode_frame(http)
+    del want_header["timing"]  # how long each stage took, per request
+
+    def same_frame(message):
+        op, body = message
+        header, arrays = decode_frame(body)
+        del header["timing"]
+        assert op == 2 and header == want_header and header["id"] == 7
+        assert arrays.keys() == want_arrays.keys()
+        for name, values in arrays.items():
+            np.testing.assert_array_equal(values, want_arrays[name], err_msg=name)
+
+    ws = WebSocket(fish.url)
+    try:
+        ws.send(json.dumps(req))
+        same_frame(ws.recv())
+        # Padded to 3 KiB with JSON whitespace: still one frame request.
+        ws.send(json.dumps(req) + " " * 3000)
+        same_frame(ws.recv())
+        ws.send("{not json")
+        op, body = ws.recv()
+        reply = json.loads(body)
+        assert op == 1 and (reply["id"], reply["status"]) == (0, 400) and reply["error"].startswith("bad request: ")
+        ws.send(json.dumps({"id": 3, "time": 1, "overrides": {"/Blowfish/Nope": 1}}))
+        assert json.loads(ws.recv()[1]) == {
+            "id": 3, "status": 400, "error": "/Blowfish/Nope is not an axis of this character"}
+        ws.send(b"\x00\x01", opcode=2)
+        assert json.loads(ws.recv()[1]) == {"id": 0, "status": 400, "error": "send frame requests as JSON text"}
+    finally:
+        ws.close()
+
+
+def test_the_slider_stream_closes_on_a_message_over_64_kib(fish):
+    """A frame request is a few hundred bytes; the stream refuses anything
+    over 64 KiB by closing, and the server goes on serving."""
+    ws = WebSocket(fish.url)
+    try:
+        ws.send(json.dumps({"id": 1, "time": 1}) + " " * (64 * 1024))
+        try:
+            op, _ = ws.recv()
+            assert op == 8, op  # a close frame (1009, message too big)
+        except (EOFError, ConnectionResetError):
+            pass
+    finally:
+        ws.close()
+    assert fish.frame(time=1)[0]["time"] == 1
