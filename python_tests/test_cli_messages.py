@@ -228,3 +228,62 @@ def test_verbose_phase_times_add_up(painterly, tmp_path, repo_root):
     frames, read, evaluate, write, wall = int(m[1]), *map(float, m.group(2, 3, 4, 5))
     assert frames == 24
     assert 0 <= read <= wall + 0.001 and 0 <= write <= wall + 0.001 and evaluate >= 0
+
+
+def test_key_captures_points_by_default_and_not_with_opacity_alone(painterly, tmp_path, repo_root):
+    """docs/choices.md: `key` captures the layer's rest points for --points,
+    the default when neither --points nor --opacity is given; an --opacity
+    key alone sets the opacity and no points."""
+    import numpy as np
+    from pxr import Usd
+
+    fish = repo_root / "fixtures" / "blowfish.usda"
+    spikes = "/Blowfish/Paint/Spikes"
+    rest = _points(fish, spikes)
+    for extra, want_points, want_opacity in (([], True, None), (["--opacity", "0.5"], False, 0.5)):
+        edit = tmp_path / f"key{len(extra)}.usda"
+        s = json.loads(painterly("key", fish, "--layer", spikes, "--time", "15", *extra, "--edit-layer", edit,
+                                 "--json").stdout)
+        stage = Usd.Stage.Open(str(edit))
+        key = stage.GetPrimAtPath(s["key"])
+        assert key.IsValid() and key.GetTypeName() == "PainterlyPoseKey", (extra, s)
+        points, opacity = key.GetAttribute("points"), key.GetAttribute("opacity")
+        assert points.HasAuthoredValue() == want_points, extra
+        if want_points:
+            assert np.array_equal(np.array(points.Get(), dtype=float), rest.astype(np.float32).astype(float))
+        assert opacity.HasAuthoredValue() == (want_opacity is not None), extra
+        if want_opacity is not None:
+            assert opacity.Get() == pytest.approx(want_opacity)
+
+
+def test_view_warns_and_reports_unless_quiet(painterly, tmp_path, repo_root):
+    """`view` of an input without a defaultPrim warns on stderr that it uses
+    the first root prim, and prints its line; with --quiet it prints nothing
+    on either stream and still writes the layer."""
+    from pxr import Sdf, Usd
+
+    src = tmp_path / "tube.usda"
+    src.write_bytes((repo_root / "fixtures" / "tube.usda").read_bytes())
+    layer = Sdf.Layer.FindOrOpen(str(src))
+    layer.ClearDefaultPrim()
+    layer.Save()
+    stage = Usd.Stage.Open(str(src))
+    first = stage.GetPseudoRoot().GetChildren()[0].GetName()
+    bake = tmp_path / "b.usdc"
+    painterly("bake", src, "-o", bake, "--frames", "1:2", "-q")
+    out = tmp_path / "v.usda"
+    loud = painterly("view", src, "--bake", bake, "-o", out)
+    warnings = loud.stderr.splitlines()
+    assert len(warnings) == 1 and warnings[0].startswith("warning: "), loud.stderr
+    assert "defaultPrim" in warnings[0] and f"/{first}" in warnings[0], loud.stderr
+    lines = loud.stdout.splitlines()
+    assert len(lines) == 1 and str(out) in lines[0], loud.stdout
+    assert "frames 1:2" in lines[0] and f"defaultPrim {first}" in lines[0], loud.stdout
+    view = Usd.Stage.Open(str(out))
+    assert (view.GetStartTimeCode(), view.GetEndTimeCode()) == (1.0, 2.0)
+    assert view.GetDefaultPrim().GetName() == first
+    out.unlink()
+    quiet = painterly("view", src, "--bake", bake, "-o", out, "-q", check=False)
+    assert (quiet.returncode, quiet.stdout, quiet.stderr) == (0, "", "")
+    view = Usd.Stage.Open(str(out))
+    assert view.GetDefaultPrim().GetName() == first

@@ -668,4 +668,157 @@ mod tests {
         assert_eq!(err.to_string(), "frame 7 cannot be evaluated");
         assert_eq!(*written.lock().unwrap(), (1..=6).map(f64::from).collect::<Vec<_>>());
     }
+
+    /// The tube fixture with `painterly:opacity` on /Tube/Paint/Rings keyed
+    /// 1 at frames 1, 4 and 6 and 1e39 at frame 5: beyond f32, so frame 5
+    /// reads as an infinite opacity, which reading refuses (`opacity_at`).
+    fn tube_unreadable_at_frame_5(dir: &Path) -> PathBuf {
+        let tube = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/tube.usda")).unwrap();
+        let anchor = "            int[] curveVertexCounts = [10, 10";
+        let at = tube.find(anchor).expect("the Rings layer's counts");
+        let keyed = "            float painterly:opacity.timeSamples = {\n                1: 1,\n                4: 1,\n                5: 1e39,\n                6: 1,\n            }\n";
+        let src = dir.join("tube.usda");
+        std::fs::write(&src, format!("{}{keyed}{}", &tube[..at], &tube[at..])).unwrap();
+        src
+    }
+
+    /// A sink recording the times written and whether it was finished.
+    struct Finishing {
+        times: std::sync::Arc<Mutex<Vec<f64>>>,
+        finished: std::sync::Arc<std::sync::atomic::AtomicBool>,
+    }
+
+    impl FrameSink for Finishing {
+        fn write_frame(&mut self, time: f64, _samples: Vec<Sample>) -> Result<()> {
+            self.times.lock().unwrap().push(time);
+            Ok(())
+        }
+
+        fn finish(self: Box<Self>) -> Result<()> {
+            self.finished.store(true, std::sync::atomic::Ordering::SeqCst);
+            Ok(())
+        }
+    }
+
+    #[test]
+    fn a_frame_that_cannot_be_read_ends_the_stream_unfinished_with_its_error() {
+        // The reader (not an evaluation) fails at frame 5: frames 1-4 are
+        // written, the sink is never finished (a finished sink is a written
+        // file, which a failed bake must not leave), and the error is the
+        // reader's.
+        let dir = crate::test_dir::ScratchDir::new("bake-unreadable-frame");
+        let src = tube_unreadable_at_frame_5(&dir);
+        let times = std::sync::Arc::new(Mutex::new(Vec::new()));
+        let finished = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+        let sink = Box::new(Finishing {
+            times: times.clone(),
+            finished: finished.clone(),
+        });
+        let (tx, rx) = mpsc::channel();
+        std::thread::spawn(move || {
+            let ch = Character::open(&src, None).unwrap();
+            let frames = resolve_frames(&ch.reader, None).unwrap();
+            assert_eq!(frames.len(), 24);
+            let out = stream_with(&ch, &frames, &|_| Ok(Vec::new()), sink, &|_, _| {});
+            let _ = tx.send(out.map_err(|e| e.to_string()));
+        });
+        let result = rx
+            .recv_timeout(Duration::from_secs(60))
+            .expect("the stream hung instead of ending");
+        let err = result.expect_err("reading frame 5 fails");
+        assert!(err.contains("opacity is not finite at time 5"), "{err}");
+        assert_eq!(*times.lock().unwrap(), vec![1.0, 2.0, 3.0, 4.0]);
+        let finished = finished.load(std::sync::atomic::Ordering::SeqCst);
+        assert!(!finished, "a failed stream finished its sink");
+    }
+
+    #[test]
+    fn a_busy_writer_lets_the_reader_run_ahead_by_the_window_exactly() {
+        // The window of frames in flight is 2 * threads + 2 (docs/testing.md):
+        // with the writer held on the first frame, the reader reads (and the
+        // pool evaluates) exactly that many frames, then waits for a permit:
+        // no more (memory stays bounded), no fewer (every worker has work).
+        // Three threads, so that 2t + 2 = 8 differs from 4t, t + 4, 2/t + 2
+        // and 2t - 2. Run inside the pool, whose thread count the window
+        // reads; the reader takes one worker, the other two evaluate.
+        const THREADS: usize = 3;
+        const WINDOW: usize = 2 * THREADS + 2;
+        struct Held {
+            evaluated: std::sync::Arc<std::sync::atomic::AtomicUsize>,
+            in_flight: std::sync::Arc<Mutex<Option<usize>>>,
+        }
+        impl FrameSink for Held {
+            fn write_frame(&mut self, _time: f64, _samples: Vec<Sample>) -> Result<()> {
+                let mut seen = self.in_flight.lock().unwrap();
+                if seen.is_none() {
+                    let count = || self.evaluated.load(std::sync::atomic::Ordering::SeqCst);
+                    let deadline = Instant::now() + Duration::from_secs(10);
+                    while count() < WINDOW && Instant::now() < deadline {
+                        std::thread::sleep(Duration::from_millis(5));
+                    }
+                    // Time for a larger window to show itself.
+                    std::thread::sleep(Duration::from_millis(500));
+                    *seen = Some(count());
+                }
+                Ok(())
+            }
+
+            fn finish(self: Box<Self>) -> Result<()> {
+                Ok(())
+            }
+        }
+        let evaluated = std::sync::Arc::new(std::sync::atomic::AtomicUsize::new(0));
+        let in_flight = std::sync::Arc::new(Mutex::new(None));
+        let sink = Box::new(Held {
+            evaluated: evaluated.clone(),
+            in_flight: in_flight.clone(),
+        });
+        let (tx, rx) = mpsc::channel();
+        let counter = evaluated.clone();
+        std::thread::spawn(move || {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(THREADS).build().unwrap();
+            let evaluate = move |_: FrameInput| {
+                counter.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+                Ok(Vec::new())
+            };
+            let out = pool.install(move || {
+                // Opened on the worker that reads (a stage stays on one thread).
+                let tube = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/tube.usda");
+                let ch = Character::open(&tube, None).unwrap();
+                let times = resolve_frames(&ch.reader, None).unwrap();
+                stream_with(&ch, &times, &evaluate, sink, &|_, _| {})
+            });
+            let _ = tx.send(out.map_err(|e| e.to_string()));
+        });
+        rx.recv_timeout(Duration::from_secs(60))
+            .expect("the stream hung instead of ending")
+            .unwrap();
+        assert_eq!(*in_flight.lock().unwrap(), Some(WINDOW));
+        assert_eq!(evaluated.load(std::sync::atomic::Ordering::SeqCst), 24);
+    }
+
+    #[test]
+    fn a_render_bakes_a_painted_stage_and_skips_a_plain_one() {
+        // bake_if_any: the tube (two stroke layers under one rig, frames
+        // 1..24, as usd-core reads fixtures/tube.usda) is baked into the
+        // output; a stage with no rig and no view-dependent mesh writes
+        // nothing and answers None.
+        let dir = crate::test_dir::ScratchDir::new("bake-if-any");
+        let tube = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/tube.usda");
+        let out = dir.join("tube_bake.usdc");
+        let s = bake_if_any(&tube, &out, &BakeOptions::default())
+            .unwrap()
+            .expect("the tube has strokes to bake");
+        assert_eq!((s.frames, s.rigs, s.layers), (24, 1, 2));
+        assert!(std::fs::metadata(&out).unwrap().len() > 1000, "a baked layer");
+        let plain = dir.join("plain.usda");
+        std::fs::write(
+            &plain,
+            "#usda 1.0\n(\n    startTimeCode = 1\n    endTimeCode = 3\n)\n\ndef Xform \"Plain\"\n{\n}\n",
+        )
+        .unwrap();
+        let none = dir.join("plain_bake.usdc");
+        assert!(bake_if_any(&plain, &none, &BakeOptions::default()).unwrap().is_none());
+        assert!(!none.exists());
+    }
 }
