@@ -606,4 +606,333 @@ def Xform "Moving" {
             .unwrap();
         assert_eq!(kept(&r, "/Moving/Reset"), None);
     }
+
+    /// The one-line forms their doc comments give:
+    /// `reference @a.usda@ on /Char (in shot.usda): not found`, and the same
+    /// without ` on /Char`; a sublayer (no prim) has no ` on` part either way.
+    #[test]
+    fn unresolved_assets_describe_themselves_as_documented() {
+        let reference = UnresolvedAsset {
+            asset: "a.usda".into(),
+            arc: "reference".into(),
+            prim: Some("/Char".into()),
+            layer: "shot.usda".into(),
+            reason: "not found".into(),
+        };
+        assert_eq!(
+            reference.describe(),
+            "reference @a.usda@ on /Char (in shot.usda): not found"
+        );
+        assert_eq!(
+            reference.describe_asset(),
+            "reference @a.usda@ (in shot.usda): not found"
+        );
+        let sublayer = UnresolvedAsset {
+            arc: "sublayer".into(),
+            prim: None,
+            ..reference
+        };
+        assert_eq!(sublayer.describe(), "sublayer @a.usda@ (in shot.usda): not found");
+    }
+
+    /// Stage metadata usd-core can hold (positive rates, any finite time
+    /// codes, negative ones included) passes; NaN, infinities, a rate or
+    /// metersPerUnit of zero or below, and a field that is not a number fail,
+    /// each naming the field.
+    #[test]
+    fn metadata_validation_accepts_usable_values_only() {
+        let good = StageMetadata {
+            start_time_code: Some(-3.0),
+            end_time_code: Some(10.0),
+            time_codes_per_second: Some(24.0),
+            frames_per_second: Some(12.0),
+            up_axis: Some("Z".into()),
+            meters_per_unit: Some(0.01),
+            malformed: Vec::new(),
+        };
+        assert_eq!(good.validate(), Ok(()));
+        assert_eq!(StageMetadata::default().validate(), Ok(()));
+        let field = |m: StageMetadata, name: &str, why: &str| {
+            let e = m.validate().expect_err(name);
+            assert!(e.message.contains(name) && e.message.contains(why), "{name}: {e}");
+        };
+        field(
+            StageMetadata {
+                start_time_code: Some(f64::NAN),
+                ..good.clone()
+            },
+            "startTimeCode",
+            "finite",
+        );
+        field(
+            StageMetadata {
+                end_time_code: Some(f64::INFINITY),
+                ..good.clone()
+            },
+            "endTimeCode",
+            "finite",
+        );
+        field(
+            StageMetadata {
+                meters_per_unit: Some(f64::NEG_INFINITY),
+                ..good.clone()
+            },
+            "metersPerUnit",
+            "finite",
+        );
+        field(
+            StageMetadata {
+                time_codes_per_second: Some(0.0),
+                ..good.clone()
+            },
+            "timeCodesPerSecond",
+            "positive",
+        );
+        field(
+            StageMetadata {
+                frames_per_second: Some(-24.0),
+                ..good.clone()
+            },
+            "framesPerSecond",
+            "positive",
+        );
+        field(
+            StageMetadata {
+                meters_per_unit: Some(0.0),
+                ..good.clone()
+            },
+            "metersPerUnit",
+            "positive",
+        );
+        field(
+            StageMetadata {
+                malformed: vec!["endTimeCode".into()],
+                ..good.clone()
+            },
+            "endTimeCode",
+            "not a number",
+        );
+    }
+
+    /// Numeric stage metadata is read as authored; a field that holds no
+    /// number is named as malformed, never taken as absent. The text format
+    /// cannot hold one (usd-core and openusd both refuse `startTimeCode =
+    /// "abc"` as a parse error), but a crate file's fields are untyped: the
+    /// file here holds the string "abc" as startTimeCode. usd-core 26.11
+    /// opens it and reads the field back as that string
+    /// (`pseudoRoot.GetInfo("startTimeCode")` is 'abc'), and its stage then
+    /// fails to use it (`GetStartTimeCode()`: "Attempted to get value of
+    /// type 'double' from VtValue holding 'string'").
+    #[test]
+    fn stage_metadata_that_is_not_a_number_is_named() {
+        use openusd::sdf::{FieldKey, SpecType};
+        let dir = crate::test_dir::ScratchDir::new("stage-meta");
+        let good = dir.join("good.usda");
+        std::fs::write(
+            &good,
+            "#usda 1.0\n(\n    startTimeCode = 2\n    endTimeCode = 9\n    timeCodesPerSecond = 30\n    framesPerSecond = 15\n    metersPerUnit = 0.5\n    upAxis = \"Z\"\n)\ndef Xform \"A\" {}\n",
+        )
+        .unwrap();
+        let m = StageReader::open(&good).unwrap().metadata();
+        let want = StageMetadata {
+            start_time_code: Some(2.0),
+            end_time_code: Some(9.0),
+            time_codes_per_second: Some(30.0),
+            frames_per_second: Some(15.0),
+            up_axis: Some("Z".into()),
+            meters_per_unit: Some(0.5),
+            malformed: Vec::new(),
+        };
+        assert_eq!(m, want);
+        let mut data = sdf::Data::new();
+        let root = data.create_spec(sdf::Path::abs_root(), SpecType::PseudoRoot);
+        root.add(FieldKey::StartTimeCode, Value::String("abc".into()));
+        root.add(FieldKey::EndTimeCode, Value::Double(9.0));
+        let bad = dir.join("bad.usdc");
+        let bytes = super::super::usdc::write_layer(&data, std::io::Cursor::new(Vec::new()))
+            .unwrap()
+            .into_inner();
+        std::fs::write(&bad, bytes).unwrap();
+        let m = StageReader::open(&bad).unwrap().metadata();
+        assert_eq!(m.start_time_code, None);
+        assert_eq!(m.end_time_code, Some(9.0));
+        assert_eq!(m.malformed, vec!["startTimeCode".to_string()]);
+        let e = m.validate().unwrap_err();
+        assert!(e.message.contains("startTimeCode is not a number"), "{e}");
+    }
+
+    /// Each kind of unresolved asset usd-core reports as a composition error
+    /// for the same files (checked with `Usd.Stage.Open(f).GetCompositionErrors()`):
+    /// a missing or unreadable sublayer (ErrorInvalidSublayerPath, no prim),
+    /// a missing or unreadable referenced file (ErrorInvalidAssetPath on
+    /// /Char), a referenced file without the named prim or without a
+    /// defaultPrim (ErrorUnresolvedPrimPath on /Char). Only the first four
+    /// are refused: the last two contribute nothing, for usd-core too.
+    #[test]
+    fn every_kind_of_unresolved_asset_is_listed_and_only_missing_files_refused() {
+        let dir = crate::test_dir::ScratchDir::new("stage-unresolved");
+        std::fs::write(dir.join("asset.usda"), "#usda 1.0\ndef Xform \"Thing\" {}\n").unwrap();
+        std::fs::write(
+            dir.join("bad.usda"),
+            "#usda 1.0\ndef Xform \"Broken\" {\n    double x = (1, 2\n",
+        )
+        .unwrap();
+        let sub = |name: &str, asset: &str| {
+            let p = dir.join(name);
+            std::fs::write(
+                &p,
+                format!("#usda 1.0\n(\n    subLayers = [@./{asset}@]\n)\ndef Xform \"Char\" {{}}\n"),
+            )
+            .unwrap();
+            p
+        };
+        let reference = |name: &str, arc: &str| {
+            let p = dir.join(name);
+            std::fs::write(
+                &p,
+                format!("#usda 1.0\ndef Xform \"Char\" (\n    prepend references = {arc}\n)\n{{\n}}\n"),
+            )
+            .unwrap();
+            p
+        };
+        // (root, asset file, arc, prim, reason starts with, refused)
+        let cases = [
+            (
+                sub("sub_missing.usda", "missing.usda"),
+                "missing.usda",
+                "sublayer",
+                None,
+                "not found",
+                true,
+            ),
+            (
+                sub("sub_bad.usda", "bad.usda"),
+                "bad.usda",
+                "sublayer",
+                None,
+                "cannot be read",
+                true,
+            ),
+            (
+                reference("ref_missing.usda", "@./missing.usda@"),
+                "missing.usda",
+                "reference",
+                Some("/Char"),
+                "not found",
+                true,
+            ),
+            (
+                reference("ref_bad.usda", "@./bad.usda@"),
+                "bad.usda",
+                "reference",
+                Some("/Char"),
+                "cannot be read",
+                true,
+            ),
+            (
+                reference("ref_noprim.usda", "@./asset.usda@</Nope>"),
+                "asset.usda",
+                "reference",
+                Some("/Char"),
+                "it has no prim </Nope>",
+                false,
+            ),
+            (
+                reference("ref_nodefault.usda", "@./asset.usda@"),
+                "asset.usda",
+                "reference",
+                Some("/Char"),
+                "its defaultPrim does not name a prim",
+                false,
+            ),
+        ];
+        for (root, asset, arc, prim, reason, refused) in cases {
+            let name = root.file_name().unwrap().to_str().unwrap().to_string();
+            let r = StageReader::open(&root).unwrap();
+            assert_eq!(r.unresolved.len(), 1, "{name}: {:?}", r.unresolved);
+            let u = &r.unresolved[0];
+            assert!(u.asset.contains(asset), "{name}: {u:?}");
+            assert_eq!(u.arc, arc, "{name}");
+            assert_eq!(u.prim.as_deref(), prim, "{name}");
+            assert!(u.reason.starts_with(reason), "{name}: {u:?}");
+            match r.require_resolved() {
+                Ok(()) => assert!(!refused, "{name} was not refused"),
+                Err(e) => {
+                    assert!(refused, "{name} was refused: {e}");
+                    assert!(e.message.starts_with(&format!("missing asset: {arc} @")), "{name}: {e}");
+                    assert!(e.message.contains(asset), "{name}: {e}");
+                }
+            }
+        }
+        // Two missing sublayers: both named, in one message.
+        let two = dir.join("two.usda");
+        std::fs::write(
+            &two,
+            "#usda 1.0\n(\n    subLayers = [@./gone1.usda@, @./gone2.usda@]\n)\n",
+        )
+        .unwrap();
+        let r = StageReader::open(&two).unwrap();
+        let e = r.require_resolved().unwrap_err();
+        assert!(e.message.starts_with("2 missing assets: sublayer @"), "{e}");
+        assert!(
+            e.message.contains("gone1.usda") && e.message.contains("gone2.usda"),
+            "{e}"
+        );
+    }
+
+    /// `require_camera` accepts a prim usd-core types `Camera` and names
+    /// what else is there: a Mesh, an untyped prim (`over` or typeless
+    /// `def`), no prim at all.
+    #[test]
+    fn require_camera_accepts_only_a_camera() {
+        let dir = crate::test_dir::ScratchDir::new("stage-camera");
+        let path = dir.join("cams.usda");
+        std::fs::write(
+            &path,
+            "#usda 1.0\ndef Camera \"Cam\" {}\ndef Mesh \"Box\" {}\ndef \"Bare\" {}\n",
+        )
+        .unwrap();
+        let r = StageReader::open(&path).unwrap();
+        assert_eq!(r.require_camera("/Cam", "--camera"), Ok(()));
+        let why = |p: &str| r.require_camera(p, "--camera").unwrap_err().message;
+        assert_eq!(why("/Box"), "--camera names a Mesh prim, not a Camera");
+        assert_eq!(why("/Bare"), "--camera names an untyped prim, not a Camera");
+        assert_eq!(why("/Nowhere"), "the camera named by --camera does not exist");
+    }
+
+    /// `open_mapped` serves the layers from read-only memory mappings (as
+    /// usd-core maps crate files), `open` reads them into memory: while a
+    /// mapped reader of a crate file lives, the kernel lists the file among
+    /// the process's mappings (`/proc/self/maps`, proc(5)); an in-memory
+    /// reader's file is not there.
+    #[cfg(target_os = "linux")]
+    #[test]
+    fn open_mapped_maps_crate_files_and_open_does_not() {
+        use super::super::layer::{Format, OverLayer};
+        let dir = crate::test_dir::ScratchDir::new("stage-maps");
+        let mapped_in = |path: &Path| {
+            let maps = std::fs::read_to_string("/proc/self/maps").unwrap();
+            let name = path.to_str().unwrap();
+            maps.lines().any(|l| l.ends_with(name))
+        };
+        let write = |name: &str| {
+            let mut layer = OverLayer::new(StageMetadata::default());
+            layer.set_default("/M", "radius", "double", Value::Double(2.0));
+            let path = dir.join(name);
+            std::fs::write(&path, layer.into_bytes(Format::Usdc).unwrap()).unwrap();
+            path
+        };
+        let (a, b) = (write("mapped.usdc"), write("read.usdc"));
+        let mapped = StageReader::open_mapped(&a).unwrap();
+        let read = StageReader::open(&b).unwrap();
+        // Both compose the same layer.
+        for r in [&mapped, &read] {
+            let m = r.require_prim("/M").unwrap();
+            assert_eq!(r.value(&m, "radius", None).unwrap(), Some(Value::Double(2.0)));
+        }
+        assert!(mapped_in(&a), "{} is not mapped", a.display());
+        assert!(!mapped_in(&b), "{} is mapped", b.display());
+        drop(mapped);
+        assert!(!mapped_in(&a), "{} is still mapped", a.display());
+    }
 }
