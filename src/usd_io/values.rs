@@ -219,4 +219,143 @@ mod tests {
             assert_eq!(kind_name(&v), want, "{v:?}");
         }
     }
+
+    #[test]
+    fn every_precision_and_integer_width_converts() {
+        // One value of each kind a reader accepts, each with its own numbers,
+        // converted by hand; any other kind is None.
+        let h = |x: f32| gf::f16::from_f32(x);
+        let hv = |x: f32, y: f32, z: f32| gf::Vec3h {
+            x: h(x),
+            y: h(y),
+            z: h(z),
+        };
+        let v3 = |x, y, z| Vec3::new(x, y, z);
+        assert_eq!(
+            vec3_array(&Value::Vec3fVec(vec![gf::vec3f(1.5, -2.0, 3.25)])),
+            Some(vec![v3(1.5, -2.0, 3.25)])
+        );
+        let d = Value::Vec3dVec(vec![gf::Vec3d {
+            x: 0.1,
+            y: 2.0,
+            z: -3.0,
+        }]);
+        assert_eq!(vec3_array(&d), Some(vec![v3(0.1, 2.0, -3.0)]));
+        assert_eq!(
+            vec3_array(&Value::Vec3hVec(vec![hv(0.5, 4.0, -8.0)])),
+            Some(vec![v3(0.5, 4.0, -8.0)])
+        );
+        assert_eq!(
+            into_vec3_array(Value::Vec3fVec(vec![gf::vec3f(7.0, 8.0, 9.0)])),
+            Ok(vec![v3(7.0, 8.0, 9.0)])
+        );
+        assert_eq!(
+            into_vec3_array(Value::Vec3hVec(vec![hv(1.0, 2.0, 3.0)])),
+            Ok(vec![v3(1.0, 2.0, 3.0)])
+        );
+        assert_eq!(into_vec3_array(Value::IntVec(vec![1])), Err("int[]".to_string()));
+
+        assert_eq!(vec3(&Value::Vec3f(gf::vec3f(1.0, 2.0, 3.5))), Some([1.0, 2.0, 3.5]));
+        assert_eq!(
+            vec3(&Value::Vec3d(gf::Vec3d {
+                x: 0.1,
+                y: -0.2,
+                z: 0.3
+            })),
+            Some([0.1, -0.2, 0.3])
+        );
+        assert_eq!(vec3(&Value::Vec3h(hv(0.25, 64.0, -1.0))), Some([0.25, 64.0, -1.0]));
+        assert_eq!(vec3(&Value::Double(1.0)), None);
+
+        assert_eq!(f32_array(&Value::FloatVec(vec![0.25, -4.0])), Some(vec![0.25, -4.0]));
+        assert_eq!(f32_array(&Value::DoubleVec(vec![0.1])), Some(vec![0.1f32]));
+        assert_eq!(f32_array(&Value::HalfVec(vec![h(0.5), h(-2.0)])), Some(vec![0.5, -2.0]));
+        assert_eq!(f32_array(&Value::IntVec(vec![1])), None);
+
+        assert_eq!(int_array(&Value::IntVec(vec![-3, 4])), Some(vec![-3, 4]));
+        assert_eq!(
+            int_array(&Value::UintVec(vec![4_000_000_000])),
+            Some(vec![4_000_000_000])
+        );
+        assert_eq!(int_array(&Value::Int64Vec(vec![-(1 << 40)])), Some(vec![-(1 << 40)]));
+        assert_eq!(int_array(&Value::UcharVec(vec![255, 7])), Some(vec![255, 7]));
+        assert_eq!(int_array(&Value::FloatVec(vec![1.0])), None);
+
+        let tri = Value::Vec3iVec(vec![gf::Vec3i { x: 1, y: -2, z: 3 }]);
+        assert_eq!(int3_array(&tri), Some(vec![[1, -2, 3]]));
+        assert_eq!(int3_array(&Value::IntVec(vec![1, 2, 3])), None);
+
+        let scalars = [
+            (Value::Bool(true), 1.0),
+            (Value::Bool(false), 0.0),
+            (Value::Int(-5), -5.0),
+            (Value::Uint(4_000_000_000), 4e9),
+            (Value::Int64(-(1 << 40)), -(2f64.powi(40))),
+            (Value::Uint64(1 << 50), 2f64.powi(50)),
+            (Value::Uchar(200), 200.0),
+            (Value::Float(0.1), 0.1f32 as f64),
+            (Value::Double(0.1), 0.1),
+            (Value::Half(h(0.75)), 0.75),
+        ];
+        for (v, want) in scalars {
+            assert_eq!(scalar(&v), Some(want), "{v:?}");
+        }
+        assert_eq!(scalar(&Value::FloatVec(vec![1.0])), None);
+
+        assert_eq!(token(&Value::Token("Y".into())), Some("Y".to_string()));
+        assert_eq!(token(&Value::String("a b".into())), Some("a b".to_string()));
+        assert_eq!(token(&Value::Int(1)), None);
+        let toks = Value::TokenVec(vec!["a".into(), "b".into()]);
+        assert_eq!(token_array(&toks), Some(vec!["a".to_string(), "b".to_string()]));
+        assert_eq!(
+            token_array(&Value::StringVec(vec!["c".into()])),
+            Some(vec!["c".to_string()])
+        );
+        assert_eq!(token_array(&Value::Token("a".into())), None);
+
+        let mut m = [0.0; 16];
+        m[0] = 2.0;
+        m[5] = 3.0;
+        m[10] = 4.0;
+        m[15] = 1.0;
+        m[12] = 7.0;
+        let g = matrix4(&Value::Matrix4d(gf::Matrix4d(m))).unwrap();
+        assert_eq!(g.transform_point3(glam::DVec3::ONE), glam::DVec3::new(9.0, 3.0, 4.0));
+        assert_eq!(matrix4(&Value::Double(1.0)), None);
+    }
+
+    #[test]
+    fn a_binding_becomes_int3_and_float3_arrays() {
+        let b = Binding {
+            vertices: vec![[0, 5, 9], [2, 2, 1]],
+            weights: vec![[0.5, 0.25, 0.25], [1.0, 0.0, 0.0]],
+        };
+        let (verts, weights) = binding_values(&b);
+        assert_eq!(int3_array(&verts), Some(vec![[0, 5, 9], [2, 2, 1]]));
+        assert_eq!(
+            vec3_array(&weights),
+            Some(vec![Vec3::new(0.5, 0.25, 0.25), Vec3::new(1.0, 0.0, 0.0)])
+        );
+        assert_eq!(
+            (kind_name(&verts).as_str(), kind_name(&weights).as_str()),
+            ("int3[]", "float3[]")
+        );
+    }
+
+    #[test]
+    fn kind_names_of_every_vector_precision_and_a_blocked_value() {
+        let cases = [
+            (Value::Vec3dVec(vec![]), "double3[]"),
+            (Value::Vec3iVec(vec![]), "int3[]"),
+            (Value::Vec2h(gf::Vec2h::default()), "half2"),
+            (Value::Vec4f(gf::Vec4f::default()), "float4"),
+            (Value::Matrix4d(gf::Matrix4d([0.0; 16])), "matrix4d"),
+            (Value::ValueBlock, "blocked (None)"),
+            (Value::AssetPath(Default::default()), "asset"),
+            (Value::Token("t".into()), "token"),
+        ];
+        for (v, want) in cases {
+            assert_eq!(kind_name(&v), want, "{v:?}");
+        }
+    }
 }
