@@ -359,6 +359,41 @@ def test_a_refused_assembly_takes_the_chunk_tasks_back(painterly, tmp_path):
     assert not (out / "shot.clips" / "farm" / "plan.json").exists()
 
 
+def test_a_non_executable_sbatch_on_path_is_not_sbatch(painterly, tmp_path):
+    # PATH search as POSIX execvp and shutil.which do it: only an executable
+    # regular file is the program; a plain file or a folder of that name is not.
+    bin_dir = tmp_path / "bin"
+    bin_dir.mkdir()
+    (bin_dir / "sbatch").write_text("#!/bin/sh\necho 4242\n")
+    (bin_dir / "sbatch").chmod(0o644)
+    (tmp_path / "dir" / "sbatch").mkdir(parents=True)
+    path = f"{bin_dir}:{tmp_path / 'dir'}"
+    assert shutil.which("sbatch", path=path) is None
+    out = tmp_path / "out"
+    out.mkdir()
+    proc = painterly("farm", "submit", BLOWFISH, "-o", out / "shot.usda", "--chunk", "12",
+                     "--scheduler", "slurm", env=dict(os.environ, PATH=path), check=False)
+    assert proc.returncode == 1
+    assert "sbatch not found on PATH" in proc.stderr
+    assert list(out.iterdir()) == []
+
+
+def test_submit_leaves_the_binding_for_the_tasks(painterly, tmp_path):
+    # README "Bind once per shot": farm submit, the first process of the
+    # shot to bind, leaves shot.clips/shot.binding.usdc (an override layer
+    # of painterly:bindVertices/bindWeights) before any task runs.
+    shot = tmp_path / "shot.usda"
+    sub, _ = submit(painterly, None, BLOWFISH, shot, "--chunk", "12", "--scheduler", "openjd")
+    assert sub["submitted"] == [0, 1, 2, 3]
+    cache = tmp_path / "shot.clips" / "shot.binding.usdc"
+    assert cache.is_file()
+    layer = Sdf.Layer.FindOrOpen(str(cache))
+    names = set()
+    layer.Traverse(layer.pseudoRoot.path, lambda p: names.add(p.name) if p.IsPropertyPath() else None)
+    assert {"painterly:bindVertices", "painterly:bindWeights"} <= names
+    assert chunk_names(shot) == []
+
+
 @pytest.mark.parametrize(
     "args,code,message",
     [

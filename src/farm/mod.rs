@@ -447,20 +447,23 @@ fn refuse_live_tasks(previous: &FarmPlan, plan_path: &Path) -> Result<()> {
 impl SubmitSummary {
     /// The human-readable summary.
     pub fn to_text(&self) -> String {
-        let list = |v: &[usize]| v.iter().map(|k| k.to_string()).collect::<Vec<_>>().join(", ");
+        // " (0, 2)" after a count, nothing after a zero.
+        let list = |v: &[usize]| {
+            if v.is_empty() {
+                String::new()
+            } else {
+                format!(" ({})", v.iter().map(|k| k.to_string()).collect::<Vec<_>>().join(", "))
+            }
+        };
         let mut s = format!(
-            "{}: {} chunks of {} frames: {} to bake ({}), {} already done{}\n",
+            "{}: {} chunks of {} frames: {} to bake{}, {} already done{}\n",
             self.output.display(),
             self.chunks,
             self.chunk_size,
             self.submitted.len(),
             list(&self.submitted),
             self.skipped.len(),
-            if self.skipped.is_empty() {
-                String::new()
-            } else {
-                format!(" ({})", list(&self.skipped))
-            }
+            list(&self.skipped),
         );
         match (self.scheduler, &self.job, &self.assemble_job) {
             (SchedulerKind::Slurm, job, Some(asm)) => {
@@ -645,6 +648,92 @@ mod tests {
         assert_eq!(
             (o.code, o.stdout.as_str(), o.stderr.as_str()),
             (Some(3), "out\n", "err\n")
+        );
+    }
+
+    #[test]
+    fn absolute_joins_a_new_file_to_its_folder_or_the_current_one() {
+        // A file not yet written: its folder's canonical path, then its name.
+        let scratch = crate::test_dir::ScratchDir::new("farm-absolute");
+        let folder = scratch.canonicalize().unwrap();
+        assert_eq!(absolute(&scratch.join("new.usda")).unwrap(), folder.join("new.usda"));
+        // An existing file resolves through its own canonical path.
+        std::fs::write(folder.join("old.usda"), "#usda 1.0\n").unwrap();
+        assert_eq!(
+            absolute(&scratch.join(".").join("old.usda")).unwrap(),
+            folder.join("old.usda")
+        );
+        // A bare name (its parent is the empty path) is in the current folder.
+        let bare = Path::new("painterly-farm-absolute-no-such-file.usda");
+        assert!(!bare.exists());
+        let here = std::env::current_dir().unwrap().canonicalize().unwrap();
+        assert_eq!(absolute(bare).unwrap(), here.join(bare));
+        // A folder that does not exist cannot be resolved.
+        let e = absolute(&scratch.join("no").join("shot.usda")).unwrap_err();
+        assert!(e.message.starts_with("cannot resolve the folder: "), "{e}");
+    }
+
+    fn summary(scheduler: SchedulerKind) -> SubmitSummary {
+        SubmitSummary {
+            scheduler,
+            input: "/x/in.usda".into(),
+            output: "/x/shot.usda".into(),
+            plan: "/x/shot.clips/farm/plan.json".into(),
+            chunk_size: 12,
+            chunks: 4,
+            submitted: vec![1, 3],
+            skipped: vec![0, 2],
+            job: None,
+            tasks: Vec::new(),
+            assemble_job: None,
+            files: Vec::new(),
+            next: None,
+        }
+    }
+
+    #[test]
+    fn the_submit_text_says_what_was_submitted_for_slurm() {
+        let mut s = summary(SchedulerKind::Slurm);
+        s.job = Some("4242".into());
+        s.assemble_job = Some("4243".into());
+        s.files = vec![
+            "/x/shot.clips/farm/bake.sh".into(),
+            "/x/shot.clips/farm/assemble.sh".into(),
+        ];
+        assert_eq!(
+            s.to_text(),
+            "/x/shot.usda: 4 chunks of 12 frames: 2 to bake (1, 3), 2 already done (0, 2)\n\
+             slurm: chunk tasks job 4242, assembly job 4243 (after 4242 succeeds)\n\
+             status: painterly farm status /x/shot.usda\n"
+        );
+        // Every chunk done: only the assembly job was submitted.
+        s.job = None;
+        s.submitted = vec![];
+        s.skipped = vec![0, 1, 2, 3];
+        s.files = vec!["/x/shot.clips/farm/assemble.sh".into()];
+        assert_eq!(
+            s.to_text(),
+            "/x/shot.usda: 4 chunks of 12 frames: 0 to bake, 4 already done (0, 1, 2, 3)\n\
+             slurm: assembly job 4243\n\
+             status: painterly farm status /x/shot.usda\n"
+        );
+    }
+
+    #[test]
+    fn the_submit_text_lists_the_openjd_files_and_the_command_to_run() {
+        let mut s = summary(SchedulerKind::Openjd);
+        s.submitted = vec![0, 1, 2, 3];
+        s.skipped = vec![];
+        s.assemble_job = Some("Assemble".into());
+        s.files = vec!["/x/t.json".into(), "/x/p.json".into()];
+        s.next = Some("openjd run /x/t.json -p file:///x/p.json".into());
+        assert_eq!(
+            s.to_text(),
+            "/x/shot.usda: 4 chunks of 12 frames: 4 to bake (0, 1, 2, 3), 0 already done\n\
+             wrote /x/t.json\n\
+             wrote /x/p.json\n\
+             run it: openjd run /x/t.json -p file:///x/p.json\n\
+             status: painterly farm status /x/shot.usda\n"
         );
     }
 }
