@@ -207,6 +207,24 @@ mod tests {
         assert_eq!(coded, expect);
     }
 
+    /// usd-core's `Sdf_IntegerCompression` (integerCoding.cpp) picks the
+    /// common difference online: a count that beats the best so far wins,
+    /// and on an equal count the larger difference wins ("Take the largest
+    /// common value in case of a tie"). The expected bytes are worked by
+    /// hand from that rule: common (int32), 2-bit codes, int8 differences.
+    #[test]
+    fn ties_for_the_common_difference_go_to_the_larger_as_in_usd_core() {
+        // Diffs 5, 1: both once; 5 came first and is larger: common 5,
+        // codes 00 01, then int8(1).
+        assert_eq!(encode_ints(&[5i32, 6]), [5, 0, 0, 0, 0b01_00, 1]);
+        // Diffs 1, 5: both once; 5 ties 1 later and is larger: common 5,
+        // codes 01 00, then int8(1).
+        assert_eq!(encode_ints(&[1i32, 6]), [5, 0, 0, 0, 0b00_01, 1]);
+        // Diffs 1, 1, 5: 5 (once) is larger but 1 (twice) is more common:
+        // common 1, codes 00 00 01, then int8(5).
+        assert_eq!(encode_ints(&[1i32, 2, 7]), [1, 0, 0, 0, 0b01_00_00, 5]);
+    }
+
     #[test]
     fn round_trips_every_width_and_extreme() {
         let v32: Vec<i32> = vec![0, -1, i32::MAX, i32::MIN, 5, 5, 5, 300, -300, 70000, 1, 2, 3];
