@@ -339,19 +339,29 @@ def stand_ins(bin_dir, scripts):
     return dict(os.environ, PATH=str(bin_dir))
 
 
-def test_a_refused_assembly_takes_the_chunk_tasks_back(painterly, tmp_path):
-    # A stand-in sbatch that accepts the job array and refuses the assembly
-    # job: the one failure the real cluster cannot be made to produce on cue.
+def submit_with_a_refused_assembly(painterly, tmp_path, scancel):
+    """`farm submit --scheduler slurm` of the fish into tmp_path/out with a
+    stand-in sbatch that accepts the job array (4242) and refuses the
+    assembly job, and `scancel` as the body of the stand-in scancel (both
+    in tmp_path/bin). Returns (the process, the output folder)."""
     bin_dir = tmp_path / "bin"
     env = stand_ins(bin_dir, {
         "sbatch": f"if [ -e {bin_dir}/once ]; then echo 'sbatch: error: Batch job submission failed: "
                   f"QOSMaxSubmitJobPerUserLimit' >&2; exit 1; fi\n: > {bin_dir}/once; echo '4242;cluster'\n",
-        "scancel": f"echo \"$@\" > {bin_dir}/cancelled\n",
+        "scancel": scancel,
     })
     out = tmp_path / "out"
     out.mkdir()
     proc = painterly("farm", "submit", BLOWFISH, "-o", out / "shot.usda", "--chunk", "12", "--scheduler", "slurm",
                      env=env, check=False)
+    return proc, out
+
+
+def test_a_refused_assembly_takes_the_chunk_tasks_back(painterly, tmp_path):
+    # A stand-in sbatch that accepts the job array and refuses the assembly
+    # job: the one failure the real cluster cannot be made to produce on cue.
+    bin_dir = tmp_path / "bin"
+    proc, out = submit_with_a_refused_assembly(painterly, tmp_path, f"echo \"$@\" > {bin_dir}/cancelled\n")
     assert proc.returncode == 1
     assert "sbatch refused the assembly job: sbatch: error: Batch job submission failed: QOSMaxSubmitJobPerUserLimit" in proc.stderr
     assert "the chunk tasks (job 4242) were cancelled" in proc.stderr
@@ -628,16 +638,8 @@ def test_sbatch_that_prints_no_job_id_is_refused(painterly, tmp_path, printed):
 def test_a_refused_assembly_whose_scancel_fails_says_what_to_run(painterly, tmp_path):
     # As test_a_refused_assembly_takes_the_chunk_tasks_back, but scancel
     # fails too (exit 1, as scancel does when it may not cancel the job).
-    bin_dir = tmp_path / "bin"
-    env = stand_ins(bin_dir, {
-        "sbatch": f"if [ -e {bin_dir}/once ]; then echo 'sbatch: error: Batch job submission failed: "
-                  f"QOSMaxSubmitJobPerUserLimit' >&2; exit 1; fi\n: > {bin_dir}/once; echo '4242;cluster'\n",
-        "scancel": "echo 'scancel: error: Kill job error on job id 4242: Access/permission denied' >&2; exit 1\n",
-    })
-    out = tmp_path / "out"
-    out.mkdir()
-    proc = painterly("farm", "submit", BLOWFISH, "-o", out / "shot.usda", "--chunk", "12", "--scheduler", "slurm",
-                     env=env, check=False)
+    proc, out = submit_with_a_refused_assembly(
+        painterly, tmp_path, "echo 'scancel: error: Kill job error on job id 4242: Access/permission denied' >&2; exit 1\n")
     assert proc.returncode == 1
     assert "sbatch refused the assembly job" in proc.stderr
     assert "cancelling the chunk tasks failed: run scancel 4242" in proc.stderr

@@ -563,21 +563,40 @@ mod tests {
     use std::sync::Mutex;
     use std::time::Duration;
 
-    /// Streams the tube fixture's 24 frames through `evaluate` into `sink`
-    /// on a thread of its own, and fails the test if that takes a minute
-    /// (a hang) instead of returning or panicking.
-    fn stream_tube<E>(evaluate: E, sink: Box<dyn FrameSink>) -> std::result::Result<Result<()>, Box<dyn Any + Send>>
+    /// The tube fixture: 24 frames.
+    fn tube() -> PathBuf {
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/tube.usda")
+    }
+
+    /// Streams the 24 frames of `src` (the tube or a copy) through
+    /// `evaluate` into `sink`, on a thread of its own inside a rayon pool of
+    /// `threads` (the global pool when None), and fails the test if that
+    /// takes a minute (a hang) instead of returning or panicking.
+    fn stream_file<E>(
+        src: PathBuf,
+        threads: Option<usize>,
+        evaluate: E,
+        sink: Box<dyn FrameSink>,
+    ) -> std::result::Result<Result<()>, Box<dyn Any + Send>>
     where
         E: Fn(FrameInput) -> Result<Vec<Sample>> + Sync + Send + 'static,
     {
         let (tx, rx) = mpsc::channel();
         std::thread::spawn(move || {
-            let out = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-                let tube = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/tube.usda");
-                let ch = Character::open(&tube, None).unwrap();
+            let run = move || {
+                // Opened on the thread that reads (a stage stays on one thread).
+                let ch = Character::open(&src, None).unwrap();
                 let times = resolve_frames(&ch.reader, None).unwrap();
                 assert_eq!(times.len(), 24);
                 stream_with(&ch, &times, &evaluate, sink, &|_, _| {})
+            };
+            let out = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| match threads {
+                Some(n) => rayon::ThreadPoolBuilder::new()
+                    .num_threads(n)
+                    .build()
+                    .unwrap()
+                    .install(run),
+                None => run(),
             }));
             let _ = tx.send(out);
         });
@@ -585,9 +604,18 @@ mod tests {
             .expect("the stream hung instead of ending")
     }
 
-    /// A sink recording the times it was given; `panic_at` panics there.
+    fn stream_tube<E>(evaluate: E, sink: Box<dyn FrameSink>) -> std::result::Result<Result<()>, Box<dyn Any + Send>>
+    where
+        E: Fn(FrameInput) -> Result<Vec<Sample>> + Sync + Send + 'static,
+    {
+        stream_file(tube(), None, evaluate, sink)
+    }
+
+    /// A sink recording the times it was given and whether it was
+    /// finished; `panic_at` panics there.
     struct Recorder {
         times: std::sync::Arc<Mutex<Vec<f64>>>,
+        finished: std::sync::Arc<std::sync::atomic::AtomicBool>,
         panic_at: Option<f64>,
     }
 
@@ -599,19 +627,23 @@ mod tests {
         }
 
         fn finish(self: Box<Self>) -> Result<()> {
+            self.finished.store(true, std::sync::atomic::Ordering::SeqCst);
             Ok(())
         }
     }
 
-    fn recorder(panic_at: Option<f64>) -> (Box<dyn FrameSink>, std::sync::Arc<Mutex<Vec<f64>>>) {
-        let times = std::sync::Arc::new(Mutex::new(Vec::new()));
-        (
-            Box::new(Recorder {
-                times: times.clone(),
-                panic_at,
-            }),
-            times,
-        )
+    type Written = std::sync::Arc<Mutex<Vec<f64>>>;
+    type Finished = std::sync::Arc<std::sync::atomic::AtomicBool>;
+
+    fn recorder(panic_at: Option<f64>) -> (Box<dyn FrameSink>, Written, Finished) {
+        let times = Written::default();
+        let finished = Finished::default();
+        let sink = Recorder {
+            times: times.clone(),
+            finished: finished.clone(),
+            panic_at,
+        };
+        (Box::new(sink), times, finished)
     }
 
     fn message(payload: &(dyn Any + Send)) -> String {
@@ -624,7 +656,7 @@ mod tests {
 
     #[test]
     fn every_frame_reaches_the_sink_in_time_order() {
-        let (sink, written) = recorder(None);
+        let (sink, written, _) = recorder(None);
         stream_tube(|_| Ok(Vec::new()), sink).unwrap().unwrap();
         assert_eq!(*written.lock().unwrap(), (1..=24).map(f64::from).collect::<Vec<_>>());
     }
@@ -633,7 +665,7 @@ mod tests {
     fn a_frame_that_panics_ends_the_stream_with_its_panic() {
         // A bug at one frame must reach main's handler (exit 3), not leave
         // the writer waiting for the lost frame and the reader for a permit.
-        let (sink, written) = recorder(None);
+        let (sink, written, _) = recorder(None);
         let evaluate = |input: FrameInput| {
             assert!(input.time != 3.0, "evaluation bug at frame 3");
             Ok(Vec::new())
@@ -645,7 +677,7 @@ mod tests {
 
     #[test]
     fn a_writer_that_panics_ends_the_stream_with_its_panic() {
-        let (sink, written) = recorder(Some(5.0));
+        let (sink, written, _) = recorder(Some(5.0));
         let payload = stream_tube(|_| Ok(Vec::new()), sink).expect_err("the panic is raised again");
         assert!(
             message(payload.as_ref()).contains("writer bug at 5"),
@@ -657,7 +689,7 @@ mod tests {
 
     #[test]
     fn a_frame_that_fails_ends_the_stream_with_its_error() {
-        let (sink, written) = recorder(None);
+        let (sink, written, _) = recorder(None);
         let evaluate = |input: FrameInput| {
             if input.time == 7.0 {
                 return Err(Error::msg("frame 7 cannot be evaluated"));
@@ -673,31 +705,13 @@ mod tests {
     /// 1 at frames 1, 4 and 6 and 1e39 at frame 5: beyond f32, so frame 5
     /// reads as an infinite opacity, which reading refuses (`opacity_at`).
     fn tube_unreadable_at_frame_5(dir: &Path) -> PathBuf {
-        let tube = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/tube.usda")).unwrap();
+        let tube = std::fs::read_to_string(tube()).unwrap();
         let anchor = "            int[] curveVertexCounts = [10, 10";
         let at = tube.find(anchor).expect("the Rings layer's counts");
         let keyed = "            float painterly:opacity.timeSamples = {\n                1: 1,\n                4: 1,\n                5: 1e39,\n                6: 1,\n            }\n";
         let src = dir.join("tube.usda");
         std::fs::write(&src, format!("{}{keyed}{}", &tube[..at], &tube[at..])).unwrap();
         src
-    }
-
-    /// A sink recording the times written and whether it was finished.
-    struct Finishing {
-        times: std::sync::Arc<Mutex<Vec<f64>>>,
-        finished: std::sync::Arc<std::sync::atomic::AtomicBool>,
-    }
-
-    impl FrameSink for Finishing {
-        fn write_frame(&mut self, time: f64, _samples: Vec<Sample>) -> Result<()> {
-            self.times.lock().unwrap().push(time);
-            Ok(())
-        }
-
-        fn finish(self: Box<Self>) -> Result<()> {
-            self.finished.store(true, std::sync::atomic::Ordering::SeqCst);
-            Ok(())
-        }
     }
 
     #[test]
@@ -707,25 +721,9 @@ mod tests {
         // file, which a failed bake must not leave), and the error is the
         // reader's.
         let dir = crate::test_dir::ScratchDir::new("bake-unreadable-frame");
-        let src = tube_unreadable_at_frame_5(&dir);
-        let times = std::sync::Arc::new(Mutex::new(Vec::new()));
-        let finished = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
-        let sink = Box::new(Finishing {
-            times: times.clone(),
-            finished: finished.clone(),
-        });
-        let (tx, rx) = mpsc::channel();
-        std::thread::spawn(move || {
-            let ch = Character::open(&src, None).unwrap();
-            let frames = resolve_frames(&ch.reader, None).unwrap();
-            assert_eq!(frames.len(), 24);
-            let out = stream_with(&ch, &frames, &|_| Ok(Vec::new()), sink, &|_, _| {});
-            let _ = tx.send(out.map_err(|e| e.to_string()));
-        });
-        let result = rx
-            .recv_timeout(Duration::from_secs(60))
-            .expect("the stream hung instead of ending");
-        let err = result.expect_err("reading frame 5 fails");
+        let (sink, times, finished) = recorder(None);
+        let result = stream_file(tube_unreadable_at_frame_5(&dir), None, |_| Ok(Vec::new()), sink).unwrap();
+        let err = result.expect_err("reading frame 5 fails").to_string();
         assert!(err.contains("opacity is not finite at time 5"), "{err}");
         assert_eq!(*times.lock().unwrap(), vec![1.0, 2.0, 3.0, 4.0]);
         let finished = finished.load(std::sync::atomic::Ordering::SeqCst);
@@ -773,26 +771,12 @@ mod tests {
             evaluated: evaluated.clone(),
             in_flight: in_flight.clone(),
         });
-        let (tx, rx) = mpsc::channel();
         let counter = evaluated.clone();
-        std::thread::spawn(move || {
-            let pool = rayon::ThreadPoolBuilder::new().num_threads(THREADS).build().unwrap();
-            let evaluate = move |_: FrameInput| {
-                counter.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
-                Ok(Vec::new())
-            };
-            let out = pool.install(move || {
-                // Opened on the worker that reads (a stage stays on one thread).
-                let tube = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/tube.usda");
-                let ch = Character::open(&tube, None).unwrap();
-                let times = resolve_frames(&ch.reader, None).unwrap();
-                stream_with(&ch, &times, &evaluate, sink, &|_, _| {})
-            });
-            let _ = tx.send(out.map_err(|e| e.to_string()));
-        });
-        rx.recv_timeout(Duration::from_secs(60))
-            .expect("the stream hung instead of ending")
-            .unwrap();
+        let evaluate = move |_: FrameInput| {
+            counter.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+            Ok(Vec::new())
+        };
+        stream_file(tube(), Some(THREADS), evaluate, sink).unwrap().unwrap();
         assert_eq!(*in_flight.lock().unwrap(), Some(WINDOW));
         assert_eq!(evaluated.load(std::sync::atomic::Ordering::SeqCst), 24);
     }
@@ -804,7 +788,7 @@ mod tests {
         // output; a stage with no rig and no view-dependent mesh writes
         // nothing and answers None.
         let dir = crate::test_dir::ScratchDir::new("bake-if-any");
-        let tube = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/tube.usda");
+        let tube = tube();
         let out = dir.join("tube_bake.usdc");
         let s = bake_if_any(&tube, &out, &BakeOptions::default())
             .unwrap()

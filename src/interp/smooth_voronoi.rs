@@ -437,6 +437,37 @@ mod tests {
         it.weights_vec(x)
     }
 
+    /// A random layout's interpolation of random values `y` at its keys,
+    /// along three random segments a → b (all drawn from `seed`).
+    struct Segments {
+        it: Interpolator,
+        y: Vec<f64>,
+        ends: Vec<(Vec<f64>, Vec<f64>)>,
+    }
+
+    impl Segments {
+        fn new(d: usize, n: usize, seed: u64) -> Segments {
+            let mut rng = Lcg::new(seed);
+            let keys = separated_keys(&mut rng, n, d);
+            let it = build(d, &keys);
+            let y = (0..n).map(|_| rng.uniform(-1.0, 1.0)).collect();
+            let ends = (0..3)
+                .map(|_| {
+                    let a = random_point(&mut rng, d, -0.2, 1.2);
+                    (a, random_point(&mut rng, d, -0.2, 1.2))
+                })
+                .collect();
+            Segments { it, y, ends }
+        }
+
+        /// The interpolated value at `s` ∈ [0, 1] along segment `k`.
+        fn at(&self, k: usize, s: f64) -> f64 {
+            let (a, b) = &self.ends[k];
+            let x: Vec<f64> = a.iter().zip(b).map(|(p, q)| p + s * (q - p)).collect();
+            dot(&weights(&self.it, &x), &self.y)
+        }
+    }
+
     /// Layout strategy: dimension, key count, seed.
     fn layouts() -> impl Strategy<Value = (usize, usize, u64)> {
         (prop::sample::select(vec![1usize, 2, 3, 5]), 1usize..=8, any::<u64>())
@@ -483,18 +514,9 @@ mod tests {
 
         #[test]
         fn r2_c1_along_random_segments((d, n, seed) in layouts()) {
-            let mut rng = Lcg::new(seed);
-            let keys = separated_keys(&mut rng, n, d);
-            let it = build(d, &keys);
-            let y: Vec<f64> = (0..n).map(|_| rng.uniform(-1.0, 1.0)).collect();
-            for _ in 0..3 {
-                let a = random_point(&mut rng, d, -0.2, 1.2);
-                let b = random_point(&mut rng, d, -0.2, 1.2);
-                let f = |s: f64| {
-                    let x: Vec<f64> = a.iter().zip(&b).map(|(p, q)| p + s * (q - p)).collect();
-                    dot(&weights(&it, &x), &y)
-                };
-                prop_assert!(looks_c1(f), "kink along a segment");
+            let case = Segments::new(d, n, seed);
+            for k in 0..case.ends.len() {
+                prop_assert!(looks_c1(|s| case.at(k, s)), "kink along a segment");
             }
         }
 
@@ -619,18 +641,9 @@ mod tests {
         // S_γ's upper quadratic piece (f'' ≈ −0.289 there, 0 after): C¹ with
         // a jump in f'' narrower than the h/8 step, which the first
         // refinement undersamples (max quotient 0.028 at h/8, 0.289 at h/128).
-        let (d, n, seed) = (3usize, 2usize, 15099038323540161588u64);
-        let mut rng = Lcg::new(seed);
-        let keys = separated_keys(&mut rng, n, d);
-        let it = build(d, &keys);
-        let y: Vec<f64> = (0..n).map(|_| rng.uniform(-1.0, 1.0)).collect();
-        for seg in 0..3 {
-            let a = random_point(&mut rng, d, -0.2, 1.2);
-            let b = random_point(&mut rng, d, -0.2, 1.2);
-            let f = |s: f64| {
-                let x: Vec<f64> = a.iter().zip(&b).map(|(p, q)| p + s * (q - p)).collect();
-                dot(&weights(&it, &x), &y)
-            };
+        let case = Segments::new(3, 2, 15099038323540161588);
+        for seg in 0..case.ends.len() {
+            let f = |s: f64| case.at(seg, s);
             assert!(looks_c1(f), "segment {seg}");
             if seg == 2 {
                 // Really C¹ at the joint (s ≈ 5.4e-5): the one-sided slopes
