@@ -58,6 +58,10 @@ CASES = {
     "inbetweens_at_0_and_1_are_ignored": dict(
         shapes=[dict(name="s0", inbetweens=[(1.0, True), (1e-7, True), (0.6, True)],
                      weight=lambda u: -1 + 2.5 * u)]),
+    # GfIsClose is strict and the query's EPS a float: an inbetween authored
+    # at 1e-6 lies 1e-6 from 0, not closer, so usd-core keeps it.
+    "inbetween_at_float_eps_is_kept": dict(
+        shapes=[dict(name="s0", inbetweens=[(1e-6, True), (0.6, True)], weight=lambda u: -0.2 + 1.2 * u)]),
     # --- authored normals (points must not care)
     "vertex_normals": dict(normals="vertex", shapes=INBETWEENS, **XF),
     "face_varying_normals": dict(normals="faceVarying", **XF),

@@ -55,6 +55,12 @@ fn gf_is_close(a: f64, b: f64, eps: f64) -> bool {
     (a - b).abs() < eps
 }
 
+/// Whether UsdSkelBlendShapeQuery ignores an inbetween at `weight`: closer
+/// than its float EPS to 0 or to 1 (the rest and the primary shape).
+pub fn ignores_inbetween_at(weight: f64) -> bool {
+    gf_is_close(weight, 0.0, QUERY_EPS) || gf_is_close(weight, 1.0, QUERY_EPS)
+}
+
 /// A sub-shape of a blend shape: the primary or an inbetween.
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum SubShape {
@@ -79,7 +85,7 @@ impl BlendShape {
             self.inbetweens
                 .iter()
                 .enumerate()
-                .filter(|(_, ib)| !gf_is_close(ib.weight, 0.0, QUERY_EPS) && !gf_is_close(ib.weight, 1.0, QUERY_EPS))
+                .filter(|(_, ib)| !ignores_inbetween_at(ib.weight))
                 .map(|(k, ib)| (ib.weight, Some(SubShape::Inbetween(k)))),
         );
         if subs.len() == 2 {

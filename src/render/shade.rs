@@ -104,4 +104,18 @@ mod tests {
         // k4 = 0 switches the cool light off.
         assert!(close(s.shade(base, -Vec3::Z), 0.5 * base));
     }
+
+    #[test]
+    fn k1_and_k3_scale_the_base_colour_in_each_light_term() {
+        let s = WarmCool {
+            k1: 0.5,
+            k3: 0.5,
+            ..WarmCool::default()
+        };
+        let base = Vec3::new(0.2, 0.5, 0.8);
+        // By hand: 0.9·C + (C_warm − 0.5·C) = 0.4·C + C_warm.
+        assert!(close(s.shade(base, s.warm_dir), Vec3::new(1.03, 0.82, 0.62)));
+        // 0.9·C + (C_cool − 0.5·C) = 0.4·C + C_cool.
+        assert!(close(s.shade(base, s.cool_dir), Vec3::new(0.26, 0.46, 0.87)));
+    }
 }

@@ -140,4 +140,22 @@ mod tests {
         assert!(OrderMap::new(&[], &names(&["a"])).is_null());
         assert_eq!(remap(&["a"], &[], vec![]), Vec::<i32>::new());
     }
+
+    #[test]
+    fn long_sources_copy_only_what_fits() {
+        // usd-core: AnimMapper(["b", "c"], ["a", "b", "c"]).Remap([1, 2, 3]) is [0, 1, 2].
+        let map = OrderMap::new(&names(&["b", "c"]), &names(&["a", "b", "c"]));
+        let mut out = Vec::new();
+        map.remap(&[1, 2, 3], &mut out, 0);
+        assert_eq!(out, vec![0, 1, 2]);
+    }
+
+    #[test]
+    fn sources_name_the_source_index_of_each_target() {
+        // usd-core: AnimMapper(["c", "a"], ["a", "b", "c"]).Remap([0, 1], defaultValue=-1) is [1, -1, 0].
+        let map = OrderMap::new(&names(&["c", "a"]), &names(&["a", "b", "c"]));
+        assert_eq!(map.sources(2), vec![Some(1), None, Some(0)]);
+        let map = OrderMap::new(&names(&["b", "c"]), &names(&["a", "b", "c", "d"]));
+        assert_eq!(map.sources(2), vec![None, Some(0), Some(1), None]);
+    }
 }

@@ -9,7 +9,7 @@ use openusd_schemas::skel::BlendShape as UsdBlendShape;
 
 use super::mapper::OrderMap;
 use crate::error::{Error, Result};
-use crate::skel_deform::{BlendShape, Inbetween};
+use crate::skel_deform::{ignores_inbetween_at, BlendShape, Inbetween};
 use crate::usd_io::stage::StageReader;
 use crate::usd_io::values;
 
@@ -137,7 +137,7 @@ fn read_blend_shape(r: &StageReader, path: &str, npts: usize, notes: &mut Vec<St
             continue;
         };
         let w = w as f64;
-        if (w - 0.0).abs() <= 1e-6 || (w - 1.0).abs() <= 1e-6 {
+        if ignores_inbetween_at(w) {
             notes.push(format!(
                 "{path}.{attr} has weight {w}: usd-core ignores inbetweens at 0 and 1"
             ));
@@ -213,4 +213,119 @@ fn checked_normal_offsets(
         offsets.len()
     ));
     Vec::new()
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::DVec3;
+
+    use crate::error::Result;
+    use crate::usd_io::skel::SkelProxy;
+    use crate::usd_io::testutil::stage_from_usda;
+
+    /// The 3-point mesh /R/M, (0,0,0) (1,0,0) (0,1,0), under one blend
+    /// shape whose BlendShape prim has the lines `shape`, at weight `w`.
+    fn proxy(shape: &str, w: f64) -> Result<SkelProxy> {
+        let r = stage_from_usda(&format!(
+            r#"#usda 1.0
+def SkelRoot "R"
+{{
+    def Skeleton "Skel"
+    {{
+        rel skel:animationSource = </R/Skel/Anim>
+        def SkelAnimation "Anim"
+        {{
+            uniform token[] blendShapes = ["s"]
+            float[] blendShapeWeights = [{w}]
+        }}
+    }}
+    def Mesh "M"
+    {{
+        point3f[] points = [(0, 0, 0), (1, 0, 0), (0, 1, 0)]
+        int[] faceVertexCounts = [3]
+        int[] faceVertexIndices = [0, 1, 2]
+        rel skel:skeleton = </R/Skel>
+        uniform token[] skel:blendShapes = ["s"]
+        rel skel:blendShapeTargets = </R/M/s>
+        def BlendShape "s"
+        {{
+            {shape}
+        }}
+    }}
+}}
+"#
+        ));
+        let mesh = r.prim("/R/M").unwrap().unwrap();
+        let rest = [DVec3::ZERO, DVec3::X, DVec3::Y];
+        SkelProxy::read(&r, &mesh, "/R/Skel", &rest)
+    }
+
+    /// The points of [`proxy`].
+    fn shaped(shape: &str, w: f64) -> Result<Vec<DVec3>> {
+        proxy(shape, w)?.deform(0.0)
+    }
+
+    // Expected points below are usd-core's UsdSkel.BakeSkinning of the same
+    // stage (with the weight time-sampled).
+    const MOVED: [DVec3; 3] = [DVec3::new(0.0, 0.0, 1.0), DVec3::X, DVec3::new(2.0, 1.0, 0.0)];
+
+    #[test]
+    fn empty_point_indices_mean_dense_offsets() {
+        let shape = "uniform vector3f[] offsets = [(0, 0, 2), (0, 0, 0), (4, 0, 0)]
+            uniform int[] pointIndices = []";
+        assert_eq!(shaped(shape, 0.5).unwrap(), MOVED);
+    }
+
+    #[test]
+    fn sparse_offsets_may_include_point_zero() {
+        let shape = "uniform vector3f[] offsets = [(0, 0, 2), (4, 0, 0)]
+            uniform int[] pointIndices = [0, 2]";
+        assert_eq!(shaped(shape, 0.5).unwrap(), MOVED);
+    }
+
+    #[test]
+    fn point_indices_outside_the_mesh_are_refused() {
+        // usd-core warns "Out of range point index" and applies none of the
+        // mesh's blend shapes; we refuse the rig (bad input), naming the
+        // attribute.
+        for idx in ["[0, 3]", "[-1, 0]"] {
+            let shape = format!(
+                "uniform vector3f[] offsets = [(0, 0, 2), (4, 0, 0)]
+                uniform int[] pointIndices = {idx}"
+            );
+            let e = shaped(&shape, 0.5).unwrap_err();
+            assert_eq!(e.attribute.as_deref(), Some("pointIndices"), "{idx}");
+        }
+    }
+
+    #[test]
+    fn inbetween_of_a_shape_without_offsets_still_moves_points() {
+        // The primary shape counts as zero offsets: weight 0.25 is half-way
+        // to the inbetween at 0.5.
+        let shape = "uniform vector3f[] inbetweens:half = [(0, 0, 2), (0, 0, 0), (0, 0, 0)] (weight = 0.5)";
+        assert_eq!(shaped(shape, 0.5).unwrap()[0], DVec3::new(0.0, 0.0, 2.0));
+        assert_eq!(shaped(shape, 0.25).unwrap()[0], DVec3::new(0.0, 0.0, 1.0));
+    }
+
+    #[test]
+    fn inbetweens_at_0_and_1_are_skipped_before_any_check() {
+        // usd-core skips inbetweens within 1e-6 of weight 0 or 1, so their
+        // offset counts (1 here, for 3 points) do not matter: the shape
+        // is its primary alone, linear in the weight.
+        let shape = "uniform vector3f[] offsets = [(0, 0, 2), (0, 0, 0), (4, 0, 0)]
+            uniform vector3f[] inbetweens:one = [(9, 9, 9)] (weight = 1)
+            uniform vector3f[] inbetweens:tiny = [(9, 9, 9)] (weight = 1e-7)
+            uniform vector3f[] inbetweens:zero = [(9, 9, 9)] (weight = 0)";
+        let p = proxy(shape, 0.5).unwrap();
+        assert_eq!(p.deform(0.0).unwrap(), MOVED);
+        for ib in ["one", "tiny", "zero"] {
+            assert!(
+                p.notes
+                    .iter()
+                    .any(|n| n.contains(&format!("inbetweens:{ib} has weight"))),
+                "{ib}: {:?}",
+                p.notes
+            );
+        }
+    }
 }

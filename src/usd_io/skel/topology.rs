@@ -127,4 +127,23 @@ mod tests {
         let j = names(&["a", "a/b", "a/b"]);
         assert!(validate_topology("/S", &j, &joint_parents(&j)).is_ok());
     }
+
+    #[test]
+    fn longer_joint_names_find_their_parents() {
+        // usd-core: UsdSkel.Topology(these).GetParentIndices() is [-1, 0, 1, -1, 3].
+        let j = names(&["root", "root/arm_1", "root/arm_1/hand2", "Hips", "Hips/Spine"]);
+        assert_eq!(joint_parents(&j), vec![None, Some(0), Some(1), None, Some(3)]);
+    }
+
+    #[test]
+    fn rejection_says_why() {
+        let why = |j: &[&str]| {
+            let j = names(j);
+            validate_topology("/S", &j, &joint_parents(&j)).unwrap_err().to_string()
+        };
+        let e = why(&["a/b", "a"]);
+        assert!(e.contains(r#"comes before its parent "a""#), "{e}");
+        let e = why(&["a", "a/b", "a"]);
+        assert!(e.contains("duplicate joint name"), "{e}");
+    }
 }

@@ -308,4 +308,27 @@ mod tests {
         assert!(split_last("A/B").is_err());
         assert!(split_last("/A.rel[/T").is_err());
     }
+
+    /// An empty prim or property name makes a path usd-core refuses
+    /// (`Sdf.Path(p).isEmpty` for each of these).
+    #[test]
+    fn empty_names_are_refused() {
+        for path in ["/A//B", "/A/", "/A.", "/A..b"] {
+            assert!(split_last(path).is_err(), "{path}");
+        }
+    }
+
+    /// usd-core's `_AddPath` adds a target path's target (`/T.x` of
+    /// `/A.rel[/T.x]`) with its ancestors, besides the path's own parents.
+    #[test]
+    fn a_target_path_interns_its_target() {
+        let mut tokens = Tokens::new();
+        let mut paths = Paths::new(&mut tokens);
+        let slot = paths.intern("/A.rel[/T.x]", &mut tokens).unwrap();
+        for p in ["/", "/A", "/A.rel", "/T", "/T.x"] {
+            let at = paths.index.get(p).copied();
+            assert!(at.is_some_and(|i| i < slot), "{p} not interned before the target path");
+        }
+        assert_eq!(paths.strings.len(), 6);
+    }
 }

@@ -784,6 +784,43 @@ fn a_failed_write_breaks_the_stream() {
     assert!(s.finish().is_err());
 }
 
+/// `write_value` refuses a value the crate format cannot hold, naming its
+/// kind (the `Value` variant).
+#[test]
+fn write_value_names_the_kind_it_cannot_write() {
+    let mut s = CrateStream::new(Cursor::new(Vec::new())).unwrap();
+    let knots = Value::ValueVec(vec![Value::Double(1.0)]);
+    let err = s.write_value(&knots).unwrap_err();
+    assert!(err.message.contains("cannot write a ValueVec value"), "{err}");
+}
+
+/// The table of contents lists the six structural sections back to back,
+/// each `size` bytes up to the next one's `start`, the last ending where
+/// the table begins: the layout usd-core writes (read from a `.usdc` it
+/// exported).
+#[test]
+fn sections_tile_the_bytes_before_the_table_of_contents() {
+    let data = layer_of(&[("a", Value::FloatVec(vec![0.5, 1.5])), ("b", Value::String("s".into()))]);
+    let bytes = write(&data);
+    let word = |at: usize| u64::from_le_bytes(bytes[at..at + 8].try_into().unwrap());
+    let toc = word(16) as usize;
+    let count = word(toc) as usize;
+    let mut names = Vec::new();
+    let mut end = None;
+    for k in 0..count {
+        let at = toc + 8 + 32 * k;
+        let name = String::from_utf8(bytes[at..at + 16].to_vec()).unwrap();
+        names.push(name.trim_end_matches('\0').to_string());
+        let (start, size) = (word(at + 16), word(at + 24));
+        if let Some(end) = end {
+            assert_eq!(start, end, "{} starts off the previous end", names[k]);
+        }
+        end = Some(start + size);
+    }
+    assert_eq!(names, ["TOKENS", "STRINGS", "FIELDS", "FIELDSETS", "PATHS", "SPECS"]);
+    assert_eq!(end, Some(toc as u64));
+}
+
 #[test]
 fn stream_must_start_at_offset_zero() {
     let mut out = Cursor::new(vec![0u8; 4]);
