@@ -12,6 +12,7 @@ with a note where the result may surprise.
 
 import json
 
+import numpy as np
 import pytest
 from pxr import Sdf, Usd, UsdSkel, Vt
 
@@ -257,3 +258,50 @@ def test_layered_restTransforms_block_is_missing(painterly, tmp_path):
     assert not S.usd_core_skins_every_frame(rig)
     _, proc = S.bake_proxy(painterly, rig, tmp_path, check=False)
     assert proc.returncode == 1 and f"{SKEL}.restTransforms" in proc.stderr, proc.stderr
+
+
+# ---------------------------------------------------------------------------
+# blend shapes that do not fit their mesh: usd-core warns and then skins the
+# mesh without any of its blend shapes (README: painterly refuses instead)
+
+
+def short_offsets(h):
+    a = h.shapes["s0"].GetOffsetsAttr()
+    a.Set(a.Get()[:-1])
+
+
+def point_index_out_of_range(h):
+    a = h.shapes["s1"].GetPointIndicesAttr()
+    idx = list(a.Get())
+    idx[0] = len(h.points) + 3
+    a.Set(Vt.IntArray(idx))
+
+
+BAD_SHAPES = [dict(name="s0", weight=lambda u: u), dict(name="s1", offsets="sparse", weight=lambda u: 1.5 * u)]
+
+
+@pytest.mark.parametrize("case,edit,attr", [("short_offsets", short_offsets, "offsets"),
+                                            ("point_index_out_of_range", point_index_out_of_range,
+                                             "pointIndices")])
+def test_blend_shapes_that_do_not_fit_are_refused(painterly, tmp_path, case, edit, attr):
+    rig = S.skel_rig(tmp_path / "rig.usda", shapes=BAD_SHAPES, edit=edit)
+    frames = list(rig.frames)
+
+    def without_blend_shapes(stage):
+        UsdSkel.BindingAPI(stage.GetPrimAtPath(MESH)).GetBlendShapeTargetsRel().SetTargets([])
+
+    ref = S.usd_core_world(rig, frames)
+    bare = S.usd_core_world(rig, frames, without_blend_shapes)
+    assert all(np.array_equal(ref[t], bare[t]) for t in frames), \
+        "usd-core applied a blend shape: the case tests nothing"
+
+    out, proc = S.bake_proxy(painterly, rig, tmp_path, check=False)
+    assert proc.returncode == 1, f"exit {proc.returncode}\n{proc.stderr}"
+    shape = {"offsets": f"{MESH}/s0", "pointIndices": f"{MESH}/s1"}[attr]
+    assert f"{shape}.{attr}" in proc.stderr, proc.stderr
+    assert "panicked" not in proc.stderr
+    assert not out.exists()
+    proc = painterly("inspect", rig.path, "--json", check=False)
+    assert proc.returncode == 1
+    problems = json.loads(proc.stdout)["problems"]
+    assert any(p["prim"] == shape and p["attribute"] == attr for p in problems), problems
