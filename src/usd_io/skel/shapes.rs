@@ -309,7 +309,7 @@ def SkelRoot "R"
 
     #[test]
     fn inbetweens_at_0_and_1_are_skipped_before_any_check() {
-        // usd-core skips inbetweens within 1e-6 of weight 0 or 1, so their
+        // usd-core skips inbetweens closer than a float 1e-6 to weight 0 or 1, so their
         // offset counts (1 here, for 3 points) do not matter: the shape
         // is its primary alone, linear in the weight.
         let shape = "uniform vector3f[] offsets = [(0, 0, 2), (0, 0, 0), (4, 0, 0)]
