@@ -238,6 +238,23 @@ def test_a_sheet_of_more_than_2000_frames_is_refused_up_front(painterly, tmp_pat
     assert proc.returncode == 2 and "2001 frames would all write one file" in proc.stderr
 
 
+def test_frames_that_would_share_a_file_name_are_refused(painterly, tmp_path, scene):
+    """Frame names keep three decimals (README, render): 1.0004 would be
+    written as frame 1 and replace it."""
+    out = tmp_path / "out"
+    out.mkdir()
+    proc = painterly("render", scene, "--camera", "/Cam", "--frames", "1:1.0012:0.0004", "-o",
+                     out / "f.####.exr", check=False)
+    assert proc.returncode == 2
+    assert proc.stderr == (f"error: frames 1 and 1.0004 would both write {out / 'f.0001.exr'}: frame names keep "
+                           "three decimals, use a coarser --frames step\n")
+    assert proc.stdout == "" and not any(out.iterdir())
+    # A millisecond apart is two names.
+    proc = painterly("render", scene, "--camera", "/Cam", "--frames", "1:1.002:0.001", "-o",
+                     out / "f.####.exr", "--size", "32x24", "--quiet")
+    assert sorted(p.name for p in out.iterdir()) == ["f.0001.001.exr", "f.0001.002.exr", "f.0001.exr"]
+
+
 def test_a_scene_at_48_time_codes_per_second_renders_its_own_times(painterly, tmp_path):
     """The render's root layer must keep the input's timeCodesPerSecond, or
     USD retimes the input (a sublayer's times scale by the rates' ratio)."""

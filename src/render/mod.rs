@@ -227,6 +227,21 @@ fn check_args(args: &RenderArgs) -> Result<Vec<f64>> {
         ))
         .in_file(out));
     }
+    // Frame names keep three decimals: closer frames would overwrite each
+    // other's file. Names grow with the time, so only neighbours can clash.
+    if has_hash {
+        if let Some(w) = times
+            .windows(2)
+            .find(|w| frame_path(out, w[0]) == frame_path(out, w[1]))
+        {
+            return Err(Error::usage(format!(
+                "frames {} and {} would both write {}: frame names keep three decimals, use a coarser --frames step",
+                w[0],
+                w[1],
+                frame_path(out, w[0]).display()
+            )));
+        }
+    }
     if args.sheet && times.len() > sheet::MAX_SHEET_FRAMES {
         return Err(Error::usage(format!(
             "--sheet lays out at most {} frames, not {}: use a coarser --frames step, or render without --sheet",
