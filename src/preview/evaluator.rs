@@ -687,6 +687,23 @@ mod tests {
     use super::*;
 
     #[test]
+    fn bounds_of_nothing_are_the_unit_box_around_the_origin() {
+        // A frame without a finite point (every world point overflowed, or
+        // none evaluated) frames the box [-1, 1]^3, not a point.
+        let input = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/apple.usda");
+        let (state, _, _) = State::open(&input, None, None).unwrap();
+        let nothing = FrameOutput {
+            time: 1.0,
+            layers: Vec::new(),
+            proxies: Vec::new(),
+            proxy_normals: Vec::new(),
+            views: Vec::new(),
+        };
+        let [lo, hi] = state.world_bounds(1.0, &nothing).unwrap();
+        assert_eq!((lo, hi), (DVec3::splat(-1.0), DVec3::splat(1.0)));
+    }
+
+    #[test]
     fn primvars_expand_per_point() {
         let counts = [2, 3];
         assert_eq!(per_point(&Primvar::Constant(1.0), &counts, 0.0), [1.0; 5]);
