@@ -325,7 +325,7 @@ def test_subdivision_scheme_none_is_faceted_and_the_fallback_smooth(painterly, t
     "counts,indices,message",
     [
         ([4], [0, 1, 2], "counts sum to 4, but there are 3 faceVertexIndices"),
-        ([-1, 5], [0, 1, 2, 3], "faceVertexCounts"),
+        ([-1, 5], [0, 1, 2, 3], "faceVertexCounts: negative count -1"),
         ([4], [0, 1, -2, 3], "negative index -2"),
     ],
 )

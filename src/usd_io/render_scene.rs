@@ -19,7 +19,7 @@ use glam::{DMat4, DVec3, Vec3};
 use openusd::sdf::Value;
 use openusd::usd::{self, AttributeQuery, TimeCode};
 
-use super::scene::{read_mesh, Proxy};
+use super::scene::{check_face_counts, read_mesh, Proxy};
 use super::skel::skeleton_binding;
 use super::stage::StageReader;
 use super::values;
@@ -335,17 +335,7 @@ impl RenderScene {
         let indices = r
             .typed(&prim, "faceVertexIndices", None, "int[]", values::int_array)?
             .unwrap_or_default();
-        if counts.iter().any(|&c| c < 0) || counts.iter().sum::<i64>() != indices.len() as i64 {
-            return Err(Error::attr(
-                &path,
-                "faceVertexCounts",
-                format!(
-                    "counts sum to {}, but there are {} faceVertexIndices",
-                    counts.iter().sum::<i64>(),
-                    indices.len()
-                ),
-            ));
-        }
+        check_face_counts(&path, &counts, &indices)?;
         if let Some(bad) = indices.iter().find(|&&i| i < 0) {
             return Err(Error::attr(&path, "faceVertexIndices", format!("negative index {bad}")));
         }

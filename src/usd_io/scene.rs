@@ -417,6 +417,23 @@ fn read_proxy(r: &StageReader, rig: &usd::Prim) -> Result<Proxy> {
     read_mesh(r, prim, rest_time)
 }
 
+/// UsdGeom.Mesh.ValidateTopology's first two rules for faceVertexCounts:
+/// no negative count, and the counts sum to the number of indices.
+pub(crate) fn check_face_counts(path: &str, counts: &[i64], indices: &[i64]) -> Result<()> {
+    if let Some(bad) = counts.iter().find(|&&c| c < 0) {
+        return Err(Error::attr(path, "faceVertexCounts", format!("negative count {bad}")));
+    }
+    let sum: i64 = counts.iter().sum();
+    if sum != indices.len() as i64 {
+        return Err(Error::attr(
+            path,
+            "faceVertexCounts",
+            format!("counts sum to {sum}, but there are {} faceVertexIndices", indices.len()),
+        ));
+    }
+    Ok(())
+}
+
 /// Reads a Mesh's topology, rest pose and motion kind (SPEC §2).
 ///
 /// `rest_time`: where a non-skinned mesh's rest pose is read (`painterly:restTime`),
@@ -429,18 +446,7 @@ pub fn read_mesh(r: &StageReader, prim: usd::Prim, rest_time: Option<f64>) -> Re
     let indices = r
         .typed(&prim, "faceVertexIndices", None, "int[]", values::int_array)?
         .ok_or_else(|| Error::attr(&proxy_path, "faceVertexIndices", "proxy mesh has no faces").rule(Rule::Mesh))?;
-    if counts.iter().any(|&c| c < 0) || counts.iter().sum::<i64>() != indices.len() as i64 {
-        return Err(Error::attr(
-            &proxy_path,
-            "faceVertexCounts",
-            format!(
-                "counts sum to {}, but there are {} faceVertexIndices",
-                counts.iter().sum::<i64>(),
-                indices.len()
-            ),
-        )
-        .rule(Rule::Mesh));
-    }
+    check_face_counts(&proxy_path, &counts, &indices).map_err(|e| e.rule(Rule::Mesh))?;
     if !counts.iter().any(|&c| c >= 3) {
         return Err(Error::attr(
             &proxy_path,
@@ -1495,6 +1501,11 @@ def SkelRoot "Char"
             );
         }
         assert!(first(&mesh("[3, 0, 3]", "[0, 1, 2, 0, 2, 3]")).is_none());
+        // A negative count is named as such, even where the counts still
+        // sum to the indices (7 - 1 = 6).
+        let e = first(&mesh("[7, -1]", "[0, 1, 2, 0, 2, 3]")).unwrap();
+        assert_eq!(named(&e), ("/World/Proxy", "faceVertexCounts", Some(Rule::Mesh)));
+        assert!(e.to_string().contains("negative count -1"), "{e}");
         // No points at all: the points are what is missing.
         let empty = "int[] faceVertexCounts = [3]
         int[] faceVertexIndices = [0, 1, 2]
