@@ -455,7 +455,8 @@ fn orthonormalized(m: DMat3) -> DMat3 {
         m.y_axis.normalize_or_zero(),
         m.z_axis.normalize_or_zero(),
     ];
-    let close = |a: DVec3, b: DVec3| (a - b).abs().max_element() <= 1e-6;
+    // GfIsClose of two vectors: the length of their difference, squared.
+    let close = |a: DVec3, b: DVec3| (a - b).length_squared() <= 1e-6 * 1e-6;
     if close(t[0], t[1]) || close(t[0], t[2]) || close(t[1], t[2]) {
         return DMat3::from_cols(t[0], t[1], t[2]);
     }
@@ -936,6 +937,36 @@ mod tests {
         let want = DMat3::from_cols(DVec3::X, DVec3::new(1.0, 9e-7, 0.0).normalize(), DVec3::Z);
         let o = orthonormalized(m);
         assert!((o - want).to_cols_array().iter().all(|d| d.abs() < 1e-15), "{o}");
+    }
+
+    #[test]
+    fn orthonormalized_measures_closeness_by_length_as_gf_does() {
+        // Rows (1, 0, 0), (1, 9e-7, 9e-7), (0, 0, 1): the second differs from
+        // the first by 9e-7 in each of two entries, 1.27e-6 in length, so Gf
+        // iterates. Expected: usd-core's Gf.Matrix4d.GetOrthonormalized.
+        let m = DMat3::from_cols(DVec3::X, DVec3::new(1.0, 9e-7, 9e-7), DVec3::Z);
+        let gf = DMat3::from_cols(
+            DVec3::new(0.7071070993843122, -0.7071064629886274, 1.323090131581618e-07),
+            DVec3::new(0.7071064629883347, 0.7071070993841683, 7.968528491832221e-07),
+            DVec3::new(-6.570164416105956e-07, -4.699037485056432e-07, 0.9999999999996738),
+        );
+        let o = orthonormalized(m);
+        assert!((o - gf).to_cols_array().iter().all(|d| d.abs() < 1e-12), "{o}");
+    }
+
+    #[test]
+    fn orthonormalized_gives_up_when_any_two_are_close() {
+        // Only the first two rows are close (7.1e-7 apart); the third leans
+        // on the first, so a round of iterating would move it. usd-core's
+        // GetOrthonormalized returns the rows normalised, unchanged.
+        let m = DMat3::from_cols(DVec3::X, DVec3::new(1.0, 5e-7, 5e-7), DVec3::new(0.6, 0.0, 0.8));
+        let gf = DMat3::from_cols(
+            DVec3::X,
+            DVec3::new(0.99999999999975, 4.999999999998749e-07, 4.999999999998749e-07),
+            DVec3::new(0.6, 0.0, 0.8),
+        );
+        let o = orthonormalized(m);
+        assert!((o - gf).to_cols_array().iter().all(|d| d.abs() < 1e-15), "{o}");
     }
 
     #[test]
