@@ -970,6 +970,22 @@ mod tests {
     }
 
     #[test]
+    fn orthonormalized_gives_up_when_the_last_two_are_close() {
+        // Only the second and third rows are close (7.1e-7 apart); the first
+        // is far from both but leans on them, so a round of iterating would
+        // move it. usd-core's GetOrthonormalized returns the rows normalised,
+        // unchanged (and warns that it did not converge).
+        let m = DMat3::from_cols(DVec3::new(0.6, 0.0, 0.8), DVec3::Z, DVec3::new(5e-7, 5e-7, 1.0));
+        let gf = DMat3::from_cols(
+            DVec3::new(0.6, 0.0, 0.8),
+            DVec3::Z,
+            DVec3::new(4.999999999998749e-07, 4.999999999998749e-07, 0.99999999999975),
+        );
+        let o = orthonormalized(m);
+        assert!((o - gf).to_cols_array().iter().all(|d| d.abs() < 1e-15), "{o}");
+    }
+
+    #[test]
     fn a_parent_not_before_its_joint_is_not_composed() {
         // Refused when read; here such a joint is a root, not an index ahead.
         let local = [DMat4::from_translation(DVec3::X), DMat4::from_translation(DVec3::Y)];
