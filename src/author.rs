@@ -258,26 +258,40 @@ pub fn key(session: &EditSession, opts: &KeyOptions) -> Result<String> {
             return Err(Error::msg(format!("--opacity {o} is not finite")));
         }
     }
-    let all_paths = r.prim_paths()?;
-    let layer_path = opts.layer.clone();
-    let layer_prim = r.require_prim(&layer_path)?;
+    let existing = existing_keys(r, &opts.layer)?;
+    let (ty, coords) = key_place(r, &mut scene.rigs[ri], li, opts)?;
+    let path = key_path(opts, &existing, ty, &coords)?;
+    write_key(
+        session,
+        &path,
+        ty,
+        &coords,
+        opts,
+        &scene.rigs[ri].layers[li].rest_points,
+    )?;
+    Ok(path)
+}
 
-    // Existing keys of this layer: (path, type, coordinates or time, has points, has opacity, sentinel).
-    struct Existing {
-        path: String,
-        ty: String,
-        coords: Vec<f64>,
-        points: bool,
-        opacity: bool,
-        sentinel: bool,
-    }
+/// A key already on the layer, as far as collisions need it.
+struct ExistingKey {
+    path: String,
+    ty: String,
+    /// A pose key's coordinates, or a time key's time.
+    coords: Vec<f64>,
+    points: bool,
+    opacity: bool,
+    sentinel: bool,
+}
+
+/// The keys (and other children) of a layer prim.
+fn existing_keys(r: &StageReader, layer_path: &str) -> Result<Vec<ExistingKey>> {
+    let layer_prim = r.require_prim(layer_path)?;
     let mut existing = Vec::new();
     for c in layer_prim
         .children()
-        .map_err(|e| Error::prim(&layer_path, format!("cannot list children: {e}")))?
+        .map_err(|e| Error::prim(layer_path, format!("cannot list children: {e}")))?
     {
         let ty = r.type_name(&c)?;
-        let cp = c.path().as_str().to_string();
         let coords = match ty.as_str() {
             "PainterlyPoseKey" => r
                 .typed(&c, "coordinates", None, "float[]", values::f32_array)?
@@ -288,20 +302,24 @@ pub fn key(session: &EditSession, opts: &KeyOptions) -> Result<String> {
             "PainterlyTimeKey" => vec![r.typed(&c, "time", None, "double", values::scalar)?.unwrap_or(f64::NAN)],
             _ => Vec::new(),
         };
-        existing.push(Existing {
+        existing.push(ExistingKey {
             points: r.has_authored(&c, "points")?,
             opacity: r.has_authored(&c, "opacity")?,
             sentinel: r.typed(&c, "sentinel", None, "bool", values::scalar)?.unwrap_or(0.0) != 0.0,
-            path: cp,
+            path: c.path().as_str().to_string(),
             ty,
             coords,
         });
     }
+    Ok(existing)
+}
 
-    // Where the key lives in configuration space (pose) or on the timeline.
-    let (ty, coords) = match opts.kind {
+/// Where the new key lives: its prim type and its coordinates in
+/// configuration space (a pose key) or its time (a time key or sentinel).
+fn key_place(r: &StageReader, rig: &mut Rig, li: usize, opts: &KeyOptions) -> Result<(&'static str, Vec<f64>)> {
+    match opts.kind {
         KeyKind::Pose => {
-            let rig = &mut scene.rigs[ri];
+            let all_paths = r.prim_paths()?;
             // layer_axes may add axes to the rig's table: lend it the layer apart.
             let layers = std::mem::take(&mut rig.layers);
             let axes = layer_axes(r, &all_paths, rig, &layers[li]);
@@ -317,16 +335,21 @@ pub fn key(session: &EditSession, opts: &KeyOptions) -> Result<String> {
                 &pose.posed,
                 opts.camera.as_deref(),
             )?;
-            (
+            // Coordinates are stored as float[]: compare and write the f32 values.
+            Ok((
                 "PainterlyPoseKey",
-                // Coordinates are stored as float[]: compare and write the f32 values.
-                axes.iter().map(|&a| values[a] as f32 as f64).collect::<Vec<f64>>(),
-            )
+                axes.iter().map(|&a| values[a] as f32 as f64).collect(),
+            ))
         }
-        KeyKind::Time | KeyKind::Sentinel => ("PainterlyTimeKey", vec![opts.time]),
-    };
+        KeyKind::Time | KeyKind::Sentinel => Ok(("PainterlyTimeKey", vec![opts.time])),
+    }
+}
 
-    // Collisions: same name, or same coordinates/time in a channel this key sets.
+/// The new key's path: the key it replaces (one of the same name, or at the
+/// same coordinates or time in a channel it sets, with `replace`), the name
+/// asked for, or the first free `keyN` / `timeN` / `sentinelN`.
+fn key_path(opts: &KeyOptions, existing: &[ExistingKey], ty: &str, coords: &[f64]) -> Result<String> {
+    let layer_path = &opts.layer;
     let mut replace_path: Option<String> = None;
     if let Some(name) = &opts.name {
         let p = format!("{layer_path}/{name}");
@@ -368,7 +391,7 @@ pub fn key(session: &EditSession, opts: &KeyOptions) -> Result<String> {
             replace_path = Some(e.path.clone());
         }
     }
-    let path = match replace_path {
+    Ok(match replace_path {
         Some(p) => p,
         None => match &opts.name {
             Some(n) => format!("{layer_path}/{n}"),
@@ -384,19 +407,28 @@ pub fn key(session: &EditSession, opts: &KeyOptions) -> Result<String> {
                     .expect("a free name")
             }
         },
-    };
+    })
+}
 
-    let layer = &scene.rigs[ri].layers[li];
-    session.define(&path, ty)?;
+/// Defines the key prim and sets its attributes (a sentinel holds no data).
+fn write_key(
+    session: &EditSession,
+    path: &str,
+    ty: &str,
+    coords: &[f64],
+    opts: &KeyOptions,
+    rest_points: &[Vec3],
+) -> Result<()> {
+    session.define(path, ty)?;
     match opts.kind {
         KeyKind::Pose => {
             let c: Vec<f32> = coords.iter().map(|&x| x as f32).collect();
-            session.set(&path, "coordinates", "float[]", true, Value::FloatVec(c))?;
+            session.set(path, "coordinates", "float[]", true, Value::FloatVec(c))?;
         }
         KeyKind::Time | KeyKind::Sentinel => {
-            session.set(&path, "time", "double", true, Value::Double(opts.time))?;
+            session.set(path, "time", "double", true, Value::Double(opts.time))?;
             session.set(
-                &path,
+                path,
                 "sentinel",
                 "bool",
                 true,
@@ -406,13 +438,13 @@ pub fn key(session: &EditSession, opts: &KeyOptions) -> Result<String> {
     }
     if opts.kind != KeyKind::Sentinel {
         if opts.points {
-            session.set(&path, "points", "point3f[]", true, vec3f_value(&layer.rest_points))?;
+            session.set(path, "points", "point3f[]", true, vec3f_value(rest_points))?;
         }
         if let Some(o) = opts.opacity {
-            session.set(&path, "opacity", "float", true, Value::Float(o))?;
+            session.set(path, "opacity", "float", true, Value::Float(o))?;
         }
     }
-    Ok(path)
+    Ok(())
 }
 
 /// Which brush [`brush`] applies.

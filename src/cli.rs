@@ -5,7 +5,7 @@
 //! (a bug: please report it with the input file).
 
 use std::io::IsTerminal;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -504,19 +504,6 @@ pub fn run(cli: Cli) -> i32 {
             quiet,
             json,
         } => {
-            let show_bar = !quiet && !json && std::io::stderr().is_terminal();
-            let bar = ProgressBar::hidden();
-            if show_bar {
-                bar.set_draw_target(indicatif::ProgressDrawTarget::stderr());
-                bar.set_style(
-                    ProgressStyle::with_template("{spinner} baking frame {pos}/{len} [{bar:30}] {elapsed} (eta {eta})")
-                        .unwrap_or_else(|_| ProgressStyle::default_bar()),
-                );
-            }
-            let progress = |done: usize, total: usize| {
-                bar.set_length(total as u64);
-                bar.set_position(done as u64);
-            };
             let opts = BakeOptions {
                 frames,
                 bake_proxy,
@@ -525,74 +512,10 @@ pub fn run(cli: Cli) -> i32 {
                 chunk_index,
                 assemble,
             };
-            let result = bake(&input, &output, &opts, &progress);
-            bar.finish_and_clear();
-            match result {
-                Ok(s) => {
-                    if json {
-                        println!("{}", serde_json::to_string(&s).unwrap_or_default());
-                    } else if !quiet {
-                        let chunks = if s.chunks.is_empty() {
-                            String::new()
-                        } else {
-                            format!(" ({})", plural(s.chunks.len(), "chunk layer"))
-                        };
-                        println!(
-                            "baked {}: {}, {}, {}, {} -> {}{chunks} in {:.2} s",
-                            plural(s.frames, "frame"),
-                            plural(s.layers, "layer"),
-                            plural(s.strokes, "stroke"),
-                            plural(s.points, "point"),
-                            plural(s.view_meshes, "view-dependent mesh"),
-                            s.output.display(),
-                            s.seconds
-                        );
-                    }
-                    0
-                }
-                Err(e) => report(&e),
-            }
+            run_bake(&input, &output, &opts, quiet, json)
         }
-        Command::Inspect { input, json, camera } => match inspect(&input, camera.as_deref()) {
-            Ok(rep) => {
-                if json {
-                    println!("{}", serde_json::to_string_pretty(&rep).unwrap_or_default());
-                } else {
-                    print!("{}", rep.to_text());
-                }
-                if rep.problems.is_empty() {
-                    0
-                } else {
-                    1
-                }
-            }
-            Err(e) => report(&e),
-        },
-        Command::Bind { edit, layer, time } => {
-            let result = (|| {
-                let session = open_session(&edit)?;
-                let report = author::bind(&session, &BindOptions { layers: layer, time })?;
-                let target = session.target().to_path_buf();
-                session.save()?;
-                let n: usize = report.iter().map(|r| r.1).sum();
-                let message = format!(
-                    "bound {} in {} -> {}",
-                    plural(n, "point"),
-                    plural(report.len(), "layer"),
-                    target.display()
-                );
-                Ok(summary(
-                    &edit,
-                    "bind",
-                    target,
-                    report.into_iter().map(|r| r.0).collect(),
-                    n,
-                    None,
-                    message,
-                ))
-            })();
-            finish(result, &edit)
-        }
+        Command::Inspect { input, json, camera } => run_inspect(&input, camera.as_deref(), json),
+        Command::Bind { edit, layer, time } => finish(run_bind(&edit, BindOptions { layers: layer, time }), &edit),
         Command::Key {
             edit,
             layer,
@@ -605,57 +528,29 @@ pub fn run(cli: Cli) -> i32 {
             replace,
             camera,
         } => {
-            let result = (|| {
-                let session = open_session(&edit)?;
-                if let Some(c) = &camera {
-                    session.reader.require_camera(c, "--camera")?;
-                }
-                let kind = if sentinel {
-                    KeyKind::Sentinel
-                } else if time_key {
-                    KeyKind::Time
-                } else {
-                    KeyKind::Pose
-                };
-                let layer_path = layer.clone();
-                let path = author::key(
-                    &session,
-                    &KeyOptions {
-                        layer,
-                        time,
-                        kind,
-                        name,
-                        points: points || (opacity.is_none() && kind != KeyKind::Sentinel),
-                        opacity,
-                        replace,
-                        camera,
-                    },
-                )?;
-                let target = session.target().to_path_buf();
-                session.save()?;
-                let message = format!("set {path} -> {}", target.display());
-                Ok(summary(&edit, "key", target, vec![layer_path], 0, Some(path), message))
-            })();
-            finish(result, &edit)
+            let kind = if sentinel {
+                KeyKind::Sentinel
+            } else if time_key {
+                KeyKind::Time
+            } else {
+                KeyKind::Pose
+            };
+            let opts = KeyOptions {
+                layer,
+                time,
+                kind,
+                name,
+                // A key holds points unless it only sets an opacity (or is a sentinel).
+                points: points || (opacity.is_none() && kind != KeyKind::Sentinel),
+                opacity,
+                replace,
+                camera,
+            };
+            finish(run_key(&edit, opts), &edit)
         }
         Command::Smudge { edit, brush } => finish(run_brush(&edit, &brush, Brush::Smudge), &edit),
         Command::Expand { edit, brush } => finish(run_brush(&edit, &brush, Brush::Expand), &edit),
-        Command::Render(args) => match crate::render::run(&args) {
-            Ok(summary) => {
-                if !args.quiet {
-                    for w in &summary.warnings {
-                        eprintln!("warning: {w}");
-                    }
-                }
-                if args.json {
-                    println!("{}", serde_json::to_string(&summary).unwrap_or_default());
-                } else if !args.quiet {
-                    println!("{}", summary.line());
-                }
-                0
-            }
-            Err(e) => report(&e),
-        },
+        Command::Render(args) => run_render(&args),
         Command::Preview(args) => match crate::preview::run(&args) {
             Ok(()) => 0,
             Err(e) => report(&e),
@@ -666,44 +561,167 @@ pub fn run(cli: Cli) -> i32 {
             output,
             quiet,
             json,
-        } => match crate::usd_io::assembly::write_view_layer(&input, &bake, &output) {
-            Ok(s) => {
-                if !quiet {
-                    for w in &s.warnings {
-                        eprintln!("warning: {w}");
-                    }
-                }
-                if json {
-                    println!("{}", serde_json::to_string(&s).unwrap_or_default());
-                } else if !quiet {
-                    println!(
-                        "wrote {}: {} over {}, frames {}:{}, defaultPrim {}",
-                        s.output.display(),
-                        s.bake.display(),
-                        s.input.display(),
-                        s.start_time_code,
-                        s.end_time_code,
-                        s.default_prim
-                    );
-                }
-                0
-            }
-            Err(e) => report(&e),
-        },
+        } => run_view(&input, &bake, &output, quiet, json),
         Command::Farm(cmd) => crate::farm::run(cmd),
-        Command::Interpolate => {
-            let mut input = String::new();
-            if let Err(e) = std::io::Read::read_to_string(&mut std::io::stdin(), &mut input) {
-                return report(&Error::msg(format!("cannot read stdin: {e}")));
+        Command::Interpolate => run_interpolate(),
+    }
+}
+
+/// `painterly bake`: the bake with a progress bar on a terminal, then its
+/// summary line or JSON.
+fn run_bake(input: &Path, output: &Path, opts: &BakeOptions, quiet: bool, json: bool) -> i32 {
+    let show_bar = !quiet && !json && std::io::stderr().is_terminal();
+    let bar = ProgressBar::hidden();
+    if show_bar {
+        bar.set_draw_target(indicatif::ProgressDrawTarget::stderr());
+        bar.set_style(
+            ProgressStyle::with_template("{spinner} baking frame {pos}/{len} [{bar:30}] {elapsed} (eta {eta})")
+                .unwrap_or_else(|_| ProgressStyle::default_bar()),
+        );
+    }
+    let progress = |done: usize, total: usize| {
+        bar.set_length(total as u64);
+        bar.set_position(done as u64);
+    };
+    let result = bake(input, output, opts, &progress);
+    bar.finish_and_clear();
+    match result {
+        Ok(s) => {
+            if json {
+                println!("{}", serde_json::to_string(&s).unwrap_or_default());
+            } else if !quiet {
+                let chunks = if s.chunks.is_empty() {
+                    String::new()
+                } else {
+                    format!(" ({})", plural(s.chunks.len(), "chunk layer"))
+                };
+                println!(
+                    "baked {}: {}, {}, {}, {} -> {}{chunks} in {:.2} s",
+                    plural(s.frames, "frame"),
+                    plural(s.layers, "layer"),
+                    plural(s.strokes, "stroke"),
+                    plural(s.points, "point"),
+                    plural(s.view_meshes, "view-dependent mesh"),
+                    s.output.display(),
+                    s.seconds
+                );
             }
-            match crate::interp::json::run_json(&input) {
-                Ok(out) => {
-                    println!("{out}");
-                    0
-                }
-                Err(e) => report(&Error::msg(e)),
+            0
+        }
+        Err(e) => report(&e),
+    }
+}
+
+/// `painterly inspect`: exit 1 when the report lists problems.
+fn run_inspect(input: &Path, camera: Option<&str>, json: bool) -> i32 {
+    match inspect(input, camera) {
+        Ok(rep) => {
+            if json {
+                println!("{}", serde_json::to_string_pretty(&rep).unwrap_or_default());
+            } else {
+                print!("{}", rep.to_text());
+            }
+            if rep.problems.is_empty() {
+                0
+            } else {
+                1
             }
         }
+        Err(e) => report(&e),
+    }
+}
+
+/// `painterly bind`: stores the closest-point binding of the chosen layers.
+fn run_bind(edit: &EditArgs, opts: BindOptions) -> Result<EditSummary, Error> {
+    let session = open_session(edit)?;
+    let report = author::bind(&session, &opts)?;
+    let target = session.target().to_path_buf();
+    session.save()?;
+    let n: usize = report.iter().map(|r| r.1).sum();
+    let message = format!(
+        "bound {} in {} -> {}",
+        plural(n, "point"),
+        plural(report.len(), "layer"),
+        target.display()
+    );
+    let layers = report.into_iter().map(|r| r.0).collect();
+    Ok(summary(edit, "bind", target, layers, n, None, message))
+}
+
+/// `painterly key`: adds (or replaces) one key on a layer.
+fn run_key(edit: &EditArgs, opts: KeyOptions) -> Result<EditSummary, Error> {
+    let session = open_session(edit)?;
+    if let Some(c) = &opts.camera {
+        session.reader.require_camera(c, "--camera")?;
+    }
+    let layer = opts.layer.clone();
+    let path = author::key(&session, &opts)?;
+    let target = session.target().to_path_buf();
+    session.save()?;
+    let message = format!("set {path} -> {}", target.display());
+    Ok(summary(edit, "key", target, vec![layer], 0, Some(path), message))
+}
+
+/// `painterly render`: warnings on stderr, then the summary line or JSON.
+fn run_render(args: &crate::render::RenderArgs) -> i32 {
+    match crate::render::run(args) {
+        Ok(summary) => {
+            if !args.quiet {
+                for w in &summary.warnings {
+                    eprintln!("warning: {w}");
+                }
+            }
+            if args.json {
+                println!("{}", serde_json::to_string(&summary).unwrap_or_default());
+            } else if !args.quiet {
+                println!("{}", summary.line());
+            }
+            0
+        }
+        Err(e) => report(&e),
+    }
+}
+
+/// `painterly view`: writes the layer that shows a bake over its input.
+fn run_view(input: &Path, bake: &Path, output: &Path, quiet: bool, json: bool) -> i32 {
+    match crate::usd_io::assembly::write_view_layer(input, bake, output) {
+        Ok(s) => {
+            if !quiet {
+                for w in &s.warnings {
+                    eprintln!("warning: {w}");
+                }
+            }
+            if json {
+                println!("{}", serde_json::to_string(&s).unwrap_or_default());
+            } else if !quiet {
+                println!(
+                    "wrote {}: {} over {}, frames {}:{}, defaultPrim {}",
+                    s.output.display(),
+                    s.bake.display(),
+                    s.input.display(),
+                    s.start_time_code,
+                    s.end_time_code,
+                    s.default_prim
+                );
+            }
+            0
+        }
+        Err(e) => report(&e),
+    }
+}
+
+/// `painterly interpolate`: one JSON request on stdin, its answer on stdout.
+fn run_interpolate() -> i32 {
+    let mut input = String::new();
+    if let Err(e) = std::io::Read::read_to_string(&mut std::io::stdin(), &mut input) {
+        return report(&Error::msg(format!("cannot read stdin: {e}")));
+    }
+    match crate::interp::json::run_json(&input) {
+        Ok(out) => {
+            println!("{out}");
+            0
+        }
+        Err(e) => report(&Error::msg(e)),
     }
 }
 
