@@ -190,18 +190,67 @@ pub(super) fn read_joint_pose(
     notes: &mut Vec<String>,
 ) -> Result<JointPose> {
     let nj = joints.len();
-    let mats = |name: &str| -> Result<Option<Vec<DMat4>>> {
-        match r.value(skel_prim, name, None)? {
-            None => Ok(None),
-            Some(Value::Matrix4dVec(m)) => Ok(Some(m.iter().map(values::usd_matrix).collect())),
-            Some(v) => Err(Error::attr(
+    let inverse_bind = inverse_bind_transforms(r, skel_prim, skeleton, joints, notes)?;
+    let rest_all = matrices(r, skel_prim, skeleton, "restTransforms")?;
+    let rest_len = rest_all.as_ref().map_or(0, |m| m.len());
+    let rest = rest_all.filter(|m| m.len() == nj);
+    let anim = match anim {
+        None => {
+            if rest.is_none() {
+                return Err(Error::attr(
+                    skeleton,
+                    "restTransforms",
+                    format!(
+                        "{rest_len} matrices for {nj} joints, and no animation drives the joints: usd-core cannot pose {skeleton}"
+                    ),
+                ));
+            }
+            None
+        }
+        Some((prim, anim_joints, map)) => {
+            let skel = SkelRest {
                 skeleton,
-                name,
-                format!("expected matrix4d[], found {}", values::kind_name(&v)),
-            )),
+                joints,
+                has_rest: rest.is_some(),
+                rest_len,
+            };
+            Some(check_animation(r, &skel, prim, anim_joints, map, notes)?)
         }
     };
-    let bind = mats("bindTransforms")?.unwrap_or_default();
+    let mesh_map = mesh_joint_order(r, mesh, skeleton, joints, notes)?;
+    Ok(JointPose {
+        skeleton: skeleton.to_string(),
+        parents,
+        rest,
+        inverse_bind,
+        anim,
+        mesh_map,
+    })
+}
+
+/// A `matrix4d[]` attribute of the skeleton, when authored.
+fn matrices(r: &StageReader, skel_prim: &usd::Prim, skeleton: &str, name: &str) -> Result<Option<Vec<DMat4>>> {
+    match r.value(skel_prim, name, None)? {
+        None => Ok(None),
+        Some(Value::Matrix4dVec(m)) => Ok(Some(m.iter().map(values::usd_matrix).collect())),
+        Some(v) => Err(Error::attr(
+            skeleton,
+            name,
+            format!("expected matrix4d[], found {}", values::kind_name(&v)),
+        )),
+    }
+}
+
+/// The inverses of `bindTransforms`, one per joint.
+fn inverse_bind_transforms(
+    r: &StageReader,
+    skel_prim: &usd::Prim,
+    skeleton: &str,
+    joints: &[String],
+    notes: &mut Vec<String>,
+) -> Result<Vec<DMat4>> {
+    let nj = joints.len();
+    let bind = matrices(r, skel_prim, skeleton, "bindTransforms")?.unwrap_or_default();
     if bind.len() != nj {
         return Err(Error::attr(
             skeleton,
@@ -234,115 +283,133 @@ pub(super) fn read_joint_pose(
             quoted(&singular)
         ));
     }
-    let rest_all = mats("restTransforms")?;
-    let rest_len = rest_all.as_ref().map_or(0, |m| m.len());
-    let rest = rest_all.filter(|m| m.len() == nj);
-    let rest_problem = || {
-        if rest_len == 0 {
-            "has no restTransforms".to_string()
+    Ok(inverse_bind)
+}
+
+/// What the animation checks need of the skeleton.
+struct SkelRest<'a> {
+    skeleton: &'a str,
+    joints: &'a [String],
+    /// `restTransforms` holds one matrix per joint.
+    has_rest: bool,
+    /// How many `restTransforms` are authored.
+    rest_len: usize,
+}
+
+/// Why the rest pose cannot stand in for the animation.
+fn rest_problem(rest_len: usize, nj: usize) -> String {
+    if rest_len == 0 {
+        "has no restTransforms".to_string()
+    } else {
+        format!("has {rest_len} restTransforms for {nj} joints")
+    }
+}
+
+/// The animation, where it drives any joint: at every authored time its
+/// arrays must fit its joints, or usd-core falls back on the rest pose.
+fn check_animation(
+    r: &StageReader,
+    skel: &SkelRest,
+    prim: &usd::Prim,
+    anim_joints: &[String],
+    map: OrderMap,
+    notes: &mut Vec<String>,
+) -> Result<(AnimJoints, OrderMap)> {
+    let SkelRest {
+        skeleton,
+        joints,
+        has_rest,
+        rest_len,
+    } = *skel;
+    let nj = joints.len();
+    let path = prim.path().as_str().to_string();
+    let aj = AnimJoints {
+        path: path.clone(),
+        joints: anim_joints.len(),
+        translations: AttributeQuery::new(&prim.attribute("translations")),
+        rotations: AttributeQuery::new(&prim.attribute("rotations")),
+        scales: AttributeQuery::new(&prim.attribute("scales")),
+        scale_times: r.sample_times(prim, "scales")?,
+    };
+    if map.sparse && !has_rest {
+        let driven = map.sources(anim_joints.len()).iter().filter(|s| s.is_some()).count();
+        return Err(Error::attr(
+            skeleton,
+            "restTransforms",
+            format!(
+                "{path} drives {driven} of the {nj} joints, so the others need the rest pose, but {skeleton} {}",
+                rest_problem(rest_len, nj)
+            ),
+        ));
+    }
+    let unknown: Vec<&str> = anim_joints
+        .iter()
+        .filter(|n| !joints.contains(n))
+        .map(|s| s.as_str())
+        .collect();
+    if !unknown.is_empty() {
+        notes.push(format!(
+            "{path} animates {}, not joints of {skeleton}: ignored",
+            quoted(&unknown)
+        ));
+    }
+    let mut times: Vec<f64> = Vec::new();
+    for name in TRS {
+        times.extend(r.sample_times(prim, name)?);
+    }
+    times.sort_by(f64::total_cmp);
+    times.dedup();
+    if times.is_empty() {
+        times.push(0.0);
+    }
+    let mut bad: Vec<(f64, &str, String)> = Vec::new();
+    for &t in &times {
+        if let Err((attr, why)) = aj.local(t)? {
+            bad.push((t, attr, why));
+        }
+    }
+    if let Some((t, attr, why)) = bad.first() {
+        let when = if times.len() == 1 {
+            String::new()
+        } else if bad.len() == times.len() {
+            " at every time".to_string()
+        } else if bad.len() == 1 {
+            format!(" at time {t}")
         } else {
-            format!("has {rest_len} restTransforms for {nj} joints")
+            let more: Vec<String> = bad[1..].iter().map(|(t, _, _)| t.to_string()).collect();
+            format!(" at time {t} (and at {})", more.join(", "))
+        };
+        if !has_rest {
+            return Err(Error::attr(
+                &path,
+                attr,
+                format!(
+                    "{why}{when}: usd-core then poses {skeleton} at rest, but it {}",
+                    rest_problem(rest_len, nj)
+                ),
+            ));
         }
-    };
+        notes.push(format!(
+            "{path}: {why}{when}: usd-core ignores the animation there and poses {skeleton} at rest"
+        ));
+    }
+    if !has_rest && rest_len > 0 {
+        notes.push(format!(
+            "{skeleton} {}: unused, the animation drives every joint",
+            rest_problem(rest_len, nj)
+        ));
+    }
+    Ok((aj, map))
+}
 
-    // The animation, where it drives any joint: at every authored time its
-    // arrays must fit its joints, or usd-core falls back on the rest pose.
-    let anim = match anim {
-        None => {
-            if rest.is_none() {
-                return Err(Error::attr(
-                    skeleton,
-                    "restTransforms",
-                    format!(
-                        "{rest_len} matrices for {nj} joints, and no animation drives the joints: usd-core cannot pose {skeleton}"
-                    ),
-                ));
-            }
-            None
-        }
-        Some((prim, anim_joints, map)) => {
-            let path = prim.path().as_str().to_string();
-            let aj = AnimJoints {
-                path: path.clone(),
-                joints: anim_joints.len(),
-                translations: AttributeQuery::new(&prim.attribute("translations")),
-                rotations: AttributeQuery::new(&prim.attribute("rotations")),
-                scales: AttributeQuery::new(&prim.attribute("scales")),
-                scale_times: r.sample_times(prim, "scales")?,
-            };
-            if map.sparse && rest.is_none() {
-                let driven = map.sources(anim_joints.len()).iter().filter(|s| s.is_some()).count();
-                return Err(Error::attr(
-                    skeleton,
-                    "restTransforms",
-                    format!(
-                        "{path} drives {driven} of the {nj} joints, so the others need the rest pose, but {skeleton} {}",
-                        rest_problem()
-                    ),
-                ));
-            }
-            let unknown: Vec<&str> = anim_joints
-                .iter()
-                .filter(|n| !joints.contains(n))
-                .map(|s| s.as_str())
-                .collect();
-            if !unknown.is_empty() {
-                notes.push(format!(
-                    "{path} animates {}, not joints of {skeleton}: ignored",
-                    quoted(&unknown)
-                ));
-            }
-            let mut times: Vec<f64> = Vec::new();
-            for name in TRS {
-                times.extend(r.sample_times(prim, name)?);
-            }
-            times.sort_by(f64::total_cmp);
-            times.dedup();
-            if times.is_empty() {
-                times.push(0.0);
-            }
-            let mut bad: Vec<(f64, &str, String)> = Vec::new();
-            for &t in &times {
-                if let Err((attr, why)) = aj.local(t)? {
-                    bad.push((t, attr, why));
-                }
-            }
-            if let Some((t, attr, why)) = bad.first() {
-                let when = if times.len() == 1 {
-                    String::new()
-                } else if bad.len() == times.len() {
-                    " at every time".to_string()
-                } else if bad.len() == 1 {
-                    format!(" at time {t}")
-                } else {
-                    let more: Vec<String> = bad[1..].iter().map(|(t, _, _)| t.to_string()).collect();
-                    format!(" at time {t} (and at {})", more.join(", "))
-                };
-                if rest.is_none() {
-                    return Err(Error::attr(
-                        &path,
-                        attr,
-                        format!(
-                            "{why}{when}: usd-core then poses {skeleton} at rest, but it {}",
-                            rest_problem()
-                        ),
-                    ));
-                }
-                notes.push(format!(
-                    "{path}: {why}{when}: usd-core ignores the animation there and poses {skeleton} at rest"
-                ));
-            }
-            if rest.is_none() && rest_len > 0 {
-                notes.push(format!(
-                    "{skeleton} {}: unused, the animation drives every joint",
-                    rest_problem()
-                ));
-            }
-            Some((aj, map))
-        }
-    };
-
-    // The mesh's own joint order.
+/// The mesh's own joint order (`skel:joints`), when it has one.
+fn mesh_joint_order(
+    r: &StageReader,
+    mesh: &usd::Prim,
+    skeleton: &str,
+    joints: &[String],
+    notes: &mut Vec<String>,
+) -> Result<Option<OrderMap>> {
     let mesh_joints = match inherited_attr(r, mesh, "skel:joints")? {
         Some(p) => {
             let mj = r.typed(&p, "skel:joints", None, "token[]", values::token_array)?;
@@ -357,36 +424,26 @@ pub(super) fn read_joint_pose(
         }
         None => None,
     };
-    let mesh_map = match &mesh_joints {
-        None => None,
-        Some(mj) => {
-            let unknown: Vec<&str> = mj.iter().filter(|n| !joints.contains(n)).map(|s| s.as_str()).collect();
-            if !unknown.is_empty() {
-                notes.push(format!(
-                    "{}.skel:joints names {}, not joints of {skeleton}: usd-core gives them the identity transform",
-                    mesh.path(),
-                    quoted(&unknown)
-                ));
-            }
-            let dups = duplicates(mj);
-            if !dups.is_empty() {
-                notes.push(format!(
-                    "{}.skel:joints lists {} more than once: only the last of them follows the joint, as in usd-core",
-                    mesh.path(),
-                    quoted(&dups)
-                ));
-            }
-            Some(OrderMap::new(joints, mj))
-        }
+    let Some(mj) = mesh_joints else {
+        return Ok(None);
     };
-    Ok(JointPose {
-        skeleton: skeleton.to_string(),
-        parents,
-        rest,
-        inverse_bind,
-        anim,
-        mesh_map,
-    })
+    let unknown: Vec<&str> = mj.iter().filter(|n| !joints.contains(n)).map(|s| s.as_str()).collect();
+    if !unknown.is_empty() {
+        notes.push(format!(
+            "{}.skel:joints names {}, not joints of {skeleton}: usd-core gives them the identity transform",
+            mesh.path(),
+            quoted(&unknown)
+        ));
+    }
+    let dups = duplicates(&mj);
+    if !dups.is_empty() {
+        notes.push(format!(
+            "{}.skel:joints lists {} more than once: only the last of them follows the joint, as in usd-core",
+            mesh.path(),
+            quoted(&dups)
+        ));
+    }
+    Ok(Some(OrderMap::new(joints, &mj)))
 }
 
 #[cfg(test)]
