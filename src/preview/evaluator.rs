@@ -146,6 +146,127 @@ fn mat(m: &DMat4) -> impl Iterator<Item = f32> {
     m.to_cols_array().into_iter().map(|x| x as f32)
 }
 
+/// The bake layer to show: checked against the input, and opened through
+/// a root layer that puts it over the input, as `painterly view` does.
+fn open_bake(
+    input: &Path,
+    b: &Path,
+    start: f64,
+    end: f64,
+    warnings: &mut Vec<String>,
+) -> Result<(TempDir, StageReader)> {
+    if !b.is_file() {
+        return Err(Error::msg("cannot open bake layer: no such file").in_file(b));
+    }
+    check_bake(input, b, &[start, end], warnings)?;
+    let tmp = TempDir::new()?;
+    let root = write_root(tmp.path(), input, Some(b))?;
+    let reader = StageReader::open(&root).map_err(|e| e.in_file(b))?;
+    Ok((tmp, reader))
+}
+
+/// The stage's problems as `inspect` finds them, then the bake's warnings.
+fn stage_problems(report: &Result<crate::inspect::Report>, warnings: Vec<String>) -> Vec<ProblemInfo> {
+    let mut problems = match report {
+        Ok(rep) => rep
+            .problems
+            .iter()
+            .map(|p| ProblemInfo {
+                prim: p.prim.clone(),
+                attribute: p.attribute.clone(),
+                message: p.message.clone(),
+            })
+            .collect(),
+        Err(e) => vec![ProblemInfo {
+            prim: None,
+            attribute: None,
+            message: e.to_string(),
+        }],
+    };
+    problems.extend(warnings.into_iter().map(|message| ProblemInfo {
+        prim: None,
+        attribute: None,
+        message,
+    }));
+    problems
+}
+
+/// One configuration axis of a rig: its keys' coordinates on it (from
+/// every layer it drives), and a slider range that holds them and the
+/// values the axis takes over the shot.
+fn axis_info(
+    r: &StageReader,
+    rig: &crate::character::RigModel,
+    ai: usize,
+    kind: String,
+    configurations: &[crate::character::Configuration],
+) -> Result<AxisInfo> {
+    let path = &rig.axes[ai];
+    let mut keys = Vec::new();
+    for layer in &rig.layers {
+        let Some(j) = layer.keys.axes.iter().position(|&a| a == ai) else {
+            continue;
+        };
+        let mut paths: Vec<&String> = Vec::new();
+        if let Some(c) = &layer.keys.pose_points {
+            paths.extend(&c.paths);
+        }
+        if let Some(c) = &layer.keys.pose_opacity {
+            paths.extend(c.paths.iter().filter(|p| !paths.contains(p)).collect::<Vec<_>>());
+        }
+        for key in paths {
+            let prim = r.require_prim(key)?;
+            let coords = r
+                .typed(&prim, "coordinates", None, "float[]", values::f32_array)?
+                .unwrap_or_default();
+            if let Some(&c) = coords.get(j) {
+                keys.push(KeyMark {
+                    key: key.clone(),
+                    coordinate: c as f64,
+                });
+            }
+        }
+    }
+    let values = keys
+        .iter()
+        .map(|k| k.coordinate)
+        .chain(configurations.iter().filter_map(|c| c.get(path).copied()));
+    let (lo, hi) = values.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
+    let (lo, hi) = if lo.is_finite() { (lo, hi) } else { (0.0, 1.0) };
+    let pad = if hi - lo > 1e-9 { 0.1 * (hi - lo) } else { 1.0 };
+    Ok(AxisInfo {
+        path: path.clone(),
+        rig: rig.path.clone(),
+        kind,
+        min: lo - pad,
+        max: hi + pad,
+        keys,
+    })
+}
+
+/// The strokes' widths and colours, read once (world-space widths, linear
+/// colours), as one binary buffer.
+fn stroke_buffer(r: &StageReader, drawables: &RenderScene, start: f64, layer_infos: &[LayerInfo]) -> Result<Vec<u8>> {
+    let curves = drawables.curves_at(r, start)?;
+    let mut strokes = Buffer::default();
+    for (i, info) in layer_infos.iter().enumerate() {
+        let n = info.points;
+        let c = curves
+            .iter()
+            .find(|c| c.path == info.path && c.points.len() == n && c.counts.len() == info.curve_counts.len());
+        let (widths, colors) = match c {
+            Some(c) => (
+                per_point(&c.widths, &info.curve_counts, DEFAULT_WIDTH),
+                per_point(&c.colors, &info.curve_counts, DEFAULT_COLOR),
+            ),
+            None => (vec![DEFAULT_WIDTH; n], vec![DEFAULT_COLOR; n]),
+        };
+        strokes.push(format!("layer/{i}/widths"), widths);
+        strokes.push(format!("layer/{i}/colors"), colors.iter().flat_map(|c| c.to_array()));
+    }
+    Ok(strokes.finish(serde_json::json!({ "layers": layer_infos.len() })))
+}
+
 impl State {
     fn open(input: &Path, camera: Option<&str>, bake: Option<&Path>) -> Result<(State, SceneInfo, Vec<u8>)> {
         let ch = Character::open(input, camera)?;
@@ -156,43 +277,14 @@ impl State {
         let mut warnings = Vec::new();
         let bake_path = bake.map(|b| b.display().to_string());
         let bake = match bake {
-            Some(b) => {
-                if !b.is_file() {
-                    return Err(Error::msg("cannot open bake layer: no such file").in_file(b));
-                }
-                check_bake(input, b, &[start, end], &mut warnings)?;
-                let tmp = TempDir::new()?;
-                let root = write_root(tmp.path(), input, Some(b))?;
-                let reader = StageReader::open(&root).map_err(|e| e.in_file(b))?;
-                Some((tmp, reader))
-            }
+            Some(b) => Some(open_bake(input, b, start, end, &mut warnings)?),
             None => None,
         };
         // The stage checks of `inspect`, on the stage already open; not its
         // every-frame evaluation, which would make each reload as slow as a
         // bake: a frame that fails to evaluate is reported when shown.
         let report = crate::inspect::inspect_stage(r);
-        let mut problems = match &report {
-            Ok(rep) => rep
-                .problems
-                .iter()
-                .map(|p| ProblemInfo {
-                    prim: p.prim.clone(),
-                    attribute: p.attribute.clone(),
-                    message: p.message.clone(),
-                })
-                .collect(),
-            Err(e) => vec![ProblemInfo {
-                prim: None,
-                attribute: None,
-                message: e.to_string(),
-            }],
-        };
-        problems.extend(warnings.into_iter().map(|message| ProblemInfo {
-            prim: None,
-            attribute: None,
-            message,
-        }));
+        let problems = stage_problems(&report, warnings);
         let time_keys: Vec<(String, usize)> = report
             .as_ref()
             .map(|rep| {
@@ -225,50 +317,12 @@ impl State {
         let configurations = sample_configurations(&ch, start, end)?;
         for rig in &ch.model.rigs {
             for (ai, path) in rig.axes.iter().enumerate() {
-                let mut keys = Vec::new();
-                for layer in &rig.layers {
-                    let Some(j) = layer.keys.axes.iter().position(|&a| a == ai) else {
-                        continue;
-                    };
-                    let mut paths: Vec<&String> = Vec::new();
-                    if let Some(c) = &layer.keys.pose_points {
-                        paths.extend(&c.paths);
-                    }
-                    if let Some(c) = &layer.keys.pose_opacity {
-                        paths.extend(c.paths.iter().filter(|p| !paths.contains(p)).collect::<Vec<_>>());
-                    }
-                    for key in paths {
-                        let prim = r.require_prim(key)?;
-                        let coords = r
-                            .typed(&prim, "coordinates", None, "float[]", values::f32_array)?
-                            .unwrap_or_default();
-                        if let Some(&c) = coords.get(j) {
-                            keys.push(KeyMark {
-                                key: key.clone(),
-                                coordinate: c as f64,
-                            });
-                        }
-                    }
-                }
-                let values = keys
+                let kind = axis_kinds
                     .iter()
-                    .map(|k| k.coordinate)
-                    .chain(configurations.iter().filter_map(|c| c.get(path).copied()));
-                let (lo, hi) = values.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
-                let (lo, hi) = if lo.is_finite() { (lo, hi) } else { (0.0, 1.0) };
-                let pad = if hi - lo > 1e-9 { 0.1 * (hi - lo) } else { 1.0 };
-                axes.push(AxisInfo {
-                    path: path.clone(),
-                    rig: rig.path.clone(),
-                    kind: axis_kinds
-                        .iter()
-                        .find(|(p, _)| p == path)
-                        .map(|(_, k)| k.clone())
-                        .unwrap_or_default(),
-                    min: lo - pad,
-                    max: hi + pad,
-                    keys,
-                });
+                    .find(|(p, _)| p == path)
+                    .map(|(_, k)| k.clone())
+                    .unwrap_or_default();
+                axes.push(axis_info(r, rig, ai, kind, &configurations)?);
             }
             for layer in &rig.layers {
                 let k = &layer.keys;
@@ -289,24 +343,7 @@ impl State {
         }
 
         // Widths and colours, read once (world-space widths, linear colours).
-        let curves = drawables.curves_at(r, start)?;
-        let mut strokes = Buffer::default();
-        for (i, info) in layer_infos.iter().enumerate() {
-            let n = info.points;
-            let c = curves
-                .iter()
-                .find(|c| c.path == info.path && c.points.len() == n && c.counts.len() == info.curve_counts.len());
-            let (widths, colors) = match c {
-                Some(c) => (
-                    per_point(&c.widths, &info.curve_counts, DEFAULT_WIDTH),
-                    per_point(&c.colors, &info.curve_counts, DEFAULT_COLOR),
-                ),
-                None => (vec![DEFAULT_WIDTH; n], vec![DEFAULT_COLOR; n]),
-            };
-            strokes.push(format!("layer/{i}/widths"), widths);
-            strokes.push(format!("layer/{i}/colors"), colors.iter().flat_map(|c| c.to_array()));
-        }
-        let strokes = strokes.finish(serde_json::json!({ "layers": layer_infos.len() }));
+        let strokes = stroke_buffer(r, &drawables, start, &layer_infos)?;
 
         // Meshes: view-dependent ones as drawn, proxies as topology.
         let meshes = drawables.meshes_at(r, start)?;
