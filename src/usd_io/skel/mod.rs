@@ -256,25 +256,81 @@ fn read_influences(
     }))
 }
 
+/// The Skeleton prim `skel:skeleton` targets.
+fn skeleton_prim(r: &StageReader, mesh_path: &str, skeleton: &str) -> Result<usd::Prim> {
+    let skel_prim = r.prim(skeleton)?.ok_or_else(|| {
+        Error::attr(
+            mesh_path,
+            "skel:skeleton",
+            format!("targets {skeleton}, which does not exist"),
+        )
+    })?;
+    let ty = r.type_name(&skel_prim)?;
+    if ty != "Skeleton" {
+        return Err(Error::attr(
+            mesh_path,
+            "skel:skeleton",
+            format!("targets {skeleton}, a {ty:?} prim, expected a Skeleton"),
+        ));
+    }
+    Ok(skel_prim)
+}
+
+/// The SkelAnimation that drives the skeleton: `skel:animationSource` on the
+/// Skeleton first, then inherited from the mesh.
+fn animation_source(
+    r: &StageReader,
+    skel_prim: &usd::Prim,
+    mesh: &usd::Prim,
+    skeleton: &str,
+) -> Result<(Option<String>, Option<usd::Prim>)> {
+    let anim_path = match inherited_targets(r, skel_prim, "skel:animationSource")? {
+        Some((_, t)) if !t.is_empty() => Some(t[0].clone()),
+        _ => inherited_targets(r, mesh, "skel:animationSource")?.and_then(|(_, t)| t.into_iter().next()),
+    };
+    let anim_prim = match &anim_path {
+        None => None,
+        Some(p) => {
+            let prim = r
+                .prim(p)?
+                .filter(|a| r.type_name(a).is_ok_and(|t| t == "SkelAnimation"));
+            Some(prim.ok_or_else(|| {
+                Error::attr(
+                    skeleton,
+                    "skel:animationSource",
+                    format!("targets {p}, which is not a SkelAnimation"),
+                )
+            })?)
+        }
+    };
+    Ok((anim_path, anim_prim))
+}
+
+/// The mesh's skinning method. UsdSkel names it
+/// primvars:skel:skinningMethod; the bare skel:skinningMethod some exporters
+/// write is accepted too.
+fn skinning_method(r: &StageReader, mesh: &usd::Prim) -> Result<SkinningMethod> {
+    for name in ["primvars:skel:skinningMethod", "skel:skinningMethod"] {
+        if let Some(p) = inherited_attr(r, mesh, name)? {
+            return match r.typed(&p, name, None, "token", values::token)?.as_deref() {
+                None | Some("classicLinear") => Ok(SkinningMethod::ClassicLinear),
+                Some("dualQuaternion") => Ok(SkinningMethod::DualQuaternion),
+                Some(other) => Err(Error::attr(
+                    p.path(),
+                    name,
+                    format!("unknown skinning method {other:?} (expected classicLinear or dualQuaternion)"),
+                )),
+            };
+        }
+    }
+    Ok(SkinningMethod::ClassicLinear)
+}
+
 impl SkelProxy {
     /// Reads the binding of `mesh` (whose rest points are given) to `skeleton`.
     pub fn read(r: &StageReader, mesh: &usd::Prim, skeleton: &str, rest_points: &[DVec3]) -> Result<Self> {
         let mesh_path = mesh.path().as_str().to_string();
-        let skel_prim = r.prim(skeleton)?.ok_or_else(|| {
-            Error::attr(
-                &mesh_path,
-                "skel:skeleton",
-                format!("targets {skeleton}, which does not exist"),
-            )
-        })?;
-        let ty = r.type_name(&skel_prim)?;
-        if ty != "Skeleton" {
-            return Err(Error::attr(
-                &mesh_path,
-                "skel:skeleton",
-                format!("targets {skeleton}, a {ty:?} prim, expected a Skeleton"),
-            ));
-        }
+        let skel_prim = skeleton_prim(r, &mesh_path, skeleton)?;
         let mut notes = Vec::new();
 
         // Skeleton topology.
@@ -292,27 +348,7 @@ impl SkelProxy {
             ));
         }
 
-        // Animation: on the Skeleton first, then inherited from the mesh.
-        let anim_path = match inherited_targets(r, &skel_prim, "skel:animationSource")? {
-            Some((_, t)) if !t.is_empty() => Some(t[0].clone()),
-            _ => inherited_targets(r, mesh, "skel:animationSource")?.and_then(|(_, t)| t.into_iter().next()),
-        };
-        let anim_prim = match &anim_path {
-            None => None,
-            Some(p) => {
-                let prim = r
-                    .prim(p)?
-                    .filter(|a| r.type_name(a).is_ok_and(|t| t == "SkelAnimation"));
-                Some(prim.ok_or_else(|| {
-                    Error::attr(
-                        skeleton,
-                        "skel:animationSource",
-                        format!("targets {p}, which is not a SkelAnimation"),
-                    )
-                })?)
-            }
-        };
-
+        let (anim_path, anim_prim) = animation_source(r, &skel_prim, mesh, skeleton)?;
         let npts = rest_points.len();
         let geom_bind = match inherited_attr(r, mesh, "primvars:skel:geomBindTransform")? {
             Some(p) => r
@@ -320,25 +356,7 @@ impl SkelProxy {
                 .unwrap_or(DMat4::IDENTITY),
             None => DMat4::IDENTITY,
         };
-        // UsdSkel names it primvars:skel:skinningMethod; accept the bare
-        // skel:skinningMethod some exporters write too.
-        let mut method = SkinningMethod::ClassicLinear;
-        for name in ["primvars:skel:skinningMethod", "skel:skinningMethod"] {
-            if let Some(p) = inherited_attr(r, mesh, name)? {
-                method = match r.typed(&p, name, None, "token", values::token)?.as_deref() {
-                    None | Some("classicLinear") => SkinningMethod::ClassicLinear,
-                    Some("dualQuaternion") => SkinningMethod::DualQuaternion,
-                    Some(other) => {
-                        return Err(Error::attr(
-                            p.path(),
-                            name,
-                            format!("unknown skinning method {other:?} (expected classicLinear or dualQuaternion)"),
-                        ))
-                    }
-                };
-                break;
-            }
-        }
+        let method = skinning_method(r, mesh)?;
 
         // Joint skinning: influences, and a pose at every time.
         let influences = read_influences(r, mesh, npts)?;
