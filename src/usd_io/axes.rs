@@ -72,6 +72,74 @@ pub struct AxisFrame<'a> {
 
 const KINDS: &str = "attribute, blendShape, jointRotation, position or viewDirection";
 
+/// Checks an attribute axis's `element` and `component` against a value of
+/// its attribute now (the default, or the first time sample), so `inspect`
+/// reports a bad axis too.
+fn check_attribute_pick(
+    r: &StageReader,
+    path: &str,
+    target: &str,
+    prim: &openusd::usd::Prim,
+    attr: &str,
+    element: i64,
+    component: i64,
+) -> Result<()> {
+    let probe = match r.value(prim, attr, None)? {
+        Some(v) => Some(v),
+        None => match r.sample_times(prim, attr)?.first() {
+            Some(&t0) => r.value(prim, attr, Some(t0))?,
+            None => None,
+        },
+    };
+    let Some(probe) = probe else {
+        return Err(Error::attr(
+            path,
+            "source",
+            format!("targets {target}, which has no value"),
+        ));
+    };
+    pick(&probe, element, component).map_err(|(which, m)| Error::attr(path, which, format!("{target}: {m}")))?;
+    Ok(())
+}
+
+/// A jointRotation axis's source: the joint's rest rotation and, where the
+/// Skeleton has an animation that names the joint, where to read it there.
+fn joint_rotation_source(
+    r: &StageReader,
+    path: &str,
+    target: &str,
+    skel: &openusd::usd::Prim,
+    joint: &str,
+) -> Result<AxisSource> {
+    if r.type_name(skel)? != "Skeleton" {
+        return Err(Error::attr(
+            path,
+            "source",
+            format!("targets {target}, which is not a Skeleton"),
+        ));
+    }
+    let joints = r
+        .typed(skel, "joints", None, "token[]", values::token_array)?
+        .unwrap_or_default();
+    let j = joints
+        .iter()
+        .position(|n| n == joint)
+        .ok_or_else(|| Error::attr(path, "name", format!("joint {joint:?} is not in {target}.joints")))?;
+    let rest = match r.value(skel, "restTransforms", None)? {
+        Some(Value::Matrix4dVec(m)) if m.len() == joints.len() => rotation_of(&values::usd_matrix(&m[j])),
+        _ => DQuat::IDENTITY,
+    };
+    let anim_path = r.targets(skel, "skel:animationSource")?.into_iter().next();
+    let anim = match anim_path {
+        Some(a) => anim_query(r, path, &a)?.map(|q| (q, a)),
+        None => None,
+    };
+    let index = anim
+        .as_ref()
+        .and_then(|(a, _)| a.joint_order().iter().position(|n| n == joint));
+    Ok(AxisSource::JointRotation { rest, anim, index })
+}
+
 impl Axis {
     /// Reads and validates an axis prim.
     pub fn read(r: &StageReader, path: &str) -> Result<Axis> {
@@ -129,19 +197,7 @@ impl Axis {
                     )
                 })?;
                 let p = require(prim_path, "attribute's prim")?;
-                // Check element/component against a value now (the default, or
-                // the first time sample), so inspect reports a bad axis too.
-                let probe = match r.value(&p, attr, None)? {
-                    Some(v) => Some(v),
-                    None => match r.sample_times(&p, attr)?.first() {
-                        Some(&t0) => r.value(&p, attr, Some(t0))?,
-                        None => None,
-                    },
-                };
-                let Some(probe) = probe else {
-                    return Err(Error::attr(path, "source", format!("targets {t}, which has no value")));
-                };
-                pick(&probe, element, component).map_err(|(which, m)| Error::attr(path, which, format!("{t}: {m}")))?;
+                check_attribute_pick(r, path, &t, &p, attr, element, component)?;
                 AxisSource::Attribute {
                     prim: prim_path.to_string(),
                     attr: attr.to_string(),
@@ -162,33 +218,7 @@ impl Axis {
                 let t = need_target("a Skeleton")?;
                 let joint = need_name("the joint's path in the Skeleton's joints")?;
                 let skel = require(&t, "Skeleton")?;
-                if r.type_name(&skel)? != "Skeleton" {
-                    return Err(Error::attr(
-                        path,
-                        "source",
-                        format!("targets {t}, which is not a Skeleton"),
-                    ));
-                }
-                let joints = r
-                    .typed(&skel, "joints", None, "token[]", values::token_array)?
-                    .unwrap_or_default();
-                let j = joints
-                    .iter()
-                    .position(|n| *n == joint)
-                    .ok_or_else(|| Error::attr(path, "name", format!("joint {joint:?} is not in {t}.joints")))?;
-                let rest = match r.value(&skel, "restTransforms", None)? {
-                    Some(Value::Matrix4dVec(m)) if m.len() == joints.len() => rotation_of(&values::usd_matrix(&m[j])),
-                    _ => DQuat::IDENTITY,
-                };
-                let anim_path = r.targets(&skel, "skel:animationSource")?.into_iter().next();
-                let anim = match anim_path {
-                    Some(a) => anim_query(r, path, &a)?.map(|q| (q, a)),
-                    None => None,
-                };
-                let index = anim
-                    .as_ref()
-                    .and_then(|(a, _)| a.joint_order().iter().position(|n| *n == joint));
-                AxisSource::JointRotation { rest, anim, index }
+                joint_rotation_source(r, path, &t, &skel, &joint)?
             }
             "position" => {
                 check_component(2)?;
