@@ -78,6 +78,16 @@ def scale_pose(j, name, u, rest_translation):
     return tr, q, Gf.Vec3h(1 + 0.4 * u, 1, 1 - 0.2 * u) if j % 2 else Gf.Vec3h(1, 1, 1)
 
 
+def mirror_pose(j, name, u, rest_translation):
+    """The second joint mirrored in y (its bone axis: a negative determinant)
+    and the joints below the root twisted 30°..140° about y. UsdSkel's DQS
+    splits the mirror off the rotation; the rotation left (a twist plus a half
+    turn about y) stays clear of the quaternion half-turn apart from the
+    root's, where DQS blending is discontinuous."""
+    scale = Gf.Vec3h(1, -1, 1) if j == 1 else Gf.Vec3h(1, 1, 1)
+    return Gf.Vec3f(*rest_translation), quat((0, 1, 0), 30 + 110 * u if j else 0), scale
+
+
 def joint_parent(names, i):
     name = names[i]
     if "/" not in name:

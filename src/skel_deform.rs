@@ -392,7 +392,7 @@ impl DqJoints {
             let r = orthonormalized(*m);
             let zero = DQuat::from_xyzw(0.0, 0.0, 0.0, 0.0);
             rigid.push(DualQuat {
-                real: DQuat::from_mat3(&r).normalize(),
+                real: rotation_quaternion(&r),
                 dual: zero,
             });
             let s = if r.determinant().abs() > 0.0 {
@@ -479,6 +479,41 @@ fn orthonormalized(m: DMat3) -> DMat3 {
         t = c;
     }
     DMat3::from_cols(t[0], t[1], t[2])
+}
+
+/// Gf's `ExtractRotationQuaternion` of a matrix in column form (its columns
+/// are Gf's rows): Open Inventor's rule, from the largest diagonal entry.
+/// UsdSkel's DQS normals apply it to the orthonormalised normal matrix, which
+/// is improper for a mirroring joint; glam's `from_mat3` expects a rotation
+/// and answers differently there. Not normalised, as in Gf.
+fn rotation_quaternion(m: &DMat3) -> DQuat {
+    let g = |i: usize, j: usize| m.col(i)[j];
+    let i = if g(0, 0) > g(1, 1) {
+        if g(0, 0) > g(2, 2) {
+            0
+        } else {
+            2
+        }
+    } else if g(1, 1) > g(2, 2) {
+        1
+    } else {
+        2
+    };
+    let trace = g(0, 0) + g(1, 1) + g(2, 2);
+    let (real, im) = if trace > g(i, i) {
+        let r = 0.5 * (trace + 1.0).sqrt();
+        let im = DVec3::new(g(1, 2) - g(2, 1), g(2, 0) - g(0, 2), g(0, 1) - g(1, 0)) / (4.0 * r);
+        (r, im)
+    } else {
+        let (j, k) = ((i + 1) % 3, (i + 2) % 3);
+        let q = 0.5 * (g(i, i) - g(j, j) - g(k, k) + 1.0).sqrt();
+        let mut im = DVec3::ZERO;
+        im[i] = q;
+        im[j] = (g(i, j) + g(j, i)) / (4.0 * q);
+        im[k] = (g(k, i) + g(i, k)) / (4.0 * q);
+        ((g(j, k) - g(k, j)) / (4.0 * q), im)
+    };
+    DQuat::from_xyzw(im.x, im.y, im.z, real.clamp(-1.0, 1.0))
 }
 
 /// Polar decomposition M = R · S (R proper rotation, S symmetric) by SVD.
@@ -813,6 +848,57 @@ mod tests {
         let n = DVec3::new(1.0, 1.0, 0.0).normalize();
         let out = d.deform_normals(&[n], None, Some(&[flat, DMat4::IDENTITY]), &[]);
         assert!((out[0] - n).length() < 1e-12, "{}", out[0]);
+    }
+
+    #[test]
+    fn dqs_normals_of_a_mirrored_joint_blended_with_another_match_usd_core() {
+        // usd-core 26.11: UsdSkel.SkinNormals(dualQuaternion, identity, the
+        // inverse transposes of [S(-1, 1, 1)·T(0.5, 0.2, 0), rotate z 0.6 rad]
+        // (row vectors), indices [0, 1], weights [0.6, 0.4], 2 per point), in
+        // float. Gf takes the mirror's quaternion from an improper matrix.
+        let mirrored =
+            DMat4::from_translation(DVec3::new(0.5, 0.2, 0.0)) * DMat4::from_scale(DVec3::new(-1.0, 1.0, 1.0));
+        let turned = DMat4::from_rotation_z(0.6);
+        let d = SkelDeformer {
+            rest_points: vec![DVec3::ZERO],
+            influences: Some(Influences {
+                per_point: 2,
+                joints: vec![0, 1],
+                weights: vec![0.6, 0.4],
+                rigid: false,
+            }),
+            ..deformer(SkinningMethod::DualQuaternion)
+        };
+        for (n, want) in [
+            (
+                (0.3, 1.0, 0.4),
+                (-0.9325495362281799, -0.048490848392248154, 0.3577708899974823),
+            ),
+            ((1.0, 0.0, 0.0), (-0.3366982042789459, 0.9416126012802124, 0.0)),
+            (
+                (0.2, -0.5, 0.8),
+                (0.4183754324913025, 0.3698512613773346, 0.8295613527297974),
+            ),
+        ] {
+            let n = DVec3::new(n.0, n.1, n.2);
+            let got = d.deform_normals(&[n], None, Some(&[mirrored, turned]), &[])[0];
+            let want = DVec3::new(want.0, want.1, want.2);
+            assert!((got - want).abs().max_element() < 1e-6, "{n}: {got}, usd-core {want}");
+        }
+    }
+
+    #[test]
+    fn gf_rotation_quaternion_agrees_with_glam_on_rotations() {
+        // Every branch of the largest-diagonal rule: small and large angles
+        // about each axis, and half turns.
+        for axis in [DVec3::X, DVec3::Y, DVec3::Z, DVec3::new(1.0, 2.0, -0.5).normalize()] {
+            for angle in [0.0, 0.3, 2.0, 3.0, std::f64::consts::PI] {
+                let q = DQuat::from_axis_angle(axis, angle);
+                let got = rotation_quaternion(&DMat3::from_quat(q));
+                let d = if got.dot(q) < 0.0 { -got } else { got };
+                assert!((d - q).length() < 1e-12, "{axis} {angle}: {got} vs {q}");
+            }
+        }
     }
 
     #[test]
