@@ -888,6 +888,38 @@ mod tests {
     }
 
     #[test]
+    fn dqs_normals_of_a_lone_mirror_follow_gfs_largest_diagonal_rule() {
+        // usd-core 26.11: UsdSkel.SkinNormals(dualQuaternion, identity, [M], [0],
+        // [1], 1, [(0.3, 0.5, 0.8)]) for each mirror M: Gf's rule on an improper
+        // matrix gives a half turn (its ties between equal diagonal entries and
+        // between the trace and the largest entry decide which), not the mirror.
+        let d = SkelDeformer {
+            rest_points: vec![DVec3::ZERO],
+            influences: Some(Influences {
+                per_point: 1,
+                joints: vec![0],
+                weights: vec![1.0],
+                rigid: false,
+            }),
+            ..deformer(SkinningMethod::DualQuaternion)
+        };
+        let (x, y, z) = (0.30304577946662903, 0.5050762891769409, 0.8081220388412476);
+        for (mirror, want) in [
+            (DVec3::new(-1.0, 1.0, 1.0), DVec3::new(-x, -y, z)),
+            (DVec3::new(1.0, -1.0, 1.0), DVec3::new(-x, -y, z)),
+            (DVec3::new(1.0, 1.0, -1.0), DVec3::new(-x, y, -z)),
+            (DVec3::splat(-1.0), DVec3::new(-x, -y, z)),
+        ] {
+            let m = DMat4::from_scale(mirror);
+            let got = d.deform_normals(&[DVec3::new(0.3, 0.5, 0.8)], None, Some(&[m]), &[])[0];
+            assert!(
+                (got - want).abs().max_element() < 1e-6,
+                "{mirror}: {got}, usd-core {want}"
+            );
+        }
+    }
+
+    #[test]
     fn gf_rotation_quaternion_agrees_with_glam_on_rotations() {
         // Every branch of the largest-diagonal rule: small and large angles
         // about each axis, and half turns.
