@@ -5,6 +5,7 @@ unchanged since its commit, a recheck's catches close misses, written
 reasons close the rest, and it is all reported per file."""
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -189,3 +190,55 @@ def test_every_pytest_file_the_map_names_exists():
         assert files, f"rule {glob} names no pytest file"
         for f in files:
             assert (root / "python_tests" / f).is_file(), f"rule {glob}: no python_tests/{f}"
+
+
+MUTANTS_CHANGE = Path(__file__).resolve().parent.parent / "scripts" / "mutants_change"
+
+
+def change_repo(tmp_path):
+    """A git repository holding scripts/mutants_change (and the line of
+    scripts/mutants it reads), with one commit of library source."""
+    repo = tmp_path / "repo"
+    (repo / "scripts").mkdir(parents=True)
+    (repo / "src").mkdir()
+    (repo / "docs").mkdir()
+    (repo / "scripts" / "mutants_change").write_text(MUTANTS_CHANGE.read_text())
+    (repo / "scripts" / "mutants_change").chmod(0o755)
+    (repo / "scripts" / "mutants").write_text("MUTANTS_VERSION=27.1.0\n")
+    (repo / "src" / "lib.rs").write_text("pub fn one() -> i32 {\n    1\n}\n")
+    git(repo, "init", "-q")
+    git(repo, "add", "-A")
+    git(repo, "-c", "user.name=t", "-c", "user.email=t@t", "commit", "-qm", "first")
+    return repo
+
+
+def run_change(repo, **env):
+    return subprocess.run([str(repo / "scripts" / "mutants_change")], cwd=repo, capture_output=True, text=True,
+                          env={**os.environ, **env})
+
+
+def test_mutants_of_a_change_without_library_source_cost_nothing(tmp_path):
+    repo = change_repo(tmp_path)
+    # The first commit has no parent: nothing to compare, not an error.
+    r = run_change(repo)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.startswith("mutants of the last commit: it has no parent here"), r.stdout
+    (repo / "docs" / "notes.md").write_text("words\n")
+    git(repo, "add", "-A")
+    git(repo, "-c", "user.name=t", "-c", "user.email=t@t", "commit", "-qm", "docs")
+    # cargo-mutants is never asked: a PATH without cargo still passes.
+    r = run_change(repo, PATH="/usr/bin:/bin")
+    assert r.returncode == 0, r.stderr
+    head = git(repo, "rev-parse", "--short", "HEAD")
+    base = git(repo, "rev-parse", "--short", "HEAD~1")
+    assert r.stdout == f"mutants of {base}..{head}: the change touches no library source\n"
+
+
+def test_mutants_of_a_change_refuse_a_bad_base_or_budget(tmp_path):
+    repo = change_repo(tmp_path)
+    r = run_change(repo, PAINTERLY_MUTANTS_CHANGE_BASE="no-such-commit")
+    assert (r.returncode, r.stdout) == (2, "")
+    assert r.stderr == "error: PAINTERLY_MUTANTS_CHANGE_BASE=no-such-commit is not a commit\n"
+    r = run_change(repo, PAINTERLY_MUTANTS_CHANGE_BASE="HEAD", PAINTERLY_MUTANTS_CHANGE_MAX="0")
+    assert (r.returncode, r.stdout) == (2, "")
+    assert r.stderr == "error: PAINTERLY_MUTANTS_CHANGE_MAX must be a positive number, not '0'\n"
