@@ -844,7 +844,12 @@ mod tests {
             // 300 triangles 5–15 units in front of the camera, none nearly edge-on.
             let mut points = Vec::new();
             let mut faces: Vec<[u32; 3]> = Vec::new();
+            let mut tries = 0;
             while faces.len() < 300 {
+                // Bounded: a projection that shrinks every triangle below a
+                // pixel fails here rather than looping for ever.
+                tries += 1;
+                assert!(tries < 100_000, "only {} triangles a pixel wide", faces.len());
                 let tri: [DVec3; 3] = std::array::from_fn(|_| {
                     DVec3::new(rng.uniform(-3.0, 3.0), rng.uniform(-3.0, 3.0), rng.uniform(-5.0, 5.0))
                 });
