@@ -479,6 +479,57 @@ pub struct BrushOptions {
 /// point's skinning blend. Returns the number of points moved.
 pub fn brush(session: &EditSession, brush: Brush, opts: &BrushOptions) -> Result<usize> {
     let r = &session.reader;
+    check_brush_options(opts)?;
+    let (scene, start) = scene_at(session, opts.time)?;
+    let (ri, li) = find_layer(r, &scene, &opts.layer)?;
+    let rig = &scene.rigs[ri];
+    let layer = &rig.layers[li];
+    let (target_prim, target_attr, mut target) = brush_target(r, layer, opts.key.as_deref())?;
+
+    let pose = pose_rig(r, rig, opts.time, start)?;
+    let binding = match &layer.cached_binding {
+        Some(b) => b.clone(),
+        None => ClosestPoint::new(
+            &rig.proxy.rest,
+            &fan_triangulate(&rig.proxy.face_counts, &rig.proxy.face_indices),
+        )
+        .bind(&layer.rest_points),
+    };
+    let selected = selected_points(layer, opts.strokes.as_deref())?;
+    // Posed world positions of the target points.
+    let blends: Vec<DAffine3> = (0..target.len())
+        .map(|i| blended_motion(&pose.motions, binding.vertices[i], binding.weights[i]))
+        .collect();
+    let world: Vec<DVec3> = target
+        .iter()
+        .zip(&blends)
+        .map(|(p, m)| pose.proxy_to_world.transform_point3(m.transform_point3(p.as_dvec3())))
+        .collect();
+    let disp = match brush {
+        Brush::Smudge => tools::smudge(&world, &opts.path, opts.radius, opts.strength, opts.falloff),
+        Brush::Expand => {
+            let normals = world_normals(&pose, &binding);
+            tools::expand(&world, &normals, &opts.path, opts.radius, opts.strength, opts.falloff)
+        }
+    };
+    // Each world displacement back to rest space through its point's motion.
+    let to_proxy = DMat3::from_mat4(pose.proxy_to_world).inverse();
+    let mut moved = 0;
+    for i in 0..target.len() {
+        if !selected[i] || disp[i] == DVec3::ZERO {
+            continue;
+        }
+        let inv = invert(&blends[i], &layer.path, i)?;
+        let d_rest = inv.matrix3 * (to_proxy * disp[i]);
+        target[i] += d_rest.as_vec3();
+        moved += 1;
+    }
+    session.set(&target_prim, target_attr, "point3f[]", true, vec3f_value(&target))?;
+    Ok(moved)
+}
+
+/// The tool path, radius and strength a brush needs, before any file work.
+fn check_brush_options(opts: &BrushOptions) -> Result<()> {
     if opts.path.len() < 2 {
         return Err(Error::msg(format!(
             "the tool path has {} point(s); it needs at least two",
@@ -497,106 +548,78 @@ pub fn brush(session: &EditSession, brush: Brush, opts: &BrushOptions) -> Result
     if !opts.strength.is_finite() {
         return Err(Error::msg(format!("--strength {} is not finite", opts.strength)));
     }
-    let (scene, start) = scene_at(session, opts.time)?;
-    let (ri, li) = find_layer(r, &scene, &opts.layer)?;
-    let rig = &scene.rigs[ri];
-    let layer = &rig.layers[li];
+    Ok(())
+}
 
-    // The array being edited: a key's points, or the rest points.
-    let (target_prim, target_attr, mut target): (String, &str, Vec<Vec3>) = match &opts.key {
-        None => (layer.path.clone(), "painterly:restPoints", layer.rest_points.clone()),
-        Some(k) => {
-            let kp = if k.starts_with('/') {
-                k.clone()
-            } else {
-                format!("{}/{k}", layer.path)
-            };
-            let prim = r
-                .prim(&kp)?
-                .ok_or_else(|| Error::prim(&kp, format!("no such key under {}", layer.path)))?;
-            let pts = r
-                .typed(&prim, "points", None, "point3f[]", values::vec3_array)?
-                .ok_or_else(|| Error::attr(&kp, "points", "this key has no points to edit"))?;
-            if pts.len() != layer.rest_points.len() {
-                return Err(Error::attr(&kp, "points", "point count differs from the layer's"));
-            }
-            (kp, "points", pts)
-        }
+/// The array a brush edits: (prim, attribute, points) of the key `key`
+/// (a path, or a name under the layer) or else the layer's rest points.
+fn brush_target(r: &StageReader, layer: &StrokeLayer, key: Option<&str>) -> Result<(String, &'static str, Vec<Vec3>)> {
+    let Some(k) = key else {
+        return Ok((layer.path.clone(), "painterly:restPoints", layer.rest_points.clone()));
     };
-
-    let pose = pose_rig(r, rig, opts.time, start)?;
-    let binding = match &layer.cached_binding {
-        Some(b) => b.clone(),
-        None => ClosestPoint::new(
-            &rig.proxy.rest,
-            &fan_triangulate(&rig.proxy.face_counts, &rig.proxy.face_indices),
-        )
-        .bind(&layer.rest_points),
+    let kp = if k.starts_with('/') {
+        k.to_string()
+    } else {
+        format!("{}/{k}", layer.path)
     };
+    let prim = r
+        .prim(&kp)?
+        .ok_or_else(|| Error::prim(&kp, format!("no such key under {}", layer.path)))?;
+    let pts = r
+        .typed(&prim, "points", None, "point3f[]", values::vec3_array)?
+        .ok_or_else(|| Error::attr(&kp, "points", "this key has no points to edit"))?;
+    if pts.len() != layer.rest_points.len() {
+        return Err(Error::attr(&kp, "points", "point count differs from the layer's"));
+    }
+    Ok((kp, "points", pts))
+}
 
-    // Selected points.
-    let mut selected = vec![opts.strokes.is_none(); target.len()];
-    if let Some(strokes) = &opts.strokes {
-        let mut starts = Vec::with_capacity(layer.curve_counts.len() + 1);
-        let mut acc = 0usize;
-        for &c in &layer.curve_counts {
-            starts.push(acc);
-            acc += c as usize;
-        }
+/// Per point of the layer, whether `--strokes` selects it (all without it).
+fn selected_points(layer: &StrokeLayer, strokes: Option<&[usize]>) -> Result<Vec<bool>> {
+    let npoints = layer.rest_points.len();
+    let Some(strokes) = strokes else {
+        return Ok(vec![true; npoints]);
+    };
+    let mut selected = vec![false; npoints];
+    let mut starts = Vec::with_capacity(layer.curve_counts.len() + 1);
+    let mut acc = 0usize;
+    for &c in &layer.curve_counts {
         starts.push(acc);
-        for &s in strokes {
-            if s >= layer.curve_counts.len() {
-                return Err(Error::prim(
-                    &layer.path,
-                    format!(
-                        "--strokes {s} is out of range (the layer has {} strokes)",
-                        layer.curve_counts.len()
-                    ),
-                ));
-            }
-            selected[starts[s]..starts[s + 1]].iter_mut().for_each(|x| *x = true);
-        }
+        acc += c as usize;
     }
+    starts.push(acc);
+    for &s in strokes {
+        if s >= layer.curve_counts.len() {
+            return Err(Error::prim(
+                &layer.path,
+                format!(
+                    "--strokes {s} is out of range (the layer has {} strokes)",
+                    layer.curve_counts.len()
+                ),
+            ));
+        }
+        selected[starts[s]..starts[s + 1]].iter_mut().for_each(|x| *x = true);
+    }
+    Ok(selected)
+}
 
-    // Posed world positions of the target points.
-    let blends: Vec<DAffine3> = (0..target.len())
-        .map(|i| blended_motion(&pose.motions, binding.vertices[i], binding.weights[i]))
-        .collect();
-    let world: Vec<DVec3> = target
+/// World-space unit normals at the bound points: the posed proxy's vertex
+/// normals blended by the binding's weights.
+fn world_normals(pose: &PosedRig, binding: &Binding) -> Vec<DVec3> {
+    let vn = tools::vertex_normals(&pose.posed, &pose.triangles);
+    let normal_m = DMat3::from_mat4(pose.proxy_to_world).inverse().transpose();
+    binding
+        .vertices
         .iter()
-        .zip(&blends)
-        .map(|(p, m)| pose.proxy_to_world.transform_point3(m.transform_point3(p.as_dvec3())))
-        .collect();
-    let disp = match brush {
-        Brush::Smudge => tools::smudge(&world, &opts.path, opts.radius, opts.strength, opts.falloff),
-        Brush::Expand => {
-            let vn = tools::vertex_normals(&pose.posed, &pose.triangles);
-            let normal_m = DMat3::from_mat4(pose.proxy_to_world).inverse().transpose();
-            let normals: Vec<DVec3> = (0..target.len())
-                .map(|i| {
-                    let n = binding.vertices[i]
-                        .iter()
-                        .zip(binding.weights[i])
-                        .fold(DVec3::ZERO, |a, (&v, w)| a + vn[v as usize] * w as f64);
-                    (normal_m * n).normalize_or_zero()
-                })
-                .collect();
-            tools::expand(&world, &normals, &opts.path, opts.radius, opts.strength, opts.falloff)
-        }
-    };
-    let to_proxy = DMat3::from_mat4(pose.proxy_to_world).inverse();
-    let mut moved = 0;
-    for i in 0..target.len() {
-        if !selected[i] || disp[i] == DVec3::ZERO {
-            continue;
-        }
-        let inv = invert(&blends[i], &layer.path, i)?;
-        let d_rest = inv.matrix3 * (to_proxy * disp[i]);
-        target[i] += d_rest.as_vec3();
-        moved += 1;
-    }
-    session.set(&target_prim, target_attr, "point3f[]", true, vec3f_value(&target))?;
-    Ok(moved)
+        .zip(&binding.weights)
+        .map(|(tri, weights)| {
+            let n = tri
+                .iter()
+                .zip(weights)
+                .fold(DVec3::ZERO, |a, (&v, &w)| a + vn[v as usize] * w as f64);
+            (normal_m * n).normalize_or_zero()
+        })
+        .collect()
 }
 
 /// Reads a tool path from a BasisCurves prim: its first curve's points at

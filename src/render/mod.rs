@@ -395,40 +395,8 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary> {
         check_bake(&args.input, b, &times, &mut warnings)?;
     }
     let tmp = TempDir::new()?;
-    let bake_layer = match &args.bake {
-        Some(b) => Some(b.clone()),
-        None => {
-            let out = tmp.path().join("bake.usdc");
-            let opts = BakeOptions {
-                frames: Some(args.frames),
-                camera: Some(args.camera.clone()),
-                ..Default::default()
-            };
-            // A plain scene (no painted strokes) renders without a bake.
-            bake_if_any(&args.input, &out, &opts)?.map(|_| out)
-        }
-    };
-    let root = write_root(tmp.path(), &args.input, bake_layer.as_deref())?;
-    let input = args.input.clone();
-    let name_input = |mut e: Error| {
-        if e.file.as_deref() == Some(root.as_path()) || e.file.is_none() {
-            e.file = Some(input.clone());
-        }
-        e
-    };
-    let r = StageReader::open(&root).map_err(name_input)?;
-    r.require_resolved().map_err(name_input)?;
-    let scene = RenderScene::discover(&r, &args.camera).map_err(name_input)?;
-
-    let bar = ProgressBar::hidden();
-    if !args.quiet && std::io::stderr().is_terminal() {
-        bar.set_draw_target(ProgressDrawTarget::stderr());
-        bar.set_style(
-            ProgressStyle::with_template("{spinner} rendering {pos}/{len} frames [{bar:30}] {elapsed} (eta {eta})")
-                .unwrap_or_else(|_| ProgressStyle::default_bar()),
-        );
-    }
-    bar.set_length(times.len() as u64);
+    let stage = RenderStage::open(args, tmp.path())?;
+    let bar = progress_bar(args.quiet, times.len());
 
     let (w, h) = (args.size.width, args.size.height);
     let style = prepare::Style::default();
@@ -441,9 +409,18 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary> {
     let mut empty = Vec::new();
     for &t in &times {
         let frame_start = Instant::now();
-        let cam = scene.camera_at(&r, t).map_err(name_input)?;
-        let curves = scene.curves_at(&r, t).map_err(name_input)?;
-        let meshes = scene.meshes_at(&r, t).map_err(name_input)?;
+        let cam = stage
+            .scene
+            .camera_at(&stage.reader, t)
+            .map_err(|e| stage.name_input(e))?;
+        let curves = stage
+            .scene
+            .curves_at(&stage.reader, t)
+            .map_err(|e| stage.name_input(e))?;
+        let meshes = stage
+            .scene
+            .meshes_at(&stage.reader, t)
+            .map_err(|e| stage.name_input(e))?;
         let proj = camera::Projector::new(&cam, w, h);
         let fs = prepare::build_scene(&proj, &curves, &meshes, &style);
         strokes = strokes.max(fs.strokes.len());
@@ -465,16 +442,10 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary> {
         bar.inc(1);
     }
     bar.finish_and_clear();
-    let mut sheet_path_out = None;
-    if args.sheet {
-        // Dark labels on light backgrounds, light ones on dark.
-        let luminance = sheet_bg.dot(Vec3::new(0.2126, 0.7152, 0.0722));
-        let ink = Vec3::splat(if luminance > 0.18 { 0.02 } else { 0.8 });
-        let (sw, sh, px) = sheet::compose(&thumbs, cols, sheet_bg, ink);
-        let sp = sheet_path(&args.output);
-        image_io::write_png8(&sp, sw, sh, 3, &px, true)?;
-        sheet_path_out = Some(sp);
-    }
+    let sheet_path_out = match args.sheet {
+        true => Some(write_sheet(&thumbs, cols, sheet_bg, &args.output)?),
+        false => None,
+    };
     if !empty.is_empty() {
         warnings.push(format!(
             "{} of {} empty: nothing in front of {} at {}",
@@ -484,10 +455,7 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary> {
             empty.iter().map(|t| t.to_string()).collect::<Vec<_>>().join(", ")
         ));
     }
-    let mut sorted = seconds.clone();
-    sorted.sort_by(f64::total_cmp);
-    let median = sorted.get(sorted.len() / 2).copied().unwrap_or(0.0);
-    let (curves, meshes) = scene.counts();
+    let (curves, meshes) = stage.scene.counts();
     Ok(RenderSummary {
         input: args.input.clone(),
         output: args.output.clone(),
@@ -502,8 +470,91 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary> {
         empty_frames: empty,
         warnings,
         seconds: started.elapsed().as_secs_f64(),
-        median_frame_seconds: median,
+        median_frame_seconds: median(seconds),
     })
+}
+
+/// What a render reads: the input with its bake on top (the one given, or
+/// one made here into `tmp` for the frames and camera asked), opened
+/// through a root layer in `tmp`.
+struct RenderStage {
+    reader: StageReader,
+    scene: RenderScene,
+    root: PathBuf,
+    input: PathBuf,
+}
+
+impl RenderStage {
+    fn open(args: &RenderArgs, tmp: &Path) -> Result<Self> {
+        let bake_layer = match &args.bake {
+            Some(b) => Some(b.clone()),
+            None => {
+                let out = tmp.join("bake.usdc");
+                let opts = BakeOptions {
+                    frames: Some(args.frames),
+                    camera: Some(args.camera.clone()),
+                    ..Default::default()
+                };
+                // A plain scene (no painted strokes) renders without a bake.
+                bake_if_any(&args.input, &out, &opts)?.map(|_| out)
+            }
+        };
+        let root = write_root(tmp, &args.input, bake_layer.as_deref())?;
+        let named = |e| name_input(e, &root, &args.input);
+        let reader = StageReader::open(&root).map_err(named)?;
+        reader.require_resolved().map_err(named)?;
+        let scene = RenderScene::discover(&reader, &args.camera).map_err(named)?;
+        Ok(RenderStage {
+            reader,
+            scene,
+            root,
+            input: args.input.clone(),
+        })
+    }
+
+    fn name_input(&self, e: Error) -> Error {
+        name_input(e, &self.root, &self.input)
+    }
+}
+
+/// An error in the temporary root layer (or in no file) is the input's to
+/// the user, who never sees the root.
+fn name_input(mut e: Error, root: &Path, input: &Path) -> Error {
+    if e.file.as_deref() == Some(root) || e.file.is_none() {
+        e.file = Some(input.to_path_buf());
+    }
+    e
+}
+
+/// A bar on stderr when it is a terminal and not `--quiet`; hidden otherwise.
+fn progress_bar(quiet: bool, frames: usize) -> ProgressBar {
+    let bar = ProgressBar::hidden();
+    if !quiet && std::io::stderr().is_terminal() {
+        bar.set_draw_target(ProgressDrawTarget::stderr());
+        bar.set_style(
+            ProgressStyle::with_template("{spinner} rendering {pos}/{len} frames [{bar:30}] {elapsed} (eta {eta})")
+                .unwrap_or_else(|_| ProgressStyle::default_bar()),
+        );
+    }
+    bar.set_length(frames as u64);
+    bar
+}
+
+/// The contact sheet of `thumbs`, `cols` to a row, beside the frames.
+fn write_sheet(thumbs: &[sheet::Thumbnail], cols: usize, background: Vec3, output: &Path) -> Result<PathBuf> {
+    // Dark labels on light backgrounds, light ones on dark.
+    let luminance = background.dot(Vec3::new(0.2126, 0.7152, 0.0722));
+    let ink = Vec3::splat(if luminance > 0.18 { 0.02 } else { 0.8 });
+    let (sw, sh, px) = sheet::compose(thumbs, cols, background, ink);
+    let sp = sheet_path(output);
+    image_io::write_png8(&sp, sw, sh, 3, &px, true)?;
+    Ok(sp)
+}
+
+/// The median of per-frame seconds (0 for none).
+fn median(mut seconds: Vec<f64>) -> f64 {
+    seconds.sort_by(f64::total_cmp);
+    seconds.get(seconds.len() / 2).copied().unwrap_or(0.0)
 }
 
 /// Renders one frame of world-space curves and meshes through a camera

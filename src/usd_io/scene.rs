@@ -893,16 +893,64 @@ pub fn layer_axes(r: &StageReader, all_paths: &[String], rig: &mut Rig, layer: &
 }
 
 /// Reads a layer's axes, pose keys and time keys.
+/// A layer's key prims as read, before they become interpolation channels:
+/// (key path, coordinates or time, value) per channel.
+#[derive(Default)]
+struct KeyPrims {
+    pose_points: Vec<(String, Vec<f64>, Vec<Vec3>)>,
+    pose_opacity: Vec<(String, Vec<f64>, f32)>,
+    time_points: Vec<(String, f64, Vec<Vec3>)>,
+    time_opacity: Vec<(String, f64, f32)>,
+    sentinels: Vec<f64>,
+    has_pose_keys: bool,
+}
+
 fn read_keys(r: &StageReader, all_paths: &[String], rig: &mut Rig, layer: &StrokeLayer) -> Result<LayerKeys> {
     let path = layer.path.as_str();
-    let prim = &layer.prim;
+    let keys = read_key_prims(r, layer)?;
+    // Axes: the layer's painterly:axes, else every axis under the rig.
+    let axes = if keys.has_pose_keys {
+        layer_axes(r, all_paths, rig, layer)?
+    } else {
+        Vec::new()
+    };
+    let dim = axes.len();
+    for (cp, coords) in keys
+        .pose_points
+        .iter()
+        .map(|k| (&k.0, &k.1))
+        .chain(keys.pose_opacity.iter().map(|k| (&k.0, &k.1)))
+    {
+        if coords.len() != dim {
+            return Err(Error::attr(
+                cp,
+                "coordinates",
+                format!("{} coordinates, but the layer {path} has {dim} axes", coords.len()),
+            )
+            .rule(Rule::KeyCoordinates));
+        }
+    }
+    let method = layer_method(r, layer)?;
+    let scales: Vec<f64> = axes.iter().map(|&a| rig.axes[a].scale).collect();
+    Ok(LayerKeys {
+        axes,
+        method: Some(method),
+        pose_points: pose_channel(method, &scales, keys.pose_points, "position")?,
+        pose_opacity: pose_channel(method, &scales, keys.pose_opacity, "opacity")?,
+        scales,
+        time_points: time_channel(keys.time_points, &keys.sentinels)?,
+        time_opacity: time_channel(keys.time_opacity, &keys.sentinels)?,
+        sentinels: keys.sentinels.len(),
+    })
+}
+
+/// The layer's `PainterlyPoseKey` and `PainterlyTimeKey` children, each
+/// value checked against the layer (point count, finiteness).
+fn read_key_prims(r: &StageReader, layer: &StrokeLayer) -> Result<KeyPrims> {
+    let path = layer.path.as_str();
     let npoints = layer.rest_points.len();
-    let mut pose_pts = Vec::new();
-    let mut pose_opa = Vec::new();
-    let mut time_pts = Vec::new();
-    let mut time_opa = Vec::new();
-    let mut sentinels = Vec::new();
-    let children = prim
+    let children = layer
+        .prim
         .children()
         .map_err(|e| Error::prim(path, format!("cannot list children: {e}")))?;
     let read_points = |c: &usd::Prim, cp: &str| -> Result<Option<Vec<Vec3>>> {
@@ -929,12 +977,12 @@ fn read_keys(r: &StageReader, all_paths: &[String], rig: &mut Rig, layer: &Strok
         }
         Ok(o.map(|o| o as f32))
     };
-    let mut has_pose_keys = false;
+    let mut keys = KeyPrims::default();
     for c in &children {
         let cp = c.path().as_str().to_string();
         match r.type_name(c)?.as_str() {
             "PainterlyPoseKey" => {
-                has_pose_keys = true;
+                keys.has_pose_keys = true;
                 let coords = r
                     .typed(c, "coordinates", None, "float[]", values::f32_array)?
                     .ok_or_else(|| {
@@ -943,10 +991,10 @@ fn read_keys(r: &StageReader, all_paths: &[String], rig: &mut Rig, layer: &Strok
                     })?;
                 let coords: Vec<f64> = coords.iter().map(|&x| x as f64).collect();
                 if let Some(p) = read_points(c, &cp)? {
-                    pose_pts.push((cp.clone(), coords.clone(), p));
+                    keys.pose_points.push((cp.clone(), coords.clone(), p));
                 }
                 if let Some(o) = read_opacity(c, &cp)? {
-                    pose_opa.push((cp.clone(), coords, o));
+                    keys.pose_opacity.push((cp.clone(), coords, o));
                 }
             }
             "PainterlyTimeKey" => {
@@ -958,41 +1006,26 @@ fn read_keys(r: &StageReader, all_paths: &[String], rig: &mut Rig, layer: &Strok
                 }
                 let sentinel = r.typed(c, "sentinel", None, "bool", values::scalar)?.unwrap_or(0.0) != 0.0;
                 if sentinel {
-                    sentinels.push(time);
+                    keys.sentinels.push(time);
                     continue;
                 }
                 if let Some(p) = read_points(c, &cp)? {
-                    time_pts.push((cp.clone(), time, p));
+                    keys.time_points.push((cp.clone(), time, p));
                 }
                 if let Some(o) = read_opacity(c, &cp)? {
-                    time_opa.push((cp.clone(), time, o));
+                    keys.time_opacity.push((cp.clone(), time, o));
                 }
             }
             _ => {}
         }
     }
+    Ok(keys)
+}
 
-    // Axes: the layer's painterly:axes, else every axis under the rig.
-    let axes = if has_pose_keys {
-        layer_axes(r, all_paths, rig, layer)?
-    } else {
-        Vec::new()
-    };
-    let dim = axes.len();
-    for (cp, coords, _) in pose_pts
-        .iter()
-        .map(|k| (&k.0, &k.1, ()))
-        .chain(pose_opa.iter().map(|k| (&k.0, &k.1, ())))
-    {
-        if coords.len() != dim {
-            return Err(Error::attr(
-                cp,
-                "coordinates",
-                format!("{} coordinates, but the layer {path} has {dim} axes", coords.len()),
-            )
-            .rule(Rule::KeyCoordinates));
-        }
-    }
+/// The layer's `painterly:interpolation` (smooth Voronoi unless authored)
+/// and, for RBF, its `painterly:rbfRadius`.
+fn layer_method(r: &StageReader, layer: &StrokeLayer) -> Result<Method> {
+    let (path, prim) = (layer.path.as_str(), &layer.prim);
     let token = r
         .typed(prim, "painterly:interpolation", None, "token", values::token)?
         .unwrap_or_else(|| "smoothVoronoi".into());
@@ -1015,17 +1048,7 @@ fn read_keys(r: &StageReader, all_paths: &[String], rig: &mut Rig, layer: &Strok
             );
         }
     }
-    let scales: Vec<f64> = axes.iter().map(|&a| rig.axes[a].scale).collect();
-    Ok(LayerKeys {
-        axes,
-        method: Some(method),
-        pose_points: pose_channel(method, &scales, pose_pts, "position")?,
-        pose_opacity: pose_channel(method, &scales, pose_opa, "opacity")?,
-        scales,
-        time_points: time_channel(time_pts, &sentinels)?,
-        time_opacity: time_channel(time_opa, &sentinels)?,
-        sentinels: sentinels.len(),
-    })
+    Ok(method)
 }
 
 fn read_cached_binding(
