@@ -172,7 +172,12 @@ pub fn bind(session: &EditSession, opts: &BindOptions) -> Result<BindReport> {
         let pose = pose_rig(r, rig, opts.time, start)?;
         let bvh = ClosestPoint::new(&pose.posed, &pose.triangles);
         let world_to_proxy = pose.proxy_to_world.inverse();
-        for layer in chosen {
+        // Every chosen layer's painted points in proxy space, bound in one
+        // call (one parallel job and one Morton order over the rig, as a
+        // bake binds); each point's answer depends on it alone.
+        let mut proxy_pts: Vec<DVec3> = Vec::new();
+        let mut ends = Vec::with_capacity(chosen.len());
+        for layer in &chosen {
             let painted = layer.points.as_ref().ok_or_else(|| {
                 Error::attr(
                     &layer.path,
@@ -181,19 +186,25 @@ pub fn bind(session: &EditSession, opts: &BindOptions) -> Result<BindReport> {
                 )
             })?;
             let to_proxy = world_to_proxy * layer.local_to_world(r, pose.time)?;
-            let proxy_pts: Vec<DVec3> = painted
-                .iter()
-                .map(|p| to_proxy.transform_point3(p.as_dvec3()))
-                .collect();
-            let f32pts: Vec<Vec3> = proxy_pts.iter().map(|p| p.as_vec3()).collect();
-            let binding = bvh.bind(&f32pts);
-            let mut rest = Vec::with_capacity(proxy_pts.len());
-            for (i, p) in proxy_pts.iter().enumerate() {
+            proxy_pts.extend(painted.iter().map(|p| to_proxy.transform_point3(p.as_dvec3())));
+            ends.push(proxy_pts.len());
+        }
+        let f32pts: Vec<Vec3> = proxy_pts.iter().map(|p| p.as_vec3()).collect();
+        let all = bvh.bind(&f32pts);
+        let mut start = 0;
+        for (layer, end) in chosen.into_iter().zip(ends) {
+            let binding = Binding {
+                vertices: all.vertices[start..end].to_vec(),
+                weights: all.weights[start..end].to_vec(),
+            };
+            let mut rest = Vec::with_capacity(end - start);
+            for (i, p) in proxy_pts[start..end].iter().enumerate() {
                 let m = blended_motion(&pose.motions, binding.vertices[i], binding.weights[i]);
                 rest.push(invert(&m, &layer.path, i)?.transform_point3(*p).as_vec3());
             }
             write_binding(session, &layer.path, &rest, &binding)?;
             report.push((layer.path.clone(), rest.len()));
+            start = end;
         }
     }
     Ok(report)
