@@ -230,15 +230,13 @@ fn check_args(args: &RenderArgs) -> Result<Vec<f64>> {
     // Frame names keep three decimals: closer frames would overwrite each
     // other's file. Names grow with the time, so only neighbours can clash.
     if has_hash {
-        if let Some(w) = times
-            .windows(2)
-            .find(|w| frame_path(out, w[0]) == frame_path(out, w[1]))
-        {
+        let names: Vec<PathBuf> = times.iter().map(|&t| frame_path(out, t)).collect();
+        if let Some(i) = names.windows(2).position(|w| w[0] == w[1]) {
             return Err(Error::usage(format!(
                 "frames {} and {} would both write {}: frame names keep three decimals, use a coarser --frames step",
-                w[0],
-                w[1],
-                frame_path(out, w[0]).display()
+                times[i],
+                times[i + 1],
+                names[i].display()
             )));
         }
     }
