@@ -9,6 +9,7 @@ and breaks exactly one thing.
 
 from __future__ import annotations
 
+import json
 import os
 import re
 
@@ -252,3 +253,24 @@ def test_inspect_reports_bad_key(painterly, tmp_path, case):
     for p in prims:
         assert p in text, f"inspect does not mention {p}:\n{text}"
     assert Au.file_hash(rig.path) == before
+
+
+def test_inspect_lists_a_bad_attribute_pick_beside_another_problem(painterly, tmp_path):
+    """An attribute axis's element and component are checked when the axis
+    is read, not only when a frame is evaluated: inspect evaluates frames
+    only when it found nothing else, so a stage with a second, unrelated
+    problem (a stroke layer outside any rig) must still list the axis's."""
+    rig, rest = good_stage(tmp_path)
+
+    def both(stage):
+        _ac(stage, rig, rest)
+        loose = stage.DefinePrim("/World/Loose", "BasisCurves")
+        loose.AddAppliedSchema(Au.LAYER_API)
+        loose.CreateAttribute("curveVertexCounts", Sdf.ValueTypeNames.IntArray).Set(Vt.IntArray([2]))
+        loose.CreateAttribute("points", Sdf.ValueTypeNames.Point3fArray).Set(Au.v3f([[0, 0, 0], [1, 0, 0]]))
+
+    edit(rig.path, both)
+    proc = painterly("inspect", rig.path, "--json", check=False)
+    assert proc.returncode == 1, proc.stderr
+    got = sorted((p["prim"], p["attribute"]) for p in json.loads(proc.stdout)["problems"])
+    assert got == [("/World/Loose", None), (_ac_path, "component")], got
