@@ -407,18 +407,7 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary> {
     let mut empty = Vec::new();
     for &t in &times {
         let frame_start = Instant::now();
-        let cam = stage
-            .scene
-            .camera_at(&stage.reader, t)
-            .map_err(|e| stage.name_input(e))?;
-        let curves = stage
-            .scene
-            .curves_at(&stage.reader, t)
-            .map_err(|e| stage.name_input(e))?;
-        let meshes = stage
-            .scene
-            .meshes_at(&stage.reader, t)
-            .map_err(|e| stage.name_input(e))?;
+        let (cam, curves, meshes) = stage.at(t)?;
         let proj = camera::Projector::new(&cam, w, h);
         let fs = prepare::build_scene(&proj, &curves, &meshes, &style);
         strokes = strokes.max(fs.strokes.len());
@@ -440,9 +429,10 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary> {
         bar.inc(1);
     }
     bar.finish_and_clear();
-    let sheet_path_out = match args.sheet {
-        true => Some(write_sheet(&thumbs, cols, sheet_bg, &args.output)?),
-        false => None,
+    let sheet_path_out = if args.sheet {
+        Some(write_sheet(&thumbs, cols, sheet_bg, &args.output)?)
+    } else {
+        None
     };
     if !empty.is_empty() {
         warnings.push(format!(
@@ -510,8 +500,14 @@ impl RenderStage {
         })
     }
 
-    fn name_input(&self, e: Error) -> Error {
-        name_input(e, &self.root, &self.input)
+    /// The camera, curves and meshes at time `t`.
+    fn at(&self, t: f64) -> Result<(camera::CameraParams, Vec<curves::CurvesData>, Vec<prepare::MeshData>)> {
+        let named = |e| name_input(e, &self.root, &self.input);
+        Ok((
+            self.scene.camera_at(&self.reader, t).map_err(named)?,
+            self.scene.curves_at(&self.reader, t).map_err(named)?,
+            self.scene.meshes_at(&self.reader, t).map_err(named)?,
+        ))
     }
 }
 
