@@ -10,15 +10,11 @@ fn message(e: ViewError) -> String {
 
 #[test]
 fn spline_errors_name_the_key_time() {
-    let e = NaturalCubicSpline::new(&[]).err().expect("no key times is an error");
+    let e = NaturalCubicSpline::new(&[]).expect_err("no key times is an error");
     assert_eq!(message(e), "at least one key time is needed");
-    let e = NaturalCubicSpline::new(&[0.0, f64::NAN])
-        .err()
-        .expect("a NaN time is an error");
+    let e = NaturalCubicSpline::new(&[0.0, f64::NAN]).expect_err("a NaN time is an error");
     assert_eq!(message(e), "key time 1 is not finite");
-    let e = NaturalCubicSpline::new(&[0.0, 2.0, 2.0])
-        .err()
-        .expect("a repeated time is an error");
+    let e = NaturalCubicSpline::new(&[0.0, 2.0, 2.0]).expect_err("a repeated time is an error");
     assert_eq!(message(e), "key time 2 is not greater than key time 1");
 }
 
