@@ -1,0 +1,43 @@
+//! `FrameRange::times` on ranges that `count` refuses: its documented
+//! fallback still lists `start + k·step` up to the end (within 1e-9), never
+//! more than MAX_FRAMES codes, and nothing for a range that runs backwards.
+
+use painterly::frames::{FrameRange, MAX_FRAMES};
+
+#[test]
+fn a_range_whose_codes_collide_still_lists_every_step() {
+    // Near 2^53 the f64 spacing is 2, so start + 1 and start + 3 round
+    // (half to even) onto their neighbours: count refuses the range, and
+    // times lists k = 0..=4 as IEEE rounds them.
+    let start = 2f64.powi(53);
+    let r = FrameRange {
+        start,
+        end: start + 4.0,
+        step: 1.0,
+    };
+    assert!(r.count().unwrap_err().contains("too small to separate"));
+    let offsets: Vec<f64> = r.times().iter().map(|t| t - start).collect();
+    assert_eq!(offsets, [0.0, 0.0, 2.0, 4.0, 4.0]);
+}
+
+#[test]
+fn a_backward_range_has_no_codes_and_a_long_one_is_cut() {
+    let back = FrameRange {
+        start: 10.0,
+        end: 2.0,
+        step: 1.0,
+    };
+    assert!(back.count().is_err());
+    assert!(back.times().is_empty());
+    let long = FrameRange {
+        start: 0.0,
+        end: 2.0 * MAX_FRAMES as f64,
+        step: 1.0,
+    };
+    assert!(long.count().is_err());
+    let t = long.times();
+    assert_eq!(
+        (t.len(), t[0], t[MAX_FRAMES - 1]),
+        (MAX_FRAMES, 0.0, (MAX_FRAMES - 1) as f64)
+    );
+}
