@@ -1,6 +1,7 @@
 //! `FrameRange::times` on ranges that `count` refuses: its documented
 //! fallback still lists `start + k·step` up to the end (within 1e-9), never
-//! more than MAX_FRAMES codes, and nothing for a range that runs backwards.
+//! more than MAX_FRAMES codes, and nothing for a range that runs backwards
+//! or does not move.
 
 use painterly::frames::{FrameRange, MAX_FRAMES};
 
@@ -21,7 +22,7 @@ fn a_range_whose_codes_collide_still_lists_every_step() {
 }
 
 #[test]
-fn a_backward_range_has_no_codes_and_a_long_one_is_cut() {
+fn backward_and_still_ranges_have_no_codes_and_a_long_one_is_cut() {
     let back = FrameRange {
         start: 10.0,
         end: 2.0,
@@ -29,6 +30,15 @@ fn a_backward_range_has_no_codes_and_a_long_one_is_cut() {
     };
     assert!(back.count().is_err());
     assert!(back.times().is_empty());
+    // A step of zero never reaches the end: no codes, not MAX_FRAMES copies
+    // of the start.
+    let still = FrameRange {
+        start: 0.0,
+        end: 5.0,
+        step: 0.0,
+    };
+    assert!(still.count().is_err());
+    assert!(still.times().is_empty());
     let long = FrameRange {
         start: 0.0,
         end: 2.0 * MAX_FRAMES as f64,
@@ -40,4 +50,14 @@ fn a_backward_range_has_no_codes_and_a_long_one_is_cut() {
         (t.len(), t[0], t[MAX_FRAMES - 1]),
         (MAX_FRAMES, 0.0, (MAX_FRAMES - 1) as f64)
     );
+}
+
+#[test]
+fn the_stage_range_check_allows_rounding_and_nothing_more() {
+    let r = |start, end| FrameRange { start, end, step: 1.0 };
+    assert!(r(1.0 - 1e-12, 10.0 + 1e-12).check_within(1.0, 10.0).is_ok());
+    for (s, e) in [(1.0 - 1e-6, 10.0), (1.0, 10.0 + 1e-6)] {
+        let err = r(s, e).check_within(1.0, 10.0).unwrap_err().to_string();
+        assert!(err.contains("outside the stage's time range 1:10"), "{err}");
+    }
 }
