@@ -318,6 +318,15 @@ def test_bake_layer_frames_are_served_as_baked(tmp_path):
     with PreviewServer(FISH, "--bake", bake) as s:
         scene = s.scene()
         assert scene["bake"] == str(bake)
+        # The stage runs 1:48; the preview's timeline ends are outside the
+        # bake's 10:12, and it says so as `render --bake` does.
+        assert scene["problems"] == [
+            {
+                "prim": None,
+                "attribute": None,
+                "message": "2 frames outside the bake's frames 10:12 (1, 48): strokes there show their authored points",
+            }
+        ]
         stage = Usd.Stage.Open(str(bake))
         header, arrays = s.frame(time=11, bake=True)
         assert header["source"] == "bake"
@@ -338,6 +347,29 @@ def test_bake_layer_frames_are_served_as_baked(tmp_path):
     )
     assert r.returncode == 1 and "not from the input" in r.stderr
 
+
+def test_scene_lists_the_stages_problems_as_inspect_does(tmp_path):
+    # A sentinel that carries an opacity: the bake ignores it, inspect flags
+    # it, and the preview (which still opens) shows the same problem.
+    src = tmp_path / "blowfish.usda"
+    shutil.copy(FISH, src)
+    stage = Usd.Stage.Open(str(src))
+    layer = next(p for p in stage.Traverse() if p.GetTypeName() == "BasisCurves")
+    key = stage.DefinePrim(layer.GetPath().AppendChild("badSentinel"), "PainterlyTimeKey")
+    key.CreateAttribute("time", Sdf.ValueTypeNames.Double).Set(20.0)
+    key.CreateAttribute("sentinel", Sdf.ValueTypeNames.Bool).Set(True)
+    key.CreateAttribute("opacity", Sdf.ValueTypeNames.Float).Set(0.5)
+    stage.GetRootLayer().Save()
+    want = {
+        "prim": str(key.GetPath()),
+        "attribute": "opacity",
+        "message": "a sentinel carries no opacity: it would be ignored (set `sentinel = 0` for a time key)",
+    }
+    proc = subprocess.run([str(painterly_binary()), "inspect", str(src), "--json"], capture_output=True, text=True)
+    assert proc.returncode == 1, proc.stderr
+    assert [{k: p[k] for k in want} for p in json.loads(proc.stdout)["problems"]] == [want]
+    with PreviewServer(src) as s:
+        assert s.scene()["problems"] == [want]
 
 def gf_flat(m):
     """A GfMatrix4d as the frame format's 16 floats: Gf's rows (row vectors) are glam's columns."""
