@@ -12,7 +12,7 @@ import subprocess
 
 import numpy as np
 import pytest
-from pxr import Gf, Sdf, Usd, UsdGeom
+from pxr import Gf, Sdf, Usd, UsdGeom, Vt
 
 from conftest import REPO, painterly_binary
 from preview_helpers import PreviewServer, WebSocket, decode_frame
@@ -370,6 +370,111 @@ def test_scene_lists_the_stages_problems_as_inspect_does(tmp_path):
     assert [{k: p[k] for k in want} for p in json.loads(proc.stdout)["problems"]] == [want]
     with PreviewServer(src) as s:
         assert s.scene()["problems"] == [want]
+
+def test_weights_cover_every_keyed_layer_time_keys_alone_included(tmp_path):
+    # The Mouth gets position time keys only (no axes, no opacity keys):
+    # sentinel at 10, a key at 20, sentinel at 30 (SPEC 1.1 §5).
+    src = tmp_path / "blowfish.usda"
+    shutil.copy(FISH, src)
+    stage = Usd.Stage.Open(str(src))
+    mouth = stage.GetPrimAtPath("/Blowfish/Paint/Mouth")
+    rest = mouth.GetAttribute("points").Get()
+    for name, t, sentinel in [("open", 10, True), ("gape", 20, False), ("close", 30, True)]:
+        k = stage.DefinePrim(mouth.GetPath().AppendChild(name), "PainterlyTimeKey")
+        k.CreateAttribute("time", Sdf.ValueTypeNames.Double).Set(float(t))
+        if sentinel:
+            k.CreateAttribute("sentinel", Sdf.ValueTypeNames.Bool).Set(True)
+        else:
+            k.CreateAttribute("points", Sdf.ValueTypeNames.Point3fArray).Set(rest)
+    stage.GetRootLayer().Save()
+    keyed = {
+        str(l.GetPath())
+        for l in stage.GetPrimAtPath("/Blowfish/Paint").GetChildren()
+        if any(c.GetTypeName() in ("PainterlyPoseKey", "PainterlyTimeKey") for c in l.GetChildren())
+    }
+    assert "/Blowfish/Paint/Mouth" in keyed and len(keyed) == 6
+    # Weight of the key between a sentinel and it: S_0.2(u), u the way from
+    # the sentinel; S(u) = u^2 / 0.32 up to u = 0.2 (0.125 there), then
+    # slope 1.25. Outside the sentinels only the rest value counts.
+    gape = "/Blowfish/Paint/Mouth/gape"
+    want = {
+        5: [[None, 1.0]],
+        11: [[None, 1 - 0.03125], [gape, 0.03125]],
+        12.5: [[None, 1 - 0.1875], [gape, 0.1875]],
+        20: [[gape, 1.0]],
+        35: [[None, 1.0]],
+    }
+    with PreviewServer(src) as s:
+        for t, position in want.items():
+            weights = s.frame(time=t)[0]["weights"]
+            assert set(weights) == keyed, t
+            got = weights["/Blowfish/Paint/Mouth"]
+            assert got["opacity"] == [[None, 1.0]], t
+            assert [k for k, _ in got["position"]] == [k for k, _ in position], (t, got)
+            np.testing.assert_allclose([w for _, w in got["position"]], [w for _, w in position], atol=1e-12, err_msg=str(t))
+
+def test_mesh_infos_are_the_drawn_meshes_own():
+    # The head's one Mesh is its proxy and its view-dependent mesh: both
+    # entries carry its topology, its displayColor and its subdivision
+    # scheme ("none": not smooth), read here with usd-core.
+    stage = Usd.Stage.Open(str(HEAD))
+    mesh = UsdGeom.Mesh(stage.GetPrimAtPath("/Head/Face"))
+    counts = list(mesh.GetFaceVertexCountsAttr().Get())
+    indices = list(mesh.GetFaceVertexIndicesAttr().Get())
+    color = list(mesh.GetDisplayColorAttr().Get()[0])
+    smooth = mesh.GetSubdivisionSchemeAttr().Get() != "none"
+    assert not smooth
+    with PreviewServer(HEAD) as s:
+        scene = s.scene()
+    infos = scene["proxies"] + scene["views"]
+    assert [i["path"] for i in infos] == ["/Head/Face", "/Head/Face"]
+    for info in infos:
+        assert info["face_counts"] == counts and info["face_indices"] == indices
+        np.testing.assert_allclose(info["color"], color, rtol=0, atol=1e-7)
+        assert info["smooth"] == smooth
+
+def test_render_keeps_an_authored_curve_shaped_unlike_its_layer(tmp_path):
+    # At frame 5 the Mouth's authored curves have another shape (a point
+    # fewer in the first stroke) and sit far off screen. The evaluated
+    # strokes cannot be drawn on that shape, so the render shows the
+    # authored curves: the frame looks as if the Mouth were invisible.
+    from PIL import Image
+    import io
+
+    def copy(name, change):
+        path = tmp_path / name
+        shutil.copy(FISH, path)
+        stage = Usd.Stage.Open(str(path))
+        change(stage.GetPrimAtPath("/Blowfish/Paint/Mouth"))
+        stage.GetRootLayer().Save()
+        return path
+
+    def reshaped(mouth):
+        for name, cut in [("curveVertexCounts", None), ("points", 1), ("widths", 1)]:
+            attr = mouth.GetAttribute(name)
+            value = list(attr.Get())
+            attr.Set(attr.Get(), 1.0)
+            if cut is None:
+                attr.Set(Vt.IntArray([value[0] - 1] + value[1:]), 5.0)
+            elif name == "points":
+                attr.Set(Vt.Vec3fArray([Gf.Vec3f(p) + Gf.Vec3f(1000, 0, 0) for p in value[1:]]), 5.0)
+            else:
+                attr.Set(Vt.FloatArray(value[1:]), 5.0)
+
+    def hidden(mouth):
+        UsdGeom.Imageable(mouth).MakeInvisible()
+
+    images = []
+    for path in [FISH, copy("reshaped.usda", reshaped), copy("hidden.usda", hidden)]:
+        with PreviewServer(path) as s:
+            v = s.scene()["view"]
+            cam = {"position": v["position"], "target": v["target"], "up": v["up"], "fov_y": v["fov_y"], "near": 0.1, "far": 10000}
+            status, _, body = s.request("api/render", body={"frame": {"time": 5}, "camera": cam, "width": 192, "height": 128})
+            assert status == 200, (path, body)
+            images.append(np.array(Image.open(io.BytesIO(body)).convert("RGBA"), dtype=np.int16))
+    plain, reshaped_img, hidden_img = images
+    assert np.abs(plain - hidden_img).max() > 0, "the Mouth is in view"
+    np.testing.assert_array_equal(reshaped_img, hidden_img)
 
 def gf_flat(m):
     """A GfMatrix4d as the frame format's 16 floats: Gf's rows (row vectors) are glam's columns."""
