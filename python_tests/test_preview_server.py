@@ -371,6 +371,7 @@ def test_scene_lists_the_stages_problems_as_inspect_does(tmp_path):
     with PreviewServer(src) as s:
         assert s.scene()["problems"] == [want]
 
+
 def test_weights_cover_every_keyed_layer_time_keys_alone_included(tmp_path):
     # The Mouth gets position time keys only (no axes, no opacity keys):
     # sentinel at 10, a key at 20, sentinel at 30 (SPEC 1.1 §5).
@@ -413,6 +414,7 @@ def test_weights_cover_every_keyed_layer_time_keys_alone_included(tmp_path):
             assert [k for k, _ in got["position"]] == [k for k, _ in position], (t, got)
             np.testing.assert_allclose([w for _, w in got["position"]], [w for _, w in position], atol=1e-12, err_msg=str(t))
 
+
 def test_mesh_infos_are_the_drawn_meshes_own():
     # The head's one Mesh is its proxy and its view-dependent mesh: both
     # entries carry its topology, its displayColor and its subdivision
@@ -433,6 +435,7 @@ def test_mesh_infos_are_the_drawn_meshes_own():
         np.testing.assert_allclose(info["color"], color, rtol=0, atol=1e-7)
         assert info["smooth"] == smooth
 
+
 def test_render_keeps_an_authored_curve_shaped_unlike_its_layer(tmp_path):
     # At frame 5 the Mouth's authored curves have another shape (a point
     # fewer in the first stroke) and sit far off screen. The evaluated
@@ -450,16 +453,14 @@ def test_render_keeps_an_authored_curve_shaped_unlike_its_layer(tmp_path):
         return path
 
     def reshaped(mouth):
-        for name, cut in [("curveVertexCounts", None), ("points", 1), ("widths", 1)]:
-            attr = mouth.GetAttribute(name)
-            value = list(attr.Get())
+        # Frame 1 keeps the authored values; frame 5 drops the first point.
+        counts, points, widths = (mouth.GetAttribute(n) for n in ["curveVertexCounts", "points", "widths"])
+        c, p, w = list(counts.Get()), list(points.Get()), list(widths.Get())
+        for attr in (counts, points, widths):
             attr.Set(attr.Get(), 1.0)
-            if cut is None:
-                attr.Set(Vt.IntArray([value[0] - 1] + value[1:]), 5.0)
-            elif name == "points":
-                attr.Set(Vt.Vec3fArray([Gf.Vec3f(p) + Gf.Vec3f(1000, 0, 0) for p in value[1:]]), 5.0)
-            else:
-                attr.Set(Vt.FloatArray(value[1:]), 5.0)
+        counts.Set(Vt.IntArray([c[0] - 1] + c[1:]), 5.0)
+        points.Set(Vt.Vec3fArray([Gf.Vec3f(x) + Gf.Vec3f(1000, 0, 0) for x in p[1:]]), 5.0)
+        widths.Set(Vt.FloatArray(w[1:]), 5.0)
 
     def hidden(mouth):
         UsdGeom.Imageable(mouth).MakeInvisible()
@@ -475,6 +476,7 @@ def test_render_keeps_an_authored_curve_shaped_unlike_its_layer(tmp_path):
     plain, reshaped_img, hidden_img = images
     assert np.abs(plain - hidden_img).max() > 0, "the Mouth is in view"
     np.testing.assert_array_equal(reshaped_img, hidden_img)
+
 
 def gf_flat(m):
     """A GfMatrix4d as the frame format's 16 floats: Gf's rows (row vectors) are glam's columns."""
