@@ -3,6 +3,7 @@ it survives bad requests and never writes its input, and that the frames it
 serves are `painterly bake`'s frames (read back with usd-core)."""
 
 import hashlib
+import io
 import json
 import os
 import re
@@ -12,6 +13,7 @@ import subprocess
 
 import numpy as np
 import pytest
+from PIL import Image
 from pxr import Gf, Sdf, Usd, UsdGeom, Vt
 
 from conftest import REPO, painterly_binary
@@ -23,6 +25,29 @@ HEAD = REPO / "fixtures" / "head.usda"
 
 def sha(path):
     return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def edited_fish(tmp_path, change, name="blowfish.usda"):
+    """A copy of the fish under tmp_path, changed by `change(stage)` and
+    saved with usd-core; returns its path and the open stage."""
+    path = tmp_path / name
+    shutil.copy(FISH, path)
+    stage = Usd.Stage.Open(str(path))
+    change(stage)
+    stage.GetRootLayer().Save()
+    return path, stage
+
+
+def start_camera(view, near=0.1, far=10000):
+    """The server's start view (`scene["view"]`) as a render camera."""
+    return {"position": view["position"], "target": view["target"], "up": view["up"], "fov_y": view["fov_y"], "near": near, "far": far}
+
+
+def render_rgba(server, frame, camera, width, height):
+    """`POST /api/render`, decoded to RGBA as int16 so differences don't wrap."""
+    status, _, body = server.request("api/render", body={"frame": frame, "camera": camera, "width": width, "height": height})
+    assert status == 200, body
+    return np.array(Image.open(io.BytesIO(body)).convert("RGBA"), dtype=np.int16)
 
 
 @pytest.fixture(scope="module")
@@ -180,16 +205,15 @@ def test_stroke_widths_and_colours_come_from_the_stage(fish):
 def test_a_layer_shaped_like_another_keeps_its_own_colours(tmp_path):
     # A copy of Spikes after it, green: the same curve and point counts, so
     # only its path tells the copy's widths and colours from the original's.
-    path = tmp_path / "blowfish.usda"
-    shutil.copy(FISH, path)
-    stage = Usd.Stage.Open(str(path))
-    layer = stage.GetRootLayer()
-    assert Sdf.CopySpec(layer, "/Blowfish/Paint/Spikes", layer, "/Blowfish/Paint/SpikesCopy")
-    copy = UsdGeom.BasisCurves(stage.GetPrimAtPath("/Blowfish/Paint/SpikesCopy"))
-    n = len(copy.GetCurveVertexCountsAttr().Get())
-    UsdGeom.PrimvarsAPI(copy).GetPrimvar("displayColor").Set([(0.1, 0.9, 0.2)] * n)
-    copy.GetWidthsAttr().Set([2 * w for w in copy.GetWidthsAttr().Get()])
-    stage.Save()
+    def add_copy(stage):
+        layer = stage.GetRootLayer()
+        assert Sdf.CopySpec(layer, "/Blowfish/Paint/Spikes", layer, "/Blowfish/Paint/SpikesCopy")
+        copy = UsdGeom.BasisCurves(stage.GetPrimAtPath("/Blowfish/Paint/SpikesCopy"))
+        n = len(copy.GetCurveVertexCountsAttr().Get())
+        UsdGeom.PrimvarsAPI(copy).GetPrimvar("displayColor").Set([(0.1, 0.9, 0.2)] * n)
+        copy.GetWidthsAttr().Set([2 * w for w in copy.GetWidthsAttr().Get()])
+
+    path, stage = edited_fish(tmp_path, add_copy)
     with PreviewServer(path) as s:
         scene = assert_strokes_come_from_the_stage(s, stage)
     # The copy is drawn after the original (traversal order), so a match by
@@ -224,19 +248,18 @@ def test_pinned_axes_give_the_bake_of_a_stage_authored_that_way(fish, tmp_path):
     # A copy whose blink and eye target hold still: its bake at frame 5 is
     # what the original must show with those axes pinned (pose mode).
     t = 5
-    copy = tmp_path / "still.usda"
-    shutil.copy(FISH, copy)
-    stage = Usd.Stage.Open(str(copy))
-    root = stage.GetPrimAtPath("/Blowfish")
-    blink = root.GetAttribute("blink")
-    blink.Clear()
-    blink.Set(0.7)
-    target = UsdGeom.Xformable(stage.GetPrimAtPath("/Blowfish/EyeTarget"))
-    op = target.GetOrderedXformOps()[0]
-    held = Gf.Vec3d(op.Get(t)) + Gf.Vec3d(0.4, -0.3, 0.2)
-    op.GetAttr().Clear()
-    op.Set(held)
-    stage.Save()
+
+    def hold_still(stage):
+        blink = stage.GetPrimAtPath("/Blowfish").GetAttribute("blink")
+        blink.Clear()
+        blink.Set(0.7)
+        target = UsdGeom.Xformable(stage.GetPrimAtPath("/Blowfish/EyeTarget"))
+        op = target.GetOrderedXformOps()[0]
+        held = Gf.Vec3d(op.Get(t)) + Gf.Vec3d(0.4, -0.3, 0.2)
+        op.GetAttr().Clear()
+        op.Set(held)
+
+    copy, _ = edited_fish(tmp_path, hold_still, "still.usda")
     # The eye axes, derived here with usd-core: the target's world origin
     # in the proxy's local space, times `scale` where the server's
     # unpinned values at this frame say the axes are scaled.
@@ -278,15 +301,10 @@ def test_pinned_axes_give_the_bake_of_a_stage_authored_that_way(fish, tmp_path):
 
 
 def test_render_returns_a_png_of_the_asked_size(fish):
-    scene = fish.scene()
-    v = scene["view"]
-    cam = {"position": v["position"], "target": v["target"], "up": v["up"], "fov_y": v["fov_y"], "near": 0.1, "far": 10000}
+    cam = start_camera(fish.scene()["view"])
     status, headers, body = fish.request("api/render", body={"frame": {"time": 24}, "camera": cam, "width": 96, "height": 64})
     assert status == 200, body
     assert headers["content-type"] == "image/png"
-    from PIL import Image
-    import io
-
     img = Image.open(io.BytesIO(body))
     assert img.size == (96, 64)
     alpha = np.array(img.convert("RGBA"))[..., 3]
@@ -351,15 +369,15 @@ def test_bake_layer_frames_are_served_as_baked(tmp_path):
 def test_scene_lists_the_stages_problems_as_inspect_does(tmp_path):
     # A sentinel that carries an opacity: the bake ignores it, inspect flags
     # it, and the preview (which still opens) shows the same problem.
-    src = tmp_path / "blowfish.usda"
-    shutil.copy(FISH, src)
-    stage = Usd.Stage.Open(str(src))
-    layer = next(p for p in stage.Traverse() if p.GetTypeName() == "BasisCurves")
-    key = stage.DefinePrim(layer.GetPath().AppendChild("badSentinel"), "PainterlyTimeKey")
-    key.CreateAttribute("time", Sdf.ValueTypeNames.Double).Set(20.0)
-    key.CreateAttribute("sentinel", Sdf.ValueTypeNames.Bool).Set(True)
-    key.CreateAttribute("opacity", Sdf.ValueTypeNames.Float).Set(0.5)
-    stage.GetRootLayer().Save()
+    def add_sentinel(stage):
+        layer = next(p for p in stage.Traverse() if p.GetTypeName() == "BasisCurves")
+        key = stage.DefinePrim(layer.GetPath().AppendChild("badSentinel"), "PainterlyTimeKey")
+        key.CreateAttribute("time", Sdf.ValueTypeNames.Double).Set(20.0)
+        key.CreateAttribute("sentinel", Sdf.ValueTypeNames.Bool).Set(True)
+        key.CreateAttribute("opacity", Sdf.ValueTypeNames.Float).Set(0.5)
+
+    src, stage = edited_fish(tmp_path, add_sentinel)
+    key = next(p for p in stage.Traverse() if p.GetName() == "badSentinel")
     want = {
         "prim": str(key.GetPath()),
         "attribute": "opacity",
@@ -375,19 +393,18 @@ def test_scene_lists_the_stages_problems_as_inspect_does(tmp_path):
 def test_weights_cover_every_keyed_layer_time_keys_alone_included(tmp_path):
     # The Mouth gets position time keys only (no axes, no opacity keys):
     # sentinel at 10, a key at 20, sentinel at 30 (SPEC 1.1 §5).
-    src = tmp_path / "blowfish.usda"
-    shutil.copy(FISH, src)
-    stage = Usd.Stage.Open(str(src))
-    mouth = stage.GetPrimAtPath("/Blowfish/Paint/Mouth")
-    rest = mouth.GetAttribute("points").Get()
-    for name, t, sentinel in [("open", 10, True), ("gape", 20, False), ("close", 30, True)]:
-        k = stage.DefinePrim(mouth.GetPath().AppendChild(name), "PainterlyTimeKey")
-        k.CreateAttribute("time", Sdf.ValueTypeNames.Double).Set(float(t))
-        if sentinel:
-            k.CreateAttribute("sentinel", Sdf.ValueTypeNames.Bool).Set(True)
-        else:
-            k.CreateAttribute("points", Sdf.ValueTypeNames.Point3fArray).Set(rest)
-    stage.GetRootLayer().Save()
+    def add_time_keys(stage):
+        mouth = stage.GetPrimAtPath("/Blowfish/Paint/Mouth")
+        rest = mouth.GetAttribute("points").Get()
+        for name, t, sentinel in [("open", 10, True), ("gape", 20, False), ("close", 30, True)]:
+            k = stage.DefinePrim(mouth.GetPath().AppendChild(name), "PainterlyTimeKey")
+            k.CreateAttribute("time", Sdf.ValueTypeNames.Double).Set(float(t))
+            if sentinel:
+                k.CreateAttribute("sentinel", Sdf.ValueTypeNames.Bool).Set(True)
+            else:
+                k.CreateAttribute("points", Sdf.ValueTypeNames.Point3fArray).Set(rest)
+
+    src, stage = edited_fish(tmp_path, add_time_keys)
     keyed = {
         str(l.GetPath())
         for l in stage.GetPrimAtPath("/Blowfish/Paint").GetChildren()
@@ -441,19 +458,9 @@ def test_render_keeps_an_authored_curve_shaped_unlike_its_layer(tmp_path):
     # fewer in the first stroke) and sit far off screen. The evaluated
     # strokes cannot be drawn on that shape, so the render shows the
     # authored curves: the frame looks as if the Mouth were invisible.
-    from PIL import Image
-    import io
-
-    def copy(name, change):
-        path = tmp_path / name
-        shutil.copy(FISH, path)
-        stage = Usd.Stage.Open(str(path))
-        change(stage.GetPrimAtPath("/Blowfish/Paint/Mouth"))
-        stage.GetRootLayer().Save()
-        return path
-
-    def reshaped(mouth):
+    def reshaped(stage):
         # Frame 1 keeps the authored values; frame 5 drops the first point.
+        mouth = stage.GetPrimAtPath("/Blowfish/Paint/Mouth")
         counts, points, widths = (mouth.GetAttribute(n) for n in ["curveVertexCounts", "points", "widths"])
         c, p, w = list(counts.Get()), list(points.Get()), list(widths.Get())
         for attr in (counts, points, widths):
@@ -462,17 +469,13 @@ def test_render_keeps_an_authored_curve_shaped_unlike_its_layer(tmp_path):
         points.Set(Vt.Vec3fArray([Gf.Vec3f(x) + Gf.Vec3f(1000, 0, 0) for x in p[1:]]), 5.0)
         widths.Set(Vt.FloatArray(w[1:]), 5.0)
 
-    def hidden(mouth):
-        UsdGeom.Imageable(mouth).MakeInvisible()
+    def hidden(stage):
+        UsdGeom.Imageable(stage.GetPrimAtPath("/Blowfish/Paint/Mouth")).MakeInvisible()
 
     images = []
-    for path in [FISH, copy("reshaped.usda", reshaped), copy("hidden.usda", hidden)]:
+    for path in [FISH, edited_fish(tmp_path, reshaped, "reshaped.usda")[0], edited_fish(tmp_path, hidden, "hidden.usda")[0]]:
         with PreviewServer(path) as s:
-            v = s.scene()["view"]
-            cam = {"position": v["position"], "target": v["target"], "up": v["up"], "fov_y": v["fov_y"], "near": 0.1, "far": 10000}
-            status, _, body = s.request("api/render", body={"frame": {"time": 5}, "camera": cam, "width": 192, "height": 128})
-            assert status == 200, (path, body)
-            images.append(np.array(Image.open(io.BytesIO(body)).convert("RGBA"), dtype=np.int16))
+            images.append(render_rgba(s, {"time": 5}, start_camera(s.scene()["view"]), 192, 128))
     plain, reshaped_img, hidden_img = images
     assert np.abs(plain - hidden_img).max() > 0, "the Mouth is in view"
     np.testing.assert_array_equal(reshaped_img, hidden_img)
@@ -557,15 +560,14 @@ def test_axis_ranges_cover_the_animation_beyond_the_keys(tmp_path):
     # that adds) and a one-frame dip to -5 at frame 17, which only a sample
     # on that integer frame sees (linear interpolation between samples).
     # The hull's ends sum to less than zero: the pad depends on hi - lo only.
-    path = tmp_path / "blowfish.usda"
-    shutil.copy(FISH, path)
-    stage = Usd.Stage.Open(str(path))
-    stage.SetStartTimeCode(2)
-    blink = stage.GetAttributeAtPath("/Blowfish.blink")
-    blink.Clear()
-    for t, v in {2: 2.0, 16: 0.0, 17: -5.0, 18: 0.0, 48: 0.5}.items():
-        blink.Set(v, t)
-    stage.Save()
+    def wander(stage):
+        stage.SetStartTimeCode(2)
+        blink = stage.GetAttributeAtPath("/Blowfish.blink")
+        blink.Clear()
+        for t, v in {2: 2.0, 16: 0.0, 17: -5.0, 18: 0.0, 48: 0.5}.items():
+            blink.Set(v, t)
+
+    path, stage = edited_fish(tmp_path, wander)
     with PreviewServer(path) as s:
         scene = s.scene()
     assert (scene["start"], scene["end"]) == (2, 48)
@@ -599,17 +601,8 @@ def test_scene_bounds_are_the_start_frames_world_box(fish, tmp_path):
 
 def test_render_shows_the_evaluated_pose_not_the_authored_curves(fish):
     # Inflating changes the spikes and cheeks: two renders must differ.
-    from PIL import Image
-    import io
-
-    v = fish.scene()["view"]
-    cam = {"position": v["position"], "target": v["target"], "up": v["up"], "fov_y": v["fov_y"], "near": 0.1, "far": 10000}
-    imgs = []
-    for w in [0.0, 1.0]:
-        frame = {"time": 1, "overrides": {"/Blowfish/Paint/inflate": w}}
-        status, _, body = fish.request("api/render", body={"frame": frame, "camera": cam, "width": 96, "height": 64})
-        assert status == 200, body
-        imgs.append(np.array(Image.open(io.BytesIO(body)).convert("RGBA"), dtype=np.int16))
+    cam = start_camera(fish.scene()["view"])
+    imgs = [render_rgba(fish, {"time": 1, "overrides": {"/Blowfish/Paint/inflate": w}}, cam, 96, 64) for w in [0.0, 1.0]]
     assert np.abs(imgs[0] - imgs[1]).max() > 0
 
 
@@ -635,9 +628,6 @@ def test_render_shows_the_view_mesh_the_eye_drives(tmp_path):
     # base model (SPEC §6), 85 units apart. The render camera stays put, so
     # the two renders differ only if the evaluated mesh replaces the
     # authored one.
-    from PIL import Image
-    import io
-
     path = REPO / "fixtures" / "building.usda"
     stage = Usd.Stage.Open(str(path))
     box = stage.GetPrimAtPath("/Building/Box")
@@ -648,14 +638,10 @@ def test_render_shows_the_view_mesh_the_eye_drives(tmp_path):
     m = np.array(UsdGeom.Xformable(box).ComputeLocalToWorldTransform(1))
     imgs = []
     with PreviewServer(path) as s:
-        v = s.scene()["view"]
-        cam = {"position": v["position"], "target": v["target"], "up": v["up"], "fov_y": v["fov_y"], "near": 1, "far": 100000}
+        cam = start_camera(s.scene()["view"], near=1, far=100000)
         for side in [1.0, -1.0]:
             eye = np.append(centre + side * 2000 * d, 1.0) @ m
-            frame = {"time": 1, "eye": eye[:3].tolist()}
-            status, _, body = s.request("api/render", body={"frame": frame, "camera": cam, "width": 96, "height": 64})
-            assert status == 200, body
-            imgs.append(np.array(Image.open(io.BytesIO(body)).convert("RGBA"), dtype=np.int16))
+            imgs.append(render_rgba(s, {"time": 1, "eye": eye[:3].tolist()}, cam, 96, 64))
     assert imgs[0][..., 3].max() > 0, "the building is in view"
     assert np.abs(imgs[0] - imgs[1]).max() > 0
 
