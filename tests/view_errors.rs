@@ -4,18 +4,14 @@
 
 use painterly::view::{NaturalCubicSpline, ViewError};
 
-fn message(e: ViewError) -> String {
-    e.to_string()
-}
-
 #[test]
 fn spline_errors_name_the_key_time() {
     let e = NaturalCubicSpline::new(&[]).expect_err("no key times is an error");
-    assert_eq!(message(e), "at least one key time is needed");
+    assert_eq!(e.to_string(), "at least one key time is needed");
     let e = NaturalCubicSpline::new(&[0.0, f64::NAN]).expect_err("a NaN time is an error");
-    assert_eq!(message(e), "key time 1 is not finite");
+    assert_eq!(e.to_string(), "key time 1 is not finite");
     let e = NaturalCubicSpline::new(&[0.0, 2.0, 2.0]).expect_err("a repeated time is an error");
-    assert_eq!(message(e), "key time 2 is not greater than key time 1");
+    assert_eq!(e.to_string(), "key time 2 is not greater than key time 1");
 }
 
 #[test]
@@ -36,9 +32,9 @@ fn direction_and_hull_errors_name_the_key_viewpoint() {
         (ViewError::Hull("coplanar".into()), "key viewpoint hull: coplanar"),
     ];
     for (e, want) in cases {
-        assert_eq!(message(e), want);
+        assert_eq!(e.to_string(), want);
     }
-    let dup = message(ViewError::DuplicateDirection { first: 1, second: 4 });
+    let dup = ViewError::DuplicateDirection { first: 1, second: 4 }.to_string();
     assert!(
         dup.starts_with("key viewpoints 1 and 4 have the same direction"),
         "{dup}"
