@@ -570,6 +570,21 @@ def test_errors_composing_the_input_name_the_input_not_the_root_layer(painterly,
     assert "render_root" not in proc.stderr
 
 
+def test_errors_in_the_bake_layer_name_the_bake_not_the_input(painterly, tmp_path):
+    """Only errors of the temporary root (or of no file) become the input's:
+    a cycle in the `--bake` layer is the bake's to fix, and named so."""
+    path = tmp_path / "scene.usda"
+    path.write_text('#usda 1.0\n(\n    startTimeCode = 1\n    endTimeCode = 1\n)\n\ndef Camera "Cam" {}\n')
+    bake = tmp_path / "bake.usda"
+    bake.write_text('#usda 1.0\n(\n    customLayerData = {\n        dictionary painterly = {\n'
+                    f'            string frames = "1:1:1"\n            string input = "{path.resolve()}"\n'
+                    '        }\n    }\n)\n\ndef "A" (inherits = </B>) {}\ndef "B" (inherits = </A>) {}\n')
+    proc = painterly("render", path, "--bake", bake, "--camera", "/Cam", "--frames", "1", "-o",
+                     tmp_path / "f.####.exr", "--size", "20x16", check=False)
+    assert proc.returncode == 1, proc.stderr
+    assert proc.stderr.startswith(f"error: {bake.resolve()}: ") and "cycle" in proc.stderr, proc.stderr
+
+
 def test_a_scene_without_a_time_range_is_baked_for_the_frames_asked(painterly, tmp_path, repo_root):
     """No startTimeCode/endTimeCode: the bake on the fly takes --frames, and
     matches a bake given the same frames."""
