@@ -552,19 +552,28 @@ def test_sheet_labels_are_dark_on_light_backgrounds_and_light_on_dark(painterly,
         assert ink.max() > 150, ink.max()
 
 
-def test_errors_composing_the_input_name_the_input_not_the_root_layer(painterly, tmp_path):
-    """With --bake the input is first composed under the render's temporary
-    root layer; an error there names the input."""
-    path = tmp_path / "cycle.usda"
-    path.write_text('#usda 1.0\n(\n    startTimeCode = 1\n    endTimeCode = 1\n)\n\ndef Camera "Cam" {}\n'
-                    'def "A" (inherits = </B>) {}\ndef "B" (inherits = </A>) {}\n')
-    # A bake layer's provenance as `painterly bake` records it (customLayerData["painterly"]).
+CYCLE = 'def "A" (inherits = </B>) {}\ndef "B" (inherits = </A>) {}\n'
+
+
+def render_over_bake(painterly, tmp_path, input_prims, bake_prims):
+    """`render --bake` of a one-frame scene with camera /Cam: the input holds
+    `input_prims`, the bake layer `bake_prims` under the provenance
+    `painterly bake` records (customLayerData["painterly"])."""
+    path = tmp_path / "scene.usda"
+    path.write_text('#usda 1.0\n(\n    startTimeCode = 1\n    endTimeCode = 1\n)\n\ndef Camera "Cam" {}\n' + input_prims)
     bake = tmp_path / "bake.usda"
     bake.write_text('#usda 1.0\n(\n    customLayerData = {\n        dictionary painterly = {\n'
                     f'            string frames = "1:1:1"\n            string input = "{path.resolve()}"\n'
-                    '        }\n    }\n)\n')
+                    '        }\n    }\n)\n\n' + bake_prims)
     proc = painterly("render", path, "--bake", bake, "--camera", "/Cam", "--frames", "1", "-o",
                      tmp_path / "f.####.exr", "--size", "20x16", check=False)
+    return path, bake, proc
+
+
+def test_errors_composing_the_input_name_the_input_not_the_root_layer(painterly, tmp_path):
+    """With --bake the input is first composed under the render's temporary
+    root layer; an error there names the input."""
+    path, _, proc = render_over_bake(painterly, tmp_path, CYCLE, "")
     assert proc.returncode == 1, proc.stderr
     assert proc.stderr.startswith(f"error: {path}: ") and "cycle" in proc.stderr, proc.stderr
     assert "render_root" not in proc.stderr
@@ -573,14 +582,7 @@ def test_errors_composing_the_input_name_the_input_not_the_root_layer(painterly,
 def test_errors_in_the_bake_layer_name_the_bake_not_the_input(painterly, tmp_path):
     """Only errors of the temporary root (or of no file) become the input's:
     a cycle in the `--bake` layer is the bake's to fix, and named so."""
-    path = tmp_path / "scene.usda"
-    path.write_text('#usda 1.0\n(\n    startTimeCode = 1\n    endTimeCode = 1\n)\n\ndef Camera "Cam" {}\n')
-    bake = tmp_path / "bake.usda"
-    bake.write_text('#usda 1.0\n(\n    customLayerData = {\n        dictionary painterly = {\n'
-                    f'            string frames = "1:1:1"\n            string input = "{path.resolve()}"\n'
-                    '        }\n    }\n)\n\ndef "A" (inherits = </B>) {}\ndef "B" (inherits = </A>) {}\n')
-    proc = painterly("render", path, "--bake", bake, "--camera", "/Cam", "--frames", "1", "-o",
-                     tmp_path / "f.####.exr", "--size", "20x16", check=False)
+    _, bake, proc = render_over_bake(painterly, tmp_path, "", CYCLE)
     assert proc.returncode == 1, proc.stderr
     assert proc.stderr.startswith(f"error: {bake.resolve()}: ") and "cycle" in proc.stderr, proc.stderr
 
