@@ -24,7 +24,7 @@ from pxr import Gf, Sdf, Usd, UsdGeom, UsdValidation, Vt
 
 import authoring as Au
 import authoring_keys as AK
-from conftest import PAINTERLY_PLUGIN, REPO
+from conftest import PAINTERLY_PLUGIN, REPO, run_painterly
 
 if os.environ.get("PAINTERLY_PYTHON_PACKAGE") == "required":
     import painterly
@@ -289,6 +289,30 @@ def test_unreadable(tmp_path):
     found = by_validator(validate(stage))
     assert list(found) == [f"{PLUGIN}:Unreadable"], found
     assert "shot.usda" in found[f"{PLUGIN}:Unreadable"][0].GetMessage()
+
+
+def test_a_points_sample_of_another_length_breaks_point_counts(tmp_path):
+    """Bake reads only rest points, but usdview and preview draw a `points`
+    time sample: one of another length than the curves is a point-counts
+    problem, for the validator and for `painterly inspect` (exit 1)."""
+    path = tmp_path / "sampled.usda"
+    stage = good_stage(path)
+    points = stage.GetPrimAtPath(LAYER).GetAttribute("points")
+    points.Set(Au.v3f(np.ones((4, 3))), 2)
+    stage.Save()
+    assert validate(path) == []
+    points.Set(Au.v3f(np.ones((3, 3))), 6)
+    stage.Save()
+    found = by_validator(validate(path))
+    assert list(found) == [f"{PLUGIN}:PointCounts"], sorted(found)
+    message = (f"{LAYER}.points: 1 of 2 time samples disagree with curveVertexCounts (sum 4); "
+               "the first, at time 6, has 3 points")
+    assert [e.GetMessage() for e in found[f"{PLUGIN}:PointCounts"]] == [message]
+    proc = run_painterly("inspect", path, "--json", check=False)
+    assert proc.returncode == 1, proc.stderr
+    assert json.loads(proc.stdout)["problems"] == [
+        {"prim": LAYER, "attribute": "points", "message": message.split(": ", 1)[1], "rule": "point-counts"}
+    ]
 
 
 @pytest.mark.parametrize("fixture", sorted(p.name for p in FIXTURES.glob("*.usda")))

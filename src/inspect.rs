@@ -13,8 +13,9 @@ use serde::Serialize;
 use crate::error::{Error, Result};
 use crate::rule::Rule;
 use crate::usd_io::clips::{clip_set_status, ChunkState};
-use crate::usd_io::scene::{ProxyMotion, Scene};
+use crate::usd_io::scene::{ProxyMotion, Scene, StrokeLayer};
 use crate::usd_io::stage::{StageReader, UnresolvedAsset};
+use crate::usd_io::values;
 use crate::usd_io::view_mesh::read_view_meshes_lenient;
 
 #[derive(Debug, Serialize)]
@@ -171,6 +172,38 @@ fn count_keys(r: &StageReader, layer: &str, problems: &mut Vec<Problem>) -> Resu
     Ok((pos, opa, time, sent))
 }
 
+/// The time samples of a stroke layer's `points` hold as many points as its
+/// curves: bake reads only the rest points (and its layer hides the samples),
+/// but whatever draws the input at a time (usdview, `preview`) reads them.
+/// One problem per layer, at the first sample that disagrees.
+fn check_point_samples(r: &StageReader, layer: &StrokeLayer, problems: &mut Vec<Problem>) -> Result<()> {
+    let prim = r.require_prim(&layer.path)?;
+    let total = layer.num_points();
+    let times = r.sample_times(&prim, "points")?;
+    let mut bad = Vec::new();
+    for &t in &times {
+        let n = r
+            .typed(&prim, "points", Some(t), "point3f[]", values::vec3_array)?
+            .map_or(0, |p| p.len());
+        if n != total {
+            bad.push((t, n));
+        }
+    }
+    if let Some(&(t, n)) = bad.first() {
+        let e = Error::attr(
+            &layer.path,
+            "points",
+            format!(
+                "{} of {} time samples disagree with curveVertexCounts (sum {total}); the first, at time {t}, has {n} points",
+                bad.len(),
+                times.len()
+            ),
+        );
+        problems.push(Problem::new(e, Rule::PointCounts));
+    }
+    Ok(())
+}
+
 /// Builds the report. Fails only when the file cannot be opened at all.
 ///
 /// `camera` is what `bake --camera` would be given: the report then vouches
@@ -232,6 +265,9 @@ pub fn inspect_stage(r: &StageReader) -> Result<Report> {
         };
         let mut layers = Vec::new();
         for l in &rig.layers {
+            if let Err(e) = check_point_samples(r, l, &mut problems) {
+                problems.push(Problem::new(e, Rule::Unreadable));
+            }
             let (pos, opa, time, sent) = match count_keys(r, &l.path, &mut problems) {
                 Ok(c) => c,
                 Err(e) => {
@@ -579,6 +615,45 @@ mod tests {
         assert_eq!(report.rigs.len(), 1);
         assert_eq!(report.rigs[0].skeleton.as_deref(), Some("/Tube/Rig/Skel"));
         assert_eq!(report.rigs[0].animation_source.as_deref(), Some("/Tube/Rig/Skel/Anim"));
+    }
+
+    /// The tube with `samples` (usda `time: value` entries) authored on the
+    /// Rings layer's points, opened from memory.
+    fn tube_with_ring_samples(samples: &str) -> StageReader {
+        let text = std::fs::read_to_string(tube()).unwrap();
+        let at = text.find("def BasisCurves \"Rings\"").unwrap();
+        let at = at + text[at..].find("point3f[] points = ").unwrap();
+        let text = format!(
+            "{}point3f[] points.timeSamples = {{ {samples} }}\n{}",
+            &text[..at],
+            &text[at..]
+        );
+        open_bytes(text.into_bytes(), Path::new("/shots/rings.usda")).unwrap()
+    }
+
+    #[test]
+    fn points_samples_must_hold_as_many_points_as_the_curves() {
+        // Rings: 25 curves of 10 points. A sample of 250 points is fine; two
+        // of 2 points make one problem, at the first of them.
+        let ring = (0..250).map(|i| format!("({i}, 0, 0)")).collect::<Vec<_>>().join(", ");
+        let good = format!("3: [{ring}]");
+        assert!(inspect_stage(&tube_with_ring_samples(&good))
+            .unwrap()
+            .problems
+            .is_empty());
+        let two = "[(0, 0, 0), (1, 1, 1)]";
+        let r = tube_with_ring_samples(&format!("{good}, 5: {two}, 7: {two}"));
+        let problems = inspect_stage(&r).unwrap().problems;
+        assert_eq!(problems.len(), 1, "{problems:?}");
+        let p = &problems[0];
+        assert_eq!(
+            (p.prim.as_deref(), p.attribute.as_deref(), p.rule),
+            (Some("/Tube/Paint/Rings"), Some("points"), Rule::PointCounts)
+        );
+        assert_eq!(
+            p.message,
+            "2 of 3 time samples disagree with curveVertexCounts (sum 250); the first, at time 5, has 2 points"
+        );
     }
 
     #[test]
