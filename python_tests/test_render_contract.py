@@ -587,6 +587,28 @@ def test_errors_in_the_bake_layer_name_the_bake_not_the_input(painterly, tmp_pat
     assert proc.stderr.startswith(f"error: {bake.resolve()}: ") and "cycle" in proc.stderr, proc.stderr
 
 
+CURVE = ('def BasisCurves "C" {\n    int[] curveVertexCounts = [2]\n'
+         '    point3f[] points = [(0, 0, -5), (1, 0, -5)]\n    uniform token type = "linear"\n}\n')
+NAN_POINTS = 'point3f[] points.timeSamples = { 1: [(0, 0, -5), (nan, 0, -5)] }'
+
+
+def test_a_bad_value_the_bake_layer_gives_names_the_bake(painterly, tmp_path):
+    """A value read from the `--bake` layer (its opinion is the strongest at
+    that time) is the bake's to fix: the error names the bake's file."""
+    _, bake, proc = render_over_bake(painterly, tmp_path, CURVE, f'over "C" {{\n    {NAN_POINTS}\n}}\n')
+    assert proc.returncode == 1, proc.stderr
+    assert proc.stderr == f"error: {bake.resolve()}: /C.points: point 1 is not finite at time 1\n"
+
+
+def test_a_bad_value_the_input_gives_names_the_input_under_a_bake(painterly, tmp_path):
+    """The same bad value in the input, under a bake with no opinion on it,
+    is the input's."""
+    curve = CURVE.replace('point3f[] points = [(0, 0, -5), (1, 0, -5)]', NAN_POINTS)
+    path, _, proc = render_over_bake(painterly, tmp_path, curve, 'over "D" {}\n')
+    assert proc.returncode == 1, proc.stderr
+    assert proc.stderr == f"error: {path}: /C.points: point 1 is not finite at time 1\n"
+
+
 def test_a_scene_without_a_time_range_is_baked_for_the_frames_asked(painterly, tmp_path, repo_root):
     """No startTimeCode/endTimeCode: the bake on the fly takes --frames, and
     matches a bake given the same frames."""

@@ -470,6 +470,8 @@ struct RenderStage {
     scene: RenderScene,
     root: PathBuf,
     input: PathBuf,
+    /// The `--bake` layer, canonical; None when the render baked its own.
+    bake: Option<PathBuf>,
 }
 
 impl RenderStage {
@@ -491,24 +493,48 @@ impl RenderStage {
         let named = |e| name_input(e, &root, &args.input);
         let reader = StageReader::open(&root).map_err(named)?;
         reader.require_resolved().map_err(named)?;
-        let scene = RenderScene::discover(&reader, &args.camera).map_err(named)?;
+        // write_root resolved it: canonicalize succeeds.
+        let bake = args.bake.as_ref().and_then(|b| b.canonicalize().ok());
+        let scene = RenderScene::discover(&reader, &args.camera)
+            .map_err(|e| name_source(e, &reader, bake.as_deref(), None))
+            .map_err(named)?;
         Ok(RenderStage {
             reader,
             scene,
             root,
             input: args.input.clone(),
+            bake,
         })
     }
 
     /// The camera, curves and meshes at time `t`.
     fn at(&self, t: f64) -> Result<(camera::CameraParams, Vec<curves::CurvesData>, Vec<prepare::MeshData>)> {
-        let named = |e| name_input(e, &self.root, &self.input);
+        let named = |e| {
+            name_input(
+                name_source(e, &self.reader, self.bake.as_deref(), Some(t)),
+                &self.root,
+                &self.input,
+            )
+        };
         Ok((
             self.scene.camera_at(&self.reader, t).map_err(named)?,
             self.scene.curves_at(&self.reader, t).map_err(named)?,
             self.scene.meshes_at(&self.reader, t).map_err(named)?,
         ))
     }
+}
+
+/// A bad value the `--bake` layer gives (its opinion is the one read at
+/// `time`) is the bake's to fix, and named so; what the input gives stays
+/// the input's.
+fn name_source(mut e: Error, reader: &StageReader, bake: Option<&Path>, time: Option<f64>) -> Error {
+    if let (None, Some(bake), Some(prim), Some(attr)) = (&e.file, bake, &e.prim, &e.attribute) {
+        let source = reader.value_source(prim, attr, time);
+        if source.and_then(|s| s.canonicalize().ok()).as_deref() == Some(bake) {
+            e.file = Some(bake.to_path_buf());
+        }
+    }
+    e
 }
 
 /// An error in the temporary root layer (or in no file) is the input's to

@@ -314,6 +314,16 @@ impl StageReader {
         Ok(v.filter(|v| !matches!(v, Value::None | Value::ValueBlock)))
     }
 
+    /// The layer whose opinion gives `prim.name` its value at `time` (None =
+    /// the default), by its identifier (a file's path); None when no layer
+    /// does. On a stage of several files, this is the file to name for a bad
+    /// value.
+    pub fn value_source(&self, prim: &str, name: &str, time: Option<f64>) -> Option<PathBuf> {
+        let prim = self.prim(prim).ok()??;
+        let info = prim.attribute(name).resolve_info_at(time.map(TimeCode::new)).ok()?;
+        Some(PathBuf::from(&info.spec_site()?.layer))
+    }
+
     /// An attribute's time samples read one at a time from the crate file
     /// that authors them, where that is exact (see [`CrateSamples`]).
     pub fn crate_samples(&self, prim: &usd::Prim, name: &str) -> Option<CrateSamples> {
@@ -550,6 +560,35 @@ mod tests {
     use super::super::atomic::TempDir;
     use super::*;
     use glam::DVec3;
+
+    /// The file named for a value is the layer whose opinion wins at that
+    /// time: a stronger sublayer's samples at a time, the weaker one's
+    /// default at the default time; no layer for an attribute nobody authors.
+    #[test]
+    fn a_value_s_source_is_the_layer_that_wins_at_its_time() {
+        let dir = TempDir::new().unwrap();
+        let file = |name: &str, text: &str| {
+            let p = dir.path().join(name);
+            std::fs::write(&p, format!("#usda 1.0\n{text}")).unwrap();
+            p.canonicalize().unwrap()
+        };
+        let input = file(
+            "input.usda",
+            "def Xform \"A\" {\n    double x = 1\n    double y = 2\n}\n",
+        );
+        let bake = file("bake.usda", "over \"A\" {\n    double x.timeSamples = { 1: 5 }\n}\n");
+        let root = file(
+            "root.usda",
+            &format!("(\n    subLayers = [@{}@, @{}@]\n)\n", bake.display(), input.display()),
+        );
+        let r = StageReader::open(&root).unwrap();
+        let source = |attr: &str, t: Option<f64>| r.value_source("/A", attr, t).map(|p| p.canonicalize().unwrap());
+        assert_eq!(source("x", Some(1.0)), Some(bake.clone()));
+        assert_eq!(source("x", None), Some(input.clone()));
+        assert_eq!(source("y", Some(1.0)), Some(input));
+        assert_eq!(source("z", Some(1.0)), None);
+        assert_eq!(r.value_source("/B", "x", None), None);
+    }
 
     /// A mapped reader keeps exactly the transforms nothing can vary (a
     /// one-sample op is fixed; an animated parent is not, unless the child
