@@ -294,7 +294,8 @@ def test_unreadable(tmp_path):
 def test_a_points_sample_of_another_length_breaks_point_counts(tmp_path):
     """Bake reads only rest points, but usdview and preview draw a `points`
     time sample: one of another length than the curves is a point-counts
-    problem, for the validator and for `painterly inspect` (exit 1)."""
+    problem, for the validator and for `painterly inspect` (exit 1); one with
+    a NaN is a non-finite problem."""
     path = tmp_path / "sampled.usda"
     stage = good_stage(path)
     points = stage.GetPrimAtPath(LAYER).GetAttribute("points")
@@ -305,13 +306,21 @@ def test_a_points_sample_of_another_length_breaks_point_counts(tmp_path):
     stage.Save()
     found = by_validator(validate(path))
     assert list(found) == [f"{PLUGIN}:PointCounts"], sorted(found)
-    message = (f"{LAYER}.points: 1 of 2 time samples disagree with curveVertexCounts (sum 4); "
-               "the first, at time 6, has 3 points")
+    message = (f"{LAYER}.points: time samples disagreeing with curveVertexCounts (sum 4): 1 of 2, "
+               "the first at time 6 with 3 points")
     assert [e.GetMessage() for e in found[f"{PLUGIN}:PointCounts"]] == [message]
     proc = run_painterly("inspect", path, "--json", check=False)
     assert proc.returncode == 1, proc.stderr
     assert json.loads(proc.stdout)["problems"] == [
         {"prim": LAYER, "attribute": "points", "message": message.split(": ", 1)[1], "rule": "point-counts"}
+    ]
+    # The right count, but a point that is not a number: non-finite.
+    points.Set(Au.v3f([[0, 0, 0], [1, NAN, 0], [2, 0, 0], [3, 0, 0]]), 6)
+    stage.Save()
+    found = by_validator(validate(path))
+    assert list(found) == [f"{PLUGIN}:NonFinite"], sorted(found)
+    assert [e.GetMessage() for e in found[f"{PLUGIN}:NonFinite"]] == [
+        f"{LAYER}.points: point 1 of the sample at time 6 is not finite ([1, NaN, 0])"
     ]
 
 

@@ -17,6 +17,7 @@ use crate::usd_io::scene::{ProxyMotion, Scene, StrokeLayer};
 use crate::usd_io::stage::{StageReader, UnresolvedAsset};
 use crate::usd_io::values;
 use crate::usd_io::view_mesh::read_view_meshes_lenient;
+use crate::words::plural;
 
 #[derive(Debug, Serialize)]
 pub struct Report {
@@ -173,33 +174,45 @@ fn count_keys(r: &StageReader, layer: &str, problems: &mut Vec<Problem>) -> Resu
 }
 
 /// The time samples of a stroke layer's `points` hold as many points as its
-/// curves: bake reads only the rest points (and its layer hides the samples),
-/// but whatever draws the input at a time (usdview, `preview`) reads them.
-/// One problem per layer, at the first sample that disagrees.
+/// curves, all finite: bake reads only the rest points (and its layer hides
+/// the samples), but whatever draws the input at a time (usdview, `preview`)
+/// reads them. At most one problem of each kind per layer, at the first
+/// sample that has it; a blocked sample has no points to disagree.
 fn check_point_samples(r: &StageReader, layer: &StrokeLayer, problems: &mut Vec<Problem>) -> Result<()> {
     let prim = r.require_prim(&layer.path)?;
     let total = layer.num_points();
     let times = r.sample_times(&prim, "points")?;
-    let mut bad = Vec::new();
+    let mut miscounted = Vec::new();
+    let mut non_finite = None;
     for &t in &times {
-        let n = r
-            .typed(&prim, "points", Some(t), "point3f[]", values::vec3_array)?
-            .map_or(0, |p| p.len());
-        if n != total {
-            bad.push((t, n));
+        let Some(points) = r.typed(&prim, "points", Some(t), "point3f[]", values::vec3_array)? else {
+            continue;
+        };
+        if points.len() != total {
+            miscounted.push((t, points.len()));
+        }
+        if non_finite.is_none() {
+            non_finite = points.iter().position(|p| !p.is_finite()).map(|i| (t, i, points[i]));
         }
     }
-    if let Some(&(t, n)) = bad.first() {
-        let e = Error::attr(
-            &layer.path,
-            "points",
-            format!(
-                "{} of {} time samples disagree with curveVertexCounts (sum {total}); the first, at time {t}, has {n} points",
-                bad.len(),
-                times.len()
-            ),
+    if let Some(&(t, n)) = miscounted.first() {
+        let message = format!(
+            "time samples disagreeing with curveVertexCounts (sum {total}): {} of {}, the first at time {t} with {}",
+            miscounted.len(),
+            times.len(),
+            plural(n, "point")
         );
-        problems.push(Problem::new(e, Rule::PointCounts));
+        problems.push(Problem::new(
+            Error::attr(&layer.path, "points", message),
+            Rule::PointCounts,
+        ));
+    }
+    if let Some((t, i, p)) = non_finite {
+        let message = format!("point {i} of the sample at time {t} is not finite ({p})");
+        problems.push(Problem::new(
+            Error::attr(&layer.path, "points", message),
+            Rule::NonFinite,
+        ));
     }
     Ok(())
 }
@@ -652,8 +665,43 @@ mod tests {
         );
         assert_eq!(
             p.message,
-            "2 of 3 time samples disagree with curveVertexCounts (sum 250); the first, at time 5, has 2 points"
+            "time samples disagreeing with curveVertexCounts (sum 250): 2 of 3, the first at time 5 with 2 points"
         );
+        // One point, one sample: the words agree with the numbers.
+        let r = tube_with_ring_samples("5: [(0, 0, 0)]");
+        let problems = inspect_stage(&r).unwrap().problems;
+        assert_eq!(
+            problems.iter().map(|p| p.message.as_str()).collect::<Vec<_>>(),
+            ["time samples disagreeing with curveVertexCounts (sum 250): 1 of 1, the first at time 5 with 1 point"]
+        );
+    }
+
+    #[test]
+    fn points_samples_must_be_finite_and_a_blocked_one_is_fine() {
+        // The first non-finite point of the first sample that has one; the
+        // count is right, so it is the only problem. A blocked sample has no
+        // points at all.
+        let ring = |bad: usize| {
+            let p: Vec<String> = (0..250)
+                .map(|i| {
+                    if i == bad {
+                        "(1, nan, 0)".into()
+                    } else {
+                        format!("({i}, 0, 0)")
+                    }
+                })
+                .collect();
+            format!("[{}]", p.join(", "))
+        };
+        let r = tube_with_ring_samples(&format!("2: None, 3: {}, 4: {}, 6: {}", ring(999), ring(7), ring(3)));
+        let problems = inspect_stage(&r).unwrap().problems;
+        assert_eq!(problems.len(), 1, "{problems:?}");
+        let p = &problems[0];
+        assert_eq!(
+            (p.prim.as_deref(), p.attribute.as_deref(), p.rule),
+            (Some("/Tube/Paint/Rings"), Some("points"), Rule::NonFinite)
+        );
+        assert_eq!(p.message, "point 7 of the sample at time 4 is not finite ([1, NaN, 0])");
     }
 
     #[test]
