@@ -644,6 +644,11 @@ mod tests {
         open_bytes(text.into_bytes(), Path::new("/shots/rings.usda")).unwrap()
     }
 
+    /// Where a problem is and the rule it breaks.
+    fn site(p: &Problem) -> (Option<&str>, Option<&str>, Rule) {
+        (p.prim.as_deref(), p.attribute.as_deref(), p.rule)
+    }
+
     #[test]
     fn points_samples_must_hold_as_many_points_as_the_curves() {
         // Rings: 25 curves of 10 points. A sample of 250 points is fine; two
@@ -659,10 +664,7 @@ mod tests {
         let problems = inspect_stage(&r).unwrap().problems;
         assert_eq!(problems.len(), 1, "{problems:?}");
         let p = &problems[0];
-        assert_eq!(
-            (p.prim.as_deref(), p.attribute.as_deref(), p.rule),
-            (Some("/Tube/Paint/Rings"), Some("points"), Rule::PointCounts)
-        );
+        assert_eq!(site(p), (Some("/Tube/Paint/Rings"), Some("points"), Rule::PointCounts));
         assert_eq!(
             p.message,
             "time samples disagreeing with curveVertexCounts (sum 250): 2 of 3, the first at time 5 with 2 points"
@@ -697,10 +699,7 @@ mod tests {
         let problems = inspect_stage(&r).unwrap().problems;
         assert_eq!(problems.len(), 1, "{problems:?}");
         let p = &problems[0];
-        assert_eq!(
-            (p.prim.as_deref(), p.attribute.as_deref(), p.rule),
-            (Some("/Tube/Paint/Rings"), Some("points"), Rule::NonFinite)
-        );
+        assert_eq!(site(p), (Some("/Tube/Paint/Rings"), Some("points"), Rule::NonFinite));
         assert_eq!(p.message, "point 7 of the sample at time 4 is not finite ([1, NaN, 0])");
     }
 
