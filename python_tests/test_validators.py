@@ -291,7 +291,7 @@ def test_unreadable(tmp_path):
     assert "shot.usda" in found[f"{PLUGIN}:Unreadable"][0].GetMessage()
 
 
-def test_a_points_sample_of_another_length_breaks_point_counts(tmp_path):
+def test_points_samples_must_match_the_curves_and_be_finite(tmp_path):
     """Bake reads only rest points, but usdview and preview draw a `points`
     time sample: one of another length than the curves is a point-counts
     problem, for the validator and for `painterly inspect` (exit 1); one with
