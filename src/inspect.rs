@@ -644,6 +644,21 @@ mod tests {
         open_bytes(text.into_bytes(), Path::new("/shots/rings.usda")).unwrap()
     }
 
+    /// A sample for the Rings layer: its 250 points, the one at `nan_at` (if
+    /// any) not a number.
+    fn ring_sample(nan_at: Option<usize>) -> String {
+        let points: Vec<String> = (0..250)
+            .map(|i| {
+                if Some(i) == nan_at {
+                    "(1, nan, 0)".into()
+                } else {
+                    format!("({i}, 0, 0)")
+                }
+            })
+            .collect();
+        format!("[{}]", points.join(", "))
+    }
+
     /// Where a problem is and the rule it breaks.
     fn site(p: &Problem) -> (Option<&str>, Option<&str>, Rule) {
         (p.prim.as_deref(), p.attribute.as_deref(), p.rule)
@@ -653,8 +668,7 @@ mod tests {
     fn points_samples_must_hold_as_many_points_as_the_curves() {
         // Rings: 25 curves of 10 points. A sample of 250 points is fine; two
         // of 2 points make one problem, at the first of them.
-        let ring = (0..250).map(|i| format!("({i}, 0, 0)")).collect::<Vec<_>>().join(", ");
-        let good = format!("3: [{ring}]");
+        let good = format!("3: {}", ring_sample(None));
         assert!(inspect_stage(&tube_with_ring_samples(&good))
             .unwrap()
             .problems
@@ -683,19 +697,12 @@ mod tests {
         // The first non-finite point of the first sample that has one; the
         // count is right, so it is the only problem. A blocked sample has no
         // points at all.
-        let ring = |bad: usize| {
-            let p: Vec<String> = (0..250)
-                .map(|i| {
-                    if i == bad {
-                        "(1, nan, 0)".into()
-                    } else {
-                        format!("({i}, 0, 0)")
-                    }
-                })
-                .collect();
-            format!("[{}]", p.join(", "))
-        };
-        let r = tube_with_ring_samples(&format!("2: None, 3: {}, 4: {}, 6: {}", ring(999), ring(7), ring(3)));
+        let r = tube_with_ring_samples(&format!(
+            "2: None, 3: {}, 4: {}, 6: {}",
+            ring_sample(None),
+            ring_sample(Some(7)),
+            ring_sample(Some(3))
+        ));
         let problems = inspect_stage(&r).unwrap().problems;
         assert_eq!(problems.len(), 1, "{problems:?}");
         let p = &problems[0];
