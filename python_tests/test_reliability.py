@@ -303,6 +303,41 @@ def test_inspect_evaluates_every_frame_bake_would(tmp_path, fixture, prim, attr,
     assert run("inspect", REPO / "fixtures" / fixture).returncode == 0
 
 
+def undecodable_camera_samples(tmp_path):
+    """Found by `scripts/fuzz --seed 20261205` (case 11453): a crate file
+    whose camera op has samples that cannot be decoded, under a name no
+    transform op has ("xformOp:traNslate"). Computing the transform skips
+    that op, but bake reads the stage mapped and asks whether the camera
+    may move, which decodes the samples and fails. Returns the file and
+    bake's message."""
+    src = tmp_path / "building.usdc"
+    Sdf.Layer.FindOrOpen(str(REPO / "fixtures" / "building.usda")).Export(str(src))
+    data = bytearray(src.read_bytes())
+    # The fuzzer's two bytes, in usd-core's (pinned) export: the third byte
+    # of the offset in one sample's value rep (a Vec3d, type 0x17), and the
+    # "n" of the shared token "translate" (an LZ4 literal).
+    assert data[6840:6848] == b"\x18\x15\x00\x00\x00\x00\x17\x00", "usd-core's export changed"
+    assert data[7178:7187] == b"translate", "usd-core's export changed"
+    data[6842] = 0xA9
+    data[7181] = ord("N")
+    src.write_bytes(bytes(data))
+    return src, 'cannot read transform: failed to decode field "timeSamples" at /Building/Camera.xformOp:traNslate'
+
+
+def test_inspect_reads_the_frames_as_bake_does(tmp_path):
+    """inspect read such a stage unmapped, passed, and so vouched for a
+    bake that fails. It now opens the stage as bake does."""
+    src, message = undecodable_camera_samples(tmp_path)
+    proc = bake_fails(tmp_path, src, "/Building/Camera")
+    assert proc.stderr == f"error: {src}: /Building/Camera: {message}\n", proc.stderr
+    proc = run("inspect", src, "--json")
+    assert proc.returncode == 1, proc.stdout + proc.stderr
+    import json
+
+    problems = json.loads(proc.stdout)["problems"]
+    assert [(p["prim"], p["message"]) for p in problems] == [("/Building/Camera", message)], problems
+
+
 def test_camera_naming_a_mesh_is_refused(tmp_path):
     src = tmp_path / "rig.usda"
     shutil.copy(BLOWFISH, src)

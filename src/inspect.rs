@@ -220,9 +220,11 @@ fn check_point_samples(r: &StageReader, layer: &StrokeLayer, problems: &mut Vec<
 /// Builds the report. Fails only when the file cannot be opened at all.
 ///
 /// `camera` is what `bake --camera` would be given: the report then vouches
-/// for that bake.
+/// for that bake. The stage is opened as bake opens it (mapped), so that
+/// its frames are read the same way: a mapped stage reads time samples
+/// and fixed transforms through its own paths.
 pub fn inspect(path: &Path, camera: Option<&str>) -> Result<Report> {
-    let reader = StageReader::open(path)?;
+    let reader = StageReader::open_mapped(path)?;
     let mut report = inspect_stage(&reader)?;
     check_every_frame(reader, camera, &mut report);
     Ok(report)

@@ -90,6 +90,15 @@ impl Source {
         }
     }
 
+    /// Like [`Self::open`], but a file is mapped, as the CLI's bake and
+    /// inspect read it: for a reader dropped before the call returns.
+    fn open_mapped(&self) -> painterly::Result<StageReader> {
+        match &self.text {
+            None => StageReader::open_mapped(&self.path),
+            Some(t) => open_bytes(t.clone(), &self.path),
+        }
+    }
+
     /// Errors name the layer's identifier, not where its text was served.
     fn name_in(&self, mut e: painterly::Error) -> painterly::Error {
         if self.text.is_some() && e.file.as_deref() == Some(self.path.as_path()) {
@@ -239,7 +248,7 @@ fn bake(
 fn inspect(py: Python<'_>, input: &Bound<'_, PyAny>, camera: Option<String>) -> PyResult<Py<PyAny>> {
     let src = Source::from_py(input)?;
     let report = py.detach(|| {
-        let r = src.open()?;
+        let r = src.open_mapped()?;
         let mut rep = painterly::inspect::inspect_stage(&r)?;
         // As the CLI: passing means a default bake succeeds.
         painterly::inspect::check_every_frame(r, camera.as_deref(), &mut rep);
