@@ -280,17 +280,22 @@ def test_inspect_vouches_for_the_bake_with_its_camera(tmp_path):
     assert with_camera == cli
 
 
-def test_inspect_of_a_file_reads_it_as_the_cli_bake_does(tmp_path):
+def test_a_file_is_read_as_the_cli_reads_it(tmp_path):
     """A file whose camera samples only a mapped read fails on (see
-    test_reliability): inspect reports what `painterly bake` fails on, and
-    its report is the CLI's."""
+    test_reliability): inspect reports what `painterly bake` fails on, its
+    report is the CLI's, and `bake` fails as the CLI's bake does."""
     from test_reliability import undecodable_camera_samples
 
     src, message = undecodable_camera_samples(tmp_path)
     report = painterly.inspect(src)
     assert [(p["prim"], p["message"]) for p in report["problems"]] == [("/Building/Camera", message)]
     assert report == json.loads(run_painterly("inspect", src, "--json", check=False).stdout)
-    assert run_painterly("bake", src, "-o", tmp_path / "out.usdc", check=False).returncode == 1
+    cli = run_painterly("bake", src, "-o", tmp_path / "cli.usdc", check=False)
+    assert cli.returncode == 1 and cli.stderr == f"error: {src}: /Building/Camera: {message}\n", cli.stderr
+    with pytest.raises(painterly.Error) as e:
+        painterly.bake(src, tmp_path / "out.usdc")
+    assert (e.value.file, e.value.prim, e.value.message) == (str(src), "/Building/Camera", message)
+    assert not (tmp_path / "out.usdc").exists()
 
 
 def test_errors_are_painterly_errors_naming_where(tmp_path):

@@ -91,7 +91,8 @@ impl Source {
     }
 
     /// Like [`Self::open`], but a file is mapped, as the CLI's bake and
-    /// inspect read it: for a reader dropped before the call returns.
+    /// inspect read it, so that the two front doors read a file alike: for
+    /// a reader dropped before the call returns (bake, inspect).
     fn open_mapped(&self) -> painterly::Result<StageReader> {
         match &self.text {
             None => StageReader::open_mapped(&self.path),
@@ -214,7 +215,7 @@ fn bake(
         }
     };
     let result = py.detach(|| {
-        let summary = bake_with(&src.path, &out_path, &opts, &report, || src.open())?;
+        let summary = bake_with(&src.path, &out_path, &opts, &report, || src.open_mapped())?;
         let text = match &temp {
             Some(_) => Some(
                 std::fs::read_to_string(&out_path)
