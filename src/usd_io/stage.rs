@@ -402,7 +402,7 @@ impl StageReader {
                 None => self.compute_local_to_world(prim, time),
             };
         }
-        let varies = self.transform_might_vary(prim)?;
+        let varies = self.transform_might_vary(prim);
         let m = self.compute_local_to_world(prim, time)?;
         lock().insert(prim.path().clone(), (!varies).then_some(m));
         Ok(m)
@@ -411,20 +411,26 @@ impl StageReader {
     /// Whether an op of `prim` or of an ancestor up to the nearest
     /// `!resetXformStack!` may vary in time (C++
     /// `UsdGeomXformCache::TransformMightBeTimeVarying`, up the chain).
-    fn transform_might_vary(&self, prim: &usd::Prim) -> Result<bool> {
+    ///
+    /// Only decides whether the transform is kept, so a probe that fails
+    /// answers yes and each frame computes the transform as an unmapped
+    /// stage does. openusd's probe can fail on an op the transform itself
+    /// skips (seen: samples that cannot be decoded under an unknown op
+    /// name), and a bake must not fail on what its transforms do not read.
+    fn transform_might_vary(&self, prim: &usd::Prim) -> bool {
         let mut cache = XformCache::new(None::<TimeCode>);
         let mut at = Some(prim.clone());
         while let Some(p) = at {
-            let fail = |e: openusd_schemas::SchemaError| Error::prim(p.path(), format!("cannot read transform: {e}"));
-            if cache.transform_might_be_time_varying(&p).map_err(fail)? {
-                return Ok(true);
+            if cache.transform_might_be_time_varying(&p).unwrap_or(true) {
+                return true;
             }
-            if cache.resets_xform_stack(&p).map_err(fail)? {
-                break;
+            match cache.resets_xform_stack(&p) {
+                Ok(false) => at = p.parent(),
+                Ok(true) => return false,
+                Err(_) => return true,
             }
-            at = p.parent();
         }
-        Ok(false)
+        false
     }
 
     fn compute_local_to_world(&self, prim: &usd::Prim, time: f64) -> Result<DMat4> {
