@@ -171,6 +171,44 @@ def test_missing_input(painterly, case, tmp_path):
     assert not (tmp_path / "e.usda").exists()
 
 
+def scale_proxy(inp, scale):
+    """Gives the proxy of the rig in `inp` a double-precision scale op
+    (appended to its ops); returns the proxy's path."""
+    st = Usd.Stage.Open(str(inp))
+    proxy = next(p for p in st.Traverse() if p.IsA(UsdGeom.Mesh))
+    UsdGeom.Xformable(proxy).AddScaleOp(UsdGeom.XformOp.PrecisionDouble, "fuzz").Set(scale)
+    st.GetRootLayer().Save()
+    return str(proxy.GetPath())
+
+
+# Found by `scripts/fuzz --edits` (seed 7, case 86): a proxy scaled by 0 on
+# one axis made `bind` panic, its world transform's inverse carrying NaN
+# into the binding; a brush would have written NaN rest points.
+@pytest.mark.parametrize("mode", ["--in-place", "edit-layer"])
+def test_a_proxy_flattened_to_nothing_is_refused(painterly, case, mode):
+    inp, refused = case
+    proxy = scale_proxy(inp, (1.0, 1.0, 0.0))
+    target = dict(edit_layer=None, extra=["--in-place"]) if mode == "--in-place" else dict(extra=[])
+    where = {k: v for k, v in target.items() if k != "extra"}
+    for args in (["bind", inp], brush_args(inp), brush_args(inp, "expand")):
+        msg = refused(painterly, *args, *target["extra"], names=[proxy, "has no inverse", "determinant 0"], **where)
+        assert msg.count("\n") == 1, msg
+    # Posed, the skinning of the flattened proxy fails first, as a bake's does.
+    refused(painterly, "bind", inp, "--time", 6, *target["extra"], names=[proxy, "not finite at time 6"], **where)
+
+
+def test_a_proxy_scaled_past_the_float_range_is_refused(painterly, case):
+    """A scale of 1e-100 has an inverse, but 1e100 takes the painted points
+    and the brush's displacements past f32: refused, naming what would
+    have been written."""
+    inp, refused = case
+    scale_proxy(inp, (1e-100, 1e-100, 1e-100))
+    msg = refused(painterly, "bind", inp, names=[LAYER, "points", "point 0", "not finite"])
+    assert "past the float range" in msg
+    for which in ("smudge", "expand"):
+        refused(painterly, *brush_args(inp, which), names=[LAYER, "painterly:restPoints", "past the float range"])
+
+
 # ---------------------------------------------------------------------------
 # command-line usage: exit 2
 

@@ -20,13 +20,28 @@ process under a 60 s timeout and an address-space limit. A case fails when:
   nor is a stage with nothing painterly in it (inspect finds nothing wrong,
   bake says "nothing to bake").
 
-Usage: python3 scripts/fuzz.py --cases N --seed S [--first K] [--jobs J] [--keep DIR]
+With --edits each case also runs one command that writes (picked by the
+case's random stream): `bind --in-place`, `bind --edit-layer`, `expand` or
+`smudge --in-place` on the seed's first stroke layer, a pose or time key
+(`key --in-place --points`), or a two-frame `render` through the seed's
+camera. Besides the checks above, a case also fails when:
+
+- a command that failed, or one that writes elsewhere (`--edit-layer`,
+  `render`), changed its input, or one left a temporary file;
+- an in-place edit of a file `inspect` passed leaves a file `inspect`
+  rejects (an "edit" trust failure);
+- usd-core opens the input but not what painterly wrote, or cannot then
+  edit it and save it in place (checked in batches, one usd-core process
+  per 200 written files).
+
+Usage: python3 scripts/fuzz.py --cases N --seed S [--first K] [--jobs J] [--keep DIR] [--edits]
 Failing inputs are copied to --keep (default target/fuzz-failures) with
 their stderr; the exit status is the number of failures (capped at 100).
 Cases are reproducible from (seed, case index).
 """
 
 import argparse
+import json
 import concurrent.futures as cf
 import os
 import pathlib
@@ -50,18 +65,51 @@ ARCS = [b'(inherits = </Nowhere>)', b'(references = @missing.usda@)', b'(payload
         b'(specializes = </Blowfish>)', b'(inherits = </World>)', b'(references = </World>)']
 
 
+FIXTURES = ["static.usda", "building.usda", "tube.usda", "head.usda", "walk.usda", "fig4.usda"]
+
+
+def venv_python():
+    venv = [REPO / ".venv/bin/python", pathlib.Path("/work/main/.venv/bin/python")]
+    return next((str(v) for v in venv if v.exists()), None)
+
+
+# The stroke layers, cameras and start time of each seed (before mutation),
+# read by usd-core: the arguments of the edit commands.
+META_CODE = """
+import json, sys
+from pxr import Usd
+out = {}
+for path in sys.argv[1:]:
+    st = Usd.Stage.Open(path)
+    layers = [str(p.GetPath()) for p in st.Traverse()
+              if p.HasAuthoredMetadata('apiSchemas')
+              and 'PainterlyStrokeLayerAPI' in p.GetMetadata('apiSchemas').GetAddedOrExplicitItems()]
+    cams = [str(p.GetPath()) for p in st.Traverse() if p.GetTypeName() == 'Camera']
+    out[path] = {'layers': layers, 'cameras': cams, 'start': st.GetStartTimeCode()}
+print(json.dumps(out))
+"""
+
+
+def seed_meta(paths):
+    py = venv_python()
+    if not py:
+        return {}
+    r = subprocess.run([py, "-c", META_CODE, *map(str, paths)], capture_output=True, text=True)
+    if r.returncode != 0:
+        sys.exit(f"fuzz: reading the seeds' layers and cameras with usd-core failed:\n{r.stderr}")
+    return {pathlib.Path(k).name: v for k, v in json.loads(r.stdout).items()}
+
+
 def seeds(work):
     """Seed files: small fixtures as text, and each also as usd-core crate bytes."""
-    names = ["static.usda", "building.usda", "tube.usda", "head.usda", "walk.usda", "fig4.usda"]
     out = []
-    for n in names:
+    for n in FIXTURES:
         p = REPO / "fixtures" / n
         if p.exists():
             out.append((n, p.read_bytes()))
     crate_dir = work / "seeds"
     crate_dir.mkdir(exist_ok=True)
-    venv = [REPO / ".venv/bin/python", pathlib.Path("/work/main/.venv/bin/python")]
-    py = next((str(v) for v in venv if v.exists()), None)
+    py = venv_python()
     if py:
         for n, _ in list(out)[:4]:
             dst = crate_dir / n.replace(".usda", ".usdc")
@@ -71,6 +119,12 @@ def seeds(work):
             if r.returncode == 0 and dst.exists():
                 out.append((dst.name, dst.read_bytes()))
     return out
+
+
+def seeds_meta():
+    """seed_meta of every seed file, the crate copies sharing their fixture's."""
+    meta = seed_meta([REPO / "fixtures" / n for n in FIXTURES if (REPO / "fixtures" / n).exists()])
+    return {**meta, **{n.replace(".usda", ".usdc"): m for n, m in meta.items()}}
 
 
 def mutate(rng, data, is_text):
@@ -129,7 +183,26 @@ def run(exe, args, cwd):
         return "timeout", "", time.monotonic() - t0
 
 
-def check(exe, seed, k, seed_files, work):
+def edit_command(rng, name, meta):
+    """One command that writes, for a case's file `name`: (args, in_place)."""
+    layers, cams = meta.get("layers") or ["/Nowhere"], meta.get("cameras") or ["/Nowhere"]
+    layer, start = rng.choice(layers), str(meta.get("start", 1.0))
+    tool = ["--layer", layer, "--path", "-100,-100,-100 100,100,100", "--radius", "1000"]
+    commands = [
+        (["bind", name, "--in-place"], True),
+        (["bind", name, "--edit-layer", "edits.usda"], False),
+        (["expand", name, "--in-place", *tool, "--strength", "0.01"], True),
+        (["smudge", name, "--in-place", *tool, "--strength", "0.02"], True),
+        (["key", name, "--in-place", "--layer", layer, "--time", start, "--points"], True),
+        (["key", name, "--in-place", "--layer", layer, "--time", start, "--time-key", "--points"], True),
+        (["render", name, "--camera", rng.choice(cams), "--frames", "1:2", "-o", "r.####.exr", "--size", "32x18"],
+         False),
+    ]
+    args, in_place = rng.choice(commands)
+    return [*args, "-q"], in_place
+
+
+def check(exe, seed, k, seed_files, work, meta=None):
     rng = random.Random(f"{seed}:{k}")
     name, data = rng.choice(seed_files)
     data = mutate(rng, data, name.endswith(".usda"))
@@ -166,19 +239,103 @@ def check(exe, seed, k, seed_files, work):
         if vouched and rc_i == 0 and rc_b not in (0, None) and rc_b != "timeout" and "nothing to bake" not in err_b:
             first = err_b.strip().splitlines()[:1]
             trust.append(f"inspect passed but bake exited {rc_b}: {first}")
+    t_e, written, edit = 0.0, None, None
+    if meta is not None:
+        # A case's own stream picks the edit, after the mutation, so that
+        # the default run's cases are the same with and without --edits.
+        args, in_place = edit_command(random.Random(f"{seed}:{k}:edit"), name, meta.get(name, {}))
+        rc_e, err_e, t_e = run(exe, args, d)
+        what = " ".join(a for a in args if a not in (name, "-q"))
+        edit = (" ".join(args[:1] + [a for a in args if a in ("--in-place", "--edit-layer", "--time-key")]), rc_e)
+        judge(what, rc_e, err_e)
+        err_b += err_e
+        after = src.read_bytes()
+        if (rc_e != 0 or not in_place) and after != data:
+            problems.append(f"{what} exited {rc_e} and changed its input")
+        if in_place and rc_e == 0:
+            rc_a, err_a, _ = run(exe, ["inspect", name], d)
+            judge(f"inspect after {what}", rc_a, err_a)
+            if rc_i == 0 and rc_a != 0:
+                first = err_a.strip().splitlines()[:1]
+                trust.append(f"inspect passed, {what} succeeded, then inspect exited {rc_a}: {first}")
+            written = (args, after)
+        elif rc_e == 0 and (d / "edits.usda").exists():
+            written = (args, (d / "edits.usda").read_bytes())
+        data_changed_ok = in_place and rc_e == 0
+    else:
+        data_changed_ok = False
     left = [n for n in os.listdir(d) if ".painterly-" in n]
     if left:
         problems.append(f"left temporaries {left}")
-    if src.read_bytes() != data:
+    if src.read_bytes() != data and not data_changed_ok:
         problems.append("input changed")
     # Only a failing case keeps its bytes and stderr: every finished future
     # stays referenced until the run ends, and 100,000 cases' worth made the
     # driver slow (garbage collection over gigabytes) and big.
     failed = bool(problems or trust)
-    result = (k, name, rc_i, rc_b, max(t_i, t_b), problems, trust,
-              err_i + err_b if failed else "", data if failed else b"")
+    result = (k, name, rc_i, rc_b, max(t_i, t_b, t_e), problems, trust,
+              err_i + err_b if failed else "", data if failed else b"", (data, written) if written else None, edit)
     shutil.rmtree(d, ignore_errors=True)
     return result
+
+
+# Opens each written case in usd-core: when it opens the input, it must
+# open what painterly wrote, edit it and save it in place. Prints one JSON
+# object: case directory name -> the problem.
+USD_CHECK_CODE = """
+import json, pathlib, sys
+from pxr import Sdf, Usd
+bad = {}
+for case in map(pathlib.Path, sys.argv[1:]):
+    spec = json.loads((case / "case.json").read_text())
+    try:
+        Usd.Stage.Open(str(case / "orig" / spec["name"]))
+    except Exception:
+        continue  # usd-core rejects the input too: nothing to compare
+    root = case / "edit" / spec["root"]
+    try:
+        stage = Usd.Stage.Open(str(root))
+        layer = stage.GetRootLayer()
+        Sdf.CreatePrimInLayer(layer, "/FuzzCheckEdit")
+        if not layer.Save():
+            raise RuntimeError("Save() returned False")
+        again = Sdf.Layer.OpenAsAnonymous(str(root))
+        if again is None or not again.GetPrimAtPath("/FuzzCheckEdit"):
+            raise RuntimeError("the edit saved in place is not in the file read back")
+    except Exception as e:
+        bad[case.name] = f"usd-core opens the input but not what painterly wrote: {str(e).strip()[:300]}"
+print(json.dumps(bad))
+"""
+
+
+def usd_check(batch):
+    """Runs USD_CHECK_CODE over the case folders in `batch` (a folder)."""
+    cases = sorted(str(c) for c in batch.iterdir())
+    if not cases:
+        return {}
+    r = subprocess.run([venv_python(), "-c", USD_CHECK_CODE, *cases], capture_output=True, text=True)
+    if r.returncode != 0:
+        return {pathlib.Path(c).name: f"the usd-core check crashed: {r.stderr.strip()[-300:]}" for c in cases}
+    return json.loads(r.stdout.strip().splitlines()[-1])
+
+
+def stash_written(batch, k, name, data, written):
+    """Keeps a written case for usd_check: orig/NAME (the mutated input),
+    edit/ (what the edit left: the file edited in place, or the input and
+    its edit layer)."""
+    args, out = written
+    case = batch / f"c{k}"
+    (case / "orig").mkdir(parents=True)
+    (case / "edit").mkdir()
+    (case / "orig" / name).write_bytes(data)
+    if "--edit-layer" in args:
+        (case / "edit" / name).write_bytes(data)
+        (case / "edit" / "edits.usda").write_bytes(out)
+        root = "edits.usda"
+    else:
+        (case / "edit" / name).write_bytes(out)
+        root = name
+    (case / "case.json").write_text(json.dumps({"name": name, "root": root, "args": args}))
 
 
 def main():
@@ -190,38 +347,75 @@ def main():
     ap.add_argument("--jobs", type=int, default=os.cpu_count() or 2)
     ap.add_argument("--keep", default=str(REPO / "target" / "fuzz-failures"))
     ap.add_argument("--bin", default=os.environ.get("PAINTERLY_BIN", str(REPO / "target/release/painterly")))
+    ap.add_argument("--edits", action="store_true",
+                    help="also run one writing command per case (bind, expand, smudge, key, render)")
     a = ap.parse_args()
+    if a.edits and not venv_python():
+        sys.exit("fuzz: --edits needs .venv (usd-core): run scripts/test once")
     exe = str(pathlib.Path(a.bin).resolve())
     started = time.monotonic()
     with tempfile.TemporaryDirectory(prefix="painterly-fuzz-") as tmp:
         work = pathlib.Path(tmp)
         seed_files = seeds(work)
-        failures, trusts, slowest, exits = [], [], 0.0, {}
+        meta = seeds_meta() if a.edits else None
+        batch = work / "written"
+        batch.mkdir()
+        failures, trusts, slowest, exits, checked, edits = [], [], 0.0, {}, 0, {}
+
+        def keep_failure(k, name, data, err, problems):
+            failures.append(k)
+            keep = pathlib.Path(a.keep) / f"seed{a.seed}-case{k}"
+            keep.mkdir(parents=True, exist_ok=True)
+            (keep / name).write_bytes(data)
+            (keep / "stderr.txt").write_text(err)
+            (keep / "problems.txt").write_text("\n".join(problems) + "\n")
+            print(f"FAIL case {k} ({name}): {'; '.join(problems)}", flush=True)
+
+        def check_batch():
+            nonlocal checked
+            for case, problem in usd_check(batch).items():
+                spec = json.loads((batch / case / "case.json").read_text())
+                k = int(case[1:])
+                keep_failure(k, spec["name"], (batch / case / "orig" / spec["name"]).read_bytes(), "",
+                             [f"{' '.join(spec['args'])}: {problem}"])
+                shutil.copytree(batch / case / "edit", pathlib.Path(a.keep) / f"seed{a.seed}-case{k}" / "written")
+            checked += sum(1 for _ in batch.iterdir())
+            shutil.rmtree(batch)
+            batch.mkdir()
+
         with cf.ThreadPoolExecutor(a.jobs) as pool:
-            futs = [pool.submit(check, exe, a.seed, k, seed_files, work) for k in range(a.first, a.first + a.cases)]
+            futs = [pool.submit(check, exe, a.seed, k, seed_files, work, meta)
+                    for k in range(a.first, a.first + a.cases)]
             for n, f in enumerate(cf.as_completed(futs), 1):
-                k, name, rc_i, rc_b, t, problems, trust, err, data = f.result()
+                k, name, rc_i, rc_b, t, problems, trust, err, data, written, edit = f.result()
+                if edit:
+                    edits[edit] = edits.get(edit, 0) + 1
+                if written:
+                    stash_written(batch, k, name, *written)
+                    if sum(1 for _ in batch.iterdir()) >= 200:
+                        check_batch()
                 slowest = max(slowest, t)
                 exits[(rc_i, rc_b)] = exits.get((rc_i, rc_b), 0) + 1
                 if trust:
                     trusts.append(k)
                     problems = problems + trust
                 if problems:
-                    failures.append(k)
-                    keep = pathlib.Path(a.keep) / f"seed{a.seed}-case{k}"
-                    keep.mkdir(parents=True, exist_ok=True)
-                    (keep / name).write_bytes(data)
-                    (keep / "stderr.txt").write_text(err)
-                    (keep / "problems.txt").write_text("\n".join(problems) + "\n")
-                    print(f"FAIL case {k} ({name}): {'; '.join(problems)}", flush=True)
+                    keep_failure(k, name, data, err, problems)
                 if n % 1000 == 0:
                     print(f"{n}/{a.cases} cases, {len(failures)} failures, {len(trusts)} trust, "
                           f"{time.monotonic() - started:.0f} s", flush=True)
+            check_batch()
     took = time.monotonic() - started
     summary = ", ".join(f"inspect {i}/bake {b}: {c}" for (i, b), c in sorted(exits.items(), key=str))
     print(f"fuzz: {a.cases} cases ({a.first}..{a.first + a.cases - 1} of seed {a.seed}, {a.jobs} jobs) in {took:.1f} s; "
           f"{len(failures)} failures; {len(trusts)} inspect-0/bake-1 (trust); slowest run {slowest:.2f} s")
     print(f"exit codes: {summary}")
+    if a.edits:
+        print("edits (command: exits 0 / 1 / other): " + ", ".join(
+            f"{c}: {edits.get((c, 0), 0)} / {edits.get((c, 1), 0)} / "
+            f"{sum(n for (c2, rc), n in edits.items() if c2 == c and rc not in (0, 1))}"
+            for c in sorted({c for c, _ in edits})))
+        print(f"edits: {checked} written files checked with usd-core")
     sys.exit(min(len(failures), 100))
 
 

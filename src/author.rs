@@ -45,6 +45,32 @@ pub struct PosedRig {
     pub time: f64,
 }
 
+impl PosedRig {
+    /// The inverse of `proxy_to_world`, which takes painted world points
+    /// into the proxy's space. A proxy whose transform has no inverse (a
+    /// zero scale flattens it) is refused here, naming `proxy`: its inverse
+    /// would carry NaN into the binding and the rest points.
+    pub fn world_to_proxy(&self, proxy: &str) -> Result<DMat4> {
+        let det = self.proxy_to_world.determinant();
+        let inverse = self.proxy_to_world.inverse();
+        if det != 0.0 && det.is_finite() && inverse.is_finite() {
+            return Ok(inverse);
+        }
+        Err(Error::prim(
+            proxy,
+            format!(
+                "its world transform at time {} has no inverse (determinant {det}), so painted points cannot be taken into the proxy's space",
+                self.time
+            ),
+        ))
+    }
+}
+
+/// The first point of `points` that is not finite as f32 (what is written).
+fn first_non_finite(points: impl IntoIterator<Item = Vec3>) -> Option<usize> {
+    points.into_iter().position(|p| !p.is_finite())
+}
+
 /// Poses `rig` at `time`, or in its rest pose when `time` is None (transforms
 /// are then read at `xform_time`).
 pub fn pose_rig(r: &StageReader, rig: &Rig, time: Option<f64>, xform_time: f64) -> Result<PosedRig> {
@@ -170,8 +196,8 @@ pub fn bind(session: &EditSession, opts: &BindOptions) -> Result<BindReport> {
             continue;
         }
         let pose = pose_rig(r, rig, opts.time, start)?;
+        let world_to_proxy = pose.world_to_proxy(&rig.proxy.path)?;
         let bvh = ClosestPoint::new(&pose.posed, &pose.triangles);
-        let world_to_proxy = pose.proxy_to_world.inverse();
         // Every chosen layer's painted points in proxy space, bound in one
         // call (one parallel job and one Morton order over the rig, as a
         // bake binds); each point's answer depends on it alone.
@@ -186,7 +212,17 @@ pub fn bind(session: &EditSession, opts: &BindOptions) -> Result<BindReport> {
                 )
             })?;
             let to_proxy = world_to_proxy * layer.local_to_world(r, pose.time)?;
+            let start = proxy_pts.len();
             proxy_pts.extend(painted.iter().map(|p| to_proxy.transform_point3(p.as_dvec3())));
+            // A proxy scaled down by 1e-100 has an inverse, but it takes the
+            // points past f32, and the binding needs finite points.
+            if let Some(i) = first_non_finite(proxy_pts[start..].iter().map(|p| p.as_vec3())) {
+                return Err(Error::attr(
+                    &layer.path,
+                    "points",
+                    format!("point {i} is not finite in the space of the proxy {}: its transform scales the points past the float range", rig.proxy.path),
+                ));
+            }
             ends.push(proxy_pts.len());
         }
         let f32pts: Vec<Vec3> = proxy_pts.iter().map(|p| p.as_vec3()).collect();
@@ -201,6 +237,15 @@ pub fn bind(session: &EditSession, opts: &BindOptions) -> Result<BindReport> {
             for (i, p) in proxy_pts[start..end].iter().enumerate() {
                 let m = blended_motion(&pose.motions, binding.vertices[i], binding.weights[i]);
                 rest.push(invert(&m, &layer.path, i)?.transform_point3(*p).as_vec3());
+            }
+            if let Some(i) = first_non_finite(rest.iter().copied()) {
+                return Err(Error::attr(
+                    &layer.path,
+                    "points",
+                    format!(
+                        "point {i}: its rest position is not finite (the skinning blend takes it past the float range)"
+                    ),
+                ));
             }
             write_binding(session, &layer.path, &rest, &binding)?;
             report.push((layer.path.clone(), rest.len()));
@@ -498,6 +543,10 @@ pub fn brush(session: &EditSession, brush: Brush, opts: &BrushOptions) -> Result
     let (target_prim, target_attr, mut target) = brush_target(r, layer, opts.key.as_deref())?;
 
     let pose = pose_rig(r, rig, opts.time, start)?;
+    // Refuses a proxy flattened to nothing before any work; the linear
+    // part's inverse takes world displacements and normals across.
+    pose.world_to_proxy(&rig.proxy.path)?;
+    let to_proxy = DMat3::from_mat4(pose.proxy_to_world).inverse();
     let binding = match &layer.cached_binding {
         Some(b) => b.clone(),
         None => ClosestPoint::new(
@@ -519,12 +568,11 @@ pub fn brush(session: &EditSession, brush: Brush, opts: &BrushOptions) -> Result
     let disp = match brush {
         Brush::Smudge => tools::smudge(&world, &opts.path, opts.radius, opts.strength, opts.falloff),
         Brush::Expand => {
-            let normals = world_normals(&pose, &binding);
+            let normals = world_normals(&pose, &binding, to_proxy);
             tools::expand(&world, &normals, &opts.path, opts.radius, opts.strength, opts.falloff)
         }
     };
     // Each world displacement back to rest space through its point's motion.
-    let to_proxy = DMat3::from_mat4(pose.proxy_to_world).inverse();
     let mut moved = 0;
     for i in 0..target.len() {
         if !selected[i] || disp[i] == DVec3::ZERO {
@@ -534,6 +582,13 @@ pub fn brush(session: &EditSession, brush: Brush, opts: &BrushOptions) -> Result
         let d_rest = inv.matrix3 * (to_proxy * disp[i]);
         target[i] += d_rest.as_vec3();
         moved += 1;
+    }
+    if let Some(i) = first_non_finite(target.iter().copied()) {
+        return Err(Error::attr(
+            &target_prim,
+            target_attr,
+            format!("point {i}: the brush moves it past the float range in the proxy's space"),
+        ));
     }
     session.set(&target_prim, target_attr, "point3f[]", true, vec3f_value(&target))?;
     Ok(moved)
@@ -615,10 +670,11 @@ fn selected_points(layer: &StrokeLayer, strokes: Option<&[usize]>) -> Result<Vec
 }
 
 /// World-space unit normals at the bound points: the posed proxy's vertex
-/// normals blended by the binding's weights.
-fn world_normals(pose: &PosedRig, binding: &Binding) -> Vec<DVec3> {
+/// normals blended by the binding's weights. `to_proxy` is the inverse of
+/// the proxy's linear part, whose transpose carries normals to world space.
+fn world_normals(pose: &PosedRig, binding: &Binding, to_proxy: DMat3) -> Vec<DVec3> {
     let vn = tools::vertex_normals(&pose.posed, &pose.triangles);
-    let normal_m = DMat3::from_mat4(pose.proxy_to_world).inverse().transpose();
+    let normal_m = to_proxy.transpose();
     binding
         .vertices
         .iter()
