@@ -447,6 +447,48 @@ def test_key_same_coordinates_refused_then_replaced(painterly, keyed_rig, tmp_pa
     assert not st.GetPrimAtPath(f"{L0}/key2"), "--replace made a new key instead of rewriting key1"
 
 
+# Found by `scripts/fuzz --edits` (seed 20261207, case 4419): `key` compared
+# coordinates exactly, so a key 1e-33 from an existing one (a camera
+# direction with rounding noise) was written, and then the bake refused the
+# pair as one point. It now applies the bake's own rule: coordinates times
+# the axes' scales, within the interpolation's duplicate tolerance.
+@pytest.mark.parametrize("how", ["tolerance", "scale"])
+def test_key_at_the_configuration_the_bake_calls_one_point_is_refused(painterly, repo_root, tmp_path, how):
+    inp = tmp_path / "head.usda"
+    shutil.copy(repo_root / "fixtures" / "head.usda", inp)
+    brows = "/Head/Paint/Brows"
+    st = Usd.Stage.Open(str(inp))
+    front = st.GetPrimAtPath(f"{brows}/front").GetAttribute("coordinates")
+    assert list(front.Get()) == [0.0, 1.0]  # where `key --time 1` puts a key (checked below)
+    if how == "tolerance":
+        # 1e-30 apart, against a layout 2 across: one point for the bake.
+        front.Set(Vt.FloatArray([1e-30, 1.0]))
+    else:
+        # Apart in axis units, one point once viewX is scaled by 0 (left
+        # goes: it would meet right so).
+        front.Set(Vt.FloatArray([0.7, 1.0]))
+        st.GetPrimAtPath("/Head/Paint/viewX").CreateAttribute("scale", Sdf.ValueTypeNames.Float).Set(0.0)
+        st.RemovePrim(f"{brows}/left")
+    st.GetRootLayer().Save()
+    del st, front  # the layer registry would hand the reopen below this copy
+    assert painterly("inspect", inp, check=False).returncode == 0, "the edited fixture is not valid (test setup)"
+    before = Au.file_hash(inp)
+
+    p = painterly("key", inp, "--in-place", "--layer", brows, "--time", 1, "--points", check=False)
+    assert p.returncode == 1, f"exit {p.returncode}: {p.stderr}"
+    assert f"{brows}/front: already keys this layer at the same configuration" in p.stderr, p.stderr
+    assert "pass --replace" in p.stderr and "panicked" not in p.stderr
+    assert Au.file_hash(inp) == before, "a refused key changed its input"
+
+    painterly("key", inp, "--in-place", "--layer", brows, "--time", 1, "--points", "--replace", "--quiet")
+    st = Usd.Stage.Open(str(inp))
+    keys = sorted(c.GetName() for c in st.GetPrimAtPath(brows).GetChildren())
+    assert "key1" not in keys, keys
+    assert list(st.GetPrimAtPath(f"{brows}/front").GetAttribute("coordinates").Get()) == [0.0, 1.0]
+    assert painterly("inspect", inp, check=False).returncode == 0
+    painterly("bake", inp, "-o", tmp_path / "bake.usdc", "--frames", "1:3", "--quiet")
+
+
 def test_key_same_name_refused_then_replaced(painterly, keyed_rig, tmp_path):
     rig = keyed_rig
     L0 = rig.layers[0]

@@ -315,13 +315,13 @@ pub fn key(session: &EditSession, opts: &KeyOptions) -> Result<String> {
         }
     }
     let existing = existing_keys(r, &opts.layer)?;
-    let (ty, coords) = key_place(r, &mut scene.rigs[ri], li, opts)?;
-    let path = key_path(opts, &existing, ty, &coords)?;
+    let place = key_place(r, &mut scene.rigs[ri], li, opts)?;
+    let path = key_path(opts, &existing, &place)?;
     write_key(
         session,
         &path,
-        ty,
-        &coords,
+        place.ty,
+        &place.coords,
         opts,
         &scene.rigs[ri].layers[li].rest_points,
     )?;
@@ -370,9 +370,17 @@ fn existing_keys(r: &StageReader, layer_path: &str) -> Result<Vec<ExistingKey>> 
     Ok(existing)
 }
 
-/// Where the new key lives: its prim type and its coordinates in
-/// configuration space (a pose key) or its time (a time key or sentinel).
-fn key_place(r: &StageReader, rig: &mut Rig, li: usize, opts: &KeyOptions) -> Result<(&'static str, Vec<f64>)> {
+/// Where a new key goes: its prim type, and its coordinates in
+/// configuration space (a pose key, with its axes' scales) or its time (a
+/// time key or sentinel; no scales).
+struct KeyPlace {
+    ty: &'static str,
+    coords: Vec<f64>,
+    scales: Vec<f64>,
+}
+
+/// Where the new key lives (see [`KeyPlace`]).
+fn key_place(r: &StageReader, rig: &mut Rig, li: usize, opts: &KeyOptions) -> Result<KeyPlace> {
     match opts.kind {
         KeyKind::Pose => {
             let all_paths = r.prim_paths()?;
@@ -392,19 +400,25 @@ fn key_place(r: &StageReader, rig: &mut Rig, li: usize, opts: &KeyOptions) -> Re
                 opts.camera.as_deref(),
             )?;
             // Coordinates are stored as float[]: compare and write the f32 values.
-            Ok((
-                "PainterlyPoseKey",
-                axes.iter().map(|&a| values[a] as f32 as f64).collect(),
-            ))
+            Ok(KeyPlace {
+                ty: "PainterlyPoseKey",
+                coords: axes.iter().map(|&a| values[a] as f32 as f64).collect(),
+                scales: axes.iter().map(|&a| rig.axes[a].scale).collect(),
+            })
         }
-        KeyKind::Time | KeyKind::Sentinel => Ok(("PainterlyTimeKey", vec![opts.time])),
+        KeyKind::Time | KeyKind::Sentinel => Ok(KeyPlace {
+            ty: "PainterlyTimeKey",
+            coords: vec![opts.time],
+            scales: Vec::new(),
+        }),
     }
 }
 
 /// The new key's path: the key it replaces (one of the same name, or at the
 /// same coordinates or time in a channel it sets, with `replace`), the name
 /// asked for, or the first free `keyN` / `timeN` / `sentinelN`.
-fn key_path(opts: &KeyOptions, existing: &[ExistingKey], ty: &str, coords: &[f64]) -> Result<String> {
+fn key_path(opts: &KeyOptions, existing: &[ExistingKey], place: &KeyPlace) -> Result<String> {
+    let (ty, coords) = (place.ty, &place.coords);
     let layer_path = &opts.layer;
     let mut replace_path: Option<String> = None;
     if let Some(name) = &opts.name {
@@ -422,23 +436,38 @@ fn key_path(opts: &KeyOptions, existing: &[ExistingKey], ty: &str, coords: &[f64
             replace_path = Some(p);
         }
     }
-    for e in existing.iter().filter(|e| e.ty == ty && e.coords == coords) {
+    let (meets_points, meets_opacity) = match opts.kind {
+        KeyKind::Pose => (
+            pose_keys_met(existing, place, |e| e.points),
+            pose_keys_met(existing, place, |e| e.opacity),
+        ),
+        KeyKind::Time | KeyKind::Sentinel => (Vec::new(), Vec::new()),
+    };
+    for (i, e) in existing.iter().enumerate().filter(|(_, e)| e.ty == ty) {
         let clash = match opts.kind {
-            KeyKind::Sentinel => e.sentinel,
-            _ => !e.sentinel && ((opts.points && e.points) || (opts.opacity.is_some() && e.opacity)),
+            KeyKind::Sentinel => e.sentinel && e.coords == *coords,
+            KeyKind::Time => {
+                e.coords == *coords
+                    && !e.sentinel
+                    && ((opts.points && e.points) || (opts.opacity.is_some() && e.opacity))
+            }
+            KeyKind::Pose => {
+                (opts.points && meets_points.contains(&i)) || (opts.opacity.is_some() && meets_opacity.contains(&i))
+            }
         };
         if clash {
             if !opts.replace {
+                let place = match (ty == "PainterlyPoseKey", e.coords == *coords) {
+                    (false, _) => "time",
+                    (true, true) => "coordinates",
+                    // What the bake's interpolation refuses as one point.
+                    (true, false) => {
+                        "configuration (the coordinates meet once each axis is multiplied by its scale, within 1e-12 of the keys' extent)"
+                    }
+                };
                 return Err(Error::prim(
                     &e.path,
-                    format!(
-                        "already keys this layer at the same {}: pass --replace to overwrite it",
-                        if ty == "PainterlyPoseKey" {
-                            "coordinates"
-                        } else {
-                            "time"
-                        }
-                    ),
+                    format!("already keys this layer at the same {place}: pass --replace to overwrite it"),
                 ));
             }
             if replace_path.as_ref().is_some_and(|p| *p != e.path) {
@@ -464,6 +493,31 @@ fn key_path(opts: &KeyOptions, existing: &[ExistingKey], ty: &str, coords: &[f64
             }
         },
     })
+}
+
+/// The existing pose keys (indices into `existing`) of the channel `in_channel`
+/// selects that sit at the new key's point as a bake reads them: coordinates
+/// times the axes' scales (SPEC 1.1 §4), one point when closer than the
+/// interpolation's duplicate tolerance ([`crate::interp::same_point_as`]).
+/// With no axes every key of the channel is at the one point.
+fn pose_keys_met(existing: &[ExistingKey], place: &KeyPlace, in_channel: impl Fn(&ExistingKey) -> bool) -> Vec<usize> {
+    let dim = place.coords.len();
+    let members: Vec<usize> = (0..existing.len())
+        .filter(|&i| {
+            let e = &existing[i];
+            e.ty == "PainterlyPoseKey" && !e.sentinel && in_channel(e) && e.coords.len() == dim
+        })
+        .collect();
+    if dim == 0 {
+        return members;
+    }
+    let scaled = |c: &[f64]| c.iter().zip(&place.scales).map(|(c, s)| c * s).collect::<Vec<f64>>();
+    let mut layout: Vec<f64> = members.iter().flat_map(|&i| scaled(&existing[i].coords)).collect();
+    layout.extend(scaled(&place.coords));
+    crate::interp::same_point_as(dim, &layout, members.len())
+        .into_iter()
+        .map(|j| members[j])
+        .collect()
 }
 
 /// Defines the key prim and sets its attributes (a sentinel holds no data).

@@ -278,16 +278,7 @@ pub(crate) fn validate_keys(dim: usize, keys: &[f64]) -> Result<(usize, Vec<f64>
         return Err(InterpError::NonFinite { key: pos / dim });
     }
     let sq = pairwise_sq_dists(keys, n, dim);
-    // Bounding-box diagonal as the length scale of the layout.
-    let mut diag2 = 0.0;
-    for c in 0..dim {
-        let (lo, hi) = (0..n).fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), i| {
-            let v = keys[i * dim + c];
-            (lo.min(v), hi.max(v))
-        });
-        diag2 += (hi - lo) * (hi - lo);
-    }
-    let threshold = DUPLICATE_TOLERANCE * DUPLICATE_TOLERANCE * diag2;
+    let threshold = duplicate_threshold(dim, n, keys);
     for i in 0..n {
         for j in i + 1..n {
             if sq[i * n + j] <= threshold {
@@ -296,6 +287,37 @@ pub(crate) fn validate_keys(dim: usize, keys: &[f64]) -> Result<(usize, Vec<f64>
         }
     }
     Ok((n, sq))
+}
+
+/// The squared distance under which two of the `n` keys count as one
+/// point: [`DUPLICATE_TOLERANCE`] × the layout's bounding-box diagonal, the
+/// layout's length scale.
+fn duplicate_threshold(dim: usize, n: usize, keys: &[f64]) -> f64 {
+    let mut diag2 = 0.0;
+    for c in 0..dim {
+        let (lo, hi) = (0..n).fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), i| {
+            let v = keys[i * dim + c];
+            (lo.min(v), hi.max(v))
+        });
+        diag2 += (hi - lo) * (hi - lo);
+    }
+    DUPLICATE_TOLERANCE * DUPLICATE_TOLERANCE * diag2
+}
+
+/// The other keys of a layout (`dim` coordinates each) that count as the
+/// same point as key `k` under the rule interpolation enforces (see
+/// [`InterpError::DuplicateKeys`]): a tool that adds key `k` learns which
+/// key it would meet. Empty when a coordinate is not finite.
+pub fn same_point_as(dim: usize, keys: &[f64], k: usize) -> Vec<usize> {
+    if dim == 0 || !keys.len().is_multiple_of(dim) || keys.iter().any(|v| !v.is_finite()) {
+        return Vec::new();
+    }
+    let n = keys.len() / dim;
+    let threshold = duplicate_threshold(dim, n, keys);
+    let at = |i: usize| &keys[i * dim..(i + 1) * dim];
+    (0..n)
+        .filter(|&i| i != k && sq_dist(at(i), at(k)) <= threshold)
+        .collect()
 }
 
 /// Squared distance between two equally long coordinate slices.
@@ -372,6 +394,45 @@ mod tests {
         }
         let msg = InterpError::DuplicateKeys { first: 1, second: 3 }.to_string();
         assert!(msg.contains('1') && msg.contains('3'));
+    }
+
+    #[test]
+    fn same_point_as_applies_the_duplicate_rule() {
+        // The rule of `validation_errors`: 1e-10 apart in a layout 1000
+        // across is one point, 1e-6 apart is not; a key never meets itself.
+        assert_eq!(same_point_as(1, &[0.0, 1000.0, 1000.0 + 1e-10], 2), vec![1]);
+        assert_eq!(same_point_as(1, &[0.0, 1000.0, 1000.0 + 1e-10], 1), vec![2]);
+        assert_eq!(same_point_as(1, &[0.0, 1000.0, 1000.0 + 1e-6], 2), Vec::<usize>::new());
+        // Exactly equal keys meet, also in a layout of no extent.
+        assert_eq!(same_point_as(2, &[1.0, 2.0, 3.0, 4.0, 1.0, 2.0], 2), vec![0]);
+        assert_eq!(same_point_as(2, &[1.0, 2.0, 1.0, 2.0, 1.0, 2.0], 0), vec![1, 2]);
+        // Every coordinate counts: apart on the second axis only.
+        assert_eq!(
+            same_point_as(2, &[0.0, 0.0, 1.0, 1.0, 1.0, 1.5], 2),
+            Vec::<usize>::new()
+        );
+        // The fuzz case: 8.8e-34 from a key, in a layout 2 across.
+        let head = [0.0, 1.0, 1.0, 0.0, -1.0, 0.0, 0.0, -1.0, 1.0, 8.8e-34];
+        assert_eq!(same_point_as(2, &head, 4), vec![1]);
+        // No layout to judge: a non-finite coordinate, a ragged array, no axes.
+        assert!(same_point_as(1, &[0.0, f64::NAN, 0.0], 2).is_empty());
+        assert!(same_point_as(2, &[0.0, 0.0, 0.0], 0).is_empty());
+        assert!(same_point_as(0, &[], 0).is_empty());
+        // And it agrees with what interpolation refuses.
+        for keys in [
+            &[0.0, 1000.0, 1000.0 + 1e-10][..],
+            &[0.0, 1000.0, 1000.0 + 1e-6],
+            &head[..6],
+        ] {
+            let dim = if keys.len() == 6 { 2 } else { 1 };
+            let n = keys.len() / dim;
+            let met = (0..n).any(|k| !same_point_as(dim, keys, k).is_empty());
+            let refused = matches!(
+                Interpolator::new(Method::SmoothVoronoi, dim, keys),
+                Err(InterpError::DuplicateKeys { .. })
+            );
+            assert_eq!(met, refused, "{keys:?}");
+        }
     }
 
     #[test]
