@@ -533,10 +533,19 @@ def test_key_time_keys_and_sentinels(painterly, keyed_rig, tmp_path):
         p = edit(painterly, "key", rig.path, "--layer", L0, *args, layer=e, check=False)
         assert p.returncode == 1 and f"{L0}/{clash}" in p.stderr, p.stderr
         assert Au.file_hash(e) == before
+    del st, k, s, o  # a stage still open would hand the reopen below its stale layer
     edit(painterly, "key", rig.path, "--layer", L0, "--time", 4, "--time-key", "--replace", layer=e)
     st = Usd.Stage.Open(str(e))
     assert not st.GetPrimAtPath(f"{L0}/time3"), "--replace added a key"
     painterly("bake", e, "-o", tmp_path / "bake.usdc", "--frames", "1:12", "--camera", "/World/Cam", "--quiet")
+
+    # Keys at other times meet none: a second sentinel, a time key at 6.
+    del st
+    edit(painterly, "key", rig.path, "--layer", L0, "--time", 11, "--sentinel", layer=e)
+    edit(painterly, "key", rig.path, "--layer", L0, "--time", 6, "--time-key", layer=e)
+    st = Usd.Stage.Open(str(e))
+    assert key_prim(st, f"{L0}/sentinel2").GetAttribute("time").Get() == 11.0
+    assert key_prim(st, f"{L0}/time3").GetAttribute("time").Get() == 6.0
 
 
 # ---------------------------------------------------------------------------

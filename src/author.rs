@@ -51,16 +51,18 @@ impl PosedRig {
     /// zero scale flattens it) is refused here, naming `proxy`: its inverse
     /// would carry NaN into the binding and the rest points.
     pub fn world_to_proxy(&self, proxy: &str) -> Result<DMat4> {
-        let det = self.proxy_to_world.determinant();
+        // A determinant of 0 (or one whose reciprocal overflows) leaves
+        // infinities and NaN in the inverse: the one test needed.
         let inverse = self.proxy_to_world.inverse();
-        if det != 0.0 && det.is_finite() && inverse.is_finite() {
+        if inverse.is_finite() {
             return Ok(inverse);
         }
         Err(Error::prim(
             proxy,
             format!(
-                "its world transform at time {} has no inverse (determinant {det}), so painted points cannot be taken into the proxy's space",
-                self.time
+                "its world transform at time {} has no inverse (determinant {}), so painted points cannot be taken into the proxy's space",
+                self.time,
+                self.proxy_to_world.determinant()
             ),
         ))
     }
