@@ -41,8 +41,8 @@ Cases are reproducible from (seed, case index).
 """
 
 import argparse
-import json
 import concurrent.futures as cf
+import json
 import os
 import pathlib
 import random
