@@ -188,13 +188,12 @@ def scale_proxy(inp, scale):
 def test_a_proxy_flattened_to_nothing_is_refused(painterly, case, mode):
     inp, refused = case
     proxy = scale_proxy(inp, (1.0, 1.0, 0.0))
-    target = dict(edit_layer=None, extra=["--in-place"]) if mode == "--in-place" else dict(extra=[])
-    where = {k: v for k, v in target.items() if k != "extra"}
+    extra, where = (["--in-place"], {"edit_layer": None}) if mode == "--in-place" else ([], {})
     for args in (["bind", inp], brush_args(inp), brush_args(inp, "expand")):
-        msg = refused(painterly, *args, *target["extra"], names=[proxy, "has no inverse", "determinant 0"], **where)
+        msg = refused(painterly, *args, *extra, names=[proxy, "has no inverse", "determinant 0"], **where)
         assert msg.count("\n") == 1, msg
     # Posed, the skinning of the flattened proxy fails first, as a bake's does.
-    refused(painterly, "bind", inp, "--time", 6, *target["extra"], names=[proxy, "not finite at time 6"], **where)
+    refused(painterly, "bind", inp, "--time", 6, *extra, names=[proxy, "not finite at time 6"], **where)
 
 
 def test_a_proxy_scaled_past_the_float_range_is_refused(painterly, case):
