@@ -91,10 +91,7 @@ print(json.dumps(out))
 
 
 def seed_meta(paths):
-    py = venv_python()
-    if not py:
-        return {}
-    r = subprocess.run([py, "-c", META_CODE, *map(str, paths)], capture_output=True, text=True)
+    r = subprocess.run([venv_python(), "-c", META_CODE, *map(str, paths)], capture_output=True, text=True)
     if r.returncode != 0:
         sys.exit(f"fuzz: reading the seeds' layers and cameras with usd-core failed:\n{r.stderr}")
     return {pathlib.Path(k).name: v for k, v in json.loads(r.stdout).items()}
@@ -239,7 +236,7 @@ def check(exe, seed, k, seed_files, work, meta=None):
         if vouched and rc_i == 0 and rc_b not in (0, None) and rc_b != "timeout" and "nothing to bake" not in err_b:
             first = err_b.strip().splitlines()[:1]
             trust.append(f"inspect passed but bake exited {rc_b}: {first}")
-    t_e, written, edit = 0.0, None, None
+    t_e, written, edit, data_changed_ok = 0.0, None, None, False
     if meta is not None:
         # A case's own stream picks the edit, after the mutation, so that
         # the default run's cases are the same with and without --edits.
@@ -262,8 +259,6 @@ def check(exe, seed, k, seed_files, work, meta=None):
         elif rc_e == 0 and (d / "edits.usda").exists():
             written = (args, (d / "edits.usda").read_bytes())
         data_changed_ok = in_place and rc_e == 0
-    else:
-        data_changed_ok = False
     left = [n for n in os.listdir(d) if ".painterly-" in n]
     if left:
         problems.append(f"left temporaries {left}")
@@ -377,6 +372,7 @@ def main():
         batch = work / "written"
         batch.mkdir()
         failures, trusts, slowest, exits, checked, edits = [], [], 0.0, {}, 0, {}
+        stashed = 0  # written cases in `batch`, not yet checked
 
         def keep_failure(k, name, data, err, problems):
             failures.append(k)
@@ -388,14 +384,15 @@ def main():
             print(f"FAIL case {k} ({name}): {'; '.join(problems)}", flush=True)
 
         def check_batch():
-            nonlocal checked
+            nonlocal checked, stashed
             for case, problem in usd_check(batch).items():
                 spec = json.loads((batch / case / "case.json").read_text())
                 k = int(case[1:])
                 keep_failure(k, spec["name"], (batch / case / "orig" / spec["name"]).read_bytes(), "",
                              [f"{' '.join(spec['args'])}: {problem}"])
                 shutil.copytree(batch / case / "edit", pathlib.Path(a.keep) / f"seed{a.seed}-case{k}" / "written")
-            checked += sum(1 for _ in batch.iterdir())
+            checked += stashed
+            stashed = 0
             shutil.rmtree(batch)
             batch.mkdir()
 
@@ -408,7 +405,8 @@ def main():
                     edits[edit] = edits.get(edit, 0) + 1
                 if written:
                     stash_written(batch, k, name, *written)
-                    if sum(1 for _ in batch.iterdir()) >= 200:
+                    stashed += 1
+                    if stashed >= 200:
                         check_batch()
                 slowest = max(slowest, t)
                 exits[(rc_i, rc_b)] = exits.get((rc_i, rc_b), 0) + 1
