@@ -489,6 +489,106 @@ def test_key_at_the_configuration_the_bake_calls_one_point_is_refused(painterly,
     painterly("bake", inp, "-o", tmp_path / "bake.usdc", "--frames", "1:3", "--quiet")
 
 
+def test_pose_key_that_would_make_two_keys_meet_is_refused(painterly, repo_root, tmp_path):
+    # head.usda's Brows keyed only at (0, 0) and (0, 1e-20): a layout 1e-20
+    # across, whose keys are 1e-20 apart, so two points for the bake. A key
+    # at time 1 lands at (0, 1) (the test above checks where): the layout
+    # then spans about 1, its duplicate tolerance is 1e-12, and the first
+    # two keys would count as one point.
+    inp = tmp_path / "head.usda"
+    shutil.copy(repo_root / "fixtures" / "head.usda", inp)
+    brows = "/Head/Paint/Brows"
+    st = Usd.Stage.Open(str(inp))
+    for c in st.GetPrimAtPath(brows).GetChildren():
+        if c.GetName() not in ("front", "left"):
+            st.RemovePrim(c.GetPath())
+    st.GetPrimAtPath(f"{brows}/front").GetAttribute("coordinates").Set(Vt.FloatArray([0.0, 0.0]))
+    st.GetPrimAtPath(f"{brows}/left").GetAttribute("coordinates").Set(Vt.FloatArray([0.0, 1e-20]))
+    st.GetRootLayer().Save()
+    del st
+    # The two keys are two points for the bake, which stops later: smooth
+    # Voronoi over keys 1e-20 apart gives no finite blend (noted, not this
+    # test's subject).
+    first = painterly("inspect", inp, check=False)
+    assert "same coordinates" not in first.stdout + first.stderr, first.stdout
+    assert f"{brows}: baked point 0 is not finite" in first.stdout, first.stdout
+    before = Au.file_hash(inp)
+    p = painterly("key", inp, "--in-place", "--layer", brows, "--time", 1, "--points", check=False)
+    assert p.returncode == 1, f"exit {p.returncode}: {p.stderr}"
+    assert (f"{brows}: the new key {brows}/key1 would widen the layer's position keys so far that "
+            f"{brows}/front and {brows}/left count as one") in p.stderr, p.stderr
+    assert Au.file_hash(inp) == before, "a refused key changed its input"
+    # Replacing front instead leaves left and the new key, 1 apart: written.
+    painterly("key", inp, "--in-place", "--layer", brows, "--time", 1, "--points", "--name", "front", "--replace",
+              "--quiet")
+    st = Usd.Stage.Open(str(inp))
+    assert list(st.GetPrimAtPath(f"{brows}/front").GetAttribute("coordinates").Get()) == [0.0, 1.0]
+    assert sorted(c.GetName() for c in st.GetPrimAtPath(brows).GetChildren()) == ["front", "left"]
+    del st
+
+
+SPIKES = "/Blowfish/Paint/Spikes"
+
+
+def spikes_times(path):
+    """{key name: time} of blowfish.usda's Spikes layer (read by usd-core)."""
+    st = Usd.Stage.Open(str(path))
+    out = {c.GetName(): c.GetAttribute("time").Get() for c in st.GetPrimAtPath(SPIKES).GetChildren()
+           if c.GetTypeName() == "PainterlyTimeKey"}
+    del st
+    return out
+
+
+def test_time_key_at_a_time_the_bake_calls_the_same_is_refused(painterly, repo_root, tmp_path):
+    # blowfish.usda's Spikes: time keys shock (40) and settle (44) between
+    # the sentinels shockStart (36) and shockEnd (47). The bake interpolates
+    # that run in time and counts two keys closer than 1e-12 of its span as
+    # one time: with a key at 44 + 1e-12 the run spans 4 + 1e-12, so the
+    # tolerance is about 4e-12.
+    inp = tmp_path / "blowfish.usda"
+    shutil.copy(repo_root / "fixtures" / "blowfish.usda", inp)
+    assert spikes_times(inp) == {"shockStart": 36, "shock": 40, "settle": 44, "shockEnd": 47}
+    before = Au.file_hash(inp)
+    p = painterly("key", inp, "--in-place", "--layer", SPIKES, "--time", "44.000000000001", "--time-key",
+                  "--points", check=False)
+    assert p.returncode == 1, f"exit {p.returncode}: {p.stderr}"
+    assert f"{SPIKES}/settle: already keys this layer at the same time (the times meet" in p.stderr, p.stderr
+    assert "pass --replace" in p.stderr and "panicked" not in p.stderr
+    assert Au.file_hash(inp) == before, "a refused key changed its input"
+
+    # --replace rewrites settle at the new time.
+    painterly("key", inp, "--in-place", "--layer", SPIKES, "--time", "44.000000000001", "--time-key", "--points",
+              "--replace", "--quiet")
+    assert spikes_times(inp) == {"shockStart": 36, "shock": 40, "settle": 44.000000000001, "shockEnd": 47}
+    assert painterly("inspect", inp, check=False).returncode == 0
+
+
+def test_time_key_that_would_make_two_keys_meet_is_refused(painterly, repo_root, tmp_path):
+    inp = tmp_path / "blowfish.usda"
+    shutil.copy(repo_root / "fixtures" / "blowfish.usda", inp)
+    # 5e-12 after settle: the run 40 .. 44 + 5e-12 spans 4 + 5e-12, its
+    # tolerance about 4e-12, so the three keys stay apart.
+    painterly("key", inp, "--in-place", "--layer", SPIKES, "--time", "44.000000000005", "--time-key", "--points",
+              "--quiet")
+    assert spikes_times(inp)["time1"] == 44.000000000005
+    assert painterly("inspect", inp, check=False).returncode == 0
+    before = Au.file_hash(inp)
+    # A key at 37 stretches the run to 7 + 5e-12 (tolerance about 7e-12):
+    # settle and time1, 5e-12 apart, would become one time for the bake.
+    # 38.5 (span 5.5, tolerance 5.5e-12) would too.
+    for t in ("37", "38.5"):
+        p = painterly("key", inp, "--in-place", "--layer", SPIKES, "--time", t, "--time-key", "--points", check=False)
+        assert p.returncode == 1, f"--time {t}: exit {p.returncode}: {p.stderr}"
+        assert (f"{SPIKES}: the new key {SPIKES}/time2 would widen the layer's position keys so far that "
+                f"{SPIKES}/settle and {SPIKES}/time1 count as one") in p.stderr, p.stderr
+        assert Au.file_hash(inp) == before, "a refused key changed its input"
+    # 41 leaves the span at 4 + 5e-12: written, and the bake reads it.
+    painterly("key", inp, "--in-place", "--layer", SPIKES, "--time", "41", "--time-key", "--points", "--quiet")
+    assert spikes_times(inp)["time2"] == 41
+    assert painterly("inspect", inp, check=False).returncode == 0
+    painterly("bake", inp, "-o", tmp_path / "bake.usdc", "--frames", "36:48", "--quiet")
+
+
 def test_key_same_name_refused_then_replaced(painterly, keyed_rig, tmp_path):
     rig = keyed_rig
     L0 = rig.layers[0]

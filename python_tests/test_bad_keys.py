@@ -274,3 +274,31 @@ def test_inspect_lists_a_bad_attribute_pick_beside_another_problem(painterly, tm
     assert proc.returncode == 1, proc.stderr
     got = sorted((p["prim"], p["attribute"]) for p in json.loads(proc.stdout)["problems"])
     assert got == [("/World/Loose", None), (_ac_path, "component")], got
+
+
+BLOWFISH_SPIKES = "/Blowfish/Paint/Spikes"
+
+
+def test_bake_refuses_time_keys_it_counts_as_one_time(painterly, repo_root, tmp_path):
+    # Written by usd-core: a third key at 37 in the run between the
+    # sentinels, and settle moved to 40 + 2e-12, 2e-12 after shock in a run
+    # spanning 3 + 2e-12 (tolerance about 3e-12). The bake used to panic here.
+    inp = tmp_path / "blowfish.usda"
+    inp.write_bytes((repo_root / "fixtures" / "blowfish.usda").read_bytes())
+    st = Usd.Stage.Open(str(inp))
+    shock = st.GetPrimAtPath(f"{BLOWFISH_SPIKES}/shock")
+    early = st.DefinePrim(f"{BLOWFISH_SPIKES}/early", "PainterlyTimeKey")
+    early.CreateAttribute("time", Sdf.ValueTypeNames.Double, custom=False).Set(37.0)
+    early.CreateAttribute("points", Sdf.ValueTypeNames.Point3fArray, custom=False).Set(
+        shock.GetAttribute("points").Get())
+    st.GetPrimAtPath(f"{BLOWFISH_SPIKES}/settle").GetAttribute("time").Set(40.000000000002)
+    st.GetRootLayer().Save()
+    del st, shock, early
+    for cmd in (["inspect", inp], ["bake", inp, "-o", tmp_path / "bake.usdc", "-q"]):
+        p = painterly(*cmd, check=False)
+        assert p.returncode == 1, f"{cmd[0]}: exit {p.returncode}: {p.stderr}"
+        assert "panicked" not in p.stderr and "internal error" not in p.stderr, p.stderr
+        assert (f"{BLOWFISH_SPIKES}/shock.time: {BLOWFISH_SPIKES}/settle is within 1e-12 of the span of the time "
+                "keys between their sentinels: the time interpolation counts the two as one time"
+                ) in p.stderr + p.stdout, p.stderr
+    assert not (tmp_path / "bake.usdc").exists()

@@ -11,7 +11,8 @@ process under a 60 s timeout and an address-space limit. A case fails when:
 - a run takes over 60 s (a hang);
 - stderr shows a panic or "internal error";
 - a run exits outside {0, 1} (usage errors cannot come from a file);
-- a run leaves a temporary (`.painterly-`) file, or changes its input.
+- a run leaves a temporary (`.painterly-`) file, or changes its input;
+- with --values, a bake on one thread writes other bytes than on all.
 
 - inspect exits 0 but the default bake (no --frames) fails: inspect
   evaluates every frame of that bake, so it must find what bake finds (a
@@ -34,7 +35,15 @@ camera. Besides the checks above, a case also fails when:
   edit it and save it in place (checked in batches, one usd-core process
   per 200 written files).
 
-Usage: python3 scripts/fuzz.py --cases N --seed S [--first K] [--jobs J] [--keep DIR] [--edits]
+With --values the mutations keep the file's structure, so that more
+inputs read and more edits get as far as writing: the case takes a text
+fixture and changes only its values (a number scaled, nudged by a rounding
+step, set to 0 or an extreme, an index moved by one; an array element
+dropped or repeated), and two cases in five go to usd-core, which writes
+the mutated text as a crate file (the crate reader and writer then run).
+A case usd-core cannot convert stays text.
+
+Usage: python3 scripts/fuzz.py --cases N --seed S [--first K] [--jobs J] [--keep DIR] [--edits] [--values]
 Failing inputs are copied to --keep (default target/fuzz-failures) with
 their stderr; the exit status is the number of failures (capped at 100).
 Cases are reproducible from (seed, case index).
@@ -166,15 +175,64 @@ def mutate(rng, data, is_text):
     return data
 
 
+# A number standing alone: not part of a name such as `float3`, `Layer_12`
+# or `v1.2.usda`, whose change would break the syntax rather than a value.
+NUMBER = re.compile(rb"(?<![\w.:@/-])-?\d+(\.\d+)?([eE][-+]?\d+)?(?![\w.@/])")
+# One element of a flat number array or a tuple array: `[1, 2, 3]`, `[(0, 1, 2), (3, 4, 5)]`.
+ELEMENT = re.compile(rb"(?<=[\[,])\s*(\([^()\[\]]*\)|-?[\d.eE+-]+)\s*(?=[,\]])")
+
+
+def mutate_values(rng, data):
+    """1-4 value changes that keep a text layer parseable (--values)."""
+    for _ in range(rng.randint(1, 4)):
+        kind = rng.random()
+        if kind < 0.2:
+            # Drop or repeat one array element: counts that no longer agree.
+            elems = list(ELEMENT.finditer(data))
+            if elems:
+                m = rng.choice(elems)
+                if rng.random() < 0.5:
+                    end = m.end() + 1 if data[m.end():m.end() + 1] == b"," else m.end()
+                    start = m.start() - 1 if end == m.end() and data[m.start() - 1:m.start()] == b"," else m.start()
+                    data = data[:start] + data[end:]
+                else:
+                    data = data[:m.end()] + b"," + m.group(0) + data[m.end():]
+            continue
+        nums = list(NUMBER.finditer(data))
+        if not nums:
+            break
+        m = rng.choice(nums)
+        tok = m.group(0)
+        is_int = m.group(1) is None and m.group(2) is None
+        x = float(tok)
+        op = rng.random()
+        if op < 0.1:
+            new = rng.choice(EXTREMES)
+        elif is_int and op < 0.6:
+            new = str(int(rng.choice([0, -1, x + 1, x - 1, 2 * x + 1, 65535]))).encode()
+        elif op < 0.7:
+            new = repr(x * (1 + rng.choice([1e-15, -1e-15, 1e-7, -1e-7]))).encode()
+        else:
+            new = repr(x * rng.choice([0.0, -1.0, 2.0, 0.5, 1e-6, 1e6, 1e-30, 1e30]) if x else
+                       rng.choice([1e-30, 1e-7, 1.0, -1.0])).encode()
+        data = data[:m.start()] + new + data[m.end():]
+    return data
+
+
+# Writes a mutated text layer as crate (--values): usd-core's own writer.
+CRATE_CODE = ("import sys; from pxr import Sdf; l = Sdf.Layer.FindOrOpen(sys.argv[1]); "
+              "sys.exit(0 if l is not None and l.Export(sys.argv[2]) else 1)")
+
+
 def limit_memory():
     resource.setrlimit(resource.RLIMIT_AS, (MEMORY_LIMIT, MEMORY_LIMIT))
 
 
-def run(exe, args, cwd):
+def run(exe, args, cwd, env=None):
     t0 = time.monotonic()
     try:
         p = subprocess.run([exe, *args], capture_output=True, text=True, errors="replace", cwd=cwd,
-                           timeout=TIMEOUT_S, preexec_fn=limit_memory)
+                           timeout=TIMEOUT_S, preexec_fn=limit_memory, env=env)
         return p.returncode, p.stderr, time.monotonic() - t0
     except subprocess.TimeoutExpired:
         return "timeout", "", time.monotonic() - t0
@@ -199,12 +257,25 @@ def edit_command(rng, name, meta):
     return [*args, "-q"], in_place
 
 
-def check(exe, seed, k, seed_files, work, meta=None):
+def check(exe, seed, k, seed_files, work, meta=None, values=False):
     rng = random.Random(f"{seed}:{k}")
-    name, data = rng.choice(seed_files)
-    data = mutate(rng, data, name.endswith(".usda"))
     d = work / f"c{k}"
     d.mkdir()
+    if values:
+        name, data = rng.choice([f for f in seed_files if f[0].endswith(".usda")])
+        data = mutate_values(rng, data)
+        if rng.random() < 0.4:
+            (d / "text.usda").write_bytes(data)
+            crate = d / name.replace(".usda", ".usdc")
+            r = subprocess.run([venv_python(), "-c", CRATE_CODE, str(d / "text.usda"), str(crate)],
+                               capture_output=True)
+            (d / "text.usda").unlink()
+            if r.returncode == 0 and crate.exists():
+                name, data = crate.name, crate.read_bytes()
+            crate.unlink(missing_ok=True)
+    else:
+        name, data = rng.choice(seed_files)
+        data = mutate(rng, data, name.endswith(".usda"))
     src = d / name
     src.write_bytes(data)
     problems, trust = [], []
@@ -231,6 +302,13 @@ def check(exe, seed, k, seed_files, work, meta=None):
             rc_b, err_b, t_b = run(exe, ["bake", name, "-o", "out.usdc", "--frames", "1:3", "-q"], d)
             vouched = False
         judge("bake", rc_b, err_b)
+        if values and rc_b == 0:
+            # The bake's output may not depend on the thread count (issue 12).
+            args = ["bake", name, "-o", "one.usdc", "-q"] + ([] if vouched else ["--frames", "1:3"])
+            rc_1, err_1, _ = run(exe, args, d, env={**os.environ, "RAYON_NUM_THREADS": "1"})
+            judge("bake on one thread", rc_1, err_1)
+            if rc_1 == 0 and (d / "one.usdc").read_bytes() != (d / "out.usdc").read_bytes():
+                problems.append("bake on one thread wrote other bytes than on all threads")
         # A stage with nothing painterly in it is not wrong (inspect passes),
         # but bake refuses it: "nothing to bake".
         if vouched and rc_i == 0 and rc_b not in (0, None) and rc_b != "timeout" and "nothing to bake" not in err_b:
@@ -360,9 +438,11 @@ def main():
     ap.add_argument("--bin", default=os.environ.get("PAINTERLY_BIN", str(REPO / "target/release/painterly")))
     ap.add_argument("--edits", action="store_true",
                     help="also run one writing command per case (bind, expand, smudge, key, render)")
+    ap.add_argument("--values", action="store_true",
+                    help="mutate only values of the text fixtures (the file stays parseable); some go to crate")
     a = ap.parse_args()
-    if a.edits and not venv_python():
-        sys.exit("fuzz: --edits needs .venv (usd-core): run scripts/test once")
+    if (a.edits or a.values) and not venv_python():
+        sys.exit("fuzz: --edits and --values need .venv (usd-core): run scripts/test once")
     exe = str(pathlib.Path(a.bin).resolve())
     started = time.monotonic()
     with tempfile.TemporaryDirectory(prefix="painterly-fuzz-") as tmp:
@@ -397,7 +477,7 @@ def main():
             batch.mkdir()
 
         with cf.ThreadPoolExecutor(a.jobs) as pool:
-            futs = [pool.submit(check, exe, a.seed, k, seed_files, work, meta)
+            futs = [pool.submit(check, exe, a.seed, k, seed_files, work, meta, a.values)
                     for k in range(a.first, a.first + a.cases)]
             for n, f in enumerate(cf.as_completed(futs), 1):
                 k, name, rc_i, rc_b, t, problems, trust, err, data, written, edit = f.result()
@@ -421,7 +501,7 @@ def main():
             check_batch()
     took = time.monotonic() - started
     summary = ", ".join(f"inspect {i}/bake {b}: {c}" for (i, b), c in sorted(exits.items(), key=str))
-    print(f"fuzz: {a.cases} cases ({a.first}..{a.first + a.cases - 1} of seed {a.seed}, {a.jobs} jobs) in {took:.1f} s; "
+    print(f"fuzz: {a.cases} {'value-mutated ' if a.values else ''}cases ({a.first}..{a.first + a.cases - 1} of seed {a.seed}, {a.jobs} jobs) in {took:.1f} s; "
           f"{len(failures)} failures; {len(trusts)} inspect-0/bake-1 (trust); slowest run {slowest:.2f} s")
     print(f"exit codes: {summary}")
     if a.edits:

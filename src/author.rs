@@ -23,6 +23,8 @@ use openusd::sdf::Value;
 use crate::bind::{Binding, ClosestPoint};
 use crate::character::eval_axes;
 use crate::error::{Error, Result};
+use crate::interp::InterpError;
+use crate::keys::TimeKeyError;
 use crate::mesh::{fan_triangulate, OneRings};
 use crate::skinning::SkinningRest;
 use crate::tools::{self, Falloff};
@@ -319,6 +321,7 @@ pub fn key(session: &EditSession, opts: &KeyOptions) -> Result<String> {
     let existing = existing_keys(r, &opts.layer)?;
     let place = key_place(r, &mut scene.rigs[ri], li, opts)?;
     let path = key_path(opts, &existing, &place)?;
+    check_channels_stay_readable(opts, &existing, &place, &path)?;
     write_key(
         session,
         &path,
@@ -443,24 +446,25 @@ fn key_path(opts: &KeyOptions, existing: &[ExistingKey], place: &KeyPlace) -> Re
             pose_keys_met(existing, place, |e| e.points),
             pose_keys_met(existing, place, |e| e.opacity),
         ),
-        KeyKind::Time | KeyKind::Sentinel => (Vec::new(), Vec::new()),
+        KeyKind::Time => (
+            time_keys_met(existing, place, |e| e.points),
+            time_keys_met(existing, place, |e| e.opacity),
+        ),
+        KeyKind::Sentinel => (Vec::new(), Vec::new()),
     };
     for (i, e) in existing.iter().enumerate().filter(|(_, e)| e.ty == ty) {
         let clash = match opts.kind {
             KeyKind::Sentinel => e.sentinel && e.coords == *coords,
-            KeyKind::Time => {
-                e.coords == *coords
-                    && !e.sentinel
-                    && ((opts.points && e.points) || (opts.opacity.is_some() && e.opacity))
-            }
-            KeyKind::Pose => {
+            KeyKind::Time | KeyKind::Pose => {
                 (opts.points && meets_points.contains(&i)) || (opts.opacity.is_some() && meets_opacity.contains(&i))
             }
         };
         if clash {
             if !opts.replace {
                 let place = match (ty == "PainterlyPoseKey", e.coords == *coords) {
-                    (false, _) => "time",
+                    (false, true) => "time",
+                    // What the bake's time interpolation refuses as one time.
+                    (false, false) => "time (the times meet within 1e-12 of the span of the time keys between their sentinels)",
                     (true, true) => "coordinates",
                     // What the bake's interpolation refuses as one point.
                     (true, false) => {
@@ -504,22 +508,145 @@ fn key_path(opts: &KeyOptions, existing: &[ExistingKey], place: &KeyPlace) -> Re
 /// With no axes every key of the channel is at the one point.
 fn pose_keys_met(existing: &[ExistingKey], place: &KeyPlace, in_channel: impl Fn(&ExistingKey) -> bool) -> Vec<usize> {
     let dim = place.coords.len();
-    let members: Vec<usize> = (0..existing.len())
-        .filter(|&i| {
-            let e = &existing[i];
-            e.ty == "PainterlyPoseKey" && !e.sentinel && in_channel(e) && e.coords.len() == dim
-        })
-        .collect();
+    let (members, mut layout) = pose_layout(existing, place, in_channel, None);
     if dim == 0 {
         return members;
     }
-    let scaled = |c: &[f64]| c.iter().zip(&place.scales).map(|(c, s)| c * s).collect::<Vec<f64>>();
-    let mut layout: Vec<f64> = members.iter().flat_map(|&i| scaled(&existing[i].coords)).collect();
-    layout.extend(scaled(&place.coords));
+    layout.extend(scaled(&place.coords, &place.scales));
     crate::interp::same_point_as(dim, &layout, members.len())
         .into_iter()
         .map(|j| members[j])
         .collect()
+}
+
+/// A pose channel as the bake reads it, for a key placed at `place`: its
+/// keys with as many coordinates (indices into `existing`, leaving out the
+/// key at `without`) and their coordinates times the axes' scales
+/// (SPEC 1.1 §4), flat.
+fn pose_layout(
+    existing: &[ExistingKey],
+    place: &KeyPlace,
+    in_channel: impl Fn(&ExistingKey) -> bool,
+    without: Option<&str>,
+) -> (Vec<usize>, Vec<f64>) {
+    let members: Vec<usize> = (0..existing.len())
+        .filter(|&i| {
+            let e = &existing[i];
+            e.ty == "PainterlyPoseKey"
+                && !e.sentinel
+                && in_channel(e)
+                && e.coords.len() == place.coords.len()
+                && Some(e.path.as_str()) != without
+        })
+        .collect();
+    let layout = members
+        .iter()
+        .flat_map(|&i| scaled(&existing[i].coords, &place.scales))
+        .collect();
+    (members, layout)
+}
+
+/// Coordinates times their axes' scales.
+fn scaled(coords: &[f64], scales: &[f64]) -> Vec<f64> {
+    coords.iter().zip(scales).map(|(c, s)| c * s).collect()
+}
+
+/// The existing time keys (indices into `existing`) of the channel
+/// `in_channel` selects that sit at the new key's time as a bake reads them
+/// ([`crate::keys::same_time_as`]: the same time, or one the interpolation
+/// of their group between sentinels counts as the same).
+fn time_keys_met(existing: &[ExistingKey], place: &KeyPlace, in_channel: impl Fn(&ExistingKey) -> bool) -> Vec<usize> {
+    let (members, mut times, sentinels) = time_layout(existing, in_channel, None);
+    times.push(place.coords[0]);
+    crate::keys::same_time_as(&times, &sentinels, members.len())
+        .into_iter()
+        .map(|j| members[j])
+        .collect()
+}
+
+/// A time channel as the bake reads it: its keys (indices into `existing`,
+/// leaving out the key at `without`), their times, and every sentinel's time.
+fn time_layout(
+    existing: &[ExistingKey],
+    in_channel: impl Fn(&ExistingKey) -> bool,
+    without: Option<&str>,
+) -> (Vec<usize>, Vec<f64>, Vec<f64>) {
+    let is_time = |e: &ExistingKey| e.ty == "PainterlyTimeKey" && e.coords.len() == 1;
+    let members: Vec<usize> = (0..existing.len())
+        .filter(|&i| {
+            let e = &existing[i];
+            is_time(e) && !e.sentinel && in_channel(e) && Some(e.path.as_str()) != without
+        })
+        .collect();
+    let times = members.iter().map(|&i| existing[i].coords[0]).collect();
+    let sentinels = existing
+        .iter()
+        .filter(|e| is_time(e) && e.sentinel)
+        .map(|e| e.coords[0])
+        .collect();
+    (members, times, sentinels)
+}
+
+/// Refuses a key that would leave a channel it sets unreadable by the bake
+/// although the channel was readable before: the duplicate tolerance is
+/// relative to the layout's extent, so a key far from the others can make
+/// two existing keys count as one point. (A sentinel only splits runs of
+/// time keys, which never brings two keys within tolerance.)
+fn check_channels_stay_readable(
+    opts: &KeyOptions,
+    existing: &[ExistingKey],
+    place: &KeyPlace,
+    path: &str,
+) -> Result<()> {
+    type InChannel = fn(&ExistingKey) -> bool;
+    let channels: [(&str, bool, InChannel); 2] = [
+        ("position", opts.points, |e| e.points),
+        ("opacity", opts.opacity.is_some(), |e| e.opacity),
+    ];
+    for (channel, _, in_channel) in channels.into_iter().filter(|c| c.1) {
+        let (members, old, new) = match opts.kind {
+            KeyKind::Sentinel => return Ok(()),
+            KeyKind::Time => {
+                let (members, times, sentinels) = time_layout(existing, in_channel, Some(path));
+                let mut with_new = times.clone();
+                with_new.push(place.coords[0]);
+                let pair = |t: &[f64]| match crate::keys::TimeChannel::new(t, &sentinels) {
+                    Err(TimeKeyError::SameTime { first, second } | TimeKeyError::CloseTimes { first, second }) => {
+                        Some((first, second))
+                    }
+                    _ => None,
+                };
+                (members, pair(&times), pair(&with_new))
+            }
+            KeyKind::Pose => {
+                let dim = place.coords.len();
+                if dim == 0 {
+                    continue;
+                }
+                let (members, mut layout) = pose_layout(existing, place, in_channel, Some(path));
+                let pair = |l: &[f64]| match crate::interp::validate_keys(dim, l) {
+                    Err(InterpError::DuplicateKeys { first, second }) => Some((first, second)),
+                    _ => None,
+                };
+                let old = pair(&layout);
+                layout.extend(scaled(&place.coords, &place.scales));
+                (members, old, pair(&layout))
+            }
+        };
+        if let (None, Some((a, b))) = (old, new) {
+            let name = |k: usize| members.get(k).map_or(path, |&i| existing[i].path.as_str());
+            return Err(Error::prim(
+                &opts.layer,
+                format!(
+                    "the new key {path} would widen the layer's {channel} keys so far that {} and {} count as one \
+                     (within 1e-12 of the keys' extent), and the bake would refuse the layer",
+                    name(a),
+                    name(b)
+                ),
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// Defines the key prim and sets its attributes (a sentinel holds no data).

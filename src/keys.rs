@@ -71,6 +71,10 @@ impl TemporalWeights {
 pub enum TimeKeyError {
     /// Two normal keys of one channel at the same time (indices into the channel's keys).
     SameTime { first: usize, second: usize },
+    /// Two normal keys at different times that the interpolation of their
+    /// group (the keys between two sentinels) counts as one time: closer
+    /// than its duplicate tolerance ([`InterpError::DuplicateKeys`]).
+    CloseTimes { first: usize, second: usize },
     /// A time that is not finite.
     NonFinite { key: usize },
 }
@@ -80,13 +84,55 @@ pub enum TimeKeyError {
 pub struct TimeChannel {
     /// Normal keys' times, in the order the caller gave them.
     key_times: Vec<f64>,
-    /// Events sorted by time: (time, Some(normal key index) or None for a sentinel).
-    events: Vec<(f64, Option<usize>)>,
+    /// Events sorted by time.
+    events: Events,
     /// Per run of normal keys between two sentinels (or the ends of time):
     /// the keys' indices and their 1-D smooth Voronoi interpolant.
     groups: Vec<(Vec<usize>, Option<Interpolator>)>,
     /// Group of each normal key.
     group_of: Vec<usize>,
+}
+
+/// A channel's timeline: (time, Some(normal key index) or None for a sentinel).
+type Events = Vec<(f64, Option<usize>)>;
+
+/// The events of a channel sorted by time, and its runs of normal keys
+/// between sentinels (finite times only; each key in exactly one run).
+fn time_groups(key_times: &[f64], sentinels: &[f64]) -> (Events, Vec<Vec<usize>>) {
+    let mut events: Events = key_times.iter().enumerate().map(|(i, &t)| (t, Some(i))).collect();
+    events.extend(sentinels.iter().filter(|t| t.is_finite()).map(|&t| (t, None)));
+    // At equal times a sentinel sorts first: the key after it is then
+    // reached from the sentinel, and the key's own time gives its value.
+    events.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.is_some().cmp(&b.1.is_some())));
+    let mut groups = vec![Vec::new()];
+    for &(_, e) in &events {
+        match e {
+            Some(k) => groups.last_mut().expect("one group at least").push(k),
+            None => groups.push(Vec::new()),
+        }
+    }
+    groups.retain(|g| !g.is_empty());
+    (events, groups)
+}
+
+/// The other normal keys that count as the same time as key `k` (finite
+/// times): those of its group within the group interpolation's duplicate
+/// tolerance, as [`TimeChannel::new`] refuses them. A tool adding key `k`
+/// learns which key it would meet.
+pub fn same_time_as(key_times: &[f64], sentinels: &[f64], k: usize) -> Vec<usize> {
+    if key_times.iter().any(|t| !t.is_finite()) {
+        return Vec::new();
+    }
+    let (_, groups) = time_groups(key_times, sentinels);
+    let Some(group) = groups.iter().find(|g| g.contains(&k)) else {
+        return Vec::new();
+    };
+    let times: Vec<f64> = group.iter().map(|&i| key_times[i]).collect();
+    let at = group.iter().position(|&i| i == k).expect("k is in its group");
+    crate::interp::same_point_as(1, &times, at)
+        .into_iter()
+        .map(|j| group[j])
+        .collect()
 }
 
 impl TimeChannel {
@@ -102,36 +148,30 @@ impl TimeChannel {
                 }
             }
         }
-        let mut sentinels: Vec<f64> = sentinels.iter().copied().filter(|t| t.is_finite()).collect();
-        sentinels.sort_by(f64::total_cmp);
-        let mut events: Vec<(f64, Option<usize>)> = key_times.iter().enumerate().map(|(i, &t)| (t, Some(i))).collect();
-        events.extend(sentinels.iter().map(|&t| (t, None)));
-        // At equal times a sentinel sorts first: the key after it is then
-        // reached from the sentinel, and the key's own time gives its value.
-        events.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.is_some().cmp(&b.1.is_some())));
-
-        let mut groups: Vec<(Vec<usize>, Option<Interpolator>)> = Vec::new();
+        let (events, runs) = time_groups(key_times, sentinels);
+        let mut groups: Vec<(Vec<usize>, Option<Interpolator>)> = Vec::with_capacity(runs.len());
         let mut group_of = vec![0; key_times.len()];
-        let mut current: Vec<usize> = Vec::new();
-        let flush = |current: &mut Vec<usize>, groups: &mut Vec<(Vec<usize>, Option<Interpolator>)>| {
-            if current.is_empty() {
-                return;
-            }
-            let coords: Vec<f64> = current.iter().map(|&k| key_times[k]).collect();
-            let interp = (current.len() >= 2)
-                .then(|| Interpolator::new(Method::SmoothVoronoi, 1, &coords).expect("distinct finite times"));
-            groups.push((std::mem::take(current), interp));
-        };
-        for &(_, e) in &events {
-            match e {
-                Some(k) => {
-                    group_of[k] = groups.len();
-                    current.push(k);
+        for members in runs {
+            let coords: Vec<f64> = members.iter().map(|&k| key_times[k]).collect();
+            // Distinct times can still be closer than the interpolation's
+            // tolerance for their group's span: refused, not a panic.
+            let interp = match (members.len() >= 2).then(|| Interpolator::new(Method::SmoothVoronoi, 1, &coords)) {
+                None => None,
+                Some(Ok(i)) => Some(i),
+                Some(Err(InterpError::DuplicateKeys { first, second })) => {
+                    let (a, b) = (members[first], members[second]);
+                    return Err(TimeKeyError::CloseTimes {
+                        first: a.min(b),
+                        second: a.max(b),
+                    });
                 }
-                None => flush(&mut current, &mut groups),
+                Some(Err(e)) => unreachable!("finite, distinct 1-D times: {e:?}"),
+            };
+            for &k in &members {
+                group_of[k] = groups.len();
             }
+            groups.push((members, interp));
         }
-        flush(&mut current, &mut groups);
         Ok(TimeChannel {
             key_times: key_times.to_vec(),
             events,
@@ -282,6 +322,41 @@ mod tests {
             TimeChannel::new(&[1.0, 2.0, 1.0], &[]).unwrap_err(),
             TimeKeyError::SameTime { first: 0, second: 2 }
         );
+    }
+
+    #[test]
+    fn times_the_interpolation_counts_as_one_are_rejected() {
+        // 1e-7 apart in a group spanning 1e6: within 1e-12 of the span.
+        assert_eq!(
+            TimeChannel::new(&[1e6 + 1e-7, 0.0, 1e6], &[]).unwrap_err(),
+            TimeKeyError::CloseTimes { first: 0, second: 2 }
+        );
+        // 1e-5 apart: farther than 1e-12 of the span.
+        assert!(TimeChannel::new(&[1e6 + 1e-5, 0.0, 1e6], &[]).is_ok());
+        // A sentinel between 0 and 1e6 leaves the pair a group of its own,
+        // spanning 1e-7: two times.
+        assert!(TimeChannel::new(&[1e6 + 1e-7, 0.0, 1e6], &[5.0]).is_ok());
+        assert_eq!(same_time_as(&[1e6 + 1e-7, 0.0, 1e6], &[], 2), vec![0]);
+        assert_eq!(same_time_as(&[1e6 + 1e-7, 0.0, 1e6], &[], 1), Vec::<usize>::new());
+        assert_eq!(same_time_as(&[1e6 + 1e-7, 0.0, 1e6], &[5.0], 2), Vec::<usize>::new());
+        // Equal times meet in any group, and a sentinel at their time
+        // does not part them (it sorts before both).
+        assert_eq!(same_time_as(&[3.0, 3.0], &[3.0], 0), vec![1]);
+        assert!(same_time_as(&[3.0, f64::NAN], &[], 0).is_empty());
+        // The rule same_time_as reports is the one new() enforces.
+        for (times, sentinels) in [
+            (vec![0.0, 44.0, 44.0 + 5e-12], vec![]),
+            (vec![0.0, 44.0, 44.0 + 5e-11], vec![]),
+            (vec![37.0, 40.0, 44.0, 44.0 + 5e-12], vec![36.0, 47.0]),
+            (vec![40.0, 44.0 + 5e-12, 1e9, 44.0], vec![36.0, 47.0]),
+        ] {
+            let met = (0..times.len()).any(|k| !same_time_as(&times, &sentinels, k).is_empty());
+            assert_eq!(
+                met,
+                TimeChannel::new(&times, &sentinels).is_err(),
+                "{times:?} {sentinels:?}"
+            );
+        }
     }
 }
 

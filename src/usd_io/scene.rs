@@ -851,6 +851,16 @@ fn time_channel<V>(keys: Vec<(String, f64, V)>, sentinels: &[f64]) -> Result<Opt
             ),
         )
         .rule(Rule::CoincidentKeys),
+        TimeKeyError::CloseTimes { first, second } => Error::attr(
+            &paths[first],
+            "time",
+            format!(
+                "{} is within 1e-12 of the span of the time keys between their sentinels: \
+                 the time interpolation counts the two as one time",
+                paths[second]
+            ),
+        )
+        .rule(Rule::CoincidentKeys),
         TimeKeyError::NonFinite { key } => Error::attr(&paths[key], "time", "time is not finite").rule(Rule::NonFinite),
     })?;
     Ok(Some(Channel {
