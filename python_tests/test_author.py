@@ -563,6 +563,21 @@ def test_time_key_at_a_time_the_bake_calls_the_same_is_refused(painterly, repo_r
     assert painterly("inspect", inp, check=False).returncode == 0
 
 
+def test_time_key_at_a_pose_keys_coordinate_meets_no_key(painterly, repo_root, tmp_path):
+    # Spikes also has pose keys on its one axis at 0, 0.5 and 1. A time key
+    # at time 1 sits alone before the sentinel at 36: pose keys are not on
+    # the timeline, whatever their coordinate.
+    inp = tmp_path / "blowfish.usda"
+    shutil.copy(repo_root / "fixtures" / "blowfish.usda", inp)
+    st = Usd.Stage.Open(str(inp))
+    assert [list(st.GetPrimAtPath(f"{SPIKES}/{k}").GetAttribute("coordinates").Get())
+            for k in ("flat", "half", "out")] == [[0.0], [0.5], [1.0]]
+    del st
+    painterly("key", inp, "--in-place", "--layer", SPIKES, "--time", 1, "--time-key", "--points", "--quiet")
+    assert spikes_times(inp) == {"shockStart": 36, "shock": 40, "settle": 44, "shockEnd": 47, "time1": 1}
+    assert painterly("inspect", inp, check=False).returncode == 0
+
+
 def test_time_key_that_would_make_two_keys_meet_is_refused(painterly, repo_root, tmp_path):
     inp = tmp_path / "blowfish.usda"
     shutil.copy(repo_root / "fixtures" / "blowfish.usda", inp)

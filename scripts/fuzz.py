@@ -37,9 +37,12 @@ camera. Besides the checks above, a case also fails when:
 
 With --values the mutations keep the file's structure, so that more
 inputs read and more edits get as far as writing: the case takes a text
-fixture and changes only its values (a number scaled, nudged by a rounding
-step, set to 0 or an extreme, an index moved by one; an array element
-dropped or repeated), and two cases in five go to usd-core, which writes
+fixture (those above and blowfish.usda, which has time keys and
+sentinels) and changes only its values, on lines picked at random (a
+number scaled, nudged by a rounding step, set to 0 or an extreme, an
+index moved by one; an array element dropped or repeated); a bake that
+succeeds runs again on one thread and must write the same bytes; and two
+cases in five go to usd-core, which writes
 the mutated text as a crate file (the crate reader and writer then run).
 A case usd-core cannot convert stays text.
 
@@ -75,6 +78,10 @@ ARCS = [b'(inherits = </Nowhere>)', b'(references = @missing.usda@)', b'(payload
 
 
 FIXTURES = ["static.usda", "building.usda", "tube.usda", "head.usda", "walk.usda", "fig4.usda"]
+# --values also takes blowfish.usda, the fixture with time keys and
+# sentinels (kept out of FIXTURES so that the cases of a seed without
+# --values stay the ones the failure notes cite).
+VALUE_FIXTURES = FIXTURES + ["blowfish.usda"]
 
 
 def venv_python():
@@ -129,7 +136,7 @@ def seeds(work):
 
 def seeds_meta():
     """seed_meta of every seed file, the crate copies sharing their fixture's."""
-    meta = seed_meta([REPO / "fixtures" / n for n in FIXTURES if (REPO / "fixtures" / n).exists()])
+    meta = seed_meta([REPO / "fixtures" / n for n in VALUE_FIXTURES if (REPO / "fixtures" / n).exists()])
     return {**meta, **{n.replace(".usda", ".usdc"): m for n, m in meta.items()}}
 
 
@@ -183,28 +190,34 @@ ELEMENT = re.compile(rb"(?<=[\[,])\s*(\([^()\[\]]*\)|-?[\d.eE+-]+)\s*(?=[,\]])")
 
 
 def mutate_values(rng, data):
-    """1-4 value changes that keep a text layer parseable (--values)."""
+    """1-4 value changes that keep a text layer parseable (--values). Each
+    picks a line first, then a value on it, so that the few scalar values
+    (times, scales, sentinels, transform ops) are as likely to change as
+    the points of a large array, which all share one line."""
     for _ in range(rng.randint(1, 4)):
-        kind = rng.random()
-        if kind < 0.2:
+        lines = data.split(b"\n")
+        if rng.random() < 0.2:
             # Drop or repeat one array element: counts that no longer agree.
-            elems = list(ELEMENT.finditer(data))
-            if elems:
-                m = rng.choice(elems)
-                if rng.random() < 0.5:
-                    end = m.end() + 1 if data[m.end():m.end() + 1] == b"," else m.end()
-                    start = m.start() - 1 if end == m.end() and data[m.start() - 1:m.start()] == b"," else m.start()
-                    data = data[:start] + data[end:]
-                else:
-                    data = data[:m.end()] + b"," + m.group(0) + data[m.end():]
+            found = [(i, ms) for i, line in enumerate(lines) if (ms := list(ELEMENT.finditer(line)))]
+            if not found:
+                continue
+            i, ms = rng.choice(found)
+            line, m = lines[i], rng.choice(ms)
+            if rng.random() < 0.5:
+                end = m.end() + 1 if line[m.end():m.end() + 1] == b"," else m.end()
+                start = m.start() - 1 if end == m.end() and line[m.start() - 1:m.start()] == b"," else m.start()
+                lines[i] = line[:start] + line[end:]
+            else:
+                lines[i] = line[:m.end()] + b"," + m.group(0) + line[m.end():]
+            data = b"\n".join(lines)
             continue
-        nums = list(NUMBER.finditer(data))
-        if not nums:
+        found = [(i, ms) for i, line in enumerate(lines) if (ms := list(NUMBER.finditer(line)))]
+        if not found:
             break
-        m = rng.choice(nums)
-        tok = m.group(0)
+        i, ms = rng.choice(found)
+        line, m = lines[i], rng.choice(ms)
         is_int = m.group(1) is None and m.group(2) is None
-        x = float(tok)
+        x = float(m.group(0))
         op = rng.random()
         if op < 0.1:
             new = rng.choice(EXTREMES)
@@ -215,7 +228,8 @@ def mutate_values(rng, data):
         else:
             new = repr(x * rng.choice([0.0, -1.0, 2.0, 0.5, 1e-6, 1e6, 1e-30, 1e30]) if x else
                        rng.choice([1e-30, 1e-7, 1.0, -1.0])).encode()
-        data = data[:m.start()] + new + data[m.end():]
+        lines[i] = line[:m.start()] + new + line[m.end():]
+        data = b"\n".join(lines)
     return data
 
 
@@ -262,7 +276,8 @@ def check(exe, seed, k, seed_files, work, meta=None, values=False):
     d = work / f"c{k}"
     d.mkdir()
     if values:
-        name, data = rng.choice([f for f in seed_files if f[0].endswith(".usda")])
+        name = rng.choice(VALUE_FIXTURES)
+        data = (REPO / "fixtures" / name).read_bytes()
         data = mutate_values(rng, data)
         if rng.random() < 0.4:
             (d / "text.usda").write_bytes(data)
@@ -451,7 +466,7 @@ def main():
         meta = seeds_meta() if a.edits else None
         batch = work / "written"
         batch.mkdir()
-        failures, trusts, slowest, exits, checked, edits = [], [], 0.0, {}, 0, {}
+        failures, trusts, slowest, exits, checked, edits = [], [], (0.0, None), {}, 0, {}
         stashed = 0  # written cases in `batch`, not yet checked
 
         def keep_failure(k, name, data, err, problems):
@@ -488,7 +503,7 @@ def main():
                     stashed += 1
                     if stashed >= 200:
                         check_batch()
-                slowest = max(slowest, t)
+                slowest = max(slowest, (t, k), key=lambda s: s[0])
                 exits[(rc_i, rc_b)] = exits.get((rc_i, rc_b), 0) + 1
                 if trust:
                     trusts.append(k)
@@ -502,7 +517,7 @@ def main():
     took = time.monotonic() - started
     summary = ", ".join(f"inspect {i}/bake {b}: {c}" for (i, b), c in sorted(exits.items(), key=str))
     print(f"fuzz: {a.cases} {'value-mutated ' if a.values else ''}cases ({a.first}..{a.first + a.cases - 1} of seed {a.seed}, {a.jobs} jobs) in {took:.1f} s; "
-          f"{len(failures)} failures; {len(trusts)} inspect-0/bake-1 (trust); slowest run {slowest:.2f} s")
+          f"{len(failures)} failures; {len(trusts)} inspect-0/bake-1 (trust); slowest run {slowest[0]:.2f} s (case {slowest[1]})")
     print(f"exit codes: {summary}")
     if a.edits:
         print("edits (command: exits 0 / 1 / other): " + ", ".join(
