@@ -194,44 +194,50 @@ def mutate_values(rng, data):
     picks a line first, then a value on it, so that the few scalar values
     (times, scales, sentinels, transform ops) are as likely to change as
     the points of a large array, which all share one line."""
+    def pick(lines, pattern):
+        """A random line holding `pattern`, and one match on it (None if no line has one)."""
+        found = [(i, ms) for i, line in enumerate(lines) if (ms := list(pattern.finditer(line)))]
+        if not found:
+            return None
+        i, ms = rng.choice(found)
+        return i, rng.choice(ms)
+
     for _ in range(rng.randint(1, 4)):
         lines = data.split(b"\n")
         if rng.random() < 0.2:
             # Drop or repeat one array element: counts that no longer agree.
-            found = [(i, ms) for i, line in enumerate(lines) if (ms := list(ELEMENT.finditer(line)))]
-            if not found:
+            hit = pick(lines, ELEMENT)
+            if hit is None:
                 continue
-            i, ms = rng.choice(found)
-            line, m = lines[i], rng.choice(ms)
+            i, m = hit
+            line = lines[i]
             if rng.random() < 0.5:
                 end = m.end() + 1 if line[m.end():m.end() + 1] == b"," else m.end()
                 start = m.start() - 1 if end == m.end() and line[m.start() - 1:m.start()] == b"," else m.start()
                 lines[i] = line[:start] + line[end:]
             else:
                 lines[i] = line[:m.end()] + b"," + m.group(0) + line[m.end():]
-            data = b"\n".join(lines)
-            continue
-        found = [(i, ms) for i, line in enumerate(lines) if (ms := list(NUMBER.finditer(line)))]
-        if not found:
-            break
-        i, ms = rng.choice(found)
-        line, m = lines[i], rng.choice(ms)
-        is_int = m.group(1) is None and m.group(2) is None
-        x = float(m.group(0))
-        op = rng.random()
-        if op < 0.1:
-            new = rng.choice(EXTREMES)
-        elif is_int and op < 0.6:
-            # 4095, not 65535: a range of 65,535 frames is legal, and inspect
-            # of blowfish.usda then evaluates them for about 25 s (40 s
-            # under load: seed 20261210, case 1261), too near the hang limit.
-            new = str(int(rng.choice([0, -1, x + 1, x - 1, 2 * x + 1, 4095]))).encode()
-        elif op < 0.7:
-            new = repr(x * (1 + rng.choice([1e-15, -1e-15, 1e-7, -1e-7]))).encode()
         else:
-            new = repr(x * rng.choice([0.0, -1.0, 2.0, 0.5, 1e-6, 1e6, 1e-30, 1e30]) if x else
-                       rng.choice([1e-30, 1e-7, 1.0, -1.0])).encode()
-        lines[i] = line[:m.start()] + new + line[m.end():]
+            hit = pick(lines, NUMBER)
+            if hit is None:
+                break
+            i, m = hit
+            is_int = m.group(1) is None and m.group(2) is None
+            x = float(m.group(0))
+            op = rng.random()
+            if op < 0.1:
+                new = rng.choice(EXTREMES)
+            elif is_int and op < 0.6:
+                # 4095, not 65535: a range of 65,535 frames is legal, and inspect
+                # of blowfish.usda then evaluates them for about 25 s (40 s
+                # under load: seed 20261210, case 1261), too near the hang limit.
+                new = str(int(rng.choice([0, -1, x + 1, x - 1, 2 * x + 1, 4095]))).encode()
+            elif op < 0.7:
+                new = repr(x * (1 + rng.choice([1e-15, -1e-15, 1e-7, -1e-7]))).encode()
+            else:
+                new = repr(x * rng.choice([0.0, -1.0, 2.0, 0.5, 1e-6, 1e6, 1e-30, 1e30]) if x else
+                           rng.choice([1e-30, 1e-7, 1.0, -1.0])).encode()
+            lines[i] = lines[i][:m.start()] + new + lines[i][m.end():]
         data = b"\n".join(lines)
     return data
 
@@ -274,14 +280,14 @@ def edit_command(rng, name, meta):
     return [*args, "-q"], in_place
 
 
-def check(exe, seed, k, seed_files, work, meta=None, values=False):
+def check(exe, seed, k, seed_files, work, meta=None, value_files=None):
     rng = random.Random(f"{seed}:{k}")
     d = work / f"c{k}"
     d.mkdir()
+    values = value_files is not None
     if values:
         name = rng.choice(VALUE_FIXTURES)
-        data = (REPO / "fixtures" / name).read_bytes()
-        data = mutate_values(rng, data)
+        data = mutate_values(rng, value_files[name])
         if rng.random() < 0.4:
             (d / "text.usda").write_bytes(data)
             crate = d / name.replace(".usda", ".usdc")
@@ -467,6 +473,8 @@ def main():
         work = pathlib.Path(tmp)
         seed_files = seeds(work)
         meta = seeds_meta() if a.edits else None
+        # --values: the text fixtures' bytes, read once (blowfish.usda is 1.6 MB).
+        value_files = {n: (REPO / "fixtures" / n).read_bytes() for n in VALUE_FIXTURES} if a.values else None
         batch = work / "written"
         batch.mkdir()
         failures, trusts, slowest, exits, checked, edits = [], [], (0.0, None), {}, 0, {}
@@ -499,7 +507,7 @@ def main():
             # each one it yields, and with it the bytes of a written case
             # (a kept list held every written blowfish case, 1.8 GB by
             # case 7,000 of a --values run, and slowed the driver).
-            done = cf.as_completed([pool.submit(check, exe, a.seed, k, seed_files, work, meta, a.values)
+            done = cf.as_completed([pool.submit(check, exe, a.seed, k, seed_files, work, meta, value_files)
                                     for k in range(a.first, a.first + a.cases)])
             for n, f in enumerate(done, 1):
                 k, name, rc_i, rc_b, t, problems, trust, err, data, written, edit = f.result()
