@@ -355,6 +355,10 @@ pub fn inspect_stage(r: &StageReader) -> Result<Report> {
         });
     }
     let clip_set = clip_set_report(path, &mut problems)?;
+    // One cause can surface once per layer that meets it (an axis that three
+    // layers' keys use): the report names it once, where it first surfaced.
+    let mut seen = std::collections::HashSet::new();
+    problems.retain(|p| seen.insert((p.prim.clone(), p.attribute.clone(), p.message.clone(), p.rule)));
     Ok(Report {
         file: path.to_path_buf(),
         start_time_code: meta.start_time_code,
@@ -619,6 +623,27 @@ mod tests {
             missing.message
         );
         assert_eq!(missing.prim.as_deref(), Some("/Char"));
+    }
+
+    #[test]
+    fn a_problem_three_layers_meet_is_reported_once() {
+        // fixtures/apple.usda: the Shading, Highlight and CastShadow layers
+        // each key lightX and lightZ. Without lightX's source, each of the
+        // three layers' keys fails on it; the report says so once.
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/apple.usda");
+        let text = std::fs::read_to_string(&path).unwrap();
+        let lightx = text.find("def PainterlyAxis \"lightX\"").unwrap();
+        let rel = "rel source = </Apple/Light>";
+        let source = lightx + text[lightx..].find(rel).unwrap();
+        let text = format!("{}{}", &text[..source], &text[source + rel.len()..]);
+        let r = open_bytes(text.into_bytes(), &path).unwrap();
+        let problems = inspect_stage(&r).unwrap().problems;
+        assert_eq!(problems.len(), 1, "{problems:?}");
+        assert_eq!(site(&problems[0]).0, Some("/Apple/Paint/lightX"));
+        assert_eq!(
+            problems[0].message,
+            "a position axis needs `rel source` to an Xformable prim"
+        );
     }
 
     #[test]
