@@ -181,11 +181,15 @@ def test_quiet_render_hides_warnings_it_would_print(tmp_path):
     assert (quiet.returncode, quiet.stdout, quiet.stderr) == (0, "", "")
 
 
-@pytest.mark.parametrize("command", ["bake", "render"])
+@pytest.mark.parametrize("command", ["bake", "render", "inspect"])
 def test_progress_bar_on_a_terminal_only(tmp_path, command):
     if command == "bake":
         args = ["bake", FISH, "-o", tmp_path / "b.usdc", "--frames", "1:48"]
         word = "baking frame"
+    elif command == "inspect":
+        # inspect evaluates every frame of the stage's range (blowfish: 1..48).
+        args = ["inspect", FISH]
+        word = "checking frame"
     else:
         args = ["render", APPLE, "--camera", "/Apple/Camera", "--frames", "1:48", "-o", tmp_path / "r.####.exr", "--size", "64x40"]
         word = "rendering"
@@ -197,6 +201,12 @@ def test_progress_bar_on_a_terminal_only(tmp_path, command):
     proc = run(args)
     assert proc.returncode == 0
     assert word not in proc.stderr and proc.stderr == ""
+    if command == "inspect":
+        # inspect has no --quiet; --json on a terminal prints the report alone.
+        code, seen = run_on_pty([*args, "--json"])
+        assert code == 0 and word not in seen
+        assert json.loads(seen)["problems"] == []
+        return
     # --quiet on a terminal: nothing at all.
     code, seen = run_on_pty([*args, "-q"])
     assert (code, seen) == (0, "")

@@ -192,14 +192,14 @@ pub fn leave_binding_cache(ch: &Character, output: &Path) {
 /// and opacities can fail only at a frame). Returns how many frames were
 /// evaluated: none for a stage with nothing to bake or without a complete
 /// frame range (bake then needs `--frames`).
-pub fn evaluate_every_frame(reader: StageReader, camera: Option<&str>) -> Result<usize> {
+pub fn evaluate_every_frame(reader: StageReader, camera: Option<&str>, progress: Progress) -> Result<usize> {
     let meta = reader.metadata();
     let ch = Character::from_reader(reader, camera)?;
     if is_empty(&ch.model, &BakeOptions::default()) || meta.start_time_code.is_none() || meta.end_time_code.is_none() {
         return Ok(0);
     }
     let times = resolve_frames(&ch.reader, None)?;
-    stream(&ch, &times, false, Box::new(DiscardSink), &|_, _| {})?;
+    stream(&ch, &times, false, Box::new(DiscardSink), progress)?;
     Ok(times.len())
 }
 

@@ -570,15 +570,7 @@ pub fn run(cli: Cli) -> i32 {
 /// `painterly bake`: the bake with a progress bar on a terminal, then its
 /// summary line or JSON.
 fn run_bake(input: &Path, output: &Path, opts: &BakeOptions, quiet: bool, json: bool) -> i32 {
-    let show_bar = !quiet && !json && std::io::stderr().is_terminal();
-    let bar = ProgressBar::hidden();
-    if show_bar {
-        bar.set_draw_target(indicatif::ProgressDrawTarget::stderr());
-        bar.set_style(
-            ProgressStyle::with_template("{spinner} baking frame {pos}/{len} [{bar:30}] {elapsed} (eta {eta})")
-                .unwrap_or_else(|_| ProgressStyle::default_bar()),
-        );
-    }
+    let bar = frame_bar(!quiet && !json, "baking frame");
     let progress = |done: usize, total: usize| {
         bar.set_length(total as u64);
         bar.set_position(done as u64);
@@ -612,9 +604,33 @@ fn run_bake(input: &Path, output: &Path, opts: &BakeOptions, quiet: bool, json: 
     }
 }
 
-/// `painterly inspect`: exit 1 when the report lists problems.
+/// A bar of frames done on stderr ("{what} 12/48"), drawn only when `show`
+/// and stderr is a terminal: piped output and logs stay clean.
+fn frame_bar(show: bool, what: &str) -> ProgressBar {
+    let bar = ProgressBar::hidden();
+    if show && std::io::stderr().is_terminal() {
+        bar.set_draw_target(indicatif::ProgressDrawTarget::stderr());
+        bar.set_style(
+            ProgressStyle::with_template(&format!(
+                "{{spinner}} {what} {{pos}}/{{len}} [{{bar:30}}] {{elapsed}} (eta {{eta}})"
+            ))
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+        );
+    }
+    bar
+}
+
+/// `painterly inspect`: exit 1 when the report lists problems. Evaluating
+/// every frame of a long range takes a while: a bar shows it on a terminal.
 fn run_inspect(input: &Path, camera: Option<&str>, json: bool) -> i32 {
-    match inspect(input, camera) {
+    let bar = frame_bar(!json, "checking frame");
+    let progress = |done: usize, total: usize| {
+        bar.set_length(total as u64);
+        bar.set_position(done as u64);
+    };
+    let result = inspect(input, camera, &progress);
+    bar.finish_and_clear();
+    match result {
         Ok(rep) => {
             if json {
                 println!("{}", serde_json::to_string_pretty(&rep).unwrap_or_default());

@@ -10,6 +10,7 @@ use std::path::{Path, PathBuf};
 
 use serde::Serialize;
 
+use crate::bake::Progress;
 use crate::error::{Error, Result};
 use crate::rule::Rule;
 use crate::usd_io::clips::{clip_set_status, ChunkState};
@@ -223,10 +224,10 @@ fn check_point_samples(r: &StageReader, layer: &StrokeLayer, problems: &mut Vec<
 /// for that bake. The stage is opened as bake opens it (mapped), so that
 /// its frames are read the same way: a mapped stage reads time samples
 /// and fixed transforms through its own paths.
-pub fn inspect(path: &Path, camera: Option<&str>) -> Result<Report> {
+pub fn inspect(path: &Path, camera: Option<&str>, progress: Progress) -> Result<Report> {
     let reader = StageReader::open_mapped(path)?;
     let mut report = inspect_stage(&reader)?;
-    check_every_frame(reader, camera, &mut report);
+    check_every_frame(reader, camera, &mut report, progress);
     Ok(report)
 }
 
@@ -234,12 +235,13 @@ pub fn inspect(path: &Path, camera: Option<&str>) -> Result<Report> {
 /// `camera` as `--camera`, no `--frames`) would, writing nothing, and
 /// reports the first failure, so that inspect passing means that bake
 /// succeeds: some inputs fail only when evaluated at a frame (a camera
-/// transform, a non-finite posed point).
-pub fn check_every_frame(reader: StageReader, camera: Option<&str>, report: &mut Report) {
+/// transform, a non-finite posed point). `progress` hears (frames done,
+/// frames) as bake's does.
+pub fn check_every_frame(reader: StageReader, camera: Option<&str>, report: &mut Report, progress: Progress) {
     if !report.problems.is_empty() {
         return;
     }
-    if let Err(e) = crate::bake::evaluate_every_frame(reader, camera) {
+    if let Err(e) = crate::bake::evaluate_every_frame(reader, camera, progress) {
         report.problems.push(Problem::new(e, Rule::Unreadable));
     }
 }
@@ -741,8 +743,8 @@ mod tests {
     fn a_camera_that_is_not_there_is_a_problem() {
         // The stage itself is clean; only evaluating the frames with
         // --camera /NoCam (what bake --camera /NoCam does) fails.
-        assert!(inspect(&tube(), None).unwrap().problems.is_empty());
-        let report = inspect(&tube(), Some("/NoCam")).unwrap();
+        assert!(inspect(&tube(), None, &|_, _| {}).unwrap().problems.is_empty());
+        let report = inspect(&tube(), Some("/NoCam"), &|_, _| {}).unwrap();
         assert_eq!(report.problems.len(), 1, "{:?}", report.problems);
         // The problem is bake's own error (`/NoCam: the camera named by
         // --camera does not exist`), on the prim --camera names.

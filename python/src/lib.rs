@@ -252,7 +252,7 @@ fn inspect(py: Python<'_>, input: &Bound<'_, PyAny>, camera: Option<String>) -> 
         let r = src.open_mapped()?;
         let mut rep = painterly::inspect::inspect_stage(&r)?;
         // As the CLI: passing means a default bake succeeds.
-        painterly::inspect::check_every_frame(r, camera.as_deref(), &mut rep);
+        painterly::inspect::check_every_frame(r, camera.as_deref(), &mut rep, &|_, _| {});
         if src.text.is_some() {
             rep.file = PathBuf::from(&src.name);
         }
