@@ -12,7 +12,7 @@ process under a 60 s timeout and an address-space limit. A case fails when:
 - stderr shows a panic or "internal error";
 - a run exits outside {0, 1} (usage errors cannot come from a file);
 - a run leaves a temporary (`.painterly-`) file, or changes its input;
-- with --values, a bake on one thread writes other bytes than on all.
+- with --values or --keys, a bake on one thread writes other bytes than on all.
 
 - inspect exits 0 but the default bake (no --frames) fails: inspect
   evaluates every frame of that bake, so it must find what bake finds (a
@@ -46,7 +46,15 @@ cases in five go to usd-core, which writes the mutated text as a crate
 file (the crate reader and writer then run). A case usd-core cannot
 convert stays text.
 
-Usage: python3 scripts/fuzz.py --cases N --seed S [--first K] [--jobs J] [--keep DIR] [--edits] [--values]
+With --keys the mutations change the structure of painterly's own prims
+(keys, axes, view keys) in the fixtures that have them (blowfish, head,
+walk, building, apple): a prim deleted, copied under a new name (beside
+itself or after another prim, which may be in another stroke layer, with
+one of its scalars nudged or not), retyped, a property dropped or copied
+in from another prim, a sentinel set or cleared. Cases otherwise run as
+with --values (crate conversion, the one-thread bake check).
+
+Usage: python3 scripts/fuzz.py --cases N --seed S [--first K] [--jobs J] [--keep DIR] [--edits] [--values | --keys]
 Failing inputs are copied to --keep (default target/fuzz-failures) with
 their stderr; the exit status is the number of failures (capped at 100).
 Cases are reproducible from (seed, case index).
@@ -82,6 +90,8 @@ FIXTURES = ["static.usda", "building.usda", "tube.usda", "head.usda", "walk.usda
 # sentinels (kept out of FIXTURES so that the cases of a seed without
 # --values stay the ones the failure notes cite).
 VALUE_FIXTURES = FIXTURES + ["blowfish.usda"]
+# --keys: the fixtures with painterly prims (keys, axes, view keys).
+KEY_FIXTURES = ["blowfish.usda", "head.usda", "walk.usda", "building.usda", "apple.usda"]
 
 
 def venv_python():
@@ -136,7 +146,8 @@ def seeds(work):
 
 def seeds_meta():
     """seed_meta of every seed file, the crate copies sharing their fixture's."""
-    meta = seed_meta([REPO / "fixtures" / n for n in VALUE_FIXTURES if (REPO / "fixtures" / n).exists()])
+    names = dict.fromkeys(VALUE_FIXTURES + KEY_FIXTURES)
+    meta = seed_meta([REPO / "fixtures" / n for n in names if (REPO / "fixtures" / n).exists()])
     return {**meta, **{n.replace(".usda", ".usdc"): m for n, m in meta.items()}}
 
 
@@ -242,6 +253,86 @@ def mutate_values(rng, data):
     return data
 
 
+PRIM = re.compile(rb'^(\s*)def (Painterly\w+) "([^"]+)"')
+PRIM_TYPES = [b"PainterlyPoseKey", b"PainterlyTimeKey", b"PainterlyViewKey", b"PainterlyAxis"]
+PROPERTY = re.compile(rb"^\s*(uniform |custom )*[\w:\[\]]+ [\w:.]+( = .*)?$")
+
+
+def painterly_prims(lines):
+    """(first line, closing line, match) of each painterly prim: the fixtures
+    close a prim with a `}` at the indent of its `def`."""
+    out = []
+    for i, line in enumerate(lines):
+        m = PRIM.match(line)
+        if m:
+            close = m.group(1) + b"}"
+            j = next((j for j in range(i + 1, len(lines)) if lines[j].rstrip() == close), None)
+            if j is not None:
+                out.append((i, j, m))
+    return out
+
+
+def nudge_scalar(rng, lines):
+    """Changes one number on a short line (a time, a coordinate, a
+    direction, a sentinel): the values that decide which keys meet."""
+    short = [(i, ms) for i, line in enumerate(lines) if len(line) < 200 and (ms := list(NUMBER.finditer(line)))]
+    if not short:
+        return
+    i, ms = rng.choice(short)
+    m = rng.choice(ms)
+    x = float(m.group(0))
+    new = rng.choice([x * (1 + 1e-15), x * (1 - 1e-7), x + 1e-12, x + 0.5, -x, x * 1e6, 0.0])
+    lines[i] = lines[i][:m.start()] + repr(new).encode() + lines[i][m.end():]
+
+
+def mutate_keys(rng, data):
+    """1-3 changes to the structure of a layer's painterly prims (--keys)."""
+    for _ in range(rng.randint(1, 3)):
+        lines = data.split(b"\n")
+        prims = painterly_prims(lines)
+        if not prims:
+            break
+        i, j, m = rng.choice(prims)
+        indent, kind, name = m.groups()
+        body = [k for k in range(i + 2, j) if PROPERTY.match(lines[k]) and not lines[k].rstrip().endswith(b"(")]
+        op = rng.random()
+        if op < 0.15:
+            del lines[i:j + 1]
+        elif op < 0.45:
+            # A copy under a new name: beside itself (a second key at nearly
+            # the same place) or after another prim (perhaps in another layer).
+            copy = lines[i:j + 1]
+            copy[0] = copy[0].replace(b'"' + name + b'"', b'"%sCopy%d"' % (name, rng.randrange(100)), 1)
+            if rng.random() < 0.7:
+                nudge_scalar(rng, copy)
+            at, _, m2 = (i, j, m) if rng.random() < 0.6 else rng.choice(prims)
+            to = m2.group(1)
+            copy = [to + line[len(indent):] if line.startswith(indent) else line for line in copy]
+            end = next(e for s0, e, _ in prims if s0 == at)
+            lines[end + 1:end + 1] = [b""] + copy
+        elif op < 0.6:
+            lines[i] = lines[i].replace(kind, rng.choice([t for t in PRIM_TYPES if t != kind]), 1)
+        elif op < 0.75 and body:
+            del lines[rng.choice(body)]
+        elif op < 0.9:
+            # A property of another prim (a sentinel, a time, coordinates of
+            # another dimension, a direction, points of another layer).
+            i2, j2, _ = rng.choice(prims)
+            donors = [k for k in range(i2 + 2, j2) if PROPERTY.match(lines[k]) and not lines[k].rstrip().endswith(b"(")]
+            if donors:
+                line = lines[rng.choice(donors)].lstrip()
+                lines[i + 2:i + 2] = [indent + b"    " + line]
+        else:
+            flag = [k for k in body if b"sentinel" in lines[k]]
+            if flag:
+                k = flag[0]
+                lines[k] = lines[k].replace(b"= 1", b"= 0") if b"= 1" in lines[k] else lines[k].replace(b"= 0", b"= 1")
+            else:
+                lines[i + 2:i + 2] = [indent + b"    uniform bool sentinel = 1"]
+        data = b"\n".join(lines)
+    return data
+
+
 # Writes a mutated text layer as crate (--values): usd-core's own writer.
 CRATE_CODE = ("import sys; from pxr import Sdf; l = Sdf.Layer.FindOrOpen(sys.argv[1]); "
               "sys.exit(0 if l is not None and l.Export(sys.argv[2]) else 1)")
@@ -280,14 +371,18 @@ def edit_command(rng, name, meta):
     return [*args, "-q"], in_place
 
 
-def check(exe, seed, k, seed_files, work, meta=None, value_files=None):
+def check(exe, seed, k, seed_files, work, meta=None, value_files=None, keys=False):
     rng = random.Random(f"{seed}:{k}")
     d = work / f"c{k}"
     d.mkdir()
     values = value_files is not None
     if values:
-        name = rng.choice(VALUE_FIXTURES)
-        data = mutate_values(rng, value_files[name])
+        if keys:
+            name = rng.choice(KEY_FIXTURES)
+            data = mutate_keys(rng, value_files[name])
+        else:
+            name = rng.choice(VALUE_FIXTURES)
+            data = mutate_values(rng, value_files[name])
         if rng.random() < 0.4:
             (d / "text.usda").write_bytes(data)
             crate = d / name.replace(".usda", ".usdc")
@@ -464,17 +559,22 @@ def main():
                     help="also run one writing command per case (bind, expand, smudge, key, render)")
     ap.add_argument("--values", action="store_true",
                     help="mutate only values of the text fixtures (the file stays parseable); some go to crate")
+    ap.add_argument("--keys", action="store_true",
+                    help="mutate the structure of painterly's prims (keys, axes, view keys); some go to crate")
     a = ap.parse_args()
-    if (a.edits or a.values) and not venv_python():
-        sys.exit("fuzz: --edits and --values need .venv (usd-core): run scripts/test once")
+    if a.values and a.keys:
+        ap.error("--values and --keys are two modes: pass one")
+    if (a.edits or a.values or a.keys) and not venv_python():
+        sys.exit("fuzz: --edits, --values and --keys need .venv (usd-core): run scripts/test once")
     exe = str(pathlib.Path(a.bin).resolve())
     started = time.monotonic()
     with tempfile.TemporaryDirectory(prefix="painterly-fuzz-") as tmp:
         work = pathlib.Path(tmp)
         seed_files = seeds(work)
         meta = seeds_meta() if a.edits else None
-        # --values: the text fixtures' bytes, read once (blowfish.usda is 1.6 MB).
-        value_files = {n: (REPO / "fixtures" / n).read_bytes() for n in VALUE_FIXTURES} if a.values else None
+        # --values, --keys: the text fixtures' bytes, read once (blowfish.usda is 1.6 MB).
+        names = VALUE_FIXTURES if a.values else KEY_FIXTURES if a.keys else []
+        value_files = {n: (REPO / "fixtures" / n).read_bytes() for n in names} if names else None
         batch = work / "written"
         batch.mkdir()
         failures, trusts, slowest, exits, checked, edits = [], [], (0.0, None), {}, 0, {}
@@ -507,7 +607,7 @@ def main():
             # each one it yields, and with it the bytes of a written case
             # (a kept list held every written blowfish case, 1.8 GB by
             # case 7,000 of a --values run, and slowed the driver).
-            done = cf.as_completed([pool.submit(check, exe, a.seed, k, seed_files, work, meta, value_files)
+            done = cf.as_completed([pool.submit(check, exe, a.seed, k, seed_files, work, meta, value_files, a.keys)
                                     for k in range(a.first, a.first + a.cases)])
             for n, f in enumerate(done, 1):
                 k, name, rc_i, rc_b, t, problems, trust, err, data, written, edit = f.result()
@@ -531,7 +631,7 @@ def main():
             check_batch()
     took = time.monotonic() - started
     summary = ", ".join(f"inspect {i}/bake {b}: {c}" for (i, b), c in sorted(exits.items(), key=str))
-    print(f"fuzz: {a.cases} {'value-mutated ' if a.values else ''}cases ({a.first}..{a.first + a.cases - 1} of seed {a.seed}, {a.jobs} jobs) in {took:.1f} s; "
+    print(f"fuzz: {a.cases} {'value-mutated ' if a.values else 'key-mutated ' if a.keys else ''}cases ({a.first}..{a.first + a.cases - 1} of seed {a.seed}, {a.jobs} jobs) in {took:.1f} s; "
           f"{len(failures)} failures; {len(trusts)} inspect-0/bake-1 (trust); slowest run {slowest[0]:.2f} s (case {slowest[1]})")
     print(f"exit codes: {summary}")
     if a.edits:
