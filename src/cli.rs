@@ -571,11 +571,7 @@ pub fn run(cli: Cli) -> i32 {
 /// summary line or JSON.
 fn run_bake(input: &Path, output: &Path, opts: &BakeOptions, quiet: bool, json: bool) -> i32 {
     let bar = frame_bar(!quiet && !json, "baking frame");
-    let progress = |done: usize, total: usize| {
-        bar.set_length(total as u64);
-        bar.set_position(done as u64);
-    };
-    let result = bake(input, output, opts, &progress);
+    let result = bake(input, output, opts, &frames_done(&bar));
     bar.finish_and_clear();
     match result {
         Ok(s) => {
@@ -620,15 +616,19 @@ fn frame_bar(show: bool, what: &str) -> ProgressBar {
     bar
 }
 
+/// The progress callback ([`crate::bake::Progress`]) that moves `bar`.
+fn frames_done(bar: &ProgressBar) -> impl Fn(usize, usize) + Sync + '_ {
+    move |done, total| {
+        bar.set_length(total as u64);
+        bar.set_position(done as u64);
+    }
+}
+
 /// `painterly inspect`: exit 1 when the report lists problems. Evaluating
 /// every frame of a long range takes a while: a bar shows it on a terminal.
 fn run_inspect(input: &Path, camera: Option<&str>, json: bool) -> i32 {
     let bar = frame_bar(!json, "checking frame");
-    let progress = |done: usize, total: usize| {
-        bar.set_length(total as u64);
-        bar.set_position(done as u64);
-    };
-    let result = inspect(input, camera, &progress);
+    let result = inspect(input, camera, &frames_done(&bar));
     bar.finish_and_clear();
     match result {
         Ok(rep) => {
