@@ -451,8 +451,11 @@ def test_key_same_coordinates_refused_then_replaced(painterly, keyed_rig, tmp_pa
 # coordinates exactly, so a key 1e-33 from an existing one (a camera
 # direction with rounding noise) was written, and then the bake refused the
 # pair as one point. It now applies the bake's own rule: coordinates times
-# the axes' scales, within the interpolation's duplicate tolerance.
-@pytest.mark.parametrize("how", ["tolerance", "scale"])
+# the axes' scales, within the interpolation's duplicate tolerance. And
+# `scripts/fuzz --keys` (seed 20261212, case 6445): a pose key that
+# authors `sentinel = 1` (meaningless there; the bake reads a pose key) was
+# left out of `key`'s check, so a key at its configuration was written.
+@pytest.mark.parametrize("how", ["tolerance", "scale", "sentinel"])
 def test_key_at_the_configuration_the_bake_calls_one_point_is_refused(painterly, repo_root, tmp_path, how):
     inp = tmp_path / "head.usda"
     shutil.copy(repo_root / "fixtures" / "head.usda", inp)
@@ -463,6 +466,9 @@ def test_key_at_the_configuration_the_bake_calls_one_point_is_refused(painterly,
     if how == "tolerance":
         # 1e-30 apart, against a layout 2 across: one point for the bake.
         front.Set(Vt.FloatArray([1e-30, 1.0]))
+    elif how == "sentinel":
+        # A sentinel is a time key's flag; the bake reads this pose key as one.
+        st.GetPrimAtPath(f"{brows}/front").CreateAttribute("sentinel", Sdf.ValueTypeNames.Bool).Set(True)
     else:
         # Apart in axis units, one point once viewX is scaled by 0 (left
         # goes: it would meet right so).
@@ -476,7 +482,9 @@ def test_key_at_the_configuration_the_bake_calls_one_point_is_refused(painterly,
 
     p = painterly("key", inp, "--in-place", "--layer", brows, "--time", 1, "--points", check=False)
     assert p.returncode == 1, f"exit {p.returncode}: {p.stderr}"
-    assert f"{brows}/front: already keys this layer at the same configuration" in p.stderr, p.stderr
+    # Exactly front's coordinates (sentinel), or what the bake counts as them.
+    place = "coordinates" if how == "sentinel" else "configuration"
+    assert f"{brows}/front: already keys this layer at the same {place}" in p.stderr, p.stderr
     assert "pass --replace" in p.stderr and "panicked" not in p.stderr
     assert Au.file_hash(inp) == before, "a refused key changed its input"
 

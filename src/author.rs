@@ -363,10 +363,14 @@ fn existing_keys(r: &StageReader, layer_path: &str) -> Result<Vec<ExistingKey>> 
             "PainterlyTimeKey" => vec![r.typed(&c, "time", None, "double", values::scalar)?.unwrap_or(f64::NAN)],
             _ => Vec::new(),
         };
+        // `sentinel` means something on a time key only: the bake reads a
+        // pose key that authors it as a pose key, and so must `key`.
+        let sentinel =
+            ty == "PainterlyTimeKey" && r.typed(&c, "sentinel", None, "bool", values::scalar)?.unwrap_or(0.0) != 0.0;
         existing.push(ExistingKey {
             points: r.has_authored(&c, "points")?,
             opacity: r.has_authored(&c, "opacity")?,
-            sentinel: r.typed(&c, "sentinel", None, "bool", values::scalar)?.unwrap_or(0.0) != 0.0,
+            sentinel,
             path: c.path().as_str().to_string(),
             ty,
             coords,
