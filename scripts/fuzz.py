@@ -52,7 +52,10 @@ walk, building, apple): a prim deleted, copied under a new name (beside
 itself or after another prim, which may be in another stroke layer, with
 one of its scalars nudged or not), retyped, a property dropped or copied
 in from another prim, a sentinel set or cleared. Cases otherwise run as
-with --values (crate conversion, the one-thread bake check).
+with --values (crate conversion, the one-thread bake check), and with
+--edits half of the edits are `key` commands of every kind (pose, time
+key, sentinel; at several times; with points or an opacity; named after
+an existing key or not; replacing or not).
 
 Usage: python3 scripts/fuzz.py --cases N --seed S [--first K] [--jobs J] [--keep DIR] [--edits] [--values | --keys]
 Failing inputs are copied to --keep (default target/fuzz-failures) with
@@ -347,7 +350,12 @@ def run(exe, args, cwd, env=None):
     try:
         p = subprocess.run([exe, *args], capture_output=True, text=True, errors="replace", cwd=cwd,
                            timeout=TIMEOUT_S, preexec_fn=limit_memory, env=env)
-        return p.returncode, p.stderr, time.monotonic() - t0
+        err = p.stderr
+        if args[0] == "inspect" and "problem(s):" in p.stdout:
+            # inspect lists its problems on stdout, after this line: a
+            # failure note names them.
+            err += p.stdout.split("problem(s):\n", 1)[-1]
+        return p.returncode, err, time.monotonic() - t0
     except subprocess.TimeoutExpired:
         return "timeout", "", time.monotonic() - t0
 
@@ -369,6 +377,33 @@ def edit_command(rng, name, meta):
     ]
     args, in_place = rng.choice(commands)
     return [*args, "-q"], in_place
+
+
+# Key names of the --keys fixtures, and keyN/timeN/sentinelN: `key --name`
+# that may meet an existing key.
+KEY_NAMES = ["front", "left", "shock", "settle", "shockEnd", "light000", "FrontF10", "key1", "time1", "sentinel1"]
+
+
+def key_command(rng, name, meta):
+    """A `key --in-place` of --keys: any kind (pose, time, sentinel), at
+    the start, a fraction of a frame on, a frame blowfish keys or a random
+    time, with points or an opacity, sometimes named or replacing."""
+    layers = meta.get("layers") or ["/Nowhere"]
+    start = float(meta.get("start", 1.0))
+    time = rng.choice([start, start + 0.5, start + 1e-9, 36.0, 40.0, 44.0, 47.0, rng.uniform(start, start + 48)])
+    args = ["key", name, "--in-place", "--layer", rng.choice(layers), "--time", repr(time)]
+    kind = rng.random()
+    if kind < 0.2:
+        args.append("--sentinel")
+    else:
+        if kind < 0.6:
+            args.append("--time-key")
+        args += rng.choice([["--points"], ["--opacity", "0.5"], ["--points", "--opacity", "1"]])
+    if rng.random() < 0.3:
+        args += ["--name", rng.choice(KEY_NAMES)]
+    if rng.random() < 0.3:
+        args.append("--replace")
+    return [*args, "-q"], True
 
 
 def check(exe, seed, k, seed_files, work, meta=None, value_files=None, keys=False):
@@ -437,10 +472,15 @@ def check(exe, seed, k, seed_files, work, meta=None, value_files=None, keys=Fals
     if meta is not None:
         # A case's own stream picks the edit, after the mutation, so that
         # the default run's cases are the same with and without --edits.
-        args, in_place = edit_command(random.Random(f"{seed}:{k}:edit"), name, meta.get(name, {}))
+        edit_rng = random.Random(f"{seed}:{k}:edit")
+        if keys and edit_rng.random() < 0.5:
+            args, in_place = key_command(edit_rng, name, meta.get(name, {}))
+        else:
+            args, in_place = edit_command(edit_rng, name, meta.get(name, {}))
         rc_e, err_e, t_e = run(exe, args, d)
         what = " ".join(a for a in args if a not in (name, "-q"))
-        edit = (" ".join(args[:1] + [a for a in args if a in ("--in-place", "--edit-layer", "--time-key")]), rc_e)
+        edit = (" ".join(args[:1] + [a for a in args if a in ("--in-place", "--edit-layer", "--time-key", "--sentinel")]),
+                rc_e)
         judge(what, rc_e, err_e)
         err_b += err_e
         after = src.read_bytes()
