@@ -203,24 +203,29 @@ NUMBER = re.compile(rb"(?<![\w.:@/-])-?\d+(\.\d+)?([eE][-+]?\d+)?(?![\w.@/])")
 ELEMENT = re.compile(rb"(?<=[\[,])\s*(\([^()\[\]]*\)|-?[\d.eE+-]+)\s*(?=[,\]])")
 
 
+def pick(rng, lines, pattern, max_len=None):
+    """A random line holding `pattern` (no longer than `max_len`, if given),
+    and one match on it; None if no line has one. The line is picked first,
+    so that a scalar on a short line is as likely as a large array's
+    element, which all share one line."""
+    found = [(i, ms) for i, line in enumerate(lines)
+             if (max_len is None or len(line) < max_len) and (ms := list(pattern.finditer(line)))]
+    if not found:
+        return None
+    i, ms = rng.choice(found)
+    return i, rng.choice(ms)
+
+
 def mutate_values(rng, data):
     """1-4 value changes that keep a text layer parseable (--values). Each
     picks a line first, then a value on it, so that the few scalar values
     (times, scales, sentinels, transform ops) are as likely to change as
     the points of a large array, which all share one line."""
-    def pick(lines, pattern):
-        """A random line holding `pattern`, and one match on it (None if no line has one)."""
-        found = [(i, ms) for i, line in enumerate(lines) if (ms := list(pattern.finditer(line)))]
-        if not found:
-            return None
-        i, ms = rng.choice(found)
-        return i, rng.choice(ms)
-
     for _ in range(rng.randint(1, 4)):
         lines = data.split(b"\n")
         if rng.random() < 0.2:
             # Drop or repeat one array element: counts that no longer agree.
-            hit = pick(lines, ELEMENT)
+            hit = pick(rng, lines, ELEMENT)
             if hit is None:
                 continue
             i, m = hit
@@ -232,7 +237,7 @@ def mutate_values(rng, data):
             else:
                 lines[i] = line[:m.end()] + b"," + m.group(0) + line[m.end():]
         else:
-            hit = pick(lines, NUMBER)
+            hit = pick(rng, lines, NUMBER)
             if hit is None:
                 break
             i, m = hit
@@ -275,14 +280,20 @@ def painterly_prims(lines):
     return out
 
 
+def property_lines(lines, first, close):
+    """Indices of the one-line properties of the prim from line `first` (its
+    `def`) to `close` (its `}`)."""
+    return [k for k in range(first + 2, close)
+            if PROPERTY.match(lines[k]) and not lines[k].rstrip().endswith(b"(")]
+
+
 def nudge_scalar(rng, lines):
     """Changes one number on a short line (a time, a coordinate, a
     direction, a sentinel): the values that decide which keys meet."""
-    short = [(i, ms) for i, line in enumerate(lines) if len(line) < 200 and (ms := list(NUMBER.finditer(line)))]
-    if not short:
+    hit = pick(rng, lines, NUMBER, max_len=200)
+    if hit is None:
         return
-    i, ms = rng.choice(short)
-    m = rng.choice(ms)
+    i, m = hit
     x = float(m.group(0))
     new = rng.choice([x * (1 + 1e-15), x * (1 - 1e-7), x + 1e-12, x + 0.5, -x, x * 1e6, 0.0])
     lines[i] = lines[i][:m.start()] + repr(new).encode() + lines[i][m.end():]
@@ -297,7 +308,7 @@ def mutate_keys(rng, data):
             break
         i, j, m = rng.choice(prims)
         indent, kind, name = m.groups()
-        body = [k for k in range(i + 2, j) if PROPERTY.match(lines[k]) and not lines[k].rstrip().endswith(b"(")]
+        body = property_lines(lines, i, j)
         op = rng.random()
         if op < 0.15:
             del lines[i:j + 1]
@@ -321,7 +332,7 @@ def mutate_keys(rng, data):
             # A property of another prim (a sentinel, a time, coordinates of
             # another dimension, a direction, points of another layer).
             i2, j2, _ = rng.choice(prims)
-            donors = [k for k in range(i2 + 2, j2) if PROPERTY.match(lines[k]) and not lines[k].rstrip().endswith(b"(")]
+            donors = property_lines(lines, i2, j2)
             if donors:
                 line = lines[rng.choice(donors)].lstrip()
                 lines[i + 2:i + 2] = [indent + b"    " + line]
