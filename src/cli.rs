@@ -4,11 +4,10 @@
 //! file, prim and attribute); 2 bad command-line usage; 3 an internal error
 //! (a bug: please report it with the input file).
 
-use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 
 use clap::{Parser, Subcommand};
-use indicatif::{ProgressBar, ProgressStyle};
+use indicatif::ProgressBar;
 
 use crate::author::{self, BindOptions, Brush, BrushOptions, KeyKind, KeyOptions};
 use crate::bake::{bake, BakeOptions};
@@ -570,7 +569,7 @@ pub fn run(cli: Cli) -> i32 {
 /// `painterly bake`: the bake with a progress bar on a terminal, then its
 /// summary line or JSON.
 fn run_bake(input: &Path, output: &Path, opts: &BakeOptions, quiet: bool, json: bool) -> i32 {
-    let bar = frame_bar(!quiet && !json, "baking frame");
+    let bar = crate::log::frame_bar(!quiet && !json, "baking frame {pos}/{len}");
     let result = bake(input, output, opts, &frames_done(&bar));
     bar.finish_and_clear();
     match result {
@@ -600,22 +599,6 @@ fn run_bake(input: &Path, output: &Path, opts: &BakeOptions, quiet: bool, json: 
     }
 }
 
-/// A bar of frames done on stderr ("{what} 12/48"), drawn only when `show`
-/// and stderr is a terminal: piped output and logs stay clean.
-fn frame_bar(show: bool, what: &str) -> ProgressBar {
-    let bar = ProgressBar::hidden();
-    if show && std::io::stderr().is_terminal() {
-        bar.set_draw_target(indicatif::ProgressDrawTarget::stderr());
-        bar.set_style(
-            ProgressStyle::with_template(&format!(
-                "{{spinner}} {what} {{pos}}/{{len}} [{{bar:30}}] {{elapsed}} (eta {{eta}})"
-            ))
-            .unwrap_or_else(|_| ProgressStyle::default_bar()),
-        );
-    }
-    bar
-}
-
 /// The progress callback ([`crate::bake::Progress`]) that moves `bar`.
 fn frames_done(bar: &ProgressBar) -> impl Fn(usize, usize) + Sync + '_ {
     move |done, total| {
@@ -627,7 +610,7 @@ fn frames_done(bar: &ProgressBar) -> impl Fn(usize, usize) + Sync + '_ {
 /// `painterly inspect`: exit 1 when the report lists problems. Evaluating
 /// every frame of a long range takes a while: a bar shows it on a terminal.
 fn run_inspect(input: &Path, camera: Option<&str>, json: bool) -> i32 {
-    let bar = frame_bar(!json, "checking frame");
+    let bar = crate::log::frame_bar(!json, "checking frame {pos}/{len}");
     let result = inspect(input, camera, &frames_done(&bar));
     bar.finish_and_clear();
     match result {

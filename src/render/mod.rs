@@ -31,12 +31,10 @@ pub mod raster;
 pub mod shade;
 pub mod sheet;
 
-use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use glam::Vec3;
-use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
 use crate::bake::{bake_if_any, BakeOptions};
 use crate::error::{Error, Result};
@@ -394,7 +392,8 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary> {
     }
     let tmp = TempDir::new()?;
     let stage = RenderStage::open(args, tmp.path())?;
-    let bar = progress_bar(args.quiet, times.len());
+    let bar = crate::log::frame_bar(!args.quiet, "rendering {pos}/{len} frames");
+    bar.set_length(times.len() as u64);
 
     let (w, h) = (args.size.width, args.size.height);
     let style = prepare::Style::default();
@@ -544,20 +543,6 @@ fn name_input(mut e: Error, root: &Path, input: &Path) -> Error {
         e.file = Some(input.to_path_buf());
     }
     e
-}
-
-/// A bar on stderr when it is a terminal and not `--quiet`; hidden otherwise.
-fn progress_bar(quiet: bool, frames: usize) -> ProgressBar {
-    let bar = ProgressBar::hidden();
-    if !quiet && std::io::stderr().is_terminal() {
-        bar.set_draw_target(ProgressDrawTarget::stderr());
-        bar.set_style(
-            ProgressStyle::with_template("{spinner} rendering {pos}/{len} frames [{bar:30}] {elapsed} (eta {eta})")
-                .unwrap_or_else(|_| ProgressStyle::default_bar()),
-        );
-    }
-    bar.set_length(frames as u64);
-    bar
 }
 
 /// The contact sheet of `thumbs`, `cols` to a row, beside the frames.
