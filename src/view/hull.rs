@@ -33,8 +33,8 @@ pub(crate) const ORIGIN_TOLERANCE: f64 = 1e-6;
 /// (their hull is flat and covers at most part of the sphere).
 pub(crate) const FLAT_TOLERANCE: f64 = 1e-6;
 
-/// Convexity slack when checking the hull returned by `parry3d`, which works
-/// in `f32`.
+/// Convexity slack when checking the hull returned by `parry3d-f64`, which
+/// decides nearly coplanar points with tolerances of its own.
 const CONVEXITY_SLACK: f64 = 1e-6;
 
 /// How many virtual "base" viewpoints [`enclose`] may add before giving up.
@@ -182,7 +182,7 @@ pub(crate) fn shape(points: &[Vector3<f64>]) -> Result<Shape, ViewError> {
 /// surface, convex).
 ///
 /// The key directions are handed to `parry3d` as they are first, which keeps
-/// authored, exactly coplanar directions exactly coplanar in `f32`. If that
+/// authored, exactly coplanar directions exactly coplanar. If that
 /// hull fails the checks, they are handed over again whitened: centred on
 /// their centroid and scaled to unit variance along their principal axes.
 /// Hull combinatorics are invariant under invertible affine maps, and
@@ -214,16 +214,16 @@ fn solid_hull(points: &[Vector3<f64>]) -> Result<Vec<Face>, ViewError> {
     hull_from(points, &whitened).or(first)
 }
 
-/// Runs `parry3d` on `pts32` (an image of `points` under an affine map) and
-/// builds checked `f64` faces on `points`.
-fn hull_from(points: &[Vector3<f64>], pts32: &[Point3<f64>]) -> Result<Vec<Face>, ViewError> {
+/// Runs `parry3d` on `image` (`points` under an affine map) and builds
+/// checked faces on `points`.
+fn hull_from(points: &[Vector3<f64>], image: &[Point3<f64>]) -> Result<Vec<Face>, ViewError> {
     let (verts, tris) =
-        parry3d_f64::transformation::try_convex_hull(pts32).map_err(|e| ViewError::Hull(e.to_string()))?;
+        parry3d_f64::transformation::try_convex_hull(image).map_err(|e| ViewError::Hull(e.to_string()))?;
     // parry returns a compacted copy of the input points; map them back.
     let remap: Vec<usize> = verts
         .iter()
         .map(|v| {
-            pts32
+            image
                 .iter()
                 .position(|p| p == v)
                 .ok_or_else(|| ViewError::Hull("hull vertex does not match any key direction".into()))
@@ -1054,7 +1054,7 @@ mod tests {
                 .fold(f64::INFINITY, f64::min);
             let (all, tris) = match enclose(&p) {
                 Ok(r) => r,
-                // parry3d's f32 hull may drop a key that sits almost on
+                // parry3d's hull may drop a key that sits almost on
                 // the chord between close neighbours; only tolerated for
                 // keys closer than 2°.
                 Err(ViewError::Hull(_)) if min_angle < 2f64.to_radians() => return Ok(()),
