@@ -8,7 +8,9 @@ copied from painterly's output.
 """
 
 import json
+import pathlib
 import re
+import shlex
 
 import numpy as np
 import OpenEXR
@@ -671,3 +673,33 @@ def test_the_bake_on_the_fly_takes_the_render_camera(painterly, tmp_path, repo_r
         np.testing.assert_array_equal(fly[c], cam_bake[c])
     # Baked for the box's own camera, the box has another outline.
     assert np.abs(fly["A"] - own["A"]).sum() > 50
+
+
+def readme_sheet_commands():
+    """The `painterly render` lines of the README's sh block that follows
+    "The contact sheets below are these commands'"."""
+    text = (pathlib.Path(__file__).resolve().parent.parent / "README.md").read_text()
+    after = text.split("The contact sheets below are these commands'", 1)[1]
+    block = after.split("```sh\n", 1)[1].split("```", 1)[0]
+    return [line for line in block.splitlines() if line.startswith("painterly render ")]
+
+
+README_SHEETS = readme_sheet_commands()
+
+
+@pytest.mark.parametrize("line", README_SHEETS, ids=[shlex.split(s)[2].split("/")[-1] for s in README_SHEETS])
+def test_a_committed_contact_sheet_is_what_the_readme_command_renders(painterly, tmp_path, repo_root, line):
+    """The README shows docs/figures/render_<name>_sheet.png as the sheet of
+    the command above it; a change to what the bake or render gives must
+    come with new figures (scripts/render_figures). The apple's had gone
+    stale: its Shading layer at frame 33 (light exactly at key light270,
+    opacity 1) drew at about half strength."""
+    assert len(README_SHEETS) == 3
+    args = [a.replace("/tmp/frames/", f"{tmp_path}/") for a in shlex.split(line)[1:]]
+    painterly(*args, "--quiet", cwd=repo_root)
+    name = pathlib.Path(args[1]).stem
+    got = np.asarray(Image.open(tmp_path / f"{name}.sheet.png").convert("RGB"))
+    want = np.asarray(Image.open(repo_root / "docs" / "figures" / f"render_{name}_sheet.png").convert("RGB"))
+    assert got.shape == want.shape, f"render_{name}_sheet.png is {want.shape}, the command renders {got.shape}"
+    differ = int((got != want).any(axis=2).sum())
+    assert differ == 0, f"docs/figures/render_{name}_sheet.png: {differ} pixels differ from today's render (run scripts/render_figures)"
