@@ -97,8 +97,16 @@ VALUE_FIXTURES = FIXTURES + ["blowfish.usda"]
 KEY_FIXTURES = ["blowfish.usda", "head.usda", "walk.usda", "building.usda", "apple.usda"]
 
 
+def main_checkout():
+    """The checkout a worktree was added from (REPO itself in a clone): its
+    .venv serves a scratch worktree that has none."""
+    common = subprocess.run(["git", "-C", str(REPO), "rev-parse", "--path-format=absolute", "--git-common-dir"],
+                            capture_output=True, text=True).stdout.strip()
+    return pathlib.Path(common).parent if common else REPO
+
+
 def venv_python():
-    venv = [REPO / ".venv/bin/python", pathlib.Path("/work/main/.venv/bin/python")]
+    venv = [REPO / ".venv/bin/python", main_checkout() / ".venv/bin/python"]
     return next((str(v) for v in venv if v.exists()), None)
 
 
