@@ -4,11 +4,10 @@ SwiftShader WebGL2) driven by playwright-core (browser_tests/driver.mjs).
 The page must load without a console error, draw, follow its sliders and
 timeline with `painterly bake`'s frames (read back with usd-core), and
 change a view-dependent mesh while orbiting with "view drives" on.
-Screenshots of three fixtures go to a temporary folder, and to
-docs/figures/ when PAINTERLY_FIGURES=1 (how the committed ones were made).
+Screenshots of three fixtures are taken (scripts/preview_figures makes the
+committed ones in docs/figures/).
 """
 
-import os
 import shutil
 import subprocess
 
@@ -176,12 +175,20 @@ def test_orbiting_with_view_drives_changes_the_view_dependent_mesh(browser, tmp_
 
 
 def test_render_button_shows_painterly_render_beside(browser):
+    size = "[document.querySelector('#live').clientWidth, document.querySelector('#live').clientHeight]"
     with PreviewServer(APPLE) as s:
         open_page(browser, s)
+        alone = browser.eval(size)
         browser.call("click", selector="#render-button")
         browser.wait("window.painterly.rendered === 1", timeout=60000)
         browser.wait("document.querySelector('#render').complete && document.querySelector('#render').naturalWidth > 0")
         assert not browser.eval("document.querySelector('#render-figure').hidden")
+        # The render is made at the live view's size beside it (the live view
+        # was wider alone), so both show the same framing.
+        beside = browser.eval(size)
+        assert beside[0] < alone[0] * 0.75, (alone, beside)
+        natural = browser.eval("[document.querySelector('#render').naturalWidth, document.querySelector('#render').naturalHeight]")
+        assert natural == [min(1280, beside[0]), min(1280, beside[1])], (natural, beside)
         assert browser.call("console")["errors"] == []
 
 
@@ -206,6 +213,4 @@ def test_screenshots(browser, tmp_path, name, path, setup):
         browser.call("screenshot", selector="body", path=str(shot))
         img = Image.open(shot)
         assert img.size[0] > 600 and img.size[1] > 400
-        if os.environ.get("PAINTERLY_FIGURES") == "1":
-            shutil.copy(shot, REPO / "docs" / "figures" / shot.name)
         assert browser.call("console")["errors"] == []

@@ -753,6 +753,12 @@
     const b = $('render-button');
     b.disabled = true;
     const started = performance.now();
+    // Open the render pane first: the live view then takes its half, and the
+    // render is made at that size, so the two show the same framing.
+    const figure = $('render-figure');
+    const wasHidden = figure.hidden;
+    figure.hidden = false;
+    draw();
     const w = Math.min(1280, Math.max(16, canvas.clientWidth));
     const h = Math.min(1280, Math.max(16, canvas.clientHeight));
     try {
@@ -766,11 +772,14 @@
       const img = $('render');
       if (img.src) URL.revokeObjectURL(img.src);
       img.src = URL.createObjectURL(blob);
-      $('render-figure').hidden = false;
       $('render-caption').textContent = `painterly render · t=${state.time} · ${w}×${h} · ${(performance.now() - started).toFixed(0)} ms`;
       api.rendered = (api.rendered || 0) + 1;
       draw();
     } catch (e) {
+      if (wasHidden && !$('render').src) {
+        figure.hidden = true;
+        draw();
+      }
       fail(`render: ${e.message}`);
     } finally {
       b.disabled = false;
