@@ -51,13 +51,14 @@ pub const MAX_NAMESPACE_DEPTH: usize = 256;
 /// and far below the ~10,000 levels where openusd's parser overflows.
 pub const MAX_TEXT_NESTING: usize = 1000;
 
-/// Most stroke points painterly bakes in one run (all layers together). Its
-/// memory is about 150 bytes per stroke point plus the frames in flight (the
-/// Dog bench: 161,520 points, 40 MB), so about 4 GB at the limit.
+/// Most stroke points painterly bakes in one run (all layers together). A
+/// 48-frame bake holds about 130 bytes per stroke point, frames in flight
+/// included (`scripts/bench_memory --sizes`), so about 2.6 GB at the limit.
 pub const MAX_STROKE_POINTS: usize = 20_000_000;
 
-/// Most points of one rig proxy: binding and the rotation fits keep about
-/// 300 bytes per proxy vertex, so about 3 GB at the limit.
+/// Most points of one rig proxy: binding and the rotation fits peak at about
+/// 720 bytes per proxy vertex (`scripts/bench_memory --sizes`), so about
+/// 7 GB at the limit.
 pub const MAX_PROXY_POINTS: usize = 10_000_000;
 
 /// What the guard has seen and found.
