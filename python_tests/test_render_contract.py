@@ -693,7 +693,7 @@ def test_a_committed_contact_sheet_is_what_the_readme_command_renders(painterly,
     the command above it; a change to what the bake or render gives must
     come with new figures (scripts/render_figures). The apple's had gone
     stale: its Shading layer at frame 33 (light exactly at key light270,
-    opacity 1) drew at about half strength."""
+    opacity 1) drew far lighter than that key gives."""
     assert len(README_SHEETS) == 3
     args = [a.replace("/tmp/frames/", f"{tmp_path}/") for a in shlex.split(line)[1:]]
     painterly(*args, "--quiet", cwd=repo_root)
