@@ -65,6 +65,7 @@ Cases are reproducible from (seed, case index).
 
 import argparse
 import concurrent.futures as cf
+import functools
 import json
 import os
 import pathlib
@@ -105,7 +106,10 @@ def main_checkout():
     return pathlib.Path(common).parent if common else REPO
 
 
+@functools.cache
 def venv_python():
+    """Found once: the harness asks for it per case, and the main checkout
+    costs a `git` call."""
     venv = [REPO / ".venv/bin/python", main_checkout() / ".venv/bin/python"]
     return next((str(v) for v in venv if v.exists()), None)
 
