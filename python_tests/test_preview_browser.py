@@ -192,6 +192,38 @@ def test_render_button_shows_painterly_render_beside(browser):
         assert browser.call("console")["errors"] == []
 
 
+@pytest.mark.parametrize("path", [HEAD, FISH], ids=["head camera", "bounds"])
+def test_a_narrow_pane_keeps_the_start_frame_whole(browser, path):
+    # The start frame (the head's USD camera, 20.955 x 15.2908 apertures; the
+    # blowfish's square around its bounds) must stay whole in any pane: when
+    # the pane is narrower than the frame, the vertical field of view widens
+    # so the horizontal one is the frame's (tan(h/2) = tan(v/2) * aspect).
+    with PreviewServer(path) as s:
+        view = s.scene()["view"]
+        expected_aspect = 20.955 / 15.2908 if path == HEAD else 1.0
+        assert view["aspect"] == pytest.approx(expected_aspect, rel=1e-6)
+        open_page(browser, s)
+        tan_v = np.tan(np.radians(view["fov_y"]) / 2)
+        state = "[window.painterly.cameraPose().fov_y, document.querySelector('#live').clientWidth, document.querySelector('#live').clientHeight]"
+        seen = []
+        for opened in [False, True]:
+            if opened:
+                browser.call("click", selector="#render-button")
+                browser.wait("window.painterly.rendered === 1", timeout=60000)
+            fov, w, h = browser.eval(state)
+            pane = w / h
+            tan_h_wanted = tan_v * view["aspect"]
+            assert np.tan(np.radians(fov) / 2) == pytest.approx(tan_v * max(1.0, view["aspect"] / pane), rel=1e-6), (opened, fov, w, h)
+            # The frame's full width is in view; its height too.
+            assert np.tan(np.radians(fov) / 2) * pane >= tan_h_wanted * (1 - 1e-9)
+            assert fov >= view["fov_y"] - 1e-9
+            seen.append((pane, fov))
+        # Beside the render the pane is narrower than both frames here, so
+        # the field of view did widen.
+        assert seen[1][0] < min(1.0, view["aspect"]) and seen[1][1] > view["fov_y"] + 1, seen
+        assert browser.call("console")["errors"] == []
+
+
 @pytest.mark.parametrize(
     "name,path,setup",
     [

@@ -620,6 +620,7 @@ def test_the_orbit_starts_at_the_view_meshes_camera():
     np.testing.assert_allclose(v["position"], np.array(m.ExtractTranslation()), atol=1e-6)
     np.testing.assert_allclose(v["up"], up, atol=1e-6)
     assert v["fov_y"] == pytest.approx(fov, abs=1e-4)
+    assert v["aspect"] == pytest.approx(cam.horizontalAperture / cam.verticalAperture, rel=1e-6)
 
 
 def test_render_shows_the_view_mesh_the_eye_drives(tmp_path):

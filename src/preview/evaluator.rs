@@ -678,6 +678,7 @@ fn start_view(cam: Option<&CameraParams>, camera: Option<String>, bounds: &[DVec
             target: centre.to_array(),
             up: if cam_up == DVec3::ZERO { up } else { cam_up }.to_array(),
             fov_y,
+            aspect: c.horizontal_aperture / c.vertical_aperture,
             camera,
         };
     }
@@ -692,6 +693,7 @@ fn start_view(cam: Option<&CameraParams>, camera: Option<String>, bounds: &[DVec
         target: centre.to_array(),
         up: up.to_array(),
         fov_y: 40.0,
+        aspect: 1.0,
         camera: None,
     }
 }
@@ -810,7 +812,7 @@ mod tests {
         assert!(close(v.target, centre));
         let dir = DVec3::new(0.6, 0.5, 1.0) / 1.61f64.sqrt();
         assert!(close(v.position, centre + dir * far), "{:?}", v.position);
-        assert_eq!((v.up, v.fov_y, v.camera), ([0.0, 1.0, 0.0], 40.0, None));
+        assert_eq!((v.up, v.fov_y, v.aspect, v.camera), ([0.0, 1.0, 0.0], 40.0, 1.0, None));
         let v = start_view(None, None, &BOUNDS, "Z");
         let dir = DVec3::new(0.6, -1.0, 0.5) / 1.61f64.sqrt();
         assert!(close(v.position, centre + dir * far), "{:?}", v.position);
@@ -827,9 +829,11 @@ mod tests {
 
     #[test]
     fn a_perspective_camera_gives_the_orbit_its_pose_and_field_of_view() {
-        // Rolled 90° about Z: its up is −X. Aperture 100 at focal 50: 90°.
+        // Rolled 90° about Z: its up is −X. Aperture 100 at focal 50: 90°;
+        // 150 wide, so its frame is 1.5 times as wide as high.
         let cam = CameraParams {
             focal_length: 50.0,
+            horizontal_aperture: 150.0,
             vertical_aperture: 100.0,
             camera_to_world: DMat4::from_rotation_translation(
                 glam::DQuat::from_rotation_z(std::f64::consts::FRAC_PI_2),
@@ -842,6 +846,7 @@ mod tests {
         assert!(close(v.target, DVec3::new(1.0, 0.0, -1.0)));
         assert!(close(v.up, DVec3::new(-1.0, 0.0, 0.0)), "{:?}", v.up);
         assert!((v.fov_y - 90.0).abs() < 1e-9, "{}", v.fov_y);
+        assert_eq!(v.aspect, 1.5);
         assert_eq!(v.camera.as_deref(), Some("/C"));
     }
 

@@ -262,6 +262,11 @@ pub struct StartView {
     pub target: [f64; 3],
     pub up: [f64; 3],
     pub fov_y: f64,
+    /// Width over height of the frame the view starts on: the USD camera's
+    /// apertures, or 1 (a square around the bounds). A pane narrower than
+    /// this widens `fov_y` so the whole frame stays in view (CameraUtil's
+    /// `Fit`).
+    pub aspect: f64,
     /// The USD camera it came from, if any.
     pub camera: Option<String>,
 }

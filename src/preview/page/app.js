@@ -185,7 +185,21 @@
   api.state = state;
 
   // ---------- orbit camera ----------
-  const orbit = { target: [0, 0, 0], up: [0, 1, 0], yaw: 0, pitch: 0, dist: 10, fovY: 40 };
+  // aspect: width / height of the frame the view starts on (the USD
+  // camera's, or 1 around the bounds).
+  const orbit = { target: [0, 0, 0], up: [0, 1, 0], yaw: 0, pitch: 0, dist: 10, fovY: 40, aspect: 1 };
+  // The vertical field of view in a pane of this aspect. A pane narrower
+  // than the camera's frame widens it so the whole frame stays in view
+  // (CameraUtil's Fit): with the render pane open the live view is half as
+  // wide, and the camera's framing must not be cut at the sides.
+  function fovYFor(paneAspect) {
+    if (!(paneAspect > 0) || paneAspect >= orbit.aspect) return orbit.fovY;
+    const t = Math.tan((orbit.fovY * Math.PI) / 360) * (orbit.aspect / paneAspect);
+    return (Math.atan(t) * 360) / Math.PI;
+  }
+  function canvasAspect() {
+    return canvas.clientHeight > 0 ? canvas.clientWidth / canvas.clientHeight : 1;
+  }
   function basis() {
     const up = v3.norm(orbit.up);
     let e1 = v3.cross(up, [0, 0, 1]);
@@ -210,12 +224,12 @@
     orbit.pitch = Math.asin(Math.max(-1, Math.min(1, v3.dot(n, u))));
     orbit.yaw = Math.atan2(v3.dot(n, e1), v3.dot(n, e2));
   }
-  function cameraPose() {
+  function cameraPose(paneAspect = canvasAspect()) {
     const e = eye();
     const near = orbit.dist * 0.01;
     const far = orbit.dist * 100 + sceneRadius() * 4;
     const { up } = basis();
-    return { position: e, target: orbit.target.slice(), up, fov_y: orbit.fovY, near, far };
+    return { position: e, target: orbit.target.slice(), up, fov_y: fovYFor(paneAspect), near, far };
   }
   function sceneRadius() {
     if (!scene) return 1;
@@ -237,7 +251,7 @@
     drag.y = e.clientY;
     if (drag.pan) {
       const { up, e1, e2 } = basis();
-      const k = (orbit.dist * 2 * Math.tan((orbit.fovY * Math.PI) / 360)) / canvas.clientHeight;
+      const k = (orbit.dist * 2 * Math.tan((fovYFor(canvasAspect()) * Math.PI) / 360)) / canvas.clientHeight;
       const fwd = v3.norm(v3.sub(orbit.target, eye()));
       const right = v3.norm(v3.cross(fwd, up));
       const camUp = v3.cross(right, fwd);
@@ -765,7 +779,7 @@
       const r = await fetch('api/render', {
         method: 'POST',
         headers: { 'Content-Type': 'application/json' },
-        body: JSON.stringify({ frame: { ...frameRequest(), proxy: false, bake: false }, camera: cameraPose(), width: w, height: h }),
+        body: JSON.stringify({ frame: { ...frameRequest(), proxy: false, bake: false }, camera: cameraPose(w / h), width: w, height: h }),
       });
       if (!r.ok) throw new Error((await r.json()).error || r.statusText);
       const blob = await r.blob();
@@ -802,6 +816,7 @@
     for (const p of scene.proxies) proxies.push(makeMesh(p));
     setOrbitFrom(scene.view.position, scene.view.target, scene.view.up);
     orbit.fovY = scene.view.fov_y;
+    orbit.aspect = scene.view.aspect;
     timeInput.min = scene.start;
     timeInput.max = scene.end;
     $('bake-toggle').hidden = !scene.bake;
