@@ -101,25 +101,37 @@ class PreviewServer:
         return decode_frame(data)
 
 
+class WebSocketRefused(Exception):
+    """The server answered the handshake with `status` instead of 101."""
+
+    def __init__(self, status, line):
+        super().__init__(line)
+        self.status = status
+
+
 class WebSocket:
     """A minimal RFC 6455 client for `GET /api/ws`: masked messages out,
-    whole (unfragmented) messages in, handshake checked as the RFC says."""
+    whole (unfragmented) messages in, handshake checked as the RFC says.
+    `origin`: the `Origin` header a browser page would send (none: curl)."""
 
     GUID = b"258EAFA5-E914-47DA-95CA-C5AB0DC85B11"
 
-    def __init__(self, url, timeout=120):
+    def __init__(self, url, timeout=120, origin=None):
         u = urllib.parse.urlsplit(url)
         self.sock = socket.create_connection((u.hostname, u.port), timeout=timeout)
         self.buf = b""
         key = base64.b64encode(os.urandom(16))
+        extra = f"Origin: {origin}\r\n" if origin is not None else ""
         self.sock.sendall(
-            (f"GET {u.path}api/ws HTTP/1.1\r\nHost: {u.netloc}\r\nUpgrade: websocket\r\n"
+            (f"GET {u.path}api/ws HTTP/1.1\r\nHost: {u.netloc}\r\nUpgrade: websocket\r\n{extra}"
              f"Connection: Upgrade\r\nSec-WebSocket-Key: {key.decode()}\r\nSec-WebSocket-Version: 13\r\n\r\n").encode())
         while b"\r\n\r\n" not in self.buf:
             self.buf += self._recv_some()
         head, self.buf = self.buf.split(b"\r\n\r\n", 1)
         lines = head.decode().split("\r\n")
-        assert lines[0].split()[1] == "101", lines[0]
+        if lines[0].split()[1] != "101":
+            self.sock.close()
+            raise WebSocketRefused(int(lines[0].split()[1]), lines[0])
         headers = {k.strip().lower(): v.strip() for k, v in (line.split(":", 1) for line in lines[1:])}
         assert headers["sec-websocket-accept"] == base64.b64encode(hashlib.sha1(key + self.GUID).digest()).decode()
 

@@ -192,6 +192,33 @@ def test_render_button_shows_painterly_render_beside(browser):
         assert browser.call("console")["errors"] == []
 
 
+def test_an_invisible_layer_is_not_drawn(browser, tmp_path):
+    # Spikes made invisible with usd-core: `render` leaves it out, and so
+    # must the live view. Unchecking it changes nothing on the canvas (it
+    # was not drawn), while unchecking a visible layer (Hair) does.
+    from pxr import UsdGeom
+
+    path = tmp_path / "blowfish.usda"
+    shutil.copy(FISH, path)
+    stage = Usd.Stage.Open(str(path))
+    UsdGeom.Imageable(stage.GetPrimAtPath("/Blowfish/Paint/Spikes")).GetVisibilityAttr().Set("invisible")
+    stage.GetRootLayer().Save()
+    with PreviewServer(path) as s:
+        index = {l["path"]: i for i, l in enumerate(s.scene()["layers"])}
+        open_page(browser, s)
+        struck = browser.eval("Array.from(document.querySelectorAll('#layers tr.hidden-now')).map(r => r.title)")
+        assert len(struck) == 1 and struck[0].startswith("/Blowfish/Paint/Spikes: invisible at this time"), struck
+        shown = canvas_pixels(browser, tmp_path, "shown")
+        for name, changes in [("Spikes", False), ("Hair", True)]:
+            n = browser.eval("window.painterly.framesDrawn")
+            browser.call("click", selector=f"input[data-layer='{index['/Blowfish/Paint/' + name]}']")
+            browser.eval("new Promise(r => requestAnimationFrame(() => requestAnimationFrame(r)))")
+            px = canvas_pixels(browser, tmp_path, name)
+            assert (np.abs(px - shown).max() > 0) == changes, name
+            assert browser.eval("window.painterly.framesDrawn") == n
+        assert browser.call("console")["errors"] == []
+
+
 @pytest.mark.parametrize("path", [HEAD, FISH], ids=["head camera", "bounds"])
 def test_a_narrow_pane_keeps_the_start_frame_whole(browser, path):
     # The start frame (the head's USD camera, 20.955 x 15.2908 apertures; the

@@ -17,7 +17,7 @@ from PIL import Image
 from pxr import Gf, Sdf, Usd, UsdGeom, Vt
 
 from conftest import REPO, painterly_binary
-from preview_helpers import PreviewServer, WebSocket, decode_frame
+from preview_helpers import PreviewServer, WebSocket, WebSocketRefused, decode_frame
 
 FISH = REPO / "fixtures" / "blowfish.usda"
 HEAD = REPO / "fixtures" / "head.usda"
@@ -113,6 +113,35 @@ def test_other_hosts_are_refused(fish):
     assert fish.request("api/scene", headers={"Host": f"localhost:{port}"})[0] == 200
 
 
+def test_pages_elsewhere_are_refused(fish):
+    # A page on another site, open in the same browser, sends the right Host
+    # (127.0.0.1) but its own Origin: its websocket handshake and its POSTs
+    # are refused, so it can neither read frames nor load the evaluator.
+    own = fish.url.rstrip("/")
+    port = own.rsplit(":", 1)[1]
+    for origin in ["http://evil.example", "null", f"https://127.0.0.1:{port}", f"http://127.0.0.1:{int(port) + 1}", f"{own}.evil.example"]:
+        with pytest.raises(WebSocketRefused) as refused:
+            WebSocket(fish.url, origin=origin)
+        assert refused.value.status == 403, origin
+        status, _, body = fish.request("api/frame", body={"time": 1}, headers={"Origin": origin})
+        assert status == 403, origin
+        assert json.loads(body)["error"] == f"origin {json.dumps(origin)} is not this preview server's page"
+        assert fish.request("api/scene", headers={"Origin": origin})[0] == 403
+    # The page's own origin (what the browser sends from it), and no Origin
+    # at all (curl, scripts), are served.
+    for origin in [own, None]:
+        ws = WebSocket(fish.url, origin=origin)
+        ws.send(json.dumps({"id": 3, "time": 1}))
+        opcode, payload = ws.recv()
+        ws.close()
+        assert opcode == 2 and payload[:4] == b"PTLY", origin
+        headers = {"Origin": origin} if origin else {}
+        assert fish.request("api/frame", body={"time": 1}, headers=headers)[0] == 200
+    # The page opened as http://localhost:PORT (host names compare without case).
+    local = {"Host": f"localhost:{port}", "Origin": f"http://LocalHost:{port}"}
+    assert fish.request("api/frame", body={"time": 1}, headers=local)[0] == 200
+
+
 @pytest.mark.parametrize(
     "raw,ctype,status",
     [
@@ -179,12 +208,16 @@ def test_scene_describes_the_character(fish):
     assert scene["problems"] == []
 
 
-def assert_strokes_come_from_the_stage(server, stage):
+def assert_strokes_come_from_the_stage(server, stage, never_drawn=()):
+    """Widths and colours of every layer but `never_drawn` (guides, whose
+    fallbacks are never seen) are the stage's."""
     status, _, data = server.request("api/strokes")
     assert status == 200
     _, arrays = decode_frame(data)
     scene = server.scene()
     for i, info in enumerate(scene["layers"]):
+        if info["path"] in never_drawn:
+            continue
         prim = stage.GetPrimAtPath(info["path"])
         curves = UsdGeom.BasisCurves(prim)
         widths = np.array(curves.GetWidthsAttr().Get(), dtype=np.float32)
@@ -220,6 +253,57 @@ def test_a_layer_shaped_like_another_keeps_its_own_colours(tmp_path):
     # counts alone would find the original first.
     paths = [l["path"] for l in scene["layers"]]
     assert paths.index("/Blowfish/Paint/Spikes") < paths.index("/Blowfish/Paint/SpikesCopy")
+
+
+def test_layers_render_would_not_draw_are_hidden_per_frame(tmp_path):
+    # Spikes invisible, Hair invisible at frames 1 and 2 only (the fish's
+    # `Paint` scope stays visible), GapFill a guide: `render` draws none of
+    # them at frame 1 and only Hair again at frame 10. The preview says so
+    # per frame, and still reads the invisible layers' own widths and
+    # colours (not the grey, width-1 fallbacks of an undrawn prim) for the
+    # frames they show; a guide is never drawn.
+    def hide(stage):
+        UsdGeom.Imageable(stage.GetPrimAtPath("/Blowfish/Paint/Spikes")).GetVisibilityAttr().Set("invisible")
+        vis = UsdGeom.Imageable(stage.GetPrimAtPath("/Blowfish/Paint/Hair")).GetVisibilityAttr()
+        vis.Set("invisible", 1)
+        vis.Set("invisible", 2)
+        vis.Set("inherited", 3)
+        UsdGeom.Imageable(stage.GetPrimAtPath("/Blowfish/Paint/GapFill")).GetPurposeAttr().Set("guide")
+
+    path, stage = edited_fish(tmp_path, hide)
+    bake = tmp_path / "fish_bake.usdc"
+    subprocess.run([str(painterly_binary()), "bake", str(path), "-o", str(bake), "--frames", "1:10", "--quiet"], check=True)
+    with PreviewServer(path, "--bake", bake) as s:
+        scene = assert_strokes_come_from_the_stage(s, stage, never_drawn=["/Blowfish/Paint/GapFill"])
+        index = {l["path"]: i for i, l in enumerate(scene["layers"])}
+        spikes, hair, gap = (index[f"/Blowfish/Paint/{n}"] for n in ["Spikes", "Hair", "GapFill"])
+        for t, want in [(1, [spikes, hair, gap]), (2, [spikes, hair, gap]), (10, [spikes, gap])]:
+            for bake_frame_ in [False, True]:
+                header, arrays = s.frame(time=t, bake=bake_frame_)
+                assert header["hidden"] == {"layers": sorted(want), "views": []}, (t, bake_frame_)
+                # Hidden layers are still evaluated: the page needs their
+                # points the moment they show.
+                assert len(arrays[f"layer/{hair}/points"]) == 3 * scene["layers"][hair]["points"]
+    # Nothing hidden in the fixture itself.
+    with PreviewServer(FISH) as s:
+        assert s.frame(time=1)[0]["hidden"] == {"layers": [], "views": []}
+
+
+def test_a_hidden_view_mesh_keeps_its_colour_and_is_hidden(tmp_path):
+    # The head's view-dependent mesh made invisible: its colour in the scene
+    # is still its displayColor, and every frame lists it as hidden.
+    path = tmp_path / "head.usda"
+    shutil.copy(HEAD, path)
+    stage = Usd.Stage.Open(str(path))
+    with PreviewServer(HEAD) as s:
+        shown = s.scene()["views"]
+    assert len(shown) == 1
+    UsdGeom.Imageable(stage.GetPrimAtPath(shown[0]["path"])).GetVisibilityAttr().Set("invisible")
+    stage.GetRootLayer().Save()
+    with PreviewServer(path) as s:
+        views = s.scene()["views"]
+        assert views == shown
+        assert s.frame(time=1)[0]["hidden"] == {"layers": [], "views": [0]}
 
 
 def bake_frame(tmp_path, src, t):

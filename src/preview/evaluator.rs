@@ -245,9 +245,10 @@ fn axis_info(
 }
 
 /// The strokes' widths and colours, read once (world-space widths, linear
-/// colours), as one binary buffer.
+/// colours), as one binary buffer; read from layers hidden at `start` too,
+/// which may show later (each frame says which are hidden).
 fn stroke_buffer(r: &StageReader, drawables: &RenderScene, start: f64, layer_infos: &[LayerInfo]) -> Result<Vec<u8>> {
-    let curves = drawables.curves_at(r, start)?;
+    let curves = drawables.curves_at_any_visibility(r, start)?;
     let mut strokes = Buffer::default();
     for (i, info) in layer_infos.iter().enumerate() {
         let n = info.points;
@@ -346,7 +347,7 @@ impl State {
         let strokes = stroke_buffer(r, &drawables, start, &layer_infos)?;
 
         // Meshes: view-dependent ones as drawn, proxies as topology.
-        let meshes = drawables.meshes_at(r, start)?;
+        let meshes = drawables.meshes_at_any_visibility(r, start)?;
         let mut view_infos = Vec::new();
         for v in &ch.model.views {
             view_infos.push(mesh_info(r, &v.path, &meshes, Some(v.camera.clone()))?);
@@ -415,6 +416,22 @@ impl State {
         r.local_to_world(&r.require_prim(path)?, t)
     }
 
+    /// The stroke layers and view-dependent meshes `render` would not draw
+    /// at `t` (invisible then, or of a guide or proxy purpose), by index.
+    fn hidden(&self, t: f64) -> Result<serde_json::Value> {
+        let r = &self.ch.reader;
+        let hidden = |paths: &[String]| -> Result<Vec<usize>> {
+            let mut out = Vec::new();
+            for (i, path) in paths.iter().enumerate() {
+                if !self.drawables.draws(r, path, t)? {
+                    out.push(i);
+                }
+            }
+            Ok(out)
+        };
+        Ok(serde_json::json!({ "layers": hidden(&self.layers)?, "views": hidden(&self.views)? }))
+    }
+
     /// One frame as a binary reply.
     fn frame(&self, req: &FrameRequest) -> Result<Vec<u8>> {
         if req.bake {
@@ -475,6 +492,7 @@ impl State {
             "eye": req.eye,
             "configuration": configuration,
             "weights": weights,
+            "hidden": self.hidden(t)?,
             "timing": timing,
         })))
     }
@@ -520,6 +538,7 @@ impl State {
             "id": req.id,
             "time": t,
             "source": "bake",
+            "hidden": self.hidden(t)?,
             "timing": { "total_ms": ms(t0) },
         })))
     }

@@ -11,8 +11,11 @@
 //! | `POST /api/render` | a [`RenderRequest`] → PNG |
 //!
 //! Requests whose `Host` is not this server's loopback address get 403
-//! (a web page elsewhere cannot reach the server by DNS rebinding); bad
-//! JSON or values get 400, frames that cannot be evaluated 422.
+//! (a web page elsewhere cannot reach the server by DNS rebinding), and so
+//! do requests whose `Origin` is not this server's own page (browsers
+//! send it on a websocket handshake and a POST: a page elsewhere could
+//! otherwise open `ws://127.0.0.1:PORT/api/ws` and read frames); bad JSON
+//! or values get 400, frames that cannot be evaluated 422.
 
 use std::sync::Arc;
 
@@ -121,6 +124,21 @@ async fn check_host(State(state): State<Arc<AppState>>, req: Request, next: Next
             format!("host {host:?} is not this preview server's address"),
         )
         .into_response();
+    }
+    // No `Origin`: not a browser's cross-site request (curl, the page's own
+    // navigation). With one, it must be the page this server serves.
+    if let Some(origin) = req.headers().get(header::ORIGIN) {
+        let origin = origin.to_str().unwrap_or("");
+        let own = origin
+            .strip_prefix("http://")
+            .is_some_and(|o| o.eq_ignore_ascii_case(host));
+        if !own {
+            return ApiError(
+                StatusCode::FORBIDDEN,
+                format!("origin {origin:?} is not this preview server's page"),
+            )
+            .into_response();
+        }
     }
     next.run(req).await
 }

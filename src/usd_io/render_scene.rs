@@ -420,9 +420,34 @@ impl RenderScene {
 
     /// Every visible curves prim at `t`, in world space.
     pub fn curves_at(&self, r: &StageReader, t: f64) -> Result<Vec<CurvesData>> {
+        self.read_curves(r, t, true)
+    }
+
+    /// Every selected curves prim at `t`, invisible ones too: the preview
+    /// reads widths and colours once, for layers hidden only at that time.
+    pub fn curves_at_any_visibility(&self, r: &StageReader, t: f64) -> Result<Vec<CurvesData>> {
+        self.read_curves(r, t, false)
+    }
+
+    /// Whether `render` draws the curves or mesh prim at `path` at `t`:
+    /// selected (not a guide or proxy purpose) and visible.
+    pub fn draws(&self, r: &StageReader, path: &str, t: f64) -> Result<bool> {
+        let chain = self
+            .curves
+            .iter()
+            .find(|c| c.path == path)
+            .map(|c| &c.visibility)
+            .or_else(|| self.meshes.iter().find(|m| m.path == path).map(|m| &m.visibility));
+        match chain {
+            Some(chain) => visible(r, chain, t),
+            None => Ok(false),
+        }
+    }
+
+    fn read_curves(&self, r: &StageReader, t: f64, visible_only: bool) -> Result<Vec<CurvesData>> {
         let mut out = Vec::with_capacity(self.curves.len());
         for c in &self.curves {
-            if !visible(r, &c.visibility, t)? {
+            if visible_only && !visible(r, &c.visibility, t)? {
                 continue;
             }
             let read = |q: &AttributeQuery, name: &str| -> Result<Option<Value>> {
@@ -505,9 +530,19 @@ impl RenderScene {
 
     /// Every visible mesh at `t`, in world space.
     pub fn meshes_at(&self, r: &StageReader, t: f64) -> Result<Vec<MeshData>> {
+        self.read_meshes(r, t, true)
+    }
+
+    /// Every selected mesh at `t`, invisible ones too (see
+    /// [`RenderScene::curves_at_any_visibility`]).
+    pub fn meshes_at_any_visibility(&self, r: &StageReader, t: f64) -> Result<Vec<MeshData>> {
+        self.read_meshes(r, t, false)
+    }
+
+    fn read_meshes(&self, r: &StageReader, t: f64, visible_only: bool) -> Result<Vec<MeshData>> {
         let mut out = Vec::with_capacity(self.meshes.len());
         for m in &self.meshes {
-            if !visible(r, &m.visibility, t)? {
+            if visible_only && !visible(r, &m.visibility, t)? {
                 continue;
             }
             let local: Vec<DVec3> = match &m.skinned {

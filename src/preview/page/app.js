@@ -368,7 +368,16 @@
   // ---------- applying a frame ----------
   function applyFrame(f, rt) {
     const h = f.header;
+    // What `painterly render` would not draw at this time (USD visibility,
+    // guide or proxy purpose) is not drawn here either.
+    const hidden = h.hidden || { layers: [], views: [] };
+    views.forEach((V, i) => (V.hidden = hidden.views.includes(i)));
     layers.forEach((L, i) => {
+      L.hidden = hidden.layers.includes(i);
+      if (L.row) {
+        L.row.classList.toggle('hidden-now', L.hidden);
+        L.row.title = L.hidden ? `${L.info.path}: invisible at this time (or a guide), so not drawn, as in painterly render` : L.info.path;
+      }
       const pts = f.arrays[`layer/${i}/points`];
       const op = f.arrays[`layer/${i}/opacity`];
       const xf = f.arrays[`layer/${i}/xform`];
@@ -546,7 +555,7 @@
     gl.disable(gl.BLEND);
     gl.depthMask(true);
     for (const V of views) {
-      if (!V.count) continue;
+      if (!V.count || V.hidden) continue;
       gl.uniformMatrix4fv(meshProg.u.model, false, V.model);
       gl.uniform3fv(meshProg.u.base, V.info.color);
       gl.uniform1f(meshProg.u.alpha, 1);
@@ -562,7 +571,7 @@
     gl.uniformMatrix4fv(ribbonProg.u.view, false, view);
     gl.uniformMatrix4fv(ribbonProg.u.proj, false, proj);
     for (const L of layers) {
-      if (!L.visible || !L.hasPoints || L.n < 2) continue;
+      if (!L.visible || L.hidden || !L.hasPoints || L.n < 2) continue;
       gl.uniformMatrix4fv(ribbonProg.u.model, false, L.model);
       gl.bindVertexArray(L.vao);
       gl.drawArraysInstanced(gl.TRIANGLE_STRIP, 0, 4, L.n - 1);
@@ -708,7 +717,8 @@
       });
       const time = info.sentinels ? `${info.time_keys}+${info.sentinels}` : `${info.time_keys}`;
       const cells = [box, short(info.path), info.strokes, info.points, info.pose_position_keys, info.pose_opacity_keys, time];
-      body.append(el('tr', { title: info.path }, cells.map((c) => el('td', {}, [c instanceof Node ? c : String(c)]))));
+      L.row = el('tr', { title: info.path }, cells.map((c) => el('td', {}, [c instanceof Node ? c : String(c)])));
+      body.append(L.row);
     });
   }
 
