@@ -10,6 +10,7 @@ last (`--assemble`), which refuses missing or stale chunks.
 
 import json
 import pathlib
+import re
 import shutil
 
 import numpy as np
@@ -74,7 +75,14 @@ def test_farm_tasks_and_assembly_match_a_local_chunked_bake(painterly, tmp_path,
         out = json.loads(painterly("bake", src, "-o", farm, "--chunk", "5", "--chunk-index", k, "--json").stdout)
         assert len(out["chunks"]) == 1 and out["frames"] == (5 if k < 4 else 4)
     assert not farm.exists(), "a chunk task must not write the clip set"
-    painterly("bake", src, "-o", farm, "--chunk", "5", "--assemble", "--quiet")
+    text = painterly("bake", src, "-o", farm, "--chunk", "5", "--assemble").stdout
+    # The tube: 2 layers, 50 strokes, 450 points; 24 frames in 5 chunks.
+    assert re.fullmatch(
+        rf"assembled 5 chunk layers: 2 layers, 50 strokes, 450 points, 0 view-dependent meshes -> {re.escape(str(farm))} in \d+\.\d\d s\n",
+        text,
+    ), text
+    assembled = json.loads(painterly("bake", src, "-o", farm, "--chunk", "5", "--assemble", "--json").stdout)
+    assert (assembled["frames"], len(assembled["chunks"])) == (0, 5)
     for f in sorted((local.parent / "shot.clips").iterdir()):
         g = farm.parent / "shot.clips" / f.name
         assert f.read_bytes() == g.read_bytes(), f.name

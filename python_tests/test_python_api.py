@@ -249,6 +249,8 @@ def test_interpolate_in_one_dimension_and_its_errors():
         painterly.interpolate(keys, [1.0, 2.0, 3.0], [0.5], method="linear")
     with pytest.raises(painterly.Error, match="one value per key"):
         painterly.interpolate(keys, [1.0, 2.0], [0.5])
+    with pytest.raises(painterly.Error, match="^no keys: interpolation needs at least one key$"):
+        painterly.interpolate([], [], [[0.5]])
 
 
 # ---------------------------------------------------------------------------
@@ -323,6 +325,40 @@ def test_errors_are_painterly_errors_naming_where(tmp_path):
     with pytest.raises(TypeError):
         painterly.Character(42)
     assert not list(tmp_path.glob("*.usdc"))
+
+
+def test_errors_survive_pickling_with_their_fields(tmp_path):
+    # A ProcessPoolExecutor job that raises sends its exception back by
+    # pickle: the class must be importable as painterly.Error, and the
+    # fields must come back.
+    import pickle
+
+    stage, _, _ = knob_stage(tmp_path / "bad.usda")
+    stage.GetPrimAtPath("/World/Paint").GetRelationship("painterly:proxy").ClearTargets(True)
+    stage.Save()
+    with pytest.raises(painterly.Error) as e:
+        painterly.Character(tmp_path / "bad.usda")
+    assert painterly.Error.__module__ == "painterly"
+    back = pickle.loads(pickle.dumps(e.value))
+    assert type(back) is painterly.Error
+    assert str(back) == str(e.value)
+    fields = ("message", "file", "prim", "attribute", "rule")
+    assert [getattr(back, f) for f in fields] == [getattr(e.value, f) for f in fields]
+    assert back.rule == "missing-proxy"
+
+
+def test_times_and_frames_are_checked_before_use():
+    fish = painterly.Character(FIXTURES / "blowfish.usda")
+    for t in [float("nan"), float("inf"), float("-inf")]:
+        for call in (fish.evaluate, fish.opacities, fish.configuration):
+            with pytest.raises(painterly.Error, match=r"^time (NaN|inf|-inf) is not a finite number$"):
+                call(t)
+    # A list is (start, end[, step]) like a tuple, never a list of frames.
+    assert painterly.bake(FIXTURES / "tube.usda", frames=[1, 3])["frames"] == 3
+    assert painterly.bake(FIXTURES / "tube.usda", frames=[1, 5, 2])["frames"] == 3
+    for frames in ([1], [1, 2, 3, 4]):
+        with pytest.raises(painterly.Error, match=rf"^frames: a sequence is \(start, end\) or \(start, end, step\), not {len(frames)} numbers"):
+            painterly.bake(FIXTURES / "tube.usda", frames=frames)
 
 
 # ---------------------------------------------------------------------------

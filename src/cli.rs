@@ -576,6 +576,18 @@ fn run_bake(input: &Path, output: &Path, opts: &BakeOptions, quiet: bool, json: 
         Ok(s) => {
             if json {
                 println!("{}", serde_json::to_string(&s).unwrap_or_default());
+            } else if opts.assemble && !quiet {
+                // Nothing baked here: the clip set over the chunks is written.
+                println!(
+                    "assembled {}: {}, {}, {}, {} -> {} in {:.2} s",
+                    plural(s.chunks.len(), "chunk layer"),
+                    plural(s.layers, "layer"),
+                    plural(s.strokes, "stroke"),
+                    plural(s.points, "point"),
+                    plural(s.view_meshes, "view-dependent mesh"),
+                    s.output.display(),
+                    s.seconds
+                );
             } else if !quiet {
                 let chunks = if s.chunks.is_empty() {
                     String::new()

@@ -55,6 +55,8 @@ def interpolate(keys, values, queries, method: str = "smooth_voronoi", radius: f
         queries = queries[:, None] if keys.shape[1] == 1 else queries[None, :]
     if keys.ndim != 2 or queries.ndim != 2:
         raise Error("keys and queries must be (n, d) and (m, d) arrays")
+    if keys.shape[0] == 0:
+        raise Error("no keys: interpolation needs at least one key")
     if values.ndim == 0 or values.shape[0] != keys.shape[0]:
         raise Error(f"{keys.shape[0]} keys but values of shape {values.shape}: one value per key")
     rest = values.shape[1:]

@@ -1,7 +1,7 @@
 """Type stubs of painterly's native module (re-exported by ``painterly``)."""
 
 import os
-from typing import Any, Callable, Protocol, Sequence, TypeAlias
+from typing import Any, Callable, Protocol, TypeAlias
 
 import numpy as np
 import numpy.typing as npt
@@ -14,7 +14,9 @@ class _LayerLike(Protocol):
     def ExportToString(self) -> str: ...
 
 Input: TypeAlias = str | os.PathLike[str] | _LayerLike
-Frames: TypeAlias = str | float | tuple[float, float] | tuple[float, float, float] | Sequence[float]
+#: "A:B:STEP" as ``--frames``, one frame, or (start, end[, step]); a list of
+#: two or three numbers reads as that tuple, never as a list of frames.
+Frames: TypeAlias = str | float | tuple[float, float] | tuple[float, float, float]
 
 __version__: str
 
@@ -42,7 +44,8 @@ def bake(
     the summary's ``"layer"`` holds the baked layer's usda text (see
     ``painterly.to_layer``). ``progress(done, total)`` is called from a worker
     thread as frames are written; an exception it raises is re-raised after
-    the bake. The GIL is released while baking."""
+    the bake, which still runs to the end and writes its output. The GIL is
+    released while baking."""
 
 def inspect(input: Input, camera: str | None = None) -> dict[str, Any]:
     """The ``painterly inspect --json [--camera CAMERA]`` report; ``"problems"``
@@ -62,7 +65,9 @@ def _rules() -> list[tuple[str, str, str]]: ...
 class Character:
     """A painted character opened once (rigs, bindings, cameras, view meshes
     resolved); frames are read and evaluated on demand. Stays on the thread
-    that opened it."""
+    that opened it: used from another thread it raises pyo3's
+    ``PanicException`` (a ``BaseException``, not ``painterly.Error``), so
+    open one per thread. Times must be finite numbers."""
 
     def __init__(self, input: Input, camera: str | None = None) -> None: ...
     @property

@@ -31,8 +31,10 @@ use painterly::rule::Rule;
 use painterly::usd_io::memory::open_bytes;
 use painterly::usd_io::stage::StageReader;
 
+// Declared in `painterly` (which re-exports it), so that pickle finds it
+// there: a `ProcessPoolExecutor` job can raise it back to its parent.
 create_exception!(
-    _painterly,
+    painterly,
     Error,
     PyException,
     "A painterly error: `.message`, and where: `.file`, `.prim`, `.attribute` (None when unknown), `.rule` (the schema rule broken, for problems inspect reports)."
@@ -145,6 +147,16 @@ fn frames_from_py(py: Python<'_>, frames: Option<&Bound<'_, PyAny>>) -> PyResult
     } else if let Ok(x) = f.extract::<f64>() {
         format!("{x}")
     } else if let Ok(v) = f.extract::<Vec<f64>>() {
+        // Not a list of frames: [1, 2, 3] would read as 1:2 step 3.
+        if !(2..=3).contains(&v.len()) {
+            return Err(msg_err(
+                py,
+                format!(
+                    "frames: a sequence is (start, end) or (start, end, step), not {} numbers; for frames 1, 2 and 3 give (1, 3)",
+                    v.len()
+                ),
+            ));
+        }
         v.iter().map(|x| x.to_string()).collect::<Vec<_>>().join(":")
     } else {
         return Err(PyTypeError::new_err(
@@ -331,6 +343,15 @@ struct Character {
     name: String,
 }
 
+/// A time code must be a number: NaN would read every sample as held.
+fn finite_time(py: Python<'_>, t: f64) -> PyResult<()> {
+    if t.is_finite() {
+        Ok(())
+    } else {
+        Err(msg_err(py, format!("time {t} is not a finite number")))
+    }
+}
+
 fn points_array<'py>(py: Python<'py>, points: &[Vec3]) -> PyResult<Bound<'py, PyArray2<f32>>> {
     let flat: Vec<f32> = points.iter().flat_map(|p| p.to_array()).collect();
     PyArray1::from_vec(py, flat).reshape([points.len(), 3])
@@ -347,6 +368,7 @@ impl Character {
         t: f64,
         configuration: Option<BTreeMap<String, f64>>,
     ) -> PyResult<painterly::character::FrameOutput> {
+        finite_time(py, t)?;
         let input = self
             .inner
             .read_frame_with(t, &Self::overrides(configuration))
@@ -398,6 +420,7 @@ impl Character {
 
     /// Every axis's value at `t` (axis path → value, in axis units).
     fn configuration(&self, py: Python<'_>, t: f64) -> PyResult<BTreeMap<String, f64>> {
+        finite_time(py, t)?;
         self.inner.configuration(t).map_err(|e| to_py(py, e))
     }
 

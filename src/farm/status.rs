@@ -27,8 +27,9 @@ pub struct FarmStatus {
     pub input: PathBuf,
     pub scheduler: SchedulerKind,
     pub submitted_at: String,
-    /// Whether the scheduler was asked (its commands are on PATH and it
-    /// keeps live state); when false, states come from the files alone.
+    /// Whether the scheduler answered (it keeps live state, its commands
+    /// are on PATH and the query succeeded); when false, states come from
+    /// the files alone.
     pub scheduler_queried: bool,
     /// The input's layers changed since the submission (chunks baked from
     /// the old input are stale).
@@ -280,7 +281,7 @@ impl FarmStatus {
             self.submitted_at
         );
         if !self.scheduler_queried {
-            s += "  (scheduler not asked: states come from the files)\n";
+            s += "  (no answer from the scheduler, not on PATH or not reachable: states come from the files)\n";
         }
         if self.input_changed {
             s += "  (the input changed since the submission)\n";
@@ -470,7 +471,7 @@ mod tests {
         assert_eq!(
             st.to_text(),
             "/x/shot.usda: 2 chunks of 12 frames, slurm job 4242, submitted 2026-12-03T20:00:00Z\n\
-             \x20 (scheduler not asked: states come from the files)\n\
+             \x20 (no answer from the scheduler, not on PATH or not reachable: states come from the files)\n\
              \x20 (the input changed since the submission)\n\
              \x20 shot.0000.1-12.usdc   done\n\
              \x20 shot.0001.13-24.usdc  failed   task 4242_1 (why)\n\
