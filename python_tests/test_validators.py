@@ -238,6 +238,10 @@ def test_each_rule_fires_on_a_bad_input_and_names_prim_and_attribute(tmp_path, r
     assert any(e.GetMessage().startswith(f"{where}: ") for e in errors), [e.GetMessage() for e in errors]
     for e in errors:
         assert e.GetType() == UsdValidation.ValidationErrorType.Error
+        # Printed as "(painterly.validators:PointCounts.point-counts)": the
+        # error's name is the rule id, not the validator's name again.
+        assert e.GetName() == rule
+        assert e.GetIdentifier() == f"{PLUGIN}:{validator}.{rule}"
     sites = [s for e in errors for s in e.GetSites()]
     assert all(s.IsValid() for s in sites)
     on = [s.GetProperty().GetPrimPath() if s.IsProperty() else s.GetPrim().GetPath() for s in sites]

@@ -94,6 +94,9 @@ def _site(stage, prim, attribute):
 
 
 def _error(stage, name, p):
+    # `name` is the error's own name: usd-core prints it after the
+    # validator's ("painterly.validators:PointCounts.point-counts"), so the
+    # rule id, not the validator's name again.
     where = p["prim"] or ""
     if p["attribute"]:
         where += "." + p["attribute"]
@@ -106,11 +109,11 @@ def _error(stage, name, p):
 def _rule_task(rule):
     def task(stage, time_range=None):
         found, failure = problems(stage)
-        errors = [_error(stage, rule["validator"], p) for p in found if p["rule"] == rule["id"]]
+        errors = [_error(stage, rule["id"], p) for p in found if p["rule"] == rule["id"]]
         if failure is not None and rule["id"] == UNREADABLE:
             # The inspection could not even open the stage.
             p = {"prim": failure.prim, "attribute": failure.attribute, "message": str(failure)}
-            errors.append(_error(stage, rule["validator"], p))
+            errors.append(_error(stage, rule["id"], p))
         return errors
 
     return task
