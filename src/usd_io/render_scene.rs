@@ -629,3 +629,74 @@ pub fn layer_timing(path: &Path) -> Result<(f64, f64, Option<f64>, Option<f64>)>
     .map_err(|e| e.in_file(path))?;
     Ok(timing)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Four curves prims and two meshes: `Shown`; `Hidden` invisible at
+    /// frames 1–2 only (its parent stays visible); `UnderHidden` under an
+    /// invisible Xform; `Guide` a guide; a visible and an invisible mesh.
+    const STAGE: &str = r#"#usda 1.0
+def Xform "W" {
+    def BasisCurves "Shown" { int[] curveVertexCounts = [2] point3f[] points = [(0, 0, 0), (1, 0, 0)] float[] widths = [0.5, 0.5] (interpolation = "vertex") }
+    def BasisCurves "Hidden" {
+        int[] curveVertexCounts = [2] point3f[] points = [(0, 1, 0), (1, 1, 0)] float[] widths = [0.25, 0.25] (interpolation = "vertex")
+        token visibility.timeSamples = { 1: "invisible", 3: "inherited" }
+    }
+    def Xform "Off" {
+        token visibility = "invisible"
+        def BasisCurves "UnderHidden" { int[] curveVertexCounts = [2] point3f[] points = [(0, 2, 0), (1, 2, 0)] }
+    }
+    def BasisCurves "Guide" { uniform token purpose = "guide" int[] curveVertexCounts = [2] point3f[] points = [(0, 3, 0), (1, 3, 0)] }
+    def Mesh "Box" { int[] faceVertexCounts = [3] int[] faceVertexIndices = [0, 1, 2] point3f[] points = [(0, 0, 0), (1, 0, 0), (0, 1, 0)] }
+    def Mesh "OffBox" { token visibility = "invisible" int[] faceVertexCounts = [3] int[] faceVertexIndices = [0, 1, 2] point3f[] points = [(0, 0, 0), (1, 0, 0), (0, 1, 0)] }
+}
+"#;
+
+    fn paths_of<T>(items: &[T], path: impl Fn(&T) -> &str) -> Vec<String> {
+        items.iter().map(|i| path(i).to_string()).collect()
+    }
+
+    #[test]
+    fn visibility_selects_per_frame_and_the_any_visibility_reads_keep_hidden_prims() {
+        let dir = crate::test_dir::ScratchDir::new("render-scene-visibility");
+        let file = dir.join("s.usda");
+        std::fs::write(&file, STAGE).unwrap();
+        let r = StageReader::open(&file).unwrap();
+        let scene = RenderScene::discover_drawables(&r).unwrap();
+        let curves = |t: f64, any: bool| {
+            let c = if any {
+                scene.curves_at_any_visibility(&r, t).unwrap()
+            } else {
+                scene.curves_at(&r, t).unwrap()
+            };
+            paths_of(&c, |c| &c.path)
+        };
+        // The guide is never selected; visibility is read at each time.
+        assert_eq!(curves(1.0, false), ["/W/Shown"]);
+        assert_eq!(curves(3.0, false), ["/W/Shown", "/W/Hidden"]);
+        for t in [1.0, 3.0] {
+            assert_eq!(curves(t, true), ["/W/Shown", "/W/Hidden", "/W/Off/UnderHidden"]);
+        }
+        // A hidden prim's data is its own, not a fallback.
+        let all = scene.curves_at_any_visibility(&r, 1.0).unwrap();
+        assert_eq!(all[1].widths, Primvar::Vertex(vec![0.25, 0.25]));
+        let meshes = |any: bool| {
+            let m = if any {
+                scene.meshes_at_any_visibility(&r, 1.0).unwrap()
+            } else {
+                scene.meshes_at(&r, 1.0).unwrap()
+            };
+            paths_of(&m, |m| &m.path)
+        };
+        assert_eq!(meshes(false), ["/W/Box"]);
+        assert_eq!(meshes(true), ["/W/Box", "/W/OffBox"]);
+        // `draws`: what `render` draws at that time; unknown prims are not drawn.
+        let draws = |p: &str, t: f64| scene.draws(&r, p, t).unwrap();
+        assert!(draws("/W/Shown", 1.0) && draws("/W/Box", 1.0));
+        assert!(!draws("/W/Hidden", 1.0) && !draws("/W/Hidden", 2.0) && draws("/W/Hidden", 3.0));
+        assert!(!draws("/W/Off/UnderHidden", 3.0) && !draws("/W/Guide", 1.0) && !draws("/W/OffBox", 1.0));
+        assert!(!draws("/W/Nothing", 1.0));
+    }
+}
