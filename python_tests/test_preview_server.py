@@ -255,6 +255,25 @@ def test_a_layer_shaped_like_another_keeps_its_own_colours(tmp_path):
     assert paths.index("/Blowfish/Paint/Spikes") < paths.index("/Blowfish/Paint/SpikesCopy")
 
 
+def test_scene_and_frame_headers_hold_exactly_the_documented_keys(tmp_path):
+    # docs/preview.md lists them; a client is written from that list.
+    bake = tmp_path / "fish_bake.usdc"
+    subprocess.run([str(painterly_binary()), "bake", str(FISH), "-o", str(bake), "--frames", "1:2", "--quiet"], check=True)
+    with PreviewServer(FISH, "--bake", bake) as s:
+        scene = s.scene()
+        assert set(scene) == {
+            "file", "start", "end", "frames_per_second", "up_axis", "layers", "axes",
+            "proxies", "views", "problems", "view", "bounds", "bake",
+        }
+        assert set(scene["view"]) == {"position", "target", "up", "fov_y", "aspect", "camera"}
+        live, _ = s.frame(id=5, time=1)
+        assert set(live) == {"id", "time", "eye", "configuration", "weights", "hidden", "timing", "arrays"}
+        assert set(live["timing"]) == {"read_ms", "evaluate_ms", "encode_ms", "total_ms"}
+        baked, _ = s.frame(id=6, time=1, bake=True)
+        assert set(baked) == {"id", "time", "source", "hidden", "timing", "arrays"}
+        assert (baked["id"], baked["source"], set(baked["timing"])) == (6, "bake", {"total_ms"})
+
+
 def test_layers_render_would_not_draw_are_hidden_per_frame(tmp_path):
     # Spikes invisible, Hair invisible at frames 1 and 2 only (the fish's
     # `Paint` scope stays visible), GapFill a guide: `render` draws none of
