@@ -159,6 +159,21 @@ def quiet_cases(tmp):
     }
 
 
+def test_assembly_says_assembled_and_is_quiet_with_quiet(tmp_path):
+    # The tube's 24 frames in 2 chunks of 12; the assembly bakes nothing.
+    out = tmp_path / "shot.usda"
+    for k in (0, 1):
+        assert run(["bake", TUBE, "-o", out, "--chunk", "12", "--chunk-index", k, "-q"]).returncode == 0
+    quiet = run(["bake", TUBE, "-o", out, "--chunk", "12", "--assemble", "--quiet"])
+    assert (quiet.returncode, quiet.stdout, quiet.stderr) == (0, "", "")
+    loud = run(["bake", TUBE, "-o", out, "--chunk", "12", "--assemble"])
+    assert loud.returncode == 0 and loud.stderr == ""
+    assert re.fullmatch(
+        rf"assembled 2 chunk layers: 2 layers, 50 strokes, 450 points, 0 view-dependent meshes -> {re.escape(str(out))} in \d+\.\d\d s\n",
+        loud.stdout,
+    ), loud.stdout
+
+
 @pytest.mark.parametrize("name", list(quiet_cases(pathlib.Path("/x"))))
 def test_quiet_is_silent_on_both_streams(tmp_path, name):
     args = quiet_cases(tmp_path)[name]
