@@ -576,27 +576,20 @@ fn run_bake(input: &Path, output: &Path, opts: &BakeOptions, quiet: bool, json: 
         Ok(s) => {
             if json {
                 println!("{}", serde_json::to_string(&s).unwrap_or_default());
-            } else if opts.assemble && !quiet {
-                // Nothing baked here: the clip set over the chunks is written.
-                println!(
-                    "assembled {}: {}, {}, {}, {} -> {} in {:.2} s",
-                    plural(s.chunks.len(), "chunk layer"),
-                    plural(s.layers, "layer"),
-                    plural(s.strokes, "stroke"),
-                    plural(s.points, "point"),
-                    plural(s.view_meshes, "view-dependent mesh"),
-                    s.output.display(),
-                    s.seconds
-                );
             } else if !quiet {
-                let chunks = if s.chunks.is_empty() {
+                // An assembly bakes nothing: it writes the clip set over the chunks.
+                let done = if opts.assemble {
+                    format!("assembled {}", plural(s.chunks.len(), "chunk layer"))
+                } else {
+                    format!("baked {}", plural(s.frames, "frame"))
+                };
+                let chunks = if opts.assemble || s.chunks.is_empty() {
                     String::new()
                 } else {
                     format!(" ({})", plural(s.chunks.len(), "chunk layer"))
                 };
                 println!(
-                    "baked {}: {}, {}, {}, {} -> {}{chunks} in {:.2} s",
-                    plural(s.frames, "frame"),
+                    "{done}: {}, {}, {}, {} -> {}{chunks} in {:.2} s",
                     plural(s.layers, "layer"),
                     plural(s.strokes, "stroke"),
                     plural(s.points, "point"),
