@@ -154,11 +154,31 @@ fn read_view_mesh(r: &StageReader, prim: usd::Prim) -> Result<ViewMesh> {
     let mesh = read_mesh(r, prim.clone(), rest_time.or(cache_time))?;
     let n = mesh.rest.len();
 
-    // Keys.
+    let keys = read_view_keys(r, &prim, &path, n)?;
+    let viewpoints = group_viewpoints(&keys)?
+        .iter()
+        .map(|g| viewpoint(r, &mesh, &keys, g, cache_time, &path))
+        .collect::<Result<Vec<_>>>()?;
+    let dirs: Vec<[f64; 3]> = viewpoints.iter().map(|v| v.direction).collect();
+    let vp_paths: Vec<Vec<String>> = viewpoints.iter().map(|v| v.paths.clone()).collect();
+    let blender = ViewBlender::new(&dirs, sharpness, uncovered).map_err(|e| view_error(&keys, &vp_paths, &path, e))?;
+    Ok(ViewMesh {
+        path,
+        mesh,
+        blend: ViewBlend { viewpoints, blender },
+        camera,
+        uncovered,
+        sharpness,
+    })
+}
+
+/// The `PainterlyViewKey` children of the mesh at `path` (`n` points), each
+/// checked alone (SPEC §6).
+fn read_view_keys(r: &StageReader, prim: &usd::Prim, path: &str, n: usize) -> Result<Vec<KeyIn>> {
     let mut keys = Vec::new();
     for c in prim
         .children()
-        .map_err(|e| Error::prim(&path, format!("cannot list children: {e}")))?
+        .map_err(|e| Error::prim(path, format!("cannot list children: {e}")))?
     {
         if r.type_name(&c)? != "PainterlyViewKey" {
             continue;
@@ -206,7 +226,13 @@ fn read_view_mesh(r: &StageReader, prim: usd::Prim) -> Result<ViewMesh> {
         });
     }
 
-    // Group keys into viewpoints: same `viewpoint` token, or same direction.
+    Ok(keys)
+}
+
+/// Keys grouped into viewpoints (indices into `keys`): the same `viewpoint`
+/// token, or else the same direction. Keys sharing a token must share the
+/// direction too.
+fn group_viewpoints(keys: &[KeyIn]) -> Result<Vec<Vec<usize>>> {
     let mut groups: Vec<Vec<usize>> = Vec::new();
     for (i, k) in keys.iter().enumerate() {
         let found = groups.iter().position(|g| {
@@ -236,92 +262,91 @@ fn read_view_mesh(r: &StageReader, prim: usd::Prim) -> Result<ViewMesh> {
             None => groups.push(vec![i]),
         }
     }
+    Ok(groups)
+}
 
-    let mut viewpoints = Vec::new();
-    for g in &groups {
-        let mut g = g.clone();
-        let timed = g.iter().filter(|&&i| keys[i].time.is_some()).count();
-        if timed != 0 && timed != g.len() {
-            let a = g.iter().find(|&&i| keys[i].time.is_some()).expect("a timed key");
-            let b = g.iter().find(|&&i| keys[i].time.is_none()).expect("an untimed key");
-            return Err(Error::attr(
-                &keys[*b].path,
-                "time",
-                format!(
-                    "is one key viewpoint with {}, which has a time: give every key of a viewpoint a time, or none",
-                    keys[*a].path
-                ),
-            )
-            .rule(Rule::ViewKeyTimes));
-        }
-        if timed == 0 && g.len() > 1 {
-            return Err(Error::attr(
-                &keys[g[1]].path,
-                "direction",
-                format!(
-                    "{} has the same direction and neither has a time: one viewpoint needs one key, or keys at different times",
-                    keys[g[0]].path
-                ),
-            )
-            .rule(Rule::ViewKeyTimes));
-        }
-        g.sort_by(|&a, &b| keys[a].time.unwrap_or(0.0).total_cmp(&keys[b].time.unwrap_or(0.0)));
-        for w in g.windows(2) {
-            if keys[w[0]].time == keys[w[1]].time {
-                return Err(Error::attr(
-                    &keys[w[0]].path,
-                    "time",
-                    format!("{} has the same direction and time", keys[w[1]].path),
-                )
-                .rule(Rule::ViewKeyTimes));
-            }
-        }
-        let mut offsets = Vec::with_capacity(g.len());
-        for &i in &g {
-            let base: Vec<Vec3> = match keys[i].time {
-                None if cache_time.is_some() => {
-                    return Err(Error::attr(
-                        &keys[i].path,
-                        "time",
-                        format!(
-                            "a key without `time` is an offset from the rest pose, but {path} has only \
-                             time-sampled points (a point cache) and no rest pose: give this key a `time` \
-                             (its offset is then taken from the base at that time), or author a default \
-                             `points` or `painterly:restTime` on {path}"
-                        ),
-                    ))
-                }
-                None => mesh.rest.iter().map(|p| p.as_vec3()).collect(),
-                Some(t) => mesh.posed_points(r, t)?.iter().map(|p| p.as_vec3()).collect(),
-            };
-            offsets.push(keys[i].points.iter().zip(&base).map(|(k, b)| *k - *b).collect());
-        }
-        let spline = if timed > 0 {
-            let times: Vec<f64> = g.iter().map(|&i| keys[i].time.expect("timed")).collect();
-            Some(
-                NaturalCubicSpline::new(&times)
-                    .map_err(|e| Error::prim(&keys[g[0]].path, format!("{e}")).rule(Rule::ViewKeyTimes))?,
-            )
-        } else {
-            None
-        };
-        viewpoints.push(Viewpoint {
-            direction: keys[g[0]].direction,
-            paths: g.iter().map(|&i| keys[i].path.clone()).collect(),
-            offsets,
-            spline,
-        });
+/// One viewpoint from its keys (`group`, indices into `keys`): all timed
+/// or one untimed key, no two at one time; each key's offset from the rest
+/// pose, or from the posed mesh at its time, and the spline through the times.
+fn viewpoint(
+    r: &StageReader,
+    mesh: &Proxy,
+    keys: &[KeyIn],
+    group: &[usize],
+    cache_time: Option<f64>,
+    path: &str,
+) -> Result<Viewpoint> {
+    let mut g = group.to_vec();
+    let timed = g.iter().filter(|&&i| keys[i].time.is_some()).count();
+    if timed != 0 && timed != g.len() {
+        let a = g.iter().find(|&&i| keys[i].time.is_some()).expect("a timed key");
+        let b = g.iter().find(|&&i| keys[i].time.is_none()).expect("an untimed key");
+        return Err(Error::attr(
+            &keys[*b].path,
+            "time",
+            format!(
+                "is one key viewpoint with {}, which has a time: give every key of a viewpoint a time, or none",
+                keys[*a].path
+            ),
+        )
+        .rule(Rule::ViewKeyTimes));
     }
-    let dirs: Vec<[f64; 3]> = viewpoints.iter().map(|v| v.direction).collect();
-    let vp_paths: Vec<Vec<String>> = viewpoints.iter().map(|v| v.paths.clone()).collect();
-    let blender = ViewBlender::new(&dirs, sharpness, uncovered).map_err(|e| view_error(&keys, &vp_paths, &path, e))?;
-    Ok(ViewMesh {
-        path,
-        mesh,
-        blend: ViewBlend { viewpoints, blender },
-        camera,
-        uncovered,
-        sharpness,
+    if timed == 0 && g.len() > 1 {
+        return Err(Error::attr(
+            &keys[g[1]].path,
+            "direction",
+            format!(
+                "{} has the same direction and neither has a time: one viewpoint needs one key, or keys at different times",
+                keys[g[0]].path
+            ),
+        )
+        .rule(Rule::ViewKeyTimes));
+    }
+    g.sort_by(|&a, &b| keys[a].time.unwrap_or(0.0).total_cmp(&keys[b].time.unwrap_or(0.0)));
+    for w in g.windows(2) {
+        if keys[w[0]].time == keys[w[1]].time {
+            return Err(Error::attr(
+                &keys[w[0]].path,
+                "time",
+                format!("{} has the same direction and time", keys[w[1]].path),
+            )
+            .rule(Rule::ViewKeyTimes));
+        }
+    }
+    let mut offsets = Vec::with_capacity(g.len());
+    for &i in &g {
+        let base: Vec<Vec3> = match keys[i].time {
+            None if cache_time.is_some() => {
+                return Err(Error::attr(
+                    &keys[i].path,
+                    "time",
+                    format!(
+                        "a key without `time` is an offset from the rest pose, but {path} has only \
+                         time-sampled points (a point cache) and no rest pose: give this key a `time` \
+                         (its offset is then taken from the base at that time), or author a default \
+                         `points` or `painterly:restTime` on {path}"
+                    ),
+                ))
+            }
+            None => mesh.rest.iter().map(|p| p.as_vec3()).collect(),
+            Some(t) => mesh.posed_points(r, t)?.iter().map(|p| p.as_vec3()).collect(),
+        };
+        offsets.push(keys[i].points.iter().zip(&base).map(|(k, b)| *k - *b).collect());
+    }
+    let spline = if timed > 0 {
+        let times: Vec<f64> = g.iter().map(|&i| keys[i].time.expect("timed")).collect();
+        Some(
+            NaturalCubicSpline::new(&times)
+                .map_err(|e| Error::prim(&keys[g[0]].path, format!("{e}")).rule(Rule::ViewKeyTimes))?,
+        )
+    } else {
+        None
+    };
+    Ok(Viewpoint {
+        direction: keys[g[0]].direction,
+        paths: g.iter().map(|&i| keys[i].path.clone()).collect(),
+        offsets,
+        spline,
     })
 }
 
