@@ -280,53 +280,83 @@ fn clip_triangle_near(tri: [MeshVertex; 3], near: f64) -> Vec<MeshVertex> {
 
 fn prepare_mesh(proj: &Projector, m: &MeshData, style: &Style) -> (Vec<ScreenTriangle>, Vec<[RibbonVertex; 2]>) {
     let cam: Vec<DVec3> = m.points.iter().map(|&p| proj.to_camera(p)).collect();
-    let sign = if m.left_handed { -1.0 } else { 1.0 };
-    // Face offsets, facing, and smooth vertex normals.
-    let mut offsets = Vec::with_capacity(m.face_counts.len());
-    let mut o = 0usize;
-    for &c in &m.face_counts {
-        offsets.push(o);
-        o += c as usize;
-    }
-    let mut normals = vec![DVec3::ZERO; cam.len()];
-    let mut front = vec![false; m.face_counts.len()];
-    for (f, &c) in m.face_counts.iter().enumerate() {
-        let idx = &m.face_indices[offsets[f]..offsets[f] + c as usize];
-        if idx.len() < 3 {
-            continue;
+    let shading = Shading::new(proj, m, &cam);
+    let tris = mesh_triangles(proj, m, &cam, &shading);
+    let lines = silhouette_lines(proj, m, &cam, &shading, style);
+    (tris, lines)
+}
+
+/// What every face and vertex of a mesh shares, in camera space.
+struct Shading {
+    /// Where each face's indices start in `face_indices`.
+    offsets: Vec<usize>,
+    /// Smooth vertex normals: the sum of the fan triangles' area normals.
+    normals: Vec<Vec3>,
+    /// Whether each face (Newell normal at its centroid) faces the eye.
+    front: Vec<bool>,
+    /// -1 for a left-handed mesh, whose faces wind the other way.
+    sign: f64,
+}
+
+impl Shading {
+    fn new(proj: &Projector, m: &MeshData, cam: &[DVec3]) -> Shading {
+        let sign = if m.left_handed { -1.0 } else { 1.0 };
+        let mut offsets = Vec::with_capacity(m.face_counts.len());
+        let mut o = 0usize;
+        for &c in &m.face_counts {
+            offsets.push(o);
+            o += c as usize;
         }
-        let n = newell(&cam, idx) * sign;
-        let centroid = idx.iter().map(|&i| cam[i as usize]).sum::<DVec3>() / idx.len() as f64;
-        front[f] = faces_eye(proj, n, centroid);
-        for k in 1..idx.len() - 1 {
-            let (a, b, cc) = (cam[idx[0] as usize], cam[idx[k] as usize], cam[idx[k + 1] as usize]);
-            let tn = (b - a).cross(cc - a) * sign;
-            for &i in [idx[0], idx[k], idx[k + 1]].iter() {
-                normals[i as usize] += tn;
+        let mut normals = vec![DVec3::ZERO; cam.len()];
+        let mut front = vec![false; m.face_counts.len()];
+        for (f, &c) in m.face_counts.iter().enumerate() {
+            let idx = &m.face_indices[offsets[f]..offsets[f] + c as usize];
+            if idx.len() < 3 {
+                continue;
+            }
+            let n = newell(cam, idx) * sign;
+            let centroid = idx.iter().map(|&i| cam[i as usize]).sum::<DVec3>() / idx.len() as f64;
+            front[f] = faces_eye(proj, n, centroid);
+            for k in 1..idx.len() - 1 {
+                let (a, b, cc) = (cam[idx[0] as usize], cam[idx[k] as usize], cam[idx[k + 1] as usize]);
+                let tn = (b - a).cross(cc - a) * sign;
+                for &i in [idx[0], idx[k], idx[k + 1]].iter() {
+                    normals[i as usize] += tn;
+                }
             }
         }
+        let normals: Vec<Vec3> = normals.iter().map(|n| n.normalize_or_zero().as_vec3()).collect();
+        Shading {
+            offsets,
+            normals,
+            front,
+            sign,
+        }
     }
-    let normals: Vec<Vec3> = normals.iter().map(|n| n.normalize_or_zero().as_vec3()).collect();
+}
 
+/// The mesh's triangles in pixels: fans of its faces, culled when one-sided
+/// and facing away, clipped at the near plane.
+fn mesh_triangles(proj: &Projector, m: &MeshData, cam: &[DVec3], s: &Shading) -> Vec<ScreenTriangle> {
     let mut tris = Vec::new();
     for (f, &c) in m.face_counts.iter().enumerate() {
-        let off = offsets[f];
+        let off = s.offsets[f];
         let idx = &m.face_indices[off..off + c as usize];
         if idx.len() < 3 {
             continue;
         }
-        let flat = (!m.smooth).then(|| (newell(&cam, idx) * sign).normalize_or_zero().as_vec3());
+        let flat = (!m.smooth).then(|| (newell(cam, idx) * s.sign).normalize_or_zero().as_vec3());
         let vert = |k: usize| {
             let i = idx[k] as usize;
             MeshVertex {
                 p: cam[i],
-                n: flat.unwrap_or(normals[i]),
+                n: flat.unwrap_or(s.normals[i]),
                 c: m.color(f, off + k, i),
             }
         };
         for k in 1..idx.len() - 1 {
             let tri = [vert(0), vert(k), vert(k + 1)];
-            let tn = (tri[1].p - tri[0].p).cross(tri[2].p - tri[0].p) * sign;
+            let tn = (tri[1].p - tri[0].p).cross(tri[2].p - tri[0].p) * s.sign;
             let centre = (tri[0].p + tri[1].p + tri[2].p) / 3.0;
             if !m.double_sided && !faces_eye(proj, tn, centre) {
                 continue;
@@ -354,14 +384,23 @@ fn prepare_mesh(proj: &Projector, m: &MeshData, style: &Style) -> (Vec<ScreenTri
             }
         }
     }
+    tris
+}
 
-    // Silhouettes: edges between a front- and a back-facing polygon.
+/// Silhouettes: edges between a front- and a back-facing polygon.
+fn silhouette_lines(
+    proj: &Projector,
+    m: &MeshData,
+    cam: &[DVec3],
+    s: &Shading,
+    style: &Style,
+) -> Vec<[RibbonVertex; 2]> {
     let mut edges: HashMap<(u32, u32), (usize, Option<usize>)> = HashMap::new();
     for (f, &c) in m.face_counts.iter().enumerate() {
         if c < 3 {
             continue;
         }
-        let idx = &m.face_indices[offsets[f]..offsets[f] + c as usize];
+        let idx = &m.face_indices[s.offsets[f]..s.offsets[f] + c as usize];
         for k in 0..idx.len() {
             let (a, b) = (idx[k], idx[(k + 1) % idx.len()]);
             let key = (a.min(b), a.max(b));
@@ -379,7 +418,7 @@ fn prepare_mesh(proj: &Projector, m: &MeshData, style: &Style) -> (Vec<ScreenTri
     let r = 0.5 * style.line_width;
     for (&(a, b), &(f0, f1)) in &edges {
         let Some(f1) = f1 else { continue };
-        if front[f0] == front[f1] {
+        if s.front[f0] == s.front[f1] {
             continue;
         }
         let pa = CamPoint {
@@ -415,7 +454,7 @@ fn prepare_mesh(proj: &Projector, m: &MeshData, style: &Style) -> (Vec<ScreenTri
             .partial_cmp(&(y[0].pos.x, y[0].pos.y, y[1].pos.x, y[1].pos.y))
             .unwrap_or(std::cmp::Ordering::Equal)
     });
-    (tris, lines)
+    lines
 }
 
 /// Projects everything into a frame's pixel space.
