@@ -14,10 +14,10 @@ use crate::bake::Progress;
 use crate::error::{Error, Result};
 use crate::rule::Rule;
 use crate::usd_io::clips::{clip_set_status, ChunkState};
-use crate::usd_io::scene::{ProxyMotion, Scene, StrokeLayer};
-use crate::usd_io::stage::{StageReader, UnresolvedAsset};
+use crate::usd_io::scene::{ProxyMotion, Rig, Scene, StrokeLayer};
+use crate::usd_io::stage::{StageMetadata, StageReader, UnresolvedAsset};
 use crate::usd_io::values;
-use crate::usd_io::view_mesh::read_view_meshes_lenient;
+use crate::usd_io::view_mesh::{read_view_meshes_lenient, ViewMesh};
 use crate::words::plural;
 
 #[derive(Debug, Serialize)]
@@ -256,106 +256,12 @@ pub fn inspect_stage(r: &StageReader) -> Result<Report> {
         .map(|e| Problem::new(e, Rule::Unreadable))
         .collect();
     let meta = r.metadata();
-    // What bake checks before reading anything: assets, stage metadata and
-    // the default frame range.
-    for u in &r.unresolved {
-        let e = Error {
-            prim: u.prim.clone(),
-            ..Error::msg(format!("missing asset: {}", u.describe_asset()))
-        };
-        problems.push(Problem::new(e, Rule::Unreadable));
-    }
-    let has_range = meta.start_time_code.is_some() || meta.end_time_code.is_some();
-    if let Err(e) = meta.validate() {
-        problems.push(Problem::new(e, Rule::Unreadable));
-    } else if has_range {
-        // A stage without a range is fine: bake then needs --frames.
-        if let Err(e) = crate::frames::resolve(&meta, None) {
-            problems.push(Problem::new(e, Rule::Unreadable));
-        }
-    }
-    let mut rigs = Vec::new();
-    for rig in &scene.rigs {
-        let (skeleton, animation_source, notes) = match &rig.proxy.motion {
-            ProxyMotion::Skel(s) => (Some(s.skeleton.clone()), s.animation.clone(), s.notes.clone()),
-            _ => (None, None, Vec::new()),
-        };
-        let mut layers = Vec::new();
-        for l in &rig.layers {
-            if let Err(e) = check_point_samples(r, l, &mut problems) {
-                problems.push(Problem::new(e, Rule::Unreadable));
-            }
-            let (pos, opa, time, sent) = match count_keys(r, &l.path, &mut problems) {
-                Ok(c) => c,
-                Err(e) => {
-                    problems.push(Problem::new(e, Rule::Unreadable));
-                    (0, 0, 0, 0)
-                }
-            };
-            layers.push(LayerReport {
-                path: l.path.clone(),
-                strokes: l.curve_counts.len(),
-                points: l.num_points(),
-                pose_position_keys: pos,
-                pose_opacity_keys: opa,
-                time_keys: time,
-                sentinels: sent,
-                binding: if l.cached_binding.is_some() {
-                    "cached"
-                } else {
-                    "computed"
-                },
-                opacity: l.opacity,
-            });
-        }
-        rigs.push(RigReport {
-            path: rig.path.clone(),
-            proxy: rig.proxy.path.clone(),
-            proxy_points: rig.proxy.rest.len(),
-            proxy_faces: rig.proxy.face_counts.len(),
-            animation: rig.proxy.motion.describe().to_string(),
-            skeleton,
-            animation_source,
-            layers,
-            notes,
-        });
-    }
-    let mut axes = Vec::new();
-    let mut view_meshes = Vec::new();
-    for p in r.prim_paths()? {
-        let prim = r.require_prim(&p)?;
-        if r.type_name(&prim)? == "PainterlyAxis" {
-            let kind = r
-                .typed(&prim, "kind", None, "token", crate::usd_io::values::token)?
-                .unwrap_or_else(|| "attribute".into());
-            let source = r.targets(&prim, "source")?.into_iter().next();
-            axes.push(AxisReport {
-                path: p.clone(),
-                kind,
-                source,
-            });
-        }
-    }
+    problems.extend(stage_problems(r, &meta));
+    let rigs = scene.rigs.iter().map(|rig| rig_report(r, rig, &mut problems)).collect();
+    let axes = axis_reports(r)?;
     let (meshes, view_problems) = read_view_meshes_lenient(r, &r.prim_paths()?).map_err(|e| e.in_file(path))?;
     problems.extend(view_problems.into_iter().map(|e| Problem::new(e, Rule::Unreadable)));
-    for m in meshes {
-        view_meshes.push(ViewMeshReport {
-            path: m.path.clone(),
-            key_viewpoints: m
-                .blend
-                .viewpoints
-                .iter()
-                .map(|v| ViewpointReport {
-                    direction: v.direction,
-                    keys: v.paths.clone(),
-                })
-                .collect(),
-            camera: m.camera.clone(),
-            uncovered: m.uncovered.token().to_string(),
-            sharpness: m.sharpness,
-            encloses: m.blend.blender.encloses(),
-        });
-    }
+    let view_meshes = meshes.iter().map(view_mesh_report).collect();
     let clip_set = clip_set_report(path, &mut problems)?;
     // One cause can surface once per layer that meets it (an axis that three
     // layers' keys use): the report names it once, where it first surfaced.
@@ -374,6 +280,116 @@ pub fn inspect_stage(r: &StageReader) -> Result<Report> {
         clip_set,
         problems,
     })
+}
+
+/// What bake checks before reading anything: assets, stage metadata and
+/// the default frame range.
+fn stage_problems(r: &StageReader, meta: &StageMetadata) -> Vec<Problem> {
+    let mut problems = Vec::new();
+    for u in &r.unresolved {
+        let e = Error {
+            prim: u.prim.clone(),
+            ..Error::msg(format!("missing asset: {}", u.describe_asset()))
+        };
+        problems.push(Problem::new(e, Rule::Unreadable));
+    }
+    let has_range = meta.start_time_code.is_some() || meta.end_time_code.is_some();
+    if let Err(e) = meta.validate() {
+        problems.push(Problem::new(e, Rule::Unreadable));
+    } else if has_range {
+        // A stage without a range is fine: bake then needs --frames.
+        if let Err(e) = crate::frames::resolve(meta, None) {
+            problems.push(Problem::new(e, Rule::Unreadable));
+        }
+    }
+    problems
+}
+
+/// One rig: its proxy, its animation and each stroke layer's counts; what
+/// cannot be read goes to `problems`.
+fn rig_report(r: &StageReader, rig: &Rig, problems: &mut Vec<Problem>) -> RigReport {
+    let (skeleton, animation_source, notes) = match &rig.proxy.motion {
+        ProxyMotion::Skel(s) => (Some(s.skeleton.clone()), s.animation.clone(), s.notes.clone()),
+        _ => (None, None, Vec::new()),
+    };
+    let mut layers = Vec::new();
+    for l in &rig.layers {
+        if let Err(e) = check_point_samples(r, l, problems) {
+            problems.push(Problem::new(e, Rule::Unreadable));
+        }
+        let (pos, opa, time, sent) = match count_keys(r, &l.path, problems) {
+            Ok(c) => c,
+            Err(e) => {
+                problems.push(Problem::new(e, Rule::Unreadable));
+                (0, 0, 0, 0)
+            }
+        };
+        layers.push(LayerReport {
+            path: l.path.clone(),
+            strokes: l.curve_counts.len(),
+            points: l.num_points(),
+            pose_position_keys: pos,
+            pose_opacity_keys: opa,
+            time_keys: time,
+            sentinels: sent,
+            binding: if l.cached_binding.is_some() {
+                "cached"
+            } else {
+                "computed"
+            },
+            opacity: l.opacity,
+        });
+    }
+    RigReport {
+        path: rig.path.clone(),
+        proxy: rig.proxy.path.clone(),
+        proxy_points: rig.proxy.rest.len(),
+        proxy_faces: rig.proxy.face_counts.len(),
+        animation: rig.proxy.motion.describe().to_string(),
+        skeleton,
+        animation_source,
+        layers,
+        notes,
+    }
+}
+
+/// Every `PainterlyAxis` prim: its kind (`attribute` when unauthored) and source.
+fn axis_reports(r: &StageReader) -> Result<Vec<AxisReport>> {
+    let mut axes = Vec::new();
+    for p in r.prim_paths()? {
+        let prim = r.require_prim(&p)?;
+        if r.type_name(&prim)? == "PainterlyAxis" {
+            let kind = r
+                .typed(&prim, "kind", None, "token", crate::usd_io::values::token)?
+                .unwrap_or_else(|| "attribute".into());
+            let source = r.targets(&prim, "source")?.into_iter().next();
+            axes.push(AxisReport {
+                path: p.clone(),
+                kind,
+                source,
+            });
+        }
+    }
+    Ok(axes)
+}
+
+fn view_mesh_report(m: &ViewMesh) -> ViewMeshReport {
+    ViewMeshReport {
+        path: m.path.clone(),
+        key_viewpoints: m
+            .blend
+            .viewpoints
+            .iter()
+            .map(|v| ViewpointReport {
+                direction: v.direction,
+                keys: v.paths.clone(),
+            })
+            .collect(),
+        camera: m.camera.clone(),
+        uncovered: m.uncovered.token().to_string(),
+        sharpness: m.sharpness,
+        encloses: m.blend.blender.encloses(),
+    }
 }
 
 /// The chunks of a clip-set bake; missing and stale chunks are problems.
