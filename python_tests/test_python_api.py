@@ -327,6 +327,42 @@ def test_errors_are_painterly_errors_naming_where(tmp_path):
     assert not list(tmp_path.glob("*.usdc"))
 
 
+def test_errors_name_options_as_python_spells_them(tmp_path):
+    """The library's messages name the CLI's options; from Python they name
+    the keyword arguments instead (the CLI's words are in test_cli_messages)."""
+    tube = FIXTURES / "tube.usda"
+    no_range = tmp_path / "no_range.usda"
+    Sdf.Layer.FindOrOpen(str(tube)).Export(str(no_range))
+    layer = Sdf.Layer.FindOrOpen(str(no_range))
+    layer.ClearStartTimeCode()
+    layer.ClearEndTimeCode()
+    layer.Save()
+    no_camera = tmp_path / "building.usda"
+    Sdf.Layer.FindOrOpen(str(FIXTURES / "building.usda")).Export(str(no_camera))
+    stage = Usd.Stage.Open(str(no_camera))
+    stage.GetPrimAtPath("/Building/Box").GetRelationship("painterly:camera").ClearTargets(True)
+    stage.GetRootLayer().Save()
+    cases = [
+        (lambda: painterly.bake(tube, frames=(0, 1000)),
+         "frames 0:1000 is outside the stage's time range 1:24 (startTimeCode:endTimeCode)"),
+        (lambda: painterly.bake(no_range), "the stage has no startTimeCode/endTimeCode: pass frames=(A, B)"),
+        (lambda: painterly.Character(FIXTURES / "blowfish.usda", camera="/Blowfish"),
+         "`camera` names a Xform prim, not a Camera"),
+        (lambda: painterly.bake(FIXTURES / "blowfish.usda", camera="/Blowfish"),
+         "`camera` names a Xform prim, not a Camera"),
+        (lambda: painterly.Character(no_camera),
+         "no camera: pass `camera=PRIM` or author `rel painterly:camera`"),
+        (lambda: painterly.bake(tube, output=tmp_path / "shot.usdc", chunk=2),
+         "with `chunk` the output is the clip-set layer: name it .usda"),
+    ]
+    for call, message in cases:
+        with pytest.raises(painterly.Error) as e:
+            call()
+        assert e.value.message == message
+        assert str(e.value).endswith(": " + message)
+    assert not list(tmp_path.glob("shot*"))
+
+
 def test_errors_survive_pickling_with_their_fields(tmp_path):
     # A ProcessPoolExecutor job that raises sends its exception back by
     # pickle: the class must be importable as painterly.Error, and the

@@ -409,6 +409,60 @@ def test_signal_during_write_leaves_no_temporary_and_the_old_output(tmp_path, si
     assert out.read_bytes() == old or Usd.Stage.Open(str(out)), err
 
 
+@pytest.mark.parametrize("mode", [0o600, 0o664, 0o444])
+def test_a_replaced_file_keeps_its_permission_bits(tmp_path, mode):
+    """An in-place edit and a bake over an existing output replace the file
+    by a rename; the new file keeps the old one's mode, as usd-core's Save
+    does (a private file must not become world-readable)."""
+    src = tmp_path / "fish.usda"
+    shutil.copy(BLOWFISH, src)
+    src.chmod(mode)
+    out = tmp_path / "bake.usdc"
+    out.write_bytes(b"old")
+    out.chmod(mode)
+    edit = run("key", src, "--layer", "/Blowfish/Paint/Hair", "--time", "5", "--sentinel", "--in-place", "-q")
+    bake = run("bake", src, "-o", out, "--frames", "1:2", "-q")
+    # root may write a read-only file, as it may with usd-core.
+    assert (edit.returncode, bake.returncode) == (0, 0), edit.stderr + bake.stderr
+    assert Usd.Stage.Open(str(src)).GetPrimAtPath("/Blowfish/Paint/Hair/sentinel1")
+    assert (src.stat().st_mode & 0o7777, out.stat().st_mode & 0o7777) == (mode, mode)
+
+
+@pytest.mark.skipif(os.geteuid() != 0 or not shutil.which("setpriv"), reason="needs root to run as another user")
+def test_a_file_the_user_may_not_write_is_not_replaced(request):
+    """In a folder anyone may write, a rename could replace another user's
+    read-only file; painterly refuses, naming the file, and leaves it as
+    it was (usd-core's Save refuses it too)."""
+    import tempfile
+
+    # pytest's own folders are private to root; this one is reachable.
+    shared = pathlib.Path(tempfile.mkdtemp(prefix="painterly-shared-"))
+    request.addfinalizer(lambda: shutil.rmtree(shared, ignore_errors=True))
+    shared.chmod(0o777)
+    locked = shared / "fish.usda"
+    shutil.copy(BLOWFISH, locked)
+    locked.chmod(0o444)
+    out = shared / "bake.usdc"
+    out.write_bytes(b"root's")
+    out.chmod(0o444)
+    before = locked.read_bytes()
+    nobody = ["setpriv", "--reuid=65534", "--regid=65534", "--clear-groups", str(painterly_binary())]
+
+    def as_nobody(*args):
+        proc = subprocess.run([*nobody, *map(str, args)], capture_output=True, text=True, timeout=HANG)
+        assert "panicked" not in proc.stderr, proc.stderr
+        return proc
+
+    why = "cannot replace a file this user may not write (mode 444): change its permissions first"
+    edit = as_nobody("key", locked, "--layer", "/Blowfish/Paint/Hair", "--time", "5", "--sentinel", "--in-place")
+    assert (edit.returncode, edit.stderr) == (1, f"error: {locked}: {why}\n")
+    bake = as_nobody("bake", locked, "-o", out, "--frames", "1:2", "-q")
+    assert (bake.returncode, bake.stderr) == (1, f"error: {out}: {why}\n")
+    assert locked.read_bytes() == before and out.read_bytes() == b"root's"
+    assert (locked.stat().st_uid, out.stat().st_uid) == (0, 0)
+    assert leftovers(shared) == []
+
+
 def test_next_run_removes_temporaries_of_killed_runs(tmp_path):
     out_dir = tmp_path / "out"
     out_dir.mkdir()

@@ -21,7 +21,9 @@ Frames: TypeAlias = str | float | tuple[float, float] | tuple[float, float, floa
 __version__: str
 
 class Error(Exception):
-    """A painterly error; where it is, when known."""
+    """A painterly error; where it is, when known. The message names the
+    keyword arguments (``frames``, ``camera``, ``chunk``) where the CLI's
+    names its options."""
 
     message: str
     file: str | None

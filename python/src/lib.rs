@@ -111,8 +111,29 @@ impl Source {
     }
 }
 
-/// A painterly error as `painterly.Error`, with its fields as attributes.
-fn to_py(py: Python<'_>, e: painterly::Error) -> PyErr {
+/// How the library's messages name a CLI option, and how Python names it
+/// (most specific first): a TD calling `painterly.bake(frames=...)` should
+/// not be told to pass `--frames`.
+const PYTHON_WORDS: [(&str, &str); 6] = [
+    ("`painterly bake --camera PRIM`", "`camera=PRIM`"),
+    ("`painterly bake --camera`", "`camera=`"),
+    ("pass --frames A:B", "pass frames=(A, B)"),
+    ("--frames", "frames"),
+    ("--camera", "`camera`"),
+    ("--chunk", "`chunk`"),
+];
+
+/// `message` with the CLI's option names in their Python spelling.
+fn python_words(message: &str) -> String {
+    PYTHON_WORDS
+        .iter()
+        .fold(message.to_string(), |m, (cli, python)| m.replace(cli, python))
+}
+
+/// A painterly error as `painterly.Error`, with its fields as attributes;
+/// its message names options as Python spells them.
+fn to_py(py: Python<'_>, mut e: painterly::Error) -> PyErr {
+    e.message = python_words(&e.message);
     let err = Error::new_err(e.to_string());
     let v = err.value(py);
     let file = e.file.as_ref().map(|f| f.display().to_string());

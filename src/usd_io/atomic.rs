@@ -274,6 +274,8 @@ impl TempFile {
     /// `target` (`tag` tells several temporaries of one target apart, e.g.
     /// `.samples`), read-write, after sweeping the folder's stale ones.
     pub fn create(target: &Path, tag: &str) -> Result<(TempFile, File)> {
+        // Fail before the work, not after it.
+        check_replaceable(target)?;
         sweep_stale(dir_of(target));
         let named = if tag.is_empty() {
             target.to_path_buf()
@@ -298,9 +300,13 @@ impl TempFile {
         &self.path
     }
 
-    /// Renames the temporary to `target` (its file must be closed); on
-    /// failure it is removed.
+    /// Renames the temporary to `target` (its file must be closed), with
+    /// the permission bits of the file it replaces; on failure it is removed.
     pub fn persist(mut self, target: &Path) -> Result<()> {
+        check_replaceable(target)?;
+        if let Ok(old) = std::fs::metadata(target) {
+            std::fs::set_permissions(&self.path, old.permissions()).map_err(|e| e.report().in_file(target))?;
+        }
         let mut reg = registry();
         let renamed = std::fs::rename(&self.path, target);
         unregister(&mut reg, &self.path);
@@ -321,6 +327,32 @@ impl Drop for TempFile {
             discard(&self.path);
         }
     }
+}
+
+/// Refuses to replace a file this user may not write. The rename would
+/// succeed in a writable folder and drop the file's protection; usd-core's
+/// `Save` refuses such a file too.
+fn check_replaceable(target: &Path) -> Result<()> {
+    use std::os::unix::ffi::OsStrExt;
+    use std::os::unix::fs::PermissionsExt;
+    let Ok(meta) = std::fs::metadata(target) else {
+        return Ok(()); // nothing there yet (or nothing we can see: the write says why)
+    };
+    if meta.is_dir() {
+        return Ok(()); // the rename fails and says so
+    }
+    let Ok(c) = std::ffi::CString::new(target.as_os_str().as_bytes()) else {
+        return Ok(());
+    };
+    // SAFETY: `c` is a valid NUL-terminated path for the duration of the call.
+    if unsafe { libc::access(c.as_ptr(), libc::W_OK) } == 0 {
+        return Ok(());
+    }
+    Err(Error::msg(format!(
+        "cannot replace a file this user may not write (mode {:03o}): change its permissions first",
+        meta.permissions().mode() & 0o7777
+    ))
+    .in_file(target))
 }
 
 /// Writes `bytes` to a temporary sibling of `path` and renames it into place.
@@ -512,6 +544,29 @@ mod tests {
             assert!(!dead.exists());
         }
         assert!(alive.exists() && remote.exists() && user.exists());
+    }
+
+    #[test]
+    fn a_replaced_file_keeps_its_mode_and_a_new_one_gets_the_default() {
+        use std::os::unix::fs::PermissionsExt;
+        let dir = fresh_dir("mode");
+        let mode = |p: &Path| std::fs::metadata(p).unwrap().permissions().mode() & 0o7777;
+        let fresh = dir.join("fresh.usda");
+        write_atomic(&fresh, b"new").unwrap();
+        let default = mode(&fresh);
+        for m in [0o600, 0o640, 0o755] {
+            let out = dir.join(format!("out{m:o}.usda"));
+            std::fs::write(&out, b"old").unwrap();
+            std::fs::set_permissions(&out, std::fs::Permissions::from_mode(m)).unwrap();
+            write_atomic(&out, b"new").unwrap();
+            assert_eq!((mode(&out), std::fs::read(&out).unwrap()), (m, b"new".to_vec()));
+            assert_ne!(m, default);
+        }
+        // A folder is not replaced: the rename says why.
+        let folder = dir.join("folder.usda");
+        std::fs::create_dir(&folder).unwrap();
+        assert!(write_atomic(&folder, b"x").is_err());
+        assert!(folder.is_dir());
     }
 
     #[test]
