@@ -137,6 +137,23 @@ def test_edit_layer_is_the_input(painterly, case):
     refused(painterly, *brush_args(inp), names=["--in-place"], edit_layer="tube.usda")
 
 
+def test_edit_layer_over_another_input(painterly, case, tmp_path):
+    """An existing edit layer made over one input is not reused for another:
+    the edits would be computed from the first and land on it."""
+    inp, refused = case
+    other = tmp_path / "other.usda"
+    shutil.copy(inp, other)
+    why = f"this edit layer does not sublayer {other} (it was made over another input)"
+    refused(painterly, "bind", other, names=[why], existing=True)
+    refused(painterly, "key", other, "--layer", LAYER, "--time", 5, "--sentinel", names=[why], existing=True)
+    refused(painterly, *brush_args(other), names=[why], existing=True)
+    # The same input by another name (a symlink) is the same input.
+    alias = tmp_path / "alias.usda"
+    alias.symlink_to(inp)
+    painterly("key", alias, "--layer", LAYER, "--time", 5, "--sentinel", "--edit-layer", tmp_path / "e.usda", "--quiet")
+    assert Usd.Stage.Open(str(tmp_path / "e.usda")).GetPrimAtPath(f"{LAYER}/sentinel1")
+
+
 def test_brush_bad_key_and_strokes(painterly, case):
     inp, refused = case
     refused(painterly, *brush_args(inp, extra=("--key", "nokey")), names=[f"{LAYER}/nokey"])

@@ -275,7 +275,8 @@ pub struct EditArgs {
     /// The painted character (.usda, .usdc; .usdz only with --edit-layer).
     pub input: PathBuf,
     /// Layer that receives the edits; it sublayers the input and is created
-    /// when missing. Open it to see the edited character.
+    /// when missing (an existing one must sublayer the input). Open it to see
+    /// the edited character.
     #[arg(
         long,
         value_name = "FILE",

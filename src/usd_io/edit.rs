@@ -76,6 +76,29 @@ fn read_text(path: &Path) -> Result<Option<String>> {
         .map_err(|_| Error::msg("the usda text is not valid UTF-8; cannot edit it").in_file(path))
 }
 
+/// An existing edit layer must have `input` in its layer stack: otherwise
+/// the edits would be computed from the character it was made over, and
+/// `input` silently ignored.
+fn require_over(reader: &StageReader, input: &Path, edit: &Path) -> Result<()> {
+    let Ok(want) = input.canonicalize() else {
+        return Ok(()); // the input was just opened; nothing better to compare
+    };
+    let stack = reader.stage.layer_stack();
+    let found = stack.iter().any(|id| {
+        // A package's inner layer is named `a.usdz[inner.usdc]`.
+        let file = id.split('[').next().unwrap_or(id);
+        Path::new(file).canonicalize().is_ok_and(|p| p == want)
+    });
+    if found {
+        return Ok(());
+    }
+    Err(Error::msg(format!(
+        "this edit layer does not sublayer {} (it was made over another input): name a new --edit-layer, or give its input",
+        input.display()
+    ))
+    .in_file(edit))
+}
+
 impl EditSession {
     /// Opens `input` for editing into `target`.
     pub fn open(input: &Path, target: &EditTarget) -> Result<EditSession> {
@@ -116,7 +139,9 @@ impl EditSession {
                 }
                 if edit.exists() {
                     let text = read_text(edit)?;
-                    return Ok(session(StageReader::open(edit)?, edit, text, None));
+                    let reader = StageReader::open(edit)?;
+                    require_over(&reader, input, edit)?;
+                    return Ok(session(reader, edit, text, None));
                 }
                 let dir = match edit.parent() {
                     Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
