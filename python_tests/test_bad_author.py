@@ -6,6 +6,7 @@ and never panics.
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 
@@ -252,6 +253,24 @@ def test_usage_errors(painterly, case, tmp_path, argv):
     inp, refused = case
     args = [str(a).format(inp=inp, e=tmp_path / "e.usda") for a in argv]
     refused(painterly, *args, code=2, edit_layer=None)
+
+
+@pytest.mark.parametrize("name", ["a/b", "../up", "bad name", "1st", "", "k.x"])
+def test_a_key_name_is_one_prim_name(painterly, case, name):
+    """`--name a/b` used to write `over "a" { def ... "b" }` outside the
+    layer, where no bake looks for keys, and report success."""
+    inp, refused = case
+    msg = refused(painterly, "key", inp, "--layer", LAYER, "--time", 3, "--name", name, "--sentinel", code=2)
+    why = "is not a prim name: letters, digits and _, not starting with a digit"
+    assert msg == f"error: {inp}: --name {json.dumps(name)} {why}\n"
+
+
+def test_a_key_name_may_be_any_identifier(painterly, case, tmp_path):
+    inp, _ = case
+    e = tmp_path / "e.usda"
+    for t, name in [(3, "_k9"), (4, "ключ")]:
+        painterly("key", inp, "--layer", LAYER, "--time", t, "--name", name, "--sentinel", "--edit-layer", e, "--quiet")
+        assert Usd.Stage.Open(str(e)).GetPrimAtPath(f"{LAYER}/{name}").GetTypeName() == "PainterlyTimeKey"
 
 
 def test_in_place_usdz_with_an_upper_case_extension(painterly, case, tmp_path):

@@ -304,6 +304,9 @@ pub struct KeyOptions {
 /// coincide with an existing key of the same channel is refused unless
 /// `replace`, which then rewrites that key.
 pub fn key(session: &EditSession, opts: &KeyOptions) -> Result<String> {
+    if let Some(name) = &opts.name {
+        check_prim_name(name)?;
+    }
     let r = &session.reader;
     let (mut scene, _) = scene_at(session, Some(opts.time))?;
     let (ri, li) = find_layer(r, &scene, &opts.layer)?;
@@ -421,6 +424,19 @@ fn key_place(r: &StageReader, rig: &mut Rig, li: usize, opts: &KeyOptions) -> Re
             scales: Vec::new(),
         }),
     }
+}
+
+/// A key's name is one prim name: `a/b` would define a prim outside the
+/// layer, where bake and inspect never look for keys.
+fn check_prim_name(name: &str) -> Result<()> {
+    let mut chars = name.chars();
+    let first = chars.next().is_some_and(|c| c == '_' || c.is_alphabetic());
+    if first && chars.all(|c| c == '_' || c.is_alphanumeric()) {
+        return Ok(());
+    }
+    Err(Error::usage(format!(
+        "--name {name:?} is not a prim name: letters, digits and _, not starting with a digit"
+    )))
 }
 
 /// The new key's path: the key it replaces (one of the same name, or at the

@@ -150,7 +150,8 @@ pub enum Command {
         /// Time code whose configuration (or timeline position) is keyed.
         #[arg(long, value_name = "T", allow_negative_numbers = true)]
         time: f64,
-        /// Key prim name (default: key1, time1, sentinel1, ...).
+        /// Key prim name, a child of the layer (default: key1, time1,
+        /// sentinel1, ...): letters, digits and _, not starting with a digit.
         #[arg(long)]
         name: Option<String>,
         /// Capture the layer's current rest positions.
