@@ -153,6 +153,19 @@ def _short_points(kind):
     return f
 
 
+def _samples_only(prim_path, name):
+    """The attribute's default moved to a time sample at 1, as exporters that
+    time-sample everything write it; the schema makes it uniform, so
+    painterly (like usd-core's Get()) would read it as absent."""
+    def f(stage, rig, rest):
+        a = stage.GetPrimAtPath(prim_path).GetAttribute(name)
+        v = a.Get()
+        assert v is not None, f"{prim_path}.{name} has no default to move"
+        a.Clear()
+        a.Set(v, 1.0)
+    return f
+
+
 _missing_src_path, _missing_src = _new_axis("noSource", "blendShape", name="bulge")
 _ghost_path, _ghost = _new_axis("ghost", "position", source="/World/Nope", component=1)
 _ghost_attr_path, _ghost_attr = _new_axis("ghostAttr", "attribute", source="/World/Controls.ctl:nope")
@@ -210,6 +223,11 @@ CASES = {
     "quaternion_component_4": (_qc, [f"{_qc_path}.component"], ()),
     # a viewDirection axis with neither a source nor --camera
     "view_without_source_or_camera": (_vn, [_vn_path], ()),
+    # uniform attributes authored only as time samples
+    **{f"samples_only_{n.split(':')[-1]}_{p.rsplit('/', 1)[1]}": (_samples_only(p, n), [f"{p}.{n}", "only as time samples"], ())
+       for p, n in [(f"{LAYER}/flat", "points"), (f"{LAYER}/puffed", "coordinates"), (f"{LAYER}/dim", "opacity"),
+                    (f"{LAYER}/shock", "time"), (f"{LAYER}/s0", "sentinel"), (AXIS, "name"), (AXIS, "kind"),
+                    (LAYER, "painterly:restPoints")]},
 }
 
 
@@ -253,6 +271,34 @@ def test_inspect_reports_bad_key(painterly, tmp_path, case):
     for p in prims:
         assert p in text, f"inspect does not mention {p}:\n{text}"
     assert Au.file_hash(rig.path) == before
+
+
+def test_a_uniform_attribute_with_only_time_samples_is_named(painterly, tmp_path):
+    """The whole message and the inspect problem's rule; a default beside
+    time samples is read, as usd-core's Get() reads it."""
+    rig, rest = good_stage(tmp_path)
+    edit(rig.path, lambda st: _samples_only(LAYER, "painterly:restPoints")(st, rig, rest))
+    err = expect_failure(painterly, tmp_path, rig.path)
+    assert err == (
+        f"error: {rig.path}: {LAYER}.painterly:restPoints: authored only as time samples (1 sample, first at 1), "
+        "but the schema makes it uniform: painterly reads its default value; author it without a time\n"
+    )
+    report = json.loads(painterly("inspect", rig.path, "--json", check=False).stdout)
+    assert [(p["prim"], p["attribute"], p["rule"]) for p in report["problems"]] == [
+        (LAYER, "painterly:restPoints", "attribute-type")]
+
+    def default_and_samples(stage):
+        a = stage.GetPrimAtPath(LAYER).GetAttribute("painterly:restPoints")
+        a.Set(Vt.Vec3fArray([tuple(p) for p in rest]))
+        a.Set(Vt.Vec3fArray([tuple(p + 1.0) for p in rest]), 2.0)
+    edit(rig.path, default_and_samples)
+    out = tmp_path / "bake.usda"
+    painterly("bake", rig.path, "-o", out, "--frames", "1:2", "--quiet")
+    clean, _ = good_stage(tmp_path / "clean")
+    painterly("bake", clean.path, "-o", tmp_path / "clean.usda", "--frames", "1:2", "--quiet")
+    baked = [Usd.Stage.Open(str(p)) for p in (out, tmp_path / "clean.usda")]
+    got, want = (np.array(st.GetPrimAtPath(LAYER).GetAttribute("points").Get(2)) for st in baked)
+    assert got.shape == (len(rest), 3) and np.array_equal(got, want)
 
 
 def test_inspect_lists_a_bad_attribute_pick_beside_another_problem(painterly, tmp_path):

@@ -22,6 +22,19 @@ use crate::error::{Error, Result};
 /// A prim of an opened stage (a handle: cheap to clone, tied to its stage's thread).
 pub type Prim = usd::Prim;
 
+/// `painterly:` attributes the schema declares `uniform`: painterly reads
+/// only their default value (the attributes of Painterly typed prims are
+/// all uniform too). Checked against `schemas/painterly/schema.usda`.
+pub const PAINTERLY_UNIFORM: [&str; 7] = [
+    "painterly:restTime",
+    "painterly:restPoints",
+    "painterly:bindVertices",
+    "painterly:bindWeights",
+    "painterly:interpolation",
+    "painterly:rbfRadius",
+    "painterly:uncovered",
+];
+
 /// An opened, composed USD stage.
 pub struct StageReader {
     /// The composed stage (sublayers, references and payloads resolved).
@@ -364,6 +377,32 @@ impl StageReader {
             .map_err(|e| Error::attr(prim.path(), name, format!("cannot read relationship: {e}")))
     }
 
+    /// Fails when `name` is uniform in painterly's schema (a `painterly:`
+    /// attribute in [`PAINTERLY_UNIFORM`], or any attribute of a Painterly
+    /// typed prim) and is authored only as time samples: its default, the
+    /// only value painterly reads, would be absent and the bake would go on
+    /// without it (rest points from `points`, a key without its points).
+    fn refuse_samples_only(&self, prim: &usd::Prim, name: &str) -> Result<()> {
+        let uniform = PAINTERLY_UNIFORM.contains(&name) || self.type_name(prim)?.starts_with("Painterly");
+        if !uniform {
+            return Ok(());
+        }
+        let times = self.sample_times(prim, name)?;
+        let Some(first) = times.first() else {
+            return Ok(());
+        };
+        Err(Error::attr(
+            prim.path(),
+            name,
+            format!(
+                "authored only as time samples ({}, first at {first}), but the schema makes it uniform: \
+                 painterly reads its default value; author it without a time",
+                crate::words::plural(times.len(), "sample")
+            ),
+        )
+        .rule(crate::rule::Rule::AttributeType))
+    }
+
     /// Reads a typed value, failing with a message naming the expected type.
     pub fn typed<T>(
         &self,
@@ -374,7 +413,12 @@ impl StageReader {
         convert: impl Fn(&Value) -> Option<T>,
     ) -> Result<Option<T>> {
         match self.value(prim, name, time)? {
-            None => Ok(None),
+            None => {
+                if time.is_none() {
+                    self.refuse_samples_only(prim, name)?;
+                }
+                Ok(None)
+            }
             Some(v) => convert(&v).map(Some).ok_or_else(|| {
                 Error::attr(
                     prim.path(),
@@ -566,6 +610,41 @@ mod tests {
     use super::super::atomic::TempDir;
     use super::*;
     use glam::DVec3;
+
+    /// `PAINTERLY_UNIFORM` is the schema's uniform `painterly:` attributes,
+    /// and every attribute of a Painterly typed prim (the other half of the
+    /// rule `refuse_samples_only` applies) is uniform.
+    #[test]
+    fn painterly_uniform_is_the_schema_s() {
+        let schema = include_str!("../../schemas/painterly/schema.usda");
+        let mut uniform = Vec::new();
+        let mut class = "";
+        for line in schema.lines() {
+            if let Some(rest) = line.strip_prefix("class ") {
+                class = rest.split('"').nth(1).unwrap_or("");
+                continue;
+            }
+            // Attribute declarations open their metadata: `    [uniform] type name [= value] (`.
+            let Some(decl) = line
+                .strip_prefix("    ")
+                .filter(|d| !d.starts_with(' ') && d.ends_with(" ("))
+            else {
+                continue;
+            };
+            let (is_uniform, name) = match decl.split_whitespace().collect::<Vec<_>>().as_slice() {
+                ["rel", ..] => continue,
+                ["uniform", _, name, ..] => (true, *name),
+                [_, name, ..] => (false, *name),
+                _ => continue,
+            };
+            if class.starts_with("Painterly") && !class.ends_with("API") {
+                assert!(is_uniform, "{class}.{name} is not uniform");
+            } else if is_uniform {
+                uniform.push(name);
+            }
+        }
+        assert_eq!(uniform, PAINTERLY_UNIFORM);
+    }
 
     /// The file named for a value is the layer whose opinion wins at that
     /// time: a stronger sublayer's samples at a time, the weaker one's
