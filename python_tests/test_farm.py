@@ -423,13 +423,13 @@ def test_bad_submit_arguments(painterly, tmp_path, args, code, message):
 
 
 def test_bad_inputs_and_outputs(painterly, tmp_path):
-    for src, out, message in [
-        (tmp_path / "nope.usda", tmp_path / "shot.usda", "cannot open input"),
-        (BLOWFISH, tmp_path / "shot.usdc", "name it .usda"),
-        (BLOWFISH, tmp_path / "no" / "shot.usda", "does not exist"),
+    for src, out, message, code in [
+        (tmp_path / "nope.usda", tmp_path / "shot.usda", "cannot open input", 1),
+        (BLOWFISH, tmp_path / "shot.usdc", "name it .usda", 2),
+        (BLOWFISH, tmp_path / "no" / "shot.usda", "does not exist", 1),
     ]:
         proc = painterly("farm", "submit", src, "-o", out, "--chunk", "4", "--scheduler", "openjd", check=False)
-        assert proc.returncode == 1, proc.stderr
+        assert proc.returncode == code, proc.stderr
         assert message in proc.stderr
     assert list(tmp_path.iterdir()) == []
     bad = tmp_path / "shot.clips" / "farm"

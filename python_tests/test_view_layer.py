@@ -5,6 +5,7 @@ import json
 import shutil
 
 import numpy as np
+import pytest
 from pxr import Sdf, Usd, UsdGeom, UsdValidation
 
 
@@ -59,6 +60,18 @@ def test_view_refuses_a_bake_of_another_input(painterly, tmp_path, repo_root):
     assert proc.returncode == 1
     assert "was made from" in proc.stderr and "apple.usda" in proc.stderr
     assert not (tmp_path / "v.usda").exists()
+
+
+@pytest.mark.parametrize("name", ["v.usdc", "v.usd"])
+def test_a_view_layer_not_named_usda_is_a_usage_error(painterly, tmp_path, repo_root, name):
+    """The view layer is text; any other output name is a command-line
+    mistake (exit 2), as a bake's wrong extension is."""
+    bake = tmp_path / "tube.usdc"
+    painterly("bake", repo_root / "fixtures" / "tube.usda", "-o", bake, "--frames", "1:2")
+    out = tmp_path / name
+    proc = painterly("view", repo_root / "fixtures" / "tube.usda", "--bake", bake, "-o", out, check=False)
+    assert (proc.returncode, proc.stderr) == (2, f"error: {out}: the view layer is text: name it .usda\n")
+    assert not out.exists()
 
 
 def test_view_of_a_clip_set_bake(painterly, tmp_path, repo_root):

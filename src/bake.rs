@@ -127,10 +127,10 @@ fn open_for_bake_with(
     open: impl FnOnce() -> Result<StageReader>,
 ) -> Result<Character> {
     if opts.chunk.is_some() && Format::from_path(output)? != Format::Usda {
-        return Err(Error::msg("with --chunk the output is the clip-set layer: name it .usda").in_file(output));
+        return Err(Error::usage("with --chunk the output is the clip-set layer: name it .usda").in_file(output));
     }
     if opts.chunk.is_none() && (opts.chunk_index.is_some() || opts.assemble) {
-        return Err(Error::msg("--chunk-index and --assemble need --chunk N"));
+        return Err(Error::usage("--chunk-index and --assemble need --chunk N"));
     }
     check_output(input, output)?;
     let opening = Instant::now();

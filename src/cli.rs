@@ -48,9 +48,10 @@ pub enum Command {
     /// Writes a new layer holding only `over` specs: every stroke layer's
     /// points (in the stroke prim's local space), extent and
     /// primvars:displayOpacity at every baked time code, plus the input's
-    /// time-code range, timeCodesPerSecond, upAxis and metersPerUnit. Open the
-    /// input with the bake sublayered on top to see the result. The input is
-    /// never modified; a failed bake leaves no output file.
+    /// time-code range, timeCodesPerSecond, framesPerSecond, upAxis and
+    /// metersPerUnit. Open the input with the bake sublayered on top to see
+    /// the result. The input is never modified; a failed bake leaves no
+    /// output file.
     ///
     /// Example: painterly bake fixtures/blowfish.usda -o /tmp/blowfish_bake.usdc --frames 1:48
     Bake {

@@ -527,7 +527,7 @@ pub fn run(cmd: FarmCommand) -> i32 {
 
 fn report(e: &Error) -> i32 {
     eprintln!("error: {e}");
-    1
+    e.exit_code()
 }
 
 /// The full path of `program` on PATH, if any.

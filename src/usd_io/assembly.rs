@@ -29,7 +29,7 @@ pub struct ViewSummary {
 /// Writes `output`: `bake` over `input`, ready to open in a viewer.
 pub fn write_view_layer(input: &Path, bake: &Path, output: &Path) -> Result<ViewSummary> {
     if Format::from_path(output)? != Format::Usda {
-        return Err(Error::msg("the view layer is text: name it .usda").in_file(output));
+        return Err(Error::usage("the view layer is text: name it .usda").in_file(output));
     }
     for (p, what) in [(input, "input"), (bake, "bake layer")] {
         if !p.is_file() {
