@@ -111,6 +111,14 @@ def test_tool_path_prim_too_short_or_missing(painterly, case):
     args = ["smudge", inp, "--layer", LAYER, "--radius", "1", "--strength", "0.1"]
     refused(painterly, *args, "--path-prim", "/World/OnePoint", names=["path"])
     refused(painterly, *args, "--path-prim", "/World/NoCurve", names=["/World/NoCurve"])
+    # The proxy mesh has points too, but is no path (walkthrough: its 2,550
+    # points in index order moved 600 points).
+    stage = Usd.Stage.Open(str(inp))
+    mesh = next(str(p.GetPath()) for p in stage.Traverse() if p.GetTypeName() == "Mesh")
+    for which in ("smudge", "expand"):
+        args = [which, inp, "--layer", LAYER, "--radius", "1", "--strength", "0.1"]
+        refused(painterly, *args, "--path-prim", mesh,
+                names=[f"{mesh}: the tool path prim is a Mesh, not a BasisCurves (--path-prim takes a curve)"])
 
 
 @pytest.mark.parametrize("radius", ["0", "-1", "inf"])
@@ -153,6 +161,20 @@ def test_edit_layer_over_another_input(painterly, case, tmp_path):
     alias.symlink_to(inp)
     painterly("key", alias, "--layer", LAYER, "--time", 5, "--sentinel", "--edit-layer", tmp_path / "e.usda", "--quiet")
     assert Usd.Stage.Open(str(tmp_path / "e.usda")).GetPrimAtPath(f"{LAYER}/sentinel1")
+
+
+def test_nothing_to_bind(painterly, case, tmp_path):
+    """A stage without stroke layers (a character before painting) is an
+    error, as for bake, not an empty edit layer and "bound 0 points"."""
+    _, refused = case
+    empty = tmp_path / "unpainted.usda"
+    stage = Usd.Stage.CreateNew(str(empty))
+    UsdGeom.Xform.Define(stage, "/World")
+    stage.GetRootLayer().Save()
+    why = "nothing to bind: no stroke layer (PainterlyStrokeLayerAPI under a prim with PainterlyRigAPI)"
+    for target in ("e.usda", None):
+        refused(painterly, "bind", empty, *([] if target else ["--in-place"]), names=[why], file=empty,
+                edit_layer=target)
 
 
 def test_brush_bad_key_and_strokes(painterly, case):

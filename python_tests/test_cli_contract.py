@@ -79,7 +79,7 @@ def cases(tmp):
         ("render-no-camera", ["render", APPLE, "--frames", "1", "-o", frames_out], None, 2),
         # view
         ("view-bake-missing", ["view", TUBE, "--bake", tmp / "none.usdc", "-o", tmp / "v.usda"], None, 1),
-        ("view-not-usda", ["view", TUBE, "--bake", tmp / "none.usdc", "-o", tmp / "v.usdc"], None, 1),
+        ("view-not-usda", ["view", TUBE, "--bake", tmp / "none.usdc", "-o", tmp / "v.usdc"], None, 2),
         ("view-no-bake", ["view", TUBE, "-o", tmp / "v.usda"], None, 2),
         # interpolate
         ("interpolate-ok", ["interpolate"], '{"method": "shepard", "keys": [[0], [1]], "points": [[0.5]]}', 0),

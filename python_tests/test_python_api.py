@@ -263,6 +263,25 @@ def test_inspect_is_the_cli_report():
         assert painterly.inspect(path) == json.loads(run_painterly("inspect", path, "--json").stdout)
 
 
+def test_inspect_takes_the_frames_of_the_bake(tmp_path):
+    """A stage without a time range needs frames for inspect, as for bake;
+    the report is the CLI's with the same --frames."""
+    src = tmp_path / "tube.usda"
+    Sdf.Layer.FindOrOpen(str(FIXTURES / "tube.usda")).Export(str(src))
+    layer = Sdf.Layer.FindOrOpen(str(src))
+    layer.ClearStartTimeCode()
+    layer.ClearEndTimeCode()
+    layer.Save()
+    without = painterly.inspect(src)
+    assert [p["message"] for p in without["problems"]] == [
+        "the stage has no startTimeCode/endTimeCode: pass --frames A:B"]
+    assert without == json.loads(run_painterly("inspect", src, "--json", check=False).stdout)
+    for frames, cli in [((1, 12), "1:12"), ("1:12:2", "1:12:2"), (5, "5")]:
+        report = painterly.inspect(src, frames=frames)
+        assert report["problems"] == []
+        assert report == json.loads(run_painterly("inspect", src, "--json", "--frames", cli).stdout)
+
+
 def test_inspect_vouches_for_the_bake_with_its_camera(tmp_path):
     """Without `painterly:camera` the view-dependent mesh needs the bake's
     --camera: inspect reports that unless given the same camera, as the CLI."""

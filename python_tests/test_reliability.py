@@ -304,6 +304,44 @@ def test_inspect_evaluates_every_frame_bake_would(tmp_path, fixture, prim, attr,
     assert run("inspect", REPO / "fixtures" / fixture).returncode == 0
 
 
+def test_inspect_checks_the_frames_bake_will_get(tmp_path):
+    """inspect takes bake's --frames: a stage without a time range (a paint
+    layer over a published asset) fails inspect as it fails bake, and
+    passes both with the same --frames; --frames that avoid a bad frame
+    pass, frames that reach it fail, as the bakes do (walkthrough: inspect
+    passed a stage without a range that bake then refused)."""
+    import json
+
+    src = non_finite_at_a_frame(tmp_path, "static.usda", "/Static/Rig/Proxy", "xformOp:translate",
+                                (0.5, 1, 0), (float("inf"), 1, 0))
+    layer = Sdf.Layer.FindOrOpen(str(src))
+    layer.ClearStartTimeCode()
+    layer.ClearEndTimeCode()
+    layer.Save()
+    why = "the stage has no startTimeCode/endTimeCode: pass --frames A:B"
+    bake_fails(tmp_path, src, why)
+    proc = run("inspect", src, "--json")
+    assert proc.returncode == 1, proc.stdout + proc.stderr
+    assert json.loads(proc.stdout)["problems"] == [{"prim": None, "attribute": None, "message": why, "rule": "unreadable"}]
+    out = tmp_path / "ok.usdc"
+    # The translate is held before its good sample at 1 and interpolates
+    # towards inf after it: frames up to 1 evaluate, later ones do not. A
+    # pre-roll's negative frames are values, not options.
+    for frames, code in [("1", 0), ("-2:1:0.5", 0), ("1:2", 1), ("6", 1)]:
+        inspected = run("inspect", src, "--frames", frames)
+        baked = run("bake", src, "-o", out, "--frames", frames, "-q")
+        assert (inspected.returncode, baked.returncode) == (code, code), (frames, inspected.stdout, baked.stderr)
+        if code:
+            assert "/Static/Rig/Proxy" in inspected.stdout and "not finite" in inspected.stdout, inspected.stdout
+    # A stage with a range: --frames must lie inside it, as for bake.
+    fixture = REPO / "fixtures" / "static.usda"
+    proc = run("inspect", fixture, "--frames", "0:100", "--json")
+    assert proc.returncode == 1
+    assert [p["message"] for p in json.loads(proc.stdout)["problems"]] == [
+        "--frames 0:100 is outside the stage's time range 1:12 (startTimeCode:endTimeCode)"]
+    expect_error(run("inspect", fixture, "--frames", "1:2:0"), 2, "--frames")
+
+
 def undecodable_camera_samples(tmp_path):
     """Found by `scripts/fuzz --seed 20261205` (case 11453): usd-core's
     crate export of building.usda with two bytes changed, so that the

@@ -168,7 +168,8 @@ def test_bake_survives_usd_core_save(painterly, tmp_path, proxy):
         assert np.array_equal(a, b)
     # painterly reads the saved file: on its own and over the input.
     painterly("inspect", bake)
-    out = painterly("inspect", shot)
+    # The composing layer has no time range of its own: give the bake's.
+    out = painterly("inspect", shot, "--frames", f"{rig.frames[0]}:{rig.frames[-1]}")
     assert rig.layers[0] in out.stdout
 
 

@@ -189,6 +189,12 @@ pub fn bind(session: &EditSession, opts: &BindOptions) -> Result<BindReport> {
     for l in &opts.layers {
         find_layer(r, &scene, l)?;
     }
+    // As bake: a stage with nothing to bind is an error, not an empty layer.
+    if scene.rigs.iter().all(|rig| rig.layers.is_empty()) {
+        return Err(Error::msg(
+            "nothing to bind: no stroke layer (PainterlyStrokeLayerAPI under a prim with PainterlyRigAPI)",
+        ));
+    }
     let mut report = Vec::new();
     for rig in &scene.rigs {
         let chosen: Vec<&StrokeLayer> = rig
@@ -896,6 +902,19 @@ fn world_normals(pose: &PosedRig, binding: &Binding, to_proxy: DMat3) -> Vec<DVe
 /// `time` (default value when None), in world space.
 pub fn path_from_prim(r: &StageReader, prim_path: &str, time: Option<f64>, xform_time: f64) -> Result<Vec<DVec3>> {
     let prim = r.require_prim(prim_path)?;
+    // A mesh's points would make a path through its vertices in index order.
+    let ty = r.type_name(&prim)?;
+    if ty != "BasisCurves" {
+        let what = if ty.is_empty() {
+            "an untyped prim".to_string()
+        } else {
+            format!("a {ty}")
+        };
+        return Err(Error::prim(
+            prim_path,
+            format!("the tool path prim is {what}, not a BasisCurves (--path-prim takes a curve)"),
+        ));
+    }
     let pts = r
         .typed(&prim, "points", time, "point3f[]", values::vec3_array)?
         .ok_or_else(|| Error::attr(prim_path, "points", "the tool path prim has no points"))?;

@@ -186,19 +186,23 @@ pub fn leave_binding_cache(ch: &Character, output: &Path) {
     }
 }
 
-/// Evaluates every frame that `bake` without `--frames` (with `camera` as
-/// `--camera`) would bake, and writes nothing: what `inspect` runs so that
-/// its exit 0 means such a bake succeeds (camera transforms, posed points
-/// and opacities can fail only at a frame). Returns how many frames were
-/// evaluated: none for a stage with nothing to bake or without a complete
-/// frame range (bake then needs `--frames`).
-pub fn evaluate_every_frame(reader: StageReader, camera: Option<&str>, progress: Progress) -> Result<usize> {
-    let meta = reader.metadata();
+/// Evaluates every frame that `bake` (with `camera` as `--camera` and
+/// `frames` as `--frames`) would bake, and writes nothing: what `inspect`
+/// runs so that its exit 0 means such a bake succeeds (camera transforms,
+/// posed points and opacities can fail only at a frame; a stage without a
+/// time range needs `frames`, as bake does). Returns how many frames were
+/// evaluated: none for a stage with nothing to bake.
+pub fn evaluate_every_frame(
+    reader: StageReader,
+    camera: Option<&str>,
+    frames: Option<FrameRange>,
+    progress: Progress,
+) -> Result<usize> {
     let ch = Character::from_reader(reader, camera)?;
-    if is_empty(&ch.model, &BakeOptions::default()) || meta.start_time_code.is_none() || meta.end_time_code.is_none() {
+    if is_empty(&ch.model, &BakeOptions::default()) {
         return Ok(0);
     }
-    let times = resolve_frames(&ch.reader, None)?;
+    let times = resolve_frames(&ch.reader, frames)?;
     stream(&ch, &times, false, Box::new(DiscardSink), progress)?;
     Ok(times.len())
 }

@@ -62,7 +62,7 @@ pub enum Command {
         output: PathBuf,
         /// Time codes to bake: A, A:B or A:B:STEP (default: the stage's
         /// startTimeCode:endTimeCode). Must lie inside the stage's range.
-        #[arg(long, value_name = "A:B[:STEP]")]
+        #[arg(long, value_name = "A:B[:STEP]", allow_hyphen_values = true)]
         frames: Option<FrameRange>,
         /// Also write every proxy mesh's evaluated points and extent; skinned
         /// proxies get skel:skeleton blocked so viewers do not deform them twice.
@@ -96,9 +96,10 @@ pub enum Command {
     /// List rigs, proxies, axes, stroke layers (Table I columns), view-dependent
     /// meshes and every problem found. Exits 1 when there are problems.
     ///
-    /// When nothing else is wrong, every frame of the stage's range is
-    /// evaluated as `bake` would (nothing is written): exit 0 means that
-    /// `painterly bake` (with the same --camera) succeeds.
+    /// When nothing else is wrong, every frame of the stage's range (or of
+    /// --frames) is evaluated as `bake` would (nothing is written): exit 0
+    /// means that `painterly bake` with the same --frames and --camera
+    /// succeeds. A stage without a time range needs --frames, as bake does.
     ///
     /// Example: painterly inspect fixtures/blowfish.usda
     Inspect {
@@ -112,6 +113,10 @@ pub enum Command {
         /// without painterly:camera).
         #[arg(long, value_name = "PRIM")]
         camera: Option<String>,
+        /// Check the frames `painterly bake --frames A:B[:STEP]` would bake
+        /// (default: the stage's startTimeCode:endTimeCode).
+        #[arg(long, value_name = "A:B[:STEP]", allow_hyphen_values = true)]
+        frames: Option<FrameRange>,
     },
     /// Bind strokes painted in a pose: store their rest positions and binding.
     ///
@@ -516,7 +521,12 @@ pub fn run(cli: Cli) -> i32 {
             };
             run_bake(&input, &output, &opts, quiet, json)
         }
-        Command::Inspect { input, json, camera } => run_inspect(&input, camera.as_deref(), json),
+        Command::Inspect {
+            input,
+            json,
+            camera,
+            frames,
+        } => run_inspect(&input, camera.as_deref(), frames, json),
         Command::Bind { edit, layer, time } => finish(run_bind(&edit, BindOptions { layers: layer, time }), &edit),
         Command::Key {
             edit,
@@ -617,9 +627,9 @@ fn frames_done(bar: &ProgressBar) -> impl Fn(usize, usize) + Sync + '_ {
 
 /// `painterly inspect`: exit 1 when the report lists problems. Evaluating
 /// every frame of a long range takes a while: a bar shows it on a terminal.
-fn run_inspect(input: &Path, camera: Option<&str>, json: bool) -> i32 {
+fn run_inspect(input: &Path, camera: Option<&str>, frames: Option<FrameRange>, json: bool) -> i32 {
     let bar = crate::log::frame_bar(!json, "checking frame {pos}/{len}");
-    let result = inspect(input, camera, &frames_done(&bar));
+    let result = inspect(input, camera, frames, &frames_done(&bar));
     bar.finish_and_clear();
     match result {
         Ok(rep) => {

@@ -12,6 +12,7 @@ use serde::Serialize;
 
 use crate::bake::Progress;
 use crate::error::{Error, Result};
+use crate::frames::FrameRange;
 use crate::rule::Rule;
 use crate::usd_io::clips::{clip_set_status, ChunkState};
 use crate::usd_io::scene::{ProxyMotion, Rig, Scene, StrokeLayer};
@@ -220,28 +221,34 @@ fn check_point_samples(r: &StageReader, layer: &StrokeLayer, problems: &mut Vec<
 
 /// Builds the report. Fails only when the file cannot be opened at all.
 ///
-/// `camera` is what `bake --camera` would be given: the report then vouches
-/// for that bake. The stage is opened as bake opens it (mapped), so that
+/// `camera` and `frames` are what `bake --camera --frames` would be given:
+/// the report then vouches for that bake. The stage is opened as bake opens it (mapped), so that
 /// its frames are read the same way: a mapped stage reads time samples
 /// and fixed transforms through its own paths.
-pub fn inspect(path: &Path, camera: Option<&str>, progress: Progress) -> Result<Report> {
+pub fn inspect(path: &Path, camera: Option<&str>, frames: Option<FrameRange>, progress: Progress) -> Result<Report> {
     let reader = StageReader::open_mapped(path)?;
-    let mut report = inspect_stage(&reader)?;
-    check_every_frame(reader, camera, &mut report, progress);
+    let mut report = inspect_stage_for(&reader, frames)?;
+    check_every_frame(reader, camera, frames, &mut report, progress);
     Ok(report)
 }
 
 /// When the report has no problem yet, evaluates every frame `bake` (with
-/// `camera` as `--camera`, no `--frames`) would, writing nothing, and
-/// reports the first failure, so that inspect passing means that bake
+/// `camera` as `--camera`, `frames` as `--frames`) would, writing nothing,
+/// and reports the first failure, so that inspect passing means that bake
 /// succeeds: some inputs fail only when evaluated at a frame (a camera
-/// transform, a non-finite posed point). `progress` hears (frames done,
-/// frames) as bake's does.
-pub fn check_every_frame(reader: StageReader, camera: Option<&str>, report: &mut Report, progress: Progress) {
+/// transform, a non-finite posed point), and a stage without a time range
+/// needs `frames`. `progress` hears (frames done, frames) as bake's does.
+pub fn check_every_frame(
+    reader: StageReader,
+    camera: Option<&str>,
+    frames: Option<FrameRange>,
+    report: &mut Report,
+    progress: Progress,
+) {
     if !report.problems.is_empty() {
         return;
     }
-    if let Err(e) = crate::bake::evaluate_every_frame(reader, camera, progress) {
+    if let Err(e) = crate::bake::evaluate_every_frame(reader, camera, frames, progress) {
         report.problems.push(Problem::new(e, Rule::Unreadable));
     }
 }
@@ -249,6 +256,12 @@ pub fn check_every_frame(reader: StageReader, camera: Option<&str>, report: &mut
 /// Builds the report of an opened stage (a file, or a layer handed over in
 /// memory, see [`crate::usd_io::memory`]).
 pub fn inspect_stage(r: &StageReader) -> Result<Report> {
+    inspect_stage_for(r, None)
+}
+
+/// [`inspect_stage`] for a bake given `frames` (`--frames`): the stage's
+/// range is checked against them, as bake checks it.
+pub fn inspect_stage_for(r: &StageReader, frames: Option<FrameRange>) -> Result<Report> {
     let path = r.file.as_path();
     let (scene, problems) = Scene::read_lenient(r).map_err(|e| e.in_file(path))?;
     let mut problems: Vec<Problem> = problems
@@ -256,7 +269,7 @@ pub fn inspect_stage(r: &StageReader) -> Result<Report> {
         .map(|e| Problem::new(e, Rule::Unreadable))
         .collect();
     let meta = r.metadata();
-    problems.extend(stage_problems(r, &meta));
+    problems.extend(stage_problems(r, &meta, frames));
     let rigs = scene.rigs.iter().map(|rig| rig_report(r, rig, &mut problems)).collect();
     let axes = axis_reports(r)?;
     let (meshes, view_problems) = read_view_meshes_lenient(r, &r.prim_paths()?).map_err(|e| e.in_file(path))?;
@@ -283,8 +296,8 @@ pub fn inspect_stage(r: &StageReader) -> Result<Report> {
 }
 
 /// What bake checks before reading anything: assets, stage metadata and
-/// the default frame range.
-fn stage_problems(r: &StageReader, meta: &StageMetadata) -> Vec<Problem> {
+/// the frame range (`frames`, or the stage's).
+fn stage_problems(r: &StageReader, meta: &StageMetadata, frames: Option<FrameRange>) -> Vec<Problem> {
     let mut problems = Vec::new();
     for u in &r.unresolved {
         let e = Error {
@@ -297,8 +310,9 @@ fn stage_problems(r: &StageReader, meta: &StageMetadata) -> Vec<Problem> {
     if let Err(e) = meta.validate() {
         problems.push(Problem::new(e, Rule::Unreadable));
     } else if has_range {
-        // A stage without a range is fine: bake then needs --frames.
-        if let Err(e) = crate::frames::resolve(meta, None) {
+        // Without any range the frame check below says bake needs --frames;
+        // half a range, or frames outside it, are wrong whatever else is.
+        if let Err(e) = crate::frames::resolve(meta, frames) {
             problems.push(Problem::new(e, Rule::Unreadable));
         }
     }
@@ -759,8 +773,8 @@ mod tests {
     fn a_camera_that_is_not_there_is_a_problem() {
         // The stage itself is clean; only evaluating the frames with
         // --camera /NoCam (what bake --camera /NoCam does) fails.
-        assert!(inspect(&tube(), None, &|_, _| {}).unwrap().problems.is_empty());
-        let report = inspect(&tube(), Some("/NoCam"), &|_, _| {}).unwrap();
+        assert!(inspect(&tube(), None, None, &|_, _| {}).unwrap().problems.is_empty());
+        let report = inspect(&tube(), Some("/NoCam"), None, &|_, _| {}).unwrap();
         assert_eq!(report.problems.len(), 1, "{:?}", report.problems);
         // The problem is bake's own error (`/NoCam: the camera named by
         // --camera does not exist`), on the prim --camera names.

@@ -49,11 +49,12 @@ def bake(
     the bake, which still runs to the end and writes its output. The GIL is
     released while baking."""
 
-def inspect(input: Input, camera: str | None = None) -> dict[str, Any]:
-    """The ``painterly inspect --json [--camera CAMERA]`` report; ``"problems"``
-    lists every problem with ``prim``, ``attribute``, ``message`` and
-    ``rule``. Without problems, every frame a default bake (with ``camera``)
-    would bake evaluates."""
+def inspect(input: Input, camera: str | None = None, frames: Frames | None = None) -> dict[str, Any]:
+    """The ``painterly inspect --json [--camera CAMERA] [--frames A:B]`` report;
+    ``"problems"`` lists every problem with ``prim``, ``attribute``,
+    ``message`` and ``rule``. Without problems, every frame a bake with the
+    same ``camera`` and ``frames`` would bake evaluates (a stage without a
+    time range needs ``frames``, as ``bake`` does)."""
 
 def _interpolate(
     keys: npt.NDArray[np.float64],

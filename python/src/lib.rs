@@ -278,14 +278,20 @@ fn bake(
 
 /// The `inspect --json` report of `input` (a path or an `Sdf.Layer`) as a dict.
 #[pyfunction]
-#[pyo3(signature = (input, camera=None))]
-fn inspect(py: Python<'_>, input: &Bound<'_, PyAny>, camera: Option<String>) -> PyResult<Py<PyAny>> {
+#[pyo3(signature = (input, camera=None, frames=None))]
+fn inspect(
+    py: Python<'_>,
+    input: &Bound<'_, PyAny>,
+    camera: Option<String>,
+    frames: Option<&Bound<'_, PyAny>>,
+) -> PyResult<Py<PyAny>> {
     let src = Source::from_py(input)?;
+    let frames = frames_from_py(py, frames)?;
     let report = py.detach(|| {
         let r = src.open_mapped()?;
-        let mut rep = painterly::inspect::inspect_stage(&r)?;
-        // As the CLI: passing means a default bake succeeds.
-        painterly::inspect::check_every_frame(r, camera.as_deref(), &mut rep, &|_, _| {});
+        let mut rep = painterly::inspect::inspect_stage_for(&r, frames)?;
+        // As the CLI: passing means a bake with the same camera and frames succeeds.
+        painterly::inspect::check_every_frame(r, camera.as_deref(), frames, &mut rep, &|_, _| {});
         if src.text.is_some() {
             rep.file = PathBuf::from(&src.name);
         }

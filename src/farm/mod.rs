@@ -72,7 +72,7 @@ pub struct SubmitArgs {
     #[arg(long, value_enum)]
     pub scheduler: SchedulerKind,
     /// Time codes to bake: A, A:B or A:B:STEP (default: the stage's range).
-    #[arg(long, value_name = "A:B[:STEP]")]
+    #[arg(long, value_name = "A:B[:STEP]", allow_hyphen_values = true)]
     pub frames: Option<FrameRange>,
     /// Camera prim, as for `bake --camera`.
     #[arg(long, value_name = "PRIM")]

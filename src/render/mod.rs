@@ -116,7 +116,7 @@ pub struct RenderArgs {
     #[arg(long, value_name = "PRIM")]
     pub camera: String,
     /// Time codes to render: A, A:B or A:B:STEP.
-    #[arg(long, value_name = "A:B[:STEP]")]
+    #[arg(long, value_name = "A:B[:STEP]", allow_hyphen_values = true)]
     pub frames: FrameRange,
     /// Output EXR path; a run of # is replaced by the zero-padded frame
     /// number (out/name.####.exr). The folder must exist.
