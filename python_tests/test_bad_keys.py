@@ -301,6 +301,24 @@ def test_a_uniform_attribute_with_only_time_samples_is_named(painterly, tmp_path
     assert got.shape == (len(rest), 3) and np.array_equal(got, want)
 
 
+def test_a_blend_shape_axis_the_animation_does_not_animate_gets_a_note(painterly, tmp_path):
+    """SPEC §4: such an axis reads 0 (not a problem: bake succeeds), but a
+    misspelt name reads 0 too, so inspect notes it on the rig, naming what
+    the animation animates (walkthrough: `puf` for `puff` passed silently)."""
+    rig, rest = good_stage(tmp_path)
+    notes = lambda: json.loads(painterly("inspect", rig.path, "--json").stdout)["rigs"][0]["notes"]
+    assert not [n for n in notes() if AXIS in n]
+    edit(rig.path, lambda st: st.GetAttributeAtPath(f"{AXIS}.name").Set("bulgee"))
+    stage = Usd.Stage.Open(str(rig.path))
+    animated = ", ".join(stage.GetPrimAtPath(ANIM).GetAttribute("blendShapes").Get())
+    assert "bulge" in animated.split(", ")
+    assert [n for n in notes() if AXIS in n] == [
+        f'axis {AXIS} reads 0 at every frame: {ANIM} does not animate blend shape "bulgee" (it animates: {animated})']
+    text = painterly("inspect", rig.path).stdout
+    assert f'  note: axis {AXIS} reads 0 at every frame: {ANIM} does not animate blend shape "bulgee"' in text
+    painterly("bake", rig.path, "-o", tmp_path / "bake.usdc", "--quiet")
+
+
 def test_inspect_lists_a_bad_attribute_pick_beside_another_problem(painterly, tmp_path):
     """An attribute axis's element and component are checked when the axis
     is read, not only when a frame is evaluated: inspect evaluates frames

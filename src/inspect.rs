@@ -270,8 +270,9 @@ pub fn inspect_stage_for(r: &StageReader, frames: Option<FrameRange>) -> Result<
         .collect();
     let meta = r.metadata();
     problems.extend(stage_problems(r, &meta, frames));
-    let rigs = scene.rigs.iter().map(|rig| rig_report(r, rig, &mut problems)).collect();
+    let mut rigs: Vec<RigReport> = scene.rigs.iter().map(|rig| rig_report(r, rig, &mut problems)).collect();
     let axes = axis_reports(r)?;
+    note_unanimated_blend_shapes(r, &mut rigs)?;
     let (meshes, view_problems) = read_view_meshes_lenient(r, &r.prim_paths()?).map_err(|e| e.in_file(path))?;
     problems.extend(view_problems.into_iter().map(|e| Problem::new(e, Rule::Unreadable)));
     let view_meshes = meshes.iter().map(view_mesh_report).collect();
@@ -385,6 +386,50 @@ fn axis_reports(r: &StageReader) -> Result<Vec<AxisReport>> {
         }
     }
     Ok(axes)
+}
+
+/// A `blendShape` axis whose animation does not animate its `name` reads 0
+/// at every frame (SPEC §4). That is right for a shape left still, but it is
+/// also what a misspelt name gives: the rig holding the axis gets a note
+/// naming the shapes the animation does animate.
+fn note_unanimated_blend_shapes(r: &StageReader, rigs: &mut [RigReport]) -> Result<()> {
+    for p in r.prim_paths()? {
+        let prim = r.require_prim(&p)?;
+        if r.type_name(&prim)? != "PainterlyAxis" {
+            continue;
+        }
+        // Unreadable or unauthored fields are the axis reader's problems.
+        let kind = r.typed(&prim, "kind", None, "token", values::token).ok().flatten();
+        let name = r.typed(&prim, "name", None, "token", values::token).ok().flatten();
+        let (Some("blendShape"), Some(name)) = (kind.as_deref(), name) else {
+            continue;
+        };
+        let Some(anim) = r.targets(&prim, "source").ok().and_then(|t| t.into_iter().next()) else {
+            continue;
+        };
+        let Some(anim_prim) = r.prim(&anim).ok().flatten() else {
+            continue;
+        };
+        let shapes = r
+            .typed(&anim_prim, "blendShapes", None, "token[]", values::token_array)
+            .ok()
+            .flatten()
+            .unwrap_or_default();
+        if shapes.contains(&name) {
+            continue;
+        }
+        if let Some(rig) = rigs.iter_mut().find(|g| p.starts_with(&format!("{}/", g.path))) {
+            let animated = if shapes.is_empty() {
+                "none".to_string()
+            } else {
+                shapes.join(", ")
+            };
+            rig.notes.push(format!(
+                "axis {p} reads 0 at every frame: {anim} does not animate blend shape {name:?} (it animates: {animated})"
+            ));
+        }
+    }
+    Ok(())
 }
 
 fn view_mesh_report(m: &ViewMesh) -> ViewMeshReport {
