@@ -165,7 +165,7 @@ pub(crate) fn log_opened(path: &Path, reader: &StageReader, started: std::time::
     crate::vlog!(
         "opened {} ({}) in {:.3} s",
         path.display(),
-        plural(reader.stage.layer_identifiers().len(), "layer"),
+        plural(reader.layer_count(), "layer"),
         started.elapsed().as_secs_f64()
     );
 }

@@ -362,8 +362,7 @@ mod tests {
 
 /// Combines configuration-space weights (over pose keys, or `None` for "the
 /// layer's rest value") with temporal weights (over time keys): returns the
-/// final (weight, source) terms where a source is `Err(())` for the rest
-/// value, `Ok((false, k))` for pose key k and `Ok((true, k))` for time key k.
+/// final (weight, [`Source`]) terms.
 pub fn combine(config: Option<&KeyWeights>, temporal: Option<&TemporalWeights>) -> Vec<(f64, Source)> {
     let mut out = Vec::new();
     let cw = temporal.map_or(1.0, |t| t.config);

@@ -3,8 +3,9 @@
 //! Implements Bassett et al. 2013 (stroke skinning, configuration-space and
 //! temporal keyframes) and Rademacher 1999 (view-dependent geometry) over
 //! USD files. Data flows one way: [`usd_io`] reads a composed stage into plain
-//! arrays, the math modules evaluate, and [`usd_io::layer`] writes an override
-//! layer.
+//! arrays, the math modules evaluate, and [`usd_io::bake_layer`] streams the
+//! override layer a bake writes ([`usd_io::layer`] builds the specs of the
+//! other layers painterly writes).
 //!
 //! | module | concept |
 //! |---|---|
@@ -26,6 +27,9 @@
 //! | [`interp`] | configuration-space interpolation (smooth Voronoi, RBF, Shepard) |
 //! | [`render`] | the `render` command: preview EXR/PNG frames and contact sheets |
 //! | [`preview`] | the `preview` command: a live view in the browser (loopback server, WebGL2 page) |
+//! | [`author`], [`tools`] | `bind`, `key`, `smudge`, `expand`: edits through an edit session; the brushes' math |
+//! | [`cli`] | the command line: argument parsing, summary lines, exit codes |
+//! | [`error`], [`log`], [`words`] | errors that name file, prim and attribute; `-v` logging and progress bars; plural and number wording |
 
 pub mod author;
 pub mod bake;

@@ -8,8 +8,10 @@
 //! projected with the USD camera's own parameters ([`camera`]), turned into
 //! pixel-space primitives ([`prepare`]), rasterised and composited
 //! ([`raster`], [`composite`], shaded by [`shade`]) and written
-//! ([`image_io`], [`sheet`]). Everything under this module except `run` is
-//! pure math on plain numbers. See docs/render.md for the design notes.
+//! ([`image_io`], [`sheet`]). Apart from `run`, the stage it composes and
+//! reads, and [`image_io`] (which reads brush images and writes EXR/PNG
+//! files), everything here is pure math on plain numbers. See
+//! docs/render.md for the design notes.
 //!
 //! | module | concept |
 //! |---|---|

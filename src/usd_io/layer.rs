@@ -1,8 +1,9 @@
-//! Writes a bake: a layer of `over` specs with time samples (SPEC §7).
+//! A layer of `over` specs with time samples (SPEC §7), held in memory and
+//! written whole: the binding cache, and the specs a streamed bake
+//! ([`super::bake_layer`]) writes around its samples.
 //!
-//! Specs are collected in memory and written to a temporary file beside the
-//! target, which is then renamed, so a failed bake never leaves a partial
-//! file. `.usdc` goes through painterly's own crate writer ([`super::usdc`]),
+//! The layer is written to a temporary file beside the target, which is
+//! then renamed, so a failed write never leaves a partial file. `.usdc` goes through painterly's own crate writer ([`super::usdc`]),
 //! buffered.
 
 use std::collections::BTreeMap;

@@ -1,7 +1,8 @@
 //! USD input and output: the only modules that touch `openusd`.
 //!
 //! Data flows one way: [`stage`] and [`scene`] read a composed stage into plain
-//! arrays, the math modules evaluate, and [`layer`] writes an override layer.
+//! arrays, the math modules evaluate, and [`bake_layer`] streams the override
+//! layer of a bake ([`layer`] holds the specs of the smaller layers).
 
 pub mod assembly;
 pub mod atomic;

@@ -403,6 +403,11 @@ impl StageReader {
         .rule(crate::rule::Rule::AttributeType))
     }
 
+    /// How many layers the stage opened (root, sublayers, references, ...).
+    pub fn layer_count(&self) -> usize {
+        self.stage.layer_identifiers().len()
+    }
+
     /// Reads a typed value, failing with a message naming the expected type.
     pub fn typed<T>(
         &self,
