@@ -1012,6 +1012,63 @@ def Xform "Moving" {
     /// `require_camera` accepts a prim usd-core types `Camera` and names
     /// what else is there: a Mesh, an untyped prim (`over` or typeless
     /// `def`), no prim at all.
+    /// A uniform attribute (a listed `painterly:` one on any prim, or any
+    /// attribute of a Painterly typed prim) with only time samples is an
+    /// error naming it; one with a default beside samples reads the default;
+    /// a varying attribute with only samples reads as absent at the default
+    /// time, as usd-core's Get() gives.
+    #[test]
+    fn a_uniform_attribute_with_only_time_samples_is_refused() {
+        let dir = crate::test_dir::ScratchDir::new("stage-uniform");
+        let path = dir.join("samples.usda");
+        std::fs::write(
+            &path,
+            r#"#usda 1.0
+def BasisCurves "L" {
+    point3f[] painterly:restPoints.timeSamples = { 1: [(0, 0, 0)] }
+    point3f[] points.timeSamples = { 1: [(0, 0, 0)] }
+    float painterly:opacity.timeSamples = { 1: 0.5 }
+    token painterly:interpolation = "rbf"
+    token painterly:interpolation.timeSamples = { 1: "shepard" }
+    def PainterlyPoseKey "k" {
+        float[] coordinates.timeSamples = { 2: [0.5] }
+    }
+}
+"#,
+        )
+        .unwrap();
+        let r = StageReader::open(&path).unwrap();
+        let read = |prim: &str, name: &str| {
+            let p = r.require_prim(prim).unwrap();
+            r.typed(&p, name, None, "any", |v| Some(v.clone()))
+        };
+        let e = read("/L", "painterly:restPoints").unwrap_err();
+        assert_eq!(
+            (e.prim.as_deref(), e.attribute.as_deref()),
+            (Some("/L"), Some("painterly:restPoints"))
+        );
+        assert_eq!(
+            e.message,
+            "authored only as time samples (1 sample, first at 1), but the schema makes it uniform: \
+             painterly reads its default value; author it without a time"
+        );
+        assert_eq!(e.rule, Some(crate::rule::Rule::AttributeType));
+        let e = read("/L/k", "coordinates").unwrap_err();
+        assert!(
+            e.message
+                .starts_with("authored only as time samples (1 sample, first at 2)"),
+            "{}",
+            e.message
+        );
+        assert_eq!(read("/L", "points").unwrap(), None);
+        assert_eq!(read("/L", "painterly:opacity").unwrap(), None);
+        assert_eq!(
+            read("/L", "painterly:interpolation").unwrap(),
+            Some(Value::Token("rbf".into()))
+        );
+        assert_eq!(read("/L/k", "opacity").unwrap(), None);
+    }
+
     #[test]
     fn require_camera_accepts_only_a_camera() {
         let dir = crate::test_dir::ScratchDir::new("stage-camera");
