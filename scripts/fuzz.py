@@ -16,10 +16,12 @@ process under a 60 s timeout and an address-space limit. A case fails when:
 
 - inspect exits 0 but the default bake (no --frames) fails: inspect
   evaluates every frame of that bake, so it must find what bake finds (a
-  "trust" failure). A stage without a complete frame range is baked with
-  --frames 1:3 and not judged so: inspect has no frames to evaluate there;
-  nor is a stage with nothing painterly in it (inspect finds nothing wrong,
-  bake says "nothing to bake").
+  "trust" failure). A stage without a frame range is inspected and baked
+  with --frames 1:3, as both then need frames, and judged so; a stage with
+  half a range and other problems is baked with --frames 1:3 unjudged
+  (inspect stopped at the other problems), and so is a stage with nothing
+  painterly in it (inspect finds nothing wrong, bake says "nothing to
+  bake").
 
 With --edits each case also runs one command that writes (picked by the
 case's random stream): `bind --in-place`, `bind --edit-layer`, `expand` or
@@ -469,19 +471,26 @@ def check(exe, seed, k, seed_files, work, meta=None, value_files=None, keys=Fals
 
     rc_i, err_i, t_i = run(exe, ["inspect", name], d)
     judge("inspect", rc_i, err_i)
+    frames = []
+    if rc_i == 1 and "pass --frames" in err_i:
+        # No frame range: inspect, like bake, needs --frames.
+        frames = ["--frames", "1:3"]
+        rc_i, err_i, t_i = run(exe, ["inspect", name, *frames], d)
+        judge("inspect --frames 1:3", rc_i, err_i)
     rc_b, err_b, t_b = None, "", 0.0
     if rc_i == 0 or k % 4 == 0:
         # The default bake (the stage's range) is what inspect vouches for.
-        rc_b, err_b, t_b = run(exe, ["bake", name, "-o", "out.usdc", "-q"], d)
+        rc_b, err_b, t_b = run(exe, ["bake", name, "-o", "out.usdc", "-q", *frames], d)
         vouched = True
-        if rc_b == 1 and "pass --frames" in err_b:
-            # No complete range: bake needs --frames, and inspect evaluated no frame.
-            rc_b, err_b, t_b = run(exe, ["bake", name, "-o", "out.usdc", "--frames", "1:3", "-q"], d)
+        if rc_b == 1 and "pass --frames" in err_b and not frames:
+            # No complete range, and inspect stopped before the frames.
+            frames = ["--frames", "1:3"]
+            rc_b, err_b, t_b = run(exe, ["bake", name, "-o", "out.usdc", "-q", *frames], d)
             vouched = False
         judge("bake", rc_b, err_b)
         if values and rc_b == 0:
             # The bake's output may not depend on the thread count (issue 12).
-            args = ["bake", name, "-o", "one.usdc", "-q"] + ([] if vouched else ["--frames", "1:3"])
+            args = ["bake", name, "-o", "one.usdc", "-q", *frames]
             rc_1, err_1, _ = run(exe, args, d, env={**os.environ, "RAYON_NUM_THREADS": "1"})
             judge("bake on one thread", rc_1, err_1)
             if rc_1 == 0 and (d / "one.usdc").read_bytes() != (d / "out.usdc").read_bytes():
@@ -510,7 +519,7 @@ def check(exe, seed, k, seed_files, work, meta=None, value_files=None, keys=Fals
         if (rc_e != 0 or not in_place) and after != data:
             problems.append(f"{what} exited {rc_e} and changed its input")
         if in_place and rc_e == 0:
-            rc_a, err_a, _ = run(exe, ["inspect", name], d)
+            rc_a, err_a, _ = run(exe, ["inspect", name, *frames], d)
             judge(f"inspect after {what}", rc_a, err_a)
             if rc_i == 0 and rc_a != 0:
                 first = err_a.strip().splitlines()[:1]
