@@ -619,6 +619,62 @@ mod tests {
         Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/tube.usda")
     }
 
+    /// A blendShape axis gets a note on the rig holding it when its
+    /// animation does not animate its name; an animated name, another
+    /// kind, and an axis outside every rig get none.
+    #[test]
+    fn a_blend_shape_the_animation_does_not_animate_is_noted_on_its_rig() {
+        let dir = crate::test_dir::ScratchDir::new("inspect-shapes");
+        let path = dir.join("axes.usda");
+        std::fs::write(
+            &path,
+            r#"#usda 1.0
+def SkelAnimation "Anim" { uniform token[] blendShapes = ["smile", "blink"] }
+def SkelAnimation "Still" { }
+def Xform "Rig" {
+    def PainterlyAxis "typo" { uniform token kind = "blendShape"  rel source = </Anim>  uniform token name = "smlie" }
+    def PainterlyAxis "fine" { uniform token kind = "blendShape"  rel source = </Anim>  uniform token name = "blink" }
+    def PainterlyAxis "still" { uniform token kind = "blendShape"  rel source = </Still>  uniform token name = "smile" }
+    def PainterlyAxis "joint" { uniform token kind = "jointRotation"  rel source = </Anim>  uniform token name = "smlie" }
+}
+def Xform "Rig2" {
+    def PainterlyAxis "typo" { uniform token kind = "blendShape"  rel source = </Anim>  uniform token name = "frown" }
+}
+def PainterlyAxis "outside" { uniform token kind = "blendShape"  rel source = </Anim>  uniform token name = "frown" }
+"#,
+        )
+        .unwrap();
+        let r = StageReader::open(&path).unwrap();
+        let rig = |p: &str| RigReport {
+            path: p.into(),
+            proxy: String::new(),
+            proxy_points: 0,
+            proxy_faces: 0,
+            animation: String::new(),
+            skeleton: None,
+            animation_source: None,
+            layers: Vec::new(),
+            notes: Vec::new(),
+        };
+        // "/Rig2" must not take "/Rig"'s axes (a prefix of the path, not a parent).
+        let mut rigs = vec![rig("/Rig"), rig("/Rig2"), rig("/Ri")];
+        note_unanimated_blend_shapes(&r, &mut rigs).unwrap();
+        assert_eq!(
+            rigs[0].notes,
+            [
+                r#"axis /Rig/typo reads 0 at every frame: /Anim does not animate blend shape "smlie" (it animates: smile, blink)"#,
+                r#"axis /Rig/still reads 0 at every frame: /Still does not animate blend shape "smile" (it animates: none)"#,
+            ]
+        );
+        assert_eq!(
+            rigs[1].notes,
+            [
+                r#"axis /Rig2/typo reads 0 at every frame: /Anim does not animate blend shape "frown" (it animates: smile, blink)"#
+            ]
+        );
+        assert!(rigs[2].notes.is_empty());
+    }
+
     /// A report with nothing in it but `problems` and `clip_set`.
     fn bare(problems: Vec<Problem>, clip_set: Option<ClipSetReport>) -> Report {
         Report {
