@@ -118,7 +118,7 @@ def test_tool_path_prim_too_short_or_missing(painterly, case):
     for which in ("smudge", "expand"):
         args = [which, inp, "--layer", LAYER, "--radius", "1", "--strength", "0.1"]
         refused(painterly, *args, "--path-prim", mesh,
-                names=[f"{mesh}: the tool path prim is a Mesh, not a BasisCurves (--path-prim takes a curve)"])
+                names=[f"{mesh}: the tool path prim is a Mesh prim, not a BasisCurves (--path-prim takes a curve)"])
 
 
 @pytest.mark.parametrize("radius", ["0", "-1", "inf"])

@@ -905,14 +905,12 @@ pub fn path_from_prim(r: &StageReader, prim_path: &str, time: Option<f64>, xform
     // A mesh's points would make a path through its vertices in index order.
     let ty = r.type_name(&prim)?;
     if ty != "BasisCurves" {
-        let what = if ty.is_empty() {
-            "an untyped prim".to_string()
-        } else {
-            format!("a {ty}")
-        };
         return Err(Error::prim(
             prim_path,
-            format!("the tool path prim is {what}, not a BasisCurves (--path-prim takes a curve)"),
+            format!(
+                "the tool path prim is {}, not a BasisCurves (--path-prim takes a curve)",
+                crate::words::prim_of_type(&ty)
+            ),
         ));
     }
     let pts = r

@@ -12,9 +12,25 @@ pub fn plural(n: usize, word: &str) -> String {
     format!("{n} {word}{}", if es { "es" } else { "s" })
 }
 
+/// A prim by its type name, for messages: "a Mesh prim", or "an untyped
+/// prim" for "".
+pub fn prim_of_type(ty: &str) -> String {
+    if ty.is_empty() {
+        "an untyped prim".to_string()
+    } else {
+        format!("a {ty} prim")
+    }
+}
+
 #[cfg(test)]
 mod tests {
-    use super::plural;
+    use super::{plural, prim_of_type};
+
+    #[test]
+    fn prims_by_type() {
+        assert_eq!(prim_of_type("Mesh"), "a Mesh prim");
+        assert_eq!(prim_of_type(""), "an untyped prim");
+    }
 
     #[test]
     fn singular_and_plural() {

@@ -288,11 +288,10 @@ impl StageReader {
             .ok_or_else(|| Error::prim(path, format!("the camera named by {origin} does not exist")))?;
         match self.type_name(&prim)?.as_str() {
             "Camera" => Ok(()),
-            "" => Err(Error::prim(
+            ty => Err(Error::prim(
                 path,
-                format!("{origin} names an untyped prim, not a Camera"),
+                format!("{origin} names {}, not a Camera", crate::words::prim_of_type(ty)),
             )),
-            ty => Err(Error::prim(path, format!("{origin} names a {ty} prim, not a Camera"))),
         }
     }
 

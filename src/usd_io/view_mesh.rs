@@ -376,15 +376,11 @@ pub fn check_camera(r: &StageReader, path: &str, origin: &str) -> Result<()> {
         .ok_or_else(|| Error::prim(path, format!("camera named by {origin} does not exist")))?;
     let ty = r.type_name(&p)?;
     if NOT_XFORMABLE.contains(&ty.as_str()) {
-        let what = if ty.is_empty() {
-            "an untyped prim".to_string()
-        } else {
-            format!("a {ty} prim")
-        };
         return Err(Error::prim(
             path,
             format!(
-                "camera named by {origin} is {what}, which has no transform (expected a Camera or another Xformable)"
+                "camera named by {origin} is {}, which has no transform (expected a Camera or another Xformable)",
+                crate::words::prim_of_type(&ty)
             ),
         ));
     }
