@@ -619,6 +619,36 @@ mod tests {
         Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/tube.usda")
     }
 
+    /// Half a time range is a problem beside any other (the frame check,
+    /// which also finds it, runs only on a stage without problems); no
+    /// range at all is left to the frame check, which skips a stage with
+    /// nothing to bake.
+    #[test]
+    fn half_a_range_is_listed_beside_other_problems() {
+        let dir = crate::test_dir::ScratchDir::new("inspect-range");
+        let rig = "def Xform \"Rig\" (prepend apiSchemas = [\"PainterlyRigAPI\"]) { rel painterly:proxy = </Nope> }\n";
+        let report = |header: &str| {
+            let path = dir.join("range.usda");
+            std::fs::write(&path, format!("#usda 1.0\n{header}\n{rig}")).unwrap();
+            let r = StageReader::open(&path).unwrap();
+            let messages: Vec<String> = inspect_stage(&r)
+                .unwrap()
+                .problems
+                .into_iter()
+                .map(|p| p.message)
+                .collect();
+            messages
+        };
+        let half = report("(startTimeCode = 1)");
+        assert_eq!(half.len(), 2, "{half:?}");
+        assert!(half
+            .iter()
+            .any(|m| m == "the stage has a startTimeCode but no endTimeCode: pass --frames A:B"));
+        let none = report("");
+        assert_eq!(none.len(), 1, "{none:?}");
+        assert!(!none[0].contains("--frames"), "{none:?}");
+    }
+
     /// A blendShape axis gets a note on the rig holding it when its
     /// animation does not animate its name; an animated name, another
     /// kind, and an axis outside every rig get none.
