@@ -1,7 +1,9 @@
 //! The artist's side (Bassett §3.1, §3.3): bind strokes painted in any pose,
 //! set keys, smudge and expand. The CLI's `bind`, `key`, `smudge` and
 //! `expand` commands are thin wrappers over these functions, so tools,
-//! scripts and a painting UI share one implementation.
+//! scripts and a painting UI share one implementation. Two checks are still
+//! the CLI's own: `key --camera` must name a Camera, and a brush that moved
+//! no point is refused before anything is saved ([`brush`] returns 0).
 //!
 //! Every function edits through an [`EditSession`] (an edit layer over the
 //! input, or the input in place) and leaves saving to the caller:

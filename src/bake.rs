@@ -220,7 +220,8 @@ impl FrameSink for DiscardSink {
     }
 }
 
-/// Like [`bake`], but a stage with nothing to bake writes nothing and
+/// A plain bake of `input` for `render` (read unmapped, as render reads it;
+/// no chunks), except that a stage with nothing to bake writes nothing and
 /// returns None (a render of a plain scene needs no bake).
 pub fn bake_if_any(input: &Path, output: &Path, opts: &BakeOptions) -> Result<Option<BakeSummary>> {
     let started = Instant::now();
