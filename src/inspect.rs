@@ -272,7 +272,7 @@ pub fn inspect_stage_for(r: &StageReader, frames: Option<FrameRange>) -> Result<
     problems.extend(stage_problems(r, &meta, frames));
     let mut rigs: Vec<RigReport> = scene.rigs.iter().map(|rig| rig_report(r, rig, &mut problems)).collect();
     let axes = axis_reports(r)?;
-    note_unanimated_blend_shapes(r, &mut rigs)?;
+    note_unanimated_blend_shapes(r, &axes, &mut rigs)?;
     let (meshes, view_problems) = read_view_meshes_lenient(r, &r.prim_paths()?).map_err(|e| e.in_file(path))?;
     problems.extend(view_problems.into_iter().map(|e| Problem::new(e, Rule::Unreadable)));
     let view_meshes = meshes.iter().map(view_mesh_report).collect();
@@ -392,22 +392,17 @@ fn axis_reports(r: &StageReader) -> Result<Vec<AxisReport>> {
 /// at every frame (SPEC §4). That is right for a shape left still, but it is
 /// also what a misspelt name gives: the rig holding the axis gets a note
 /// naming the shapes the animation does animate.
-fn note_unanimated_blend_shapes(r: &StageReader, rigs: &mut [RigReport]) -> Result<()> {
-    for p in r.prim_paths()? {
-        let prim = r.require_prim(&p)?;
-        if r.type_name(&prim)? != "PainterlyAxis" {
-            continue;
-        }
-        // Unreadable or unauthored fields are the axis reader's problems.
-        let kind = r.typed(&prim, "kind", None, "token", values::token).ok().flatten();
-        let name = r.typed(&prim, "name", None, "token", values::token).ok().flatten();
-        let (Some("blendShape"), Some(name)) = (kind.as_deref(), name) else {
+fn note_unanimated_blend_shapes(r: &StageReader, axes: &[AxisReport], rigs: &mut [RigReport]) -> Result<()> {
+    for axis in axes.iter().filter(|a| a.kind == "blendShape") {
+        let (p, Some(anim)) = (&axis.path, &axis.source) else {
             continue;
         };
-        let Some(anim) = r.targets(&prim, "source").ok().and_then(|t| t.into_iter().next()) else {
+        let prim = r.require_prim(p)?;
+        // An unreadable or unauthored name is the axis reader's problem.
+        let Some(name) = r.typed(&prim, "name", None, "token", values::token).ok().flatten() else {
             continue;
         };
-        let Some(anim_prim) = r.prim(&anim).ok().flatten() else {
+        let Some(anim_prim) = r.prim(anim).ok().flatten() else {
             continue;
         };
         let shapes = r
@@ -625,12 +620,9 @@ mod tests {
     /// nothing to bake.
     #[test]
     fn half_a_range_is_listed_beside_other_problems() {
-        let dir = crate::test_dir::ScratchDir::new("inspect-range");
         let rig = "def Xform \"Rig\" (prepend apiSchemas = [\"PainterlyRigAPI\"]) { rel painterly:proxy = </Nope> }\n";
         let report = |header: &str| {
-            let path = dir.join("range.usda");
-            std::fs::write(&path, format!("#usda 1.0\n{header}\n{rig}")).unwrap();
-            let r = StageReader::open(&path).unwrap();
+            let r = crate::usd_io::testutil::stage_from_usda(&format!("#usda 1.0\n{header}\n{rig}"));
             let messages: Vec<String> = inspect_stage(&r)
                 .unwrap()
                 .problems
@@ -654,10 +646,7 @@ mod tests {
     /// kind, and an axis outside every rig get none.
     #[test]
     fn a_blend_shape_the_animation_does_not_animate_is_noted_on_its_rig() {
-        let dir = crate::test_dir::ScratchDir::new("inspect-shapes");
-        let path = dir.join("axes.usda");
-        std::fs::write(
-            &path,
+        let r = crate::usd_io::testutil::stage_from_usda(
             r#"#usda 1.0
 def SkelAnimation "Anim" { uniform token[] blendShapes = ["smile", "blink"] }
 def SkelAnimation "Still" { }
@@ -672,9 +661,7 @@ def Xform "Rig2" {
 }
 def PainterlyAxis "outside" { uniform token kind = "blendShape"  rel source = </Anim>  uniform token name = "frown" }
 "#,
-        )
-        .unwrap();
-        let r = StageReader::open(&path).unwrap();
+        );
         let rig = |p: &str| RigReport {
             path: p.into(),
             proxy: String::new(),
@@ -688,7 +675,8 @@ def PainterlyAxis "outside" { uniform token kind = "blendShape"  rel source = </
         };
         // "/Rig2" must not take "/Rig"'s axes (a prefix of the path, not a parent).
         let mut rigs = vec![rig("/Rig"), rig("/Rig2"), rig("/Ri")];
-        note_unanimated_blend_shapes(&r, &mut rigs).unwrap();
+        let axes = axis_reports(&r).unwrap();
+        note_unanimated_blend_shapes(&r, &axes, &mut rigs).unwrap();
         assert_eq!(
             rigs[0].notes,
             [

@@ -303,8 +303,7 @@ impl TempFile {
     /// Renames the temporary to `target` (its file must be closed), with
     /// the permission bits of the file it replaces; on failure it is removed.
     pub fn persist(mut self, target: &Path) -> Result<()> {
-        check_replaceable(target)?;
-        if let Ok(old) = std::fs::metadata(target) {
+        if let Some(old) = check_replaceable(target)? {
             std::fs::set_permissions(&self.path, old.permissions()).map_err(|e| e.report().in_file(target))?;
         }
         let mut reg = registry();
@@ -331,22 +330,23 @@ impl Drop for TempFile {
 
 /// Refuses to replace a file this user may not write. The rename would
 /// succeed in a writable folder and drop the file's protection; usd-core's
-/// `Save` refuses such a file too.
-fn check_replaceable(target: &Path) -> Result<()> {
+/// `Save` refuses such a file too. Returns the file it would replace, if
+/// any, whose mode the new file takes.
+fn check_replaceable(target: &Path) -> Result<Option<std::fs::Metadata>> {
     use std::os::unix::ffi::OsStrExt;
     use std::os::unix::fs::PermissionsExt;
     let Ok(meta) = std::fs::metadata(target) else {
-        return Ok(()); // nothing there yet (or nothing we can see: the write says why)
+        return Ok(None); // nothing there yet (or nothing we can see: the write says why)
     };
     if meta.is_dir() {
-        return Ok(()); // the rename fails and says so
+        return Ok(None); // the rename fails and says so
     }
     let Ok(c) = std::ffi::CString::new(target.as_os_str().as_bytes()) else {
-        return Ok(());
+        return Ok(Some(meta));
     };
     // SAFETY: `c` is a valid NUL-terminated path for the duration of the call.
     if unsafe { libc::access(c.as_ptr(), libc::W_OK) } == 0 {
-        return Ok(());
+        return Ok(Some(meta));
     }
     Err(Error::msg(format!(
         "cannot replace a file this user may not write (mode {:03o}): change its permissions first",

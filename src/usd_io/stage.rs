@@ -1018,10 +1018,7 @@ def Xform "Moving" {
     /// time, as usd-core's Get() gives.
     #[test]
     fn a_uniform_attribute_with_only_time_samples_is_refused() {
-        let dir = crate::test_dir::ScratchDir::new("stage-uniform");
-        let path = dir.join("samples.usda");
-        std::fs::write(
-            &path,
+        let r = crate::usd_io::testutil::stage_from_usda(
             r#"#usda 1.0
 def BasisCurves "L" {
     point3f[] painterly:restPoints.timeSamples = { 1: [(0, 0, 0)] }
@@ -1034,9 +1031,7 @@ def BasisCurves "L" {
     }
 }
 "#,
-        )
-        .unwrap();
-        let r = StageReader::open(&path).unwrap();
+        );
         let read = |prim: &str, name: &str| {
             let p = r.require_prim(prim).unwrap();
             r.typed(&p, name, None, "any", |v| Some(v.clone()))
