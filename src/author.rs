@@ -437,9 +437,7 @@ fn key_place(r: &StageReader, rig: &mut Rig, li: usize, opts: &KeyOptions) -> Re
 /// A key's name is one prim name: `a/b` would define a prim outside the
 /// layer, where bake and inspect never look for keys.
 fn check_prim_name(name: &str) -> Result<()> {
-    let mut chars = name.chars();
-    let first = chars.next().is_some_and(|c| c == '_' || c.is_alphabetic());
-    if first && chars.all(|c| c == '_' || c.is_alphanumeric()) {
+    if crate::usd_io::is_prim_name(name) {
         return Ok(());
     }
     Err(Error::usage(format!(

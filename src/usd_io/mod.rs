@@ -28,3 +28,10 @@ pub mod usda_text;
 pub mod usdc;
 pub mod values;
 pub mod view_mesh;
+
+/// Whether `name` is one prim name (an identifier: a letter or `_`, then
+/// letters, digits and `_`), as one element of a prim path must be.
+pub fn is_prim_name(name: &str) -> bool {
+    let mut chars = name.chars();
+    chars.next().is_some_and(|c| c == '_' || c.is_alphabetic()) && chars.all(|c| c == '_' || c.is_alphanumeric())
+}

@@ -9,12 +9,7 @@ use crate::error::{Error, Result};
 /// usd-core gives ill-formed names (spaces, dots, `a//b`) no parent.
 fn is_prim_path(name: &str) -> bool {
     let body = name.strip_prefix('/').unwrap_or(name);
-    !body.is_empty()
-        && body.split('/').all(|c| {
-            let mut chars = c.chars();
-            chars.next().is_some_and(|f| f == '_' || f.is_alphabetic())
-                && chars.all(|ch| ch == '_' || ch.is_alphanumeric())
-        })
+    !body.is_empty() && body.split('/').all(crate::usd_io::is_prim_name)
 }
 
 /// Parent of each joint as usd-core's UsdSkelTopology finds it: the nearest
