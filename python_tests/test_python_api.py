@@ -379,6 +379,14 @@ def test_errors_name_options_as_python_spells_them(tmp_path):
             call()
         assert e.value.message == message
         assert str(e.value).endswith(": " + message)
+    # Options checked before any file is read name no file.
+    for call, message in [
+        (lambda: painterly.bake(tube, output=tmp_path / "shot.usda", chunk=0), "`chunk` must be at least 1"),
+        (lambda: painterly.bake(tube, chunk=2), "a chunked bake writes files: give an output path"),
+    ]:
+        with pytest.raises(painterly.Error) as e:
+            call()
+        assert (e.value.message, str(e.value), e.value.file) == (message, message, None)
     assert not list(tmp_path.glob("shot*"))
 
 
@@ -430,6 +438,22 @@ def test_progress_reports_every_frame_and_its_exceptions_surface(tmp_path):
 
     with pytest.raises(RuntimeError, match="stop at 1"):
         painterly.bake(FIXTURES / "tube.usda", tmp_path / "b.usdc", frames="1:4", progress=boom)
+
+
+def test_a_bake_in_memory_uses_a_temporary_folder_and_removes_it(tmp_path, monkeypatch):
+    """Without an output the bake is written under TMPDIR, in a folder of
+    its own while it runs, and nothing is left after it, failed or not."""
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    monkeypatch.setenv("TMPDIR", str(tmp))
+    seen = []
+    painterly.bake(FIXTURES / "tube.usda", frames="1:3", progress=lambda d, n: seen.append(sorted(p.name for p in tmp.iterdir())))
+    assert len(seen) == 3 and all(len(names) == 1 and names == seen[0] for names in seen), seen
+    assert seen[0][0].startswith("painterly-render-")
+    assert list(tmp.iterdir()) == []
+    with pytest.raises(painterly.Error, match="outside the stage's time range"):
+        painterly.bake(FIXTURES / "tube.usda", frames=(0, 1000))
+    assert list(tmp.iterdir()) == []
 
 
 def test_two_bakes_in_threads_run_at_once(tmp_path):

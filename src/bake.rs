@@ -126,6 +126,9 @@ fn open_for_bake_with(
     opts: &BakeOptions,
     open: impl FnOnce() -> Result<StageReader>,
 ) -> Result<Character> {
+    if opts.chunk == Some(0) {
+        return Err(Error::usage("--chunk must be at least 1"));
+    }
     if opts.chunk.is_some() && Format::from_path(output)? != Format::Usda {
         return Err(Error::usage("with --chunk the output is the clip-set layer: name it .usda").in_file(output));
     }

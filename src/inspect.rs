@@ -226,7 +226,18 @@ fn check_point_samples(r: &StageReader, layer: &StrokeLayer, problems: &mut Vec<
 /// its frames are read the same way: a mapped stage reads time samples
 /// and fixed transforms through its own paths.
 pub fn inspect(path: &Path, camera: Option<&str>, frames: Option<FrameRange>, progress: Progress) -> Result<Report> {
-    let reader = StageReader::open_mapped(path)?;
+    inspect_reader(StageReader::open_mapped(path)?, camera, frames, progress)
+}
+
+/// [`inspect`] of an opened stage (a file, or a layer handed over in
+/// memory, see [`crate::usd_io::memory`]): the schema checks, then every
+/// frame when they pass.
+pub fn inspect_reader(
+    reader: StageReader,
+    camera: Option<&str>,
+    frames: Option<FrameRange>,
+    progress: Progress,
+) -> Result<Report> {
     let mut report = inspect_stage_for(&reader, frames)?;
     check_every_frame(reader, camera, frames, &mut report, progress);
     Ok(report)
@@ -238,7 +249,7 @@ pub fn inspect(path: &Path, camera: Option<&str>, frames: Option<FrameRange>, pr
 /// succeeds: some inputs fail only when evaluated at a frame (a camera
 /// transform, a non-finite posed point), and a stage without a time range
 /// needs `frames`. `progress` hears (frames done, frames) as bake's does.
-pub fn check_every_frame(
+fn check_every_frame(
     reader: StageReader,
     camera: Option<&str>,
     frames: Option<FrameRange>,

@@ -13,7 +13,6 @@
 
 use std::collections::BTreeMap;
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Mutex;
 
 use glam::Vec3;
@@ -28,6 +27,7 @@ use painterly::character::{Character as Inner, Configuration};
 use painterly::frames::FrameRange;
 use painterly::interp::{Interpolator, Method};
 use painterly::rule::Rule;
+use painterly::usd_io::atomic::TempDir;
 use painterly::usd_io::memory::open_bytes;
 use painterly::usd_io::stage::StageReader;
 
@@ -189,8 +189,6 @@ fn frames_from_py(py: Python<'_>, frames: Option<&Bound<'_, PyAny>>) -> PyResult
         .map_err(|e| msg_err(py, format!("frames {text:?}: {e}")))
 }
 
-static TEMP_COUNTER: AtomicUsize = AtomicUsize::new(0);
-
 /// Bakes `input` (a path or an `Sdf.Layer`) and returns the `--json` summary
 /// as a dict; without `output`, bakes in memory and the summary's "layer"
 /// holds the baked layer's usda text.
@@ -215,25 +213,19 @@ fn bake(
         chunk,
         ..Default::default()
     };
-    if chunk == Some(0) {
-        return Err(msg_err(py, "chunk must be at least 1"));
-    }
     if chunk.is_some() && output.is_none() {
         return Err(msg_err(py, "a chunked bake writes files: give an output path"));
     }
+    // Without an output the bake goes to a temporary folder (removed when
+    // dropped, or by the next process if this one dies) and is read back.
     let temp = match &output {
         Some(_) => None,
-        None => {
-            let n = TEMP_COUNTER.fetch_add(1, Ordering::Relaxed);
-            let dir = std::env::temp_dir().join(format!("painterly-bake-{}-{n}", std::process::id()));
-            std::fs::create_dir_all(&dir).map_err(|e| msg_err(py, format!("cannot create {}: {e}", dir.display())))?;
-            Some(dir)
-        }
+        None => Some(TempDir::new().map_err(|e| to_py(py, e))?),
     };
     let out_path = match (&output, &temp) {
         (Some(o), _) => o.clone(),
-        (None, Some(dir)) => dir.join("bake.usda"),
-        (None, None) => unreachable!("a temporary directory is made when there is no output"),
+        (None, Some(dir)) => dir.path().join("bake.usda"),
+        (None, None) => unreachable!("a temporary folder is made when there is no output"),
     };
     // The first exception a progress callback raised, re-raised after the bake.
     let callback_error: Mutex<Option<PyErr>> = Mutex::new(None);
@@ -258,9 +250,7 @@ fn bake(
         };
         Ok::<_, painterly::Error>((summary, text))
     });
-    if let Some(dir) = &temp {
-        let _ = std::fs::remove_dir_all(dir);
-    }
+    drop(temp);
     if let Some(e) = callback_error.into_inner().unwrap_or_else(|p| p.into_inner()) {
         return Err(e);
     }
@@ -288,10 +278,8 @@ fn inspect(
     let src = Source::from_py(input)?;
     let frames = frames_from_py(py, frames)?;
     let report = py.detach(|| {
-        let r = src.open_mapped()?;
-        let mut rep = painterly::inspect::inspect_stage_for(&r, frames)?;
         // As the CLI: passing means a bake with the same camera and frames succeeds.
-        painterly::inspect::check_every_frame(r, camera.as_deref(), frames, &mut rep, &|_, _| {});
+        let mut rep = painterly::inspect::inspect_reader(src.open_mapped()?, camera.as_deref(), frames, &|_, _| {})?;
         if src.text.is_some() {
             rep.file = PathBuf::from(&src.name);
         }

@@ -418,7 +418,9 @@ pub struct TempDir {
 }
 
 impl TempDir {
-    /// Creates `painterly-render-<host>-<pid>-<n>` in the system temp dir.
+    /// Creates `painterly-render-<host>-<pid>-<n>` in the system temp dir,
+    /// `n` from the clock; a new folder every time, even for two threads
+    /// in the same nanosecond (the next `n` is tried).
     pub fn new() -> Result<TempDir> {
         let base = std::env::temp_dir();
         sweep_stale_dirs(&base);
@@ -426,10 +428,9 @@ impl TempDir {
             .duration_since(std::time::UNIX_EPOCH)
             .map(|d| d.as_nanos())
             .unwrap_or(0);
-        let path = base.join(format!("{RENDER_DIR_PREFIX}{}-{}-{nanos}", host(), std::process::id()));
         let mut reg = registry();
-        std::fs::create_dir_all(&path)
-            .map_err(|e| Error::msg(format!("cannot create a temporary folder: {e}")).in_file(&path))?;
+        let stem = format!("{RENDER_DIR_PREFIX}{}-{}-", host(), std::process::id());
+        let path = create_new_dir(&base, &stem, nanos)?;
         reg.live.push(path.clone());
         Ok(TempDir { path })
     }
@@ -445,6 +446,20 @@ impl Drop for TempDir {
         let mut reg = registry();
         let _ = std::fs::remove_dir_all(&self.path);
         unregister(&mut reg, &self.path);
+    }
+}
+
+/// Creates the folder `base/<stem><n>` for the first `n` from `first` on
+/// that does not exist yet.
+fn create_new_dir(base: &Path, stem: &str, first: u128) -> Result<PathBuf> {
+    let mut n = first;
+    loop {
+        let path = base.join(format!("{stem}{n}"));
+        match std::fs::create_dir(&path) {
+            Ok(()) => return Ok(path),
+            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => n += 1,
+            Err(e) => return Err(Error::msg(format!("cannot create a temporary folder: {e}")).in_file(&path)),
+        }
     }
 }
 
@@ -722,6 +737,20 @@ mod tests {
         std::fs::write(path.join("f"), b"x").unwrap();
         drop(d);
         assert!(!path.exists());
+    }
+
+    #[test]
+    fn a_new_temp_dir_skips_a_folder_that_exists() {
+        // Python bakes in several threads each take one: a clock tick
+        // shared by two must not give them the same folder.
+        let base = fresh_dir("new-dir");
+        std::fs::create_dir(base.join("t-7")).unwrap();
+        std::fs::write(base.join("t-7").join("bake.usda"), b"theirs").unwrap();
+        assert_eq!(create_new_dir(&base, "t-", 7).unwrap(), base.join("t-8"));
+        assert_eq!(create_new_dir(&base, "t-", 7).unwrap(), base.join("t-9"));
+        assert_eq!(std::fs::read(base.join("t-7").join("bake.usda")).unwrap(), b"theirs");
+        let err = create_new_dir(&base.join("missing"), "t-", 0).unwrap_err();
+        assert!(err.to_string().contains("cannot create a temporary folder"), "{err}");
     }
 
     #[test]
