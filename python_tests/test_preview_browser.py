@@ -192,6 +192,30 @@ def test_render_button_shows_painterly_render_beside(browser):
         assert browser.call("console")["errors"] == []
 
 
+def test_render_with_show_bake_renders_the_bake(browser, tmp_path):
+    """With "show bake" ticked the render button asks for the bake, which
+    the server draws as `render --bake` does (test_preview_server checks
+    the pixels); the caption says so."""
+    bake = tmp_path / "apple_bake.usdc"
+    subprocess.run([str(painterly_binary()), "bake", str(APPLE), "-o", str(bake), "--frames", "1:48", "--quiet"], check=True)
+    with PreviewServer(APPLE, "--bake", bake) as s:
+        open_page(browser, s)
+        browser.eval(
+            """(() => { window.renderBodies = []; const f = window.fetch;
+            window.fetch = (u, o) => { if (String(u).includes('api/render')) window.renderBodies.push(JSON.parse(o.body)); return f(u, o); };
+            })()"""
+        )
+        n = browser.eval("window.painterly.framesDrawn")
+        browser.call("click", selector="#show-bake")
+        browser.settle(n)
+        assert browser.eval("window.painterly.lastHeader.source") == "bake"
+        browser.call("click", selector="#render-button")
+        browser.wait("window.painterly.rendered === 1", timeout=60000)
+        assert browser.eval("window.renderBodies.map(b => b.frame.bake)") == [True]
+        assert browser.eval("document.querySelector('#render-caption').textContent").startswith("painterly render · bake · t=")
+        assert browser.call("console")["errors"] == []
+
+
 def test_an_invisible_layer_is_not_drawn(browser, tmp_path):
     # Spikes made invisible with usd-core: `render` leaves it out, and so
     # must the live view. Unchecking it changes nothing on the canvas (it

@@ -172,18 +172,35 @@ def test_bad_render_requests_get_4xx(fish):
 
 
 def test_an_eye_at_the_proxy_centre_is_422_not_a_crash(tmp_path):
-    # The head's viewDirection axes cannot be measured from inside the head.
-    with PreviewServer(HEAD) as s:
-        scene = s.scene()
-        status, _, body = s.request("api/frame", body={"time": 1, "eye": [0, 150, 0]})
-        lo, hi = np.array(scene["bounds"])
-        centre = ((lo + hi) / 2).tolist()
-        status, _, body = s.request("api/frame", body={"time": 1, "eye": centre})
-        # Either the eye is exactly at the centre (422 with a message) or it
-        # evaluates; never a 5xx or a dead server.
-        assert status in (200, 422), body
+    """A viewDirection axis is the unit vector from the posed proxy's
+    bounding-box centre to the eye (SPEC §4): an eye exactly there has no
+    direction, a 422 naming it; anywhere else evaluates. The proxy has no
+    transform, so the eye's world position is its local one, exactly."""
+    import authoring as Au
+    import authoring_keys as AK
+
+    path = tmp_path / "quad.usda"
+    stage = Usd.Stage.CreateNew(str(path))
+    Au.set_stage_metadata(stage, 1, 2)
+    mesh = UsdGeom.Mesh.Define(stage, "/World/Proxy")
+    mesh.CreateFaceVertexCountsAttr([4])
+    mesh.CreateFaceVertexIndicesAttr([0, 1, 2, 3])
+    mesh.CreatePointsAttr(Au.v3f([[0, 0, 0], [2, 0, 0], [2, 1, 0], [0, 1, 0]]))
+    cam = UsdGeom.Camera.Define(stage, "/World/Cam")
+    UsdGeom.Xformable(cam).AddTranslateOp().Set(Gf.Vec3d(1, 0.5, 5))
+    Au.add_painterly_rig(stage, "/World/Paint", "/World/Proxy")
+    AK.add_axis(stage, "/World/Paint/viewX", "viewDirection", source="/World/Cam", component=0)
+    low = np.array([[0.2, 0.2, 0.1], [1.8, 0.8, 0.1]])
+    Au.add_stroke_layer(stage, "/World/Paint/Hair", [2], low)
+    AK.add_pose_key(stage, "/World/Paint/Hair", "left", [-1], points=low, opacity=1.0)
+    AK.add_pose_key(stage, "/World/Paint/Hair", "right", [1], points=low + 0.1, opacity=0.5)
+    stage.Save()
+    with PreviewServer(path) as s:
+        status, _, body = s.request("api/frame", body={"time": 1, "eye": [1, 0.5, 0]})
+        assert (status, json.loads(body)["error"]) == (422, "/World/Paint/viewX: camera is at the proxy's centre at time 1")
         assert s.alive()
-        assert s.frame(time=1)[0]["time"] == 1
+        header, _ = s.frame(time=1, eye=[3, 0.5, 0])
+        assert header["configuration"] == {"/World/Paint/viewX": 1.0}
 
 
 def test_scene_describes_the_character(fish):
@@ -430,6 +447,40 @@ def test_a_busy_port_is_a_clear_error(fish):
     r = subprocess.run([str(painterly_binary()), "preview", str(FISH), "--port", str(port)], capture_output=True, text=True, timeout=120)
     assert r.returncode == 1
     assert f"127.0.0.1:{port}" in r.stderr
+
+
+def test_a_render_of_the_bake_draws_the_bake_even_when_stale(tmp_path):
+    """`/api/render` with `"bake": true` draws the `--bake` layer over the
+    input (the page's "show bake"), as `/api/frame` serves it: after the
+    input changed, the bake still shows the strokes as they were baked,
+    the live render the new ones, and the scene says the bake is stale.
+    Without `--bake` the request is refused, as `/api/frame`'s is."""
+    path = tmp_path / "blowfish.usda"
+    shutil.copy(FISH, path)
+    bake = tmp_path / "fish_bake.usdc"
+    subprocess.run([str(painterly_binary()), "bake", str(path), "-o", str(bake), "--frames", "1:48", "--quiet"], check=True)
+    frame = {"time": 12}
+    with PreviewServer(path, "--bake", bake) as s:
+        cam = start_camera(s.scene()["view"])
+        live_before = render_rgba(s, frame, cam, 96, 64)
+        assert np.array_equal(render_rgba(s, {**frame, "bake": True}, cam, 96, 64), live_before)
+    stage = Usd.Stage.Open(str(path))
+    rest = stage.GetPrimAtPath("/Blowfish/Paint/Spikes").GetAttribute("painterly:restPoints")
+    rest.Set([p * 1.3 for p in rest.Get()])
+    stage.GetRootLayer().Save()
+    with PreviewServer(path, "--bake", bake) as s:
+        messages = [p["message"] for p in s.scene()["problems"]]
+        assert messages == [
+            f"{path} changed since this bake was made (its layers differ from the bake's inputStamp): "
+            f"strokes show the old bake; bake again (painterly bake {path} -o {bake})"
+        ]
+        baked = render_rgba(s, {**frame, "bake": True}, cam, 96, 64)
+        live = render_rgba(s, frame, cam, 96, 64)
+    assert np.array_equal(baked, live_before)
+    assert np.abs(live - live_before).max() > 0
+    with PreviewServer(path) as s:
+        status, _, body = s.request("api/render", body={"frame": {**frame, "bake": True}, "camera": cam, "width": 96, "height": 64})
+        assert (status, json.loads(body)["error"]) == (422, "no --bake layer was given to painterly preview")
 
 
 def test_bake_layer_frames_are_served_as_baked(tmp_path):

@@ -2,7 +2,9 @@
 usdview at the baked frames, with nothing for UsdValidation to report."""
 
 import json
+import os
 import shutil
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -60,6 +62,70 @@ def test_view_refuses_a_bake_of_another_input(painterly, tmp_path, repo_root):
     assert proc.returncode == 1
     assert "was made from" in proc.stderr and "apple.usda" in proc.stderr
     assert not (tmp_path / "v.usda").exists()
+
+
+def layers_digest(files, content):
+    """SHA-256 over the layer files, sorted by resolved path: for each, the
+    path's bytes and a NUL, then the file's bytes (`inputHash`) or its size
+    and modification time in ns (`inputStamp`), as docs/render.md defines."""
+    import hashlib
+
+    h = hashlib.sha256()
+    for f in sorted(str(Path(f).resolve()) for f in files):
+        h.update(f.encode() + b"\0")
+        st = Path(f).stat()
+        h.update(Path(f).read_bytes() if content else f"{st.st_size} {st.st_mtime_ns}\n".encode())
+    return h.hexdigest()
+
+
+@pytest.mark.parametrize("chunk", [None, "5"])
+def test_a_stale_bake_is_shown_with_a_warning(painterly, tmp_path, repo_root, chunk):
+    """A bake records the hash of its input's layers; when the input or one
+    of its sublayers changed since, view, render and preview still show the
+    bake (it may be what the TD wants) but say it is stale."""
+    shutil.copyfile(repo_root / "fixtures" / "apple.usda", tmp_path / "body.usda")
+    src = tmp_path / "apple.usda"
+    stage = Usd.Stage.CreateNew(str(src))
+    stage.GetRootLayer().subLayerPaths.append("./body.usda")
+    stage.GetRootLayer().defaultPrim = "Apple"
+    stage.SetStartTimeCode(1)
+    stage.SetEndTimeCode(10)
+    stage.Save()
+    bake = tmp_path / ("bake.usda" if chunk else "bake.usdc")
+    painterly("bake", src, "-o", bake, *(["--chunk", chunk] if chunk else []))
+    recorded = Sdf.Layer.FindOrOpen(str(bake)).customLayerData["painterly"]
+    files = [src, tmp_path / "body.usda"]
+    assert recorded["inputStamp"] == layers_digest(files, content=False)
+    # A chunked bake also records the content hash, which its chunks are checked by.
+    assert recorded.get("inputHash") == (layers_digest(files, content=True) if chunk else None)
+    field = "inputHash" if chunk else "inputStamp"
+    view = tmp_path / "v.usda"
+    args = ("view", src, "--bake", bake, "-o", view, "--json")
+    assert json.loads(painterly(*args).stdout)["warnings"] == []
+    # An edit to the sublayer, saved by usd-core.
+    body = Usd.Stage.Open(str(tmp_path / "body.usda"))
+    rest = body.GetPrimAtPath("/Apple/Paint/Skin").GetAttribute("painterly:restPoints")
+    rest.Set([p * 1.5 for p in rest.Get()])
+    body.Save()
+    warning = (
+        f"{src} changed since this bake was made (its layers differ from the bake's {field}): "
+        f"strokes show the old bake; bake again (painterly bake {src} -o {bake})"
+    )
+    proc = painterly(*args)
+    assert json.loads(proc.stdout)["warnings"] == [warning]
+    assert proc.stderr == f"warning: {warning}\n"
+    assert view.exists()
+    cam = ["--camera", "/Apple/Camera", "--frames", "1", "--size", "32x18", "--json"]
+    rendered = painterly("render", src, "--bake", bake, "-o", tmp_path / "f.####.exr", *cam)
+    assert json.loads(rendered.stdout)["warnings"] == [warning]
+    # Saved again unchanged: a chunked bake checks the bytes, a single
+    # file the modification time.
+    painterly("bake", src, "-o", bake, *(["--chunk", chunk] if chunk else []))
+    os.utime(tmp_path / "body.usda", ns=(0, 1_000_000_000))
+    assert json.loads(painterly(*args).stdout)["warnings"] == ([] if chunk else [warning])
+    # Baked again, the warning is gone.
+    painterly("bake", src, "-o", bake, *(["--chunk", chunk] if chunk else []))
+    assert json.loads(painterly(*args).stdout)["warnings"] == []
 
 
 @pytest.mark.parametrize("name", ["v.usdc", "v.usd"])

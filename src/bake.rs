@@ -265,6 +265,8 @@ fn bake_character(
                 .into_owned(),
             frames: frames_text(&times, opts.frames),
             version: env!("CARGO_PKG_VERSION").to_string(),
+            // render, view and preview warn when the input changed since.
+            input_stamp: Some(clips::input_stamp(&ch.reader)?),
             ..Default::default()
         },
     };

@@ -125,8 +125,8 @@ struct State {
     layers: Vec<String>,
     views: Vec<String>,
     proxies: Vec<String>,
-    /// The `--bake` layer composed over the input (its folder lives as long).
-    bake: Option<(TempDir, StageReader)>,
+    /// The `--bake` layer composed over the input.
+    bake: Option<Bake>,
 }
 
 /// Server-side timings of one frame, milliseconds.
@@ -148,21 +148,30 @@ fn mat(m: &DMat4) -> impl Iterator<Item = f32> {
 
 /// The bake layer to show: checked against the input, and opened through
 /// a root layer that puts it over the input, as `painterly view` does.
-fn open_bake(
-    input: &Path,
-    b: &Path,
-    start: f64,
-    end: f64,
-    warnings: &mut Vec<String>,
-) -> Result<(TempDir, StageReader)> {
+fn open_bake(input: &Path, b: &Path, start: f64, end: f64, warnings: &mut Vec<String>) -> Result<Bake> {
     if !b.is_file() {
         return Err(Error::msg("cannot open bake layer: no such file").in_file(b));
     }
     check_bake(input, b, &[start, end], warnings)?;
-    let tmp = TempDir::new()?;
-    let root = write_root(tmp.path(), input, Some(b))?;
+    let folder = TempDir::new()?;
+    let root = write_root(folder.path(), input, Some(b))?;
     let reader = StageReader::open(&root).map_err(|e| e.in_file(b))?;
-    Ok((tmp, reader))
+    // Drawables read through their own stage's attributes: the input's
+    // would show the input's points, not the bake's.
+    let drawables = RenderScene::discover_drawables(&reader).map_err(|e| e.in_file(b))?;
+    Ok(Bake {
+        _folder: folder,
+        reader,
+        drawables,
+    })
+}
+
+/// The `--bake` layer composed over the input, and what `render` draws of it.
+struct Bake {
+    /// The folder of the composing root layer, kept as long as the reader.
+    _folder: TempDir,
+    reader: StageReader,
+    drawables: RenderScene,
 }
 
 /// The stage's problems as `inspect` finds them, then the bake's warnings.
@@ -501,8 +510,8 @@ impl State {
     /// with the bake sublayered over it (as `painterly render --bake`).
     fn baked_frame(&self, req: &FrameRequest) -> Result<Vec<u8>> {
         let t0 = Instant::now();
-        let Some((_, r)) = &self.bake else {
-            return Err(Error::msg("no --bake layer was given to painterly preview"));
+        let Some(Bake { reader: r, .. }) = &self.bake else {
+            return Err(Error::msg(NO_BAKE));
         };
         let t = req.time;
         let read = |path: &str, name: &str, ty: &str| -> Result<Option<Vec<f32>>> {
@@ -572,10 +581,24 @@ impl State {
     }
 
     /// The current view through `painterly render`'s renderer: the input's
-    /// drawables with the evaluated frame in place of a bake layer.
+    /// drawables with the evaluated frame in place of a bake layer, or with
+    /// `bake` the `--bake` layer over the input (as `render --bake`).
     fn render(&self, req: &RenderRequest) -> Result<Vec<u8>> {
+        let cam = camera_params(&req.camera, req.width, req.height);
+        let size = ImageSize {
+            width: req.width,
+            height: req.height,
+        };
+        let t = req.frame.time;
+        if req.frame.bake {
+            let Some(bake) = &self.bake else {
+                return Err(Error::msg(NO_BAKE));
+            };
+            let curves = bake.drawables.curves_at(&bake.reader, t)?;
+            let meshes = bake.drawables.meshes_at(&bake.reader, t)?;
+            return render_png(&cam, &curves, &meshes, size, None);
+        }
         let f = &req.frame;
-        let t = f.time;
         let out = self.evaluate(&FrameRequest {
             proxy: false,
             ..f.clone()
@@ -600,14 +623,12 @@ impl State {
                 }
             }
         }
-        let cam = camera_params(&req.camera, req.width, req.height);
-        let size = ImageSize {
-            width: req.width,
-            height: req.height,
-        };
         render_png(&cam, &curves, &meshes, size, None)
     }
 }
+
+/// Why a request for the bake is refused (422).
+const NO_BAKE: &str = "no --bake layer was given to painterly preview";
 
 /// Runs a job, turning errors and panics into [`JobError`]s.
 fn guarded(f: impl FnOnce() -> Result<Vec<u8>>) -> std::result::Result<Vec<u8>, JobError> {

@@ -43,7 +43,7 @@ use crate::error::{Error, Result};
 use crate::frames::FrameRange;
 use crate::usd_io::atomic::write_atomic;
 pub(crate) use crate::usd_io::atomic::TempDir;
-use crate::usd_io::bake_layer::read_provenance;
+use crate::usd_io::bake_layer::check_baked_from;
 use crate::usd_io::render_scene::{layer_timing, RenderScene};
 use crate::usd_io::stage::StageReader;
 use crate::words::plural;
@@ -339,30 +339,12 @@ impl RenderSummary {
 }
 
 /// Checks a `--bake` layer against the render: a bake of another input is
-/// refused; frames outside the baked range are warned about (strokes show
-/// their authored points there).
+/// refused; a stale one (see [`check_baked_from`]) and frames outside the
+/// baked range are warned about (strokes show their authored points there).
 pub(crate) fn check_bake(input: &Path, bake: &Path, times: &[f64], warnings: &mut Vec<String>) -> Result<()> {
-    let Some(p) = read_provenance(bake)? else {
-        warnings.push(format!(
-            "{} has no painterly provenance (customLayerData[\"painterly\"]): cannot check it was baked from {}",
-            bake.display(),
-            input.display()
-        ));
+    let Some(p) = check_baked_from(input, bake, warnings)? else {
         return Ok(());
     };
-    let same = match (std::fs::canonicalize(input), std::fs::canonicalize(&p.input)) {
-        (Ok(a), Ok(b)) => a == b,
-        _ => false,
-    };
-    if !same {
-        return Err(Error::msg(format!(
-            "this bake was made from {}, not from the input {}: bake the input first (painterly bake {} -o LAYER)",
-            p.input,
-            input.display(),
-            input.display()
-        ))
-        .in_file(bake));
-    }
     if let Some((a, b, _)) = p.frame_range() {
         let outside: Vec<String> = times
             .iter()

@@ -8,7 +8,7 @@
 use std::fmt::Write as _;
 use std::path::{Component, Path, PathBuf};
 
-use super::bake_layer::{quoted, read_provenance, UsdaNumber};
+use super::bake_layer::{check_baked_from, quoted, UsdaNumber};
 use super::layer::{write_atomic, Format};
 use super::stage::StageReader;
 use crate::error::{Error, Result};
@@ -39,32 +39,7 @@ pub fn write_view_layer(input: &Path, bake: &Path, output: &Path) -> Result<View
     let r = StageReader::open_mapped(input)?;
     let meta = r.metadata();
     let mut warnings = Vec::new();
-    let provenance = read_provenance(bake)?;
-    let range = match &provenance {
-        Some(p) => {
-            let same = match (input.canonicalize(), Path::new(&p.input).canonicalize()) {
-                (Ok(a), Ok(b)) => a == b,
-                _ => false,
-            };
-            if !same {
-                return Err(Error::msg(format!(
-                    "this bake was made from {}, not from the input {}",
-                    p.input,
-                    input.display()
-                ))
-                .in_file(bake));
-            }
-            p.frame_range().map(|(a, b, _)| (a, b))
-        }
-        None => {
-            warnings.push(format!(
-                "{} has no painterly provenance: cannot check it was baked from {}",
-                bake.display(),
-                input.display()
-            ));
-            None
-        }
-    };
+    let range = check_baked_from(input, bake, &mut warnings)?.and_then(|p| p.frame_range().map(|(a, b, _)| (a, b)));
     let (start, end) = range
         .or(meta.start_time_code.zip(meta.end_time_code))
         .ok_or_else(|| Error::msg("neither the bake nor the input says which frames to show").in_file(bake))?;

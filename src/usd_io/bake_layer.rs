@@ -80,6 +80,9 @@ pub struct Provenance {
     /// SHA-256 over the input's layers (chunked bakes: a chunk is reused only
     /// for the same input).
     pub input_hash: Option<String>,
+    /// SHA-256 over the input's layer files' paths, sizes and modification
+    /// times (every bake: render, view and preview tell a stale bake by it).
+    pub input_stamp: Option<String>,
     /// Value-clip bakes: this chunk's index and the chunk count.
     pub chunk: Option<(usize, usize)>,
     /// Value-clip stages: frames per chunk and the chunk layers, in order.
@@ -92,6 +95,57 @@ pub struct Provenance {
 /// sublayers.
 pub fn read_provenance(path: &Path) -> Result<Option<Provenance>> {
     Ok(provenance_of(&open_mapped_layer(path)?))
+}
+
+/// Checks that the bake layer `bake` was made from `input` (render, view
+/// and preview show a bake over its input) and returns its provenance:
+/// a bake of another input is refused; one whose input's layers changed
+/// since (their `inputHash` or `inputStamp` differs from the recorded one) or that
+/// carries no provenance adds a warning, and is shown.
+pub fn check_baked_from(input: &Path, bake: &Path, warnings: &mut Vec<String>) -> Result<Option<Provenance>> {
+    let Some(p) = read_provenance(bake)? else {
+        warnings.push(format!(
+            "{} has no painterly provenance (customLayerData[\"painterly\"]): cannot check it was baked from {}",
+            bake.display(),
+            input.display()
+        ));
+        return Ok(None);
+    };
+    let same = match (std::fs::canonicalize(input), std::fs::canonicalize(&p.input)) {
+        (Ok(a), Ok(b)) => a == b,
+        _ => false,
+    };
+    if !same {
+        return Err(Error::msg(format!(
+            "this bake was made from {}, not from the input {}: bake the input first (painterly bake {} -o LAYER)",
+            p.input,
+            input.display(),
+            input.display()
+        ))
+        .in_file(bake));
+    }
+    // A chunked bake's content hash when there is one, else the stamp.
+    let changed = match (&p.input_hash, &p.input_stamp) {
+        (Some(recorded), _) => Some(("inputHash", super::clips::input_hash(&reader_of(input)?)? != *recorded)),
+        (None, Some(recorded)) => Some((
+            "inputStamp",
+            super::clips::input_stamp(&reader_of(input)?)? != *recorded,
+        )),
+        (None, None) => None,
+    };
+    if let Some((field, true)) = changed {
+        warnings.push(format!(
+            "{} changed since this bake was made (its layers differ from the bake's {field}): strokes show the old bake; bake again (painterly bake {} -o {})",
+            input.display(),
+            input.display(),
+            bake.display()
+        ));
+    }
+    Ok(Some(p))
+}
+
+fn reader_of(input: &Path) -> Result<super::stage::StageReader> {
+    super::stage::StageReader::open_mapped(input)
 }
 
 /// Opens one layer (not what it sublayers) over a read-only memory mapping
@@ -135,6 +189,7 @@ pub fn provenance_of(layer: &openusd::sdf::Layer) -> Option<Provenance> {
         frames: text("frames").unwrap_or_default(),
         version: text("version").unwrap_or_default(),
         input_hash: text("inputHash"),
+        input_stamp: text("inputStamp"),
         chunk: int("chunkIndex").zip(int("chunkCount")),
         chunks: match (int("chunkSize"), info.get("chunks")) {
             (Some(size), Some(Value::StringVec(names))) => Some((size, names.clone())),
@@ -172,6 +227,9 @@ impl Provenance {
         ];
         if let Some(h) = &self.input_hash {
             f.push(("inputHash", DataValue::Str(h.clone())));
+        }
+        if let Some(h) = &self.input_stamp {
+            f.push(("inputStamp", DataValue::Str(h.clone())));
         }
         if let Some((index, count)) = self.chunk {
             f.push(("chunkIndex", DataValue::Int(index as i64)));

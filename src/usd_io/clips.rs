@@ -312,8 +312,8 @@ pub fn input_hash(r: &StageReader) -> Result<String> {
     Ok(r.input_hash.get_or_init(|| h).clone())
 }
 
-fn hash_layers(r: &StageReader) -> Result<String> {
-    use sha2::{Digest, Sha256};
+/// The layer files the stage used, by resolved path.
+fn layer_files(r: &StageReader) -> BTreeSet<PathBuf> {
     let mut files: BTreeSet<PathBuf> = BTreeSet::new();
     for id in r.stage.layer_identifiers() {
         // "pkg.usdz[inner.usdc]" names a layer inside a package.
@@ -323,6 +323,33 @@ fn hash_layers(r: &StageReader) -> Result<String> {
             files.insert(path.canonicalize().unwrap_or(path));
         }
     }
+    files
+}
+
+/// SHA-256 over the stat of every layer file the stage used (sorted by
+/// path: name, size, modification time in nanoseconds), hex encoded: tells
+/// a changed input from the one baked without reading its bytes, which
+/// [`input_hash`] does (a 160 MiB input costs it about 0.1 s).
+pub fn input_stamp(r: &StageReader) -> Result<String> {
+    use sha2::{Digest, Sha256};
+    let mut h = Sha256::new();
+    for f in &layer_files(r) {
+        let meta = std::fs::metadata(f).map_err(|e| Error::msg(format!("cannot read: {e}")).in_file(f))?;
+        let modified = meta
+            .modified()
+            .ok()
+            .and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok())
+            .map_or(0, |d| d.as_nanos());
+        h.update(f.to_string_lossy().as_bytes());
+        h.update([0]);
+        h.update(format!("{} {modified}\n", meta.len()).as_bytes());
+    }
+    Ok(h.finalize().iter().map(|b| format!("{b:02x}")).collect())
+}
+
+fn hash_layers(r: &StageReader) -> Result<String> {
+    use sha2::{Digest, Sha256};
+    let files = layer_files(r);
     let mut h = Sha256::new();
     for f in &files {
         h.update(f.to_string_lossy().as_bytes());

@@ -789,14 +789,16 @@
       const r = await fetch('api/render', {
         method: 'POST',
         headers: { 'Content-Type': 'application/json' },
-        body: JSON.stringify({ frame: { ...frameRequest(), proxy: false, bake: false }, camera: cameraPose(w / h), width: w, height: h }),
+        // The frame shown: with "show bake" ticked, the bake is rendered.
+        body: JSON.stringify({ frame: { ...frameRequest(), proxy: false }, camera: cameraPose(w / h), width: w, height: h }),
       });
       if (!r.ok) throw new Error((await r.json()).error || r.statusText);
       const blob = await r.blob();
       const img = $('render');
       if (img.src) URL.revokeObjectURL(img.src);
       img.src = URL.createObjectURL(blob);
-      $('render-caption').textContent = `painterly render · t=${state.time} · ${w}×${h} · ${(performance.now() - started).toFixed(0)} ms`;
+      const source = state.showBake ? ' · bake' : '';
+      $('render-caption').textContent = `painterly render${source} · t=${state.time} · ${w}×${h} · ${(performance.now() - started).toFixed(0)} ms`;
       api.rendered = (api.rendered || 0) + 1;
       draw();
     } catch (e) {
