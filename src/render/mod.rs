@@ -400,7 +400,7 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary> {
     let (w, h) = (args.size.width, args.size.height);
     let style = prepare::Style::default();
     let sheet_bg = args.background.map(|c| c.0).unwrap_or(Vec3::from_array(PAPER));
-    let cols = sheet::columns(times.len(), w as f64 / h as f64);
+    let cols = sheet::columns(times.len(), w, h);
     let factor = sheet::reduction(w, cols);
     let mut thumbs = Vec::new();
     let mut seconds = Vec::with_capacity(times.len());
