@@ -262,6 +262,50 @@ def test_meshes_are_shaded_guides_are_not(painterly, tmp_path):
     assert read_exr(tmp_path / "g.0001.exr")["A"].max() == 0.0
 
 
+
+@pytest.mark.parametrize("size", [(360, 240), (720, 480)])
+# Fanned from corner 0 or from corner 2: the diagonal 0–2 either way, its
+# triangles' corners in different orders (the old rasteriser cracked on both).
+@pytest.mark.parametrize("indices", [[0, 1, 2, 3], [2, 3, 0, 1]], ids=["fan_from_0", "fan_from_2"])
+def test_a_quads_diagonal_through_pixel_centres_leaves_no_crack(painterly, tmp_path, size, indices):
+    """A quad's two triangles share a diagonal; at these sizes it runs exactly
+    through pixel centres (x ± y is whole there). Every centre inside the quad
+    is drawn: none is left to the transparent background."""
+    path = tmp_path / "plain.usda"
+    stage = Usd.Stage.CreateNew(str(path))
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y)
+    cam = UsdGeom.Camera.Define(stage, "/World/Cam")
+    cam.CreateFocalLengthAttr(50.0)
+    cam.CreateHorizontalApertureAttr(36.0)
+    cam.CreateVerticalApertureAttr(24.0)
+    cam.AddTranslateOp().Set(Gf.Vec3d(0, 0, 10))
+    mesh = UsdGeom.Mesh.Define(stage, "/World/Quad")
+    corners = [(-1, -1, -2), (1, -1, -2), (1, 1, -2), (-1, 1, -2)]
+    mesh.CreatePointsAttr([Gf.Vec3f(*p) for p in corners])
+    mesh.CreateFaceVertexCountsAttr([4])
+    mesh.CreateFaceVertexIndicesAttr(indices)
+    mesh.CreateSubdivisionSchemeAttr("none")
+    stage.GetRootLayer().Save()
+    painterly("render", path, "--camera", "/World/Cam", "--frames", "1", "-o", tmp_path / "plain.exr",
+              "--png", "--size", f"{size[0]}x{size[1]}")
+    alpha = read_exr(tmp_path / "plain.exr")["A"]
+    # The quad by hand: 12 units in front, a 50 mm lens over a 36 mm
+    # aperture: x = W/2 ± (1/12)(50/36) W, y = H/2 ± the same (square pixels).
+    half = (1 / 12) * (50 / 36) * size[0]
+    x0, x1 = size[0] / 2 - half, size[0] / 2 + half
+    y0, y1 = size[1] / 2 - half, size[1] / 2 + half
+    ys, xs = np.mgrid[0 : size[1], 0 : size[0]] + 0.5
+    # Centres inside by more than half a pixel: the mesh covers them all.
+    inside = (xs > x0 + 0.5) & (xs < x1 - 0.5) & (ys > y0 + 0.5) & (ys < y1 - 0.5)
+    assert inside.sum() > 0.9 * (2 * half) ** 2
+    holes = np.argwhere(inside & (alpha == 0))
+    assert holes.size == 0, f"{len(holes)} transparent pixels inside the quad, e.g. (y, x) {holes[:5].tolist()}"
+    assert (alpha[inside] == 1).all()
+    # And nothing well outside it.
+    outside = (xs < x0 - 0.5) | (xs > x1 + 0.5) | (ys < y0 - 0.5) | (ys > y1 + 0.5)
+    assert (alpha[outside] == 0).all()
+
+
 BAD_CAMERAS = [
     ("missing", None, "Camera", "does not exist"),
     ("xform", {"translate": (0, 0, 10)}, "Xform", "not a Camera"),

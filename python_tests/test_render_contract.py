@@ -510,10 +510,21 @@ def test_contact_sheet_grid_and_labels(painterly, tmp_path):
     # Reading order: left to right, then top to bottom, equal spacing.
     assert positions == [(ys[k // cols], xs[k % cols]) for k in range(frames)]
     assert len({b - a for a, b in zip(xs, xs[1:])}) <= 1 and len({b - a for a, b in zip(ys, ys[1:])}) <= 1
-    # About 16:10 (docs/render.md): the grid's aspect is the closest a column count gives.
-    grid_aspect = lambda n: n * W / (-(-frames // n) * H)  # noqa: E731
-    best = min(range(1, frames + 1), key=lambda n: abs(np.log(grid_aspect(n) / 1.6)))
-    assert abs(np.log(grid_aspect(cols) / 1.6)) <= abs(np.log(grid_aspect(best) / 1.6)) + 1e-9
+    # About 16:10 (docs/render.md): the whole sheet, label bands, gaps and
+    # margins included, is the closest to it a column count gives (with 7
+    # frames of 200 × 160 no count reduces them). The layout is read off this
+    # sheet: the margin before the first frame, the gap between columns, the
+    # pitch of the rows (frame, label band, gap).
+    assert len(xs) > 1 and len(ys) > 1
+    margin, gap, pitch = xs[0], xs[1] - xs[0] - W, ys[1] - ys[0]
+    assert ys[0] == margin
+
+    def sheet_size(n):
+        return 2 * margin + n * W + (n - 1) * gap, 2 * margin + -(-frames // n) * pitch - gap
+
+    assert sheet_size(cols) == (sw, sh)
+    off = {n: abs(np.log(sheet_size(n)[0] / sheet_size(n)[1] / 1.6)) for n in range(1, frames + 1)}
+    assert off[cols] <= min(off.values()) + 1e-9, off
     # A label under each frame: ink in the strip below the tile, within its width,
     # and different numbers look different.
     step_y = ys[1] - ys[0] if len(ys) > 1 else sh - ys[0]

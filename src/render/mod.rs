@@ -186,18 +186,31 @@ pub fn frame_path(pattern: &Path, t: f64) -> PathBuf {
     pattern.with_file_name(out)
 }
 
-/// The contact sheet's path: the pattern without its `#` run (and the
-/// separator before it), extension `.sheet.png`.
+/// The contact sheet's path: the pattern's stem without its first `#` run
+/// (the one [`frame_path`] numbers; a later run stays as written) and the
+/// `.`, `_` or `-` just before it, extension `.sheet.png`. A run that starts
+/// the name takes the separator after it instead (`####.a.exr` gives
+/// `a.sheet.png`, not the hidden `.a.sheet.png`); nothing left gives `frames`.
 pub fn sheet_path(pattern: &Path) -> PathBuf {
     let stem = pattern
         .file_stem()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_default();
-    let base: String = stem.replace('#', "");
-    let base = base
-        .trim_end_matches(['.', '_', '-'])
-        .trim_start_matches(['.', '_', '-']);
-    let base = if base.is_empty() { "frames" } else { base };
+    let is_sep = |c: char| matches!(c, '.' | '_' | '-');
+    let base = match stem.find('#') {
+        None => stem,
+        Some(start) => {
+            let end = stem[start..].find(|c| c != '#').map_or(stem.len(), |n| start + n);
+            let (mut lo, mut hi) = (start, end);
+            if stem[..start].ends_with(is_sep) {
+                lo -= 1;
+            } else if start == 0 && stem[end..].starts_with(is_sep) {
+                hi += 1;
+            }
+            format!("{}{}", &stem[..lo], &stem[hi..])
+        }
+    };
+    let base = if base.is_empty() { "frames" } else { &base };
     pattern.with_file_name(format!("{base}.sheet.png"))
 }
 
@@ -382,7 +395,7 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary> {
     let (w, h) = (args.size.width, args.size.height);
     let style = prepare::Style::default();
     let sheet_bg = args.background.map(|c| c.0).unwrap_or(Vec3::from_array(PAPER));
-    let cols = sheet::columns(times.len(), w as f64 / h as f64);
+    let cols = sheet::columns(times.len(), w, h);
     let factor = sheet::reduction(w, cols);
     let mut thumbs = Vec::new();
     let mut seconds = Vec::with_capacity(times.len());
@@ -580,6 +593,31 @@ mod tests {
         assert_eq!(sheet_path(p), PathBuf::from("out/fish.sheet.png"));
         assert_eq!(sheet_path(Path::new("f_##.exr")), PathBuf::from("f.sheet.png"));
         assert_eq!(sheet_path(Path::new("####.exr")), PathBuf::from("frames.sheet.png"));
+    }
+
+    #[test]
+    fn sheet_names_drop_only_the_numbered_hash_run_and_its_separator() {
+        // docs/render.md: the first `#` run (the one frame_path numbers) and
+        // the `.`, `_` or `-` just before it go; a later run stays as written.
+        let sheet = |p: &str| sheet_path(Path::new(p));
+        assert_eq!(sheet("####.exr"), PathBuf::from("frames.sheet.png"));
+        assert_eq!(sheet("shot_####.exr"), PathBuf::from("shot.sheet.png"));
+        assert_eq!(sheet("out/fish.####.exr"), PathBuf::from("out/fish.sheet.png"));
+        assert_eq!(sheet("c.####.v##.exr"), PathBuf::from("c.v##.sheet.png"));
+        assert_eq!(sheet("a-##-b.exr"), PathBuf::from("a-b.sheet.png"));
+        assert_eq!(sheet("take##x.exr"), PathBuf::from("takex.sheet.png"));
+        assert_eq!(sheet("v#_shot_###.exr"), PathBuf::from("v_shot_###.sheet.png"));
+        // Starting the name, the run takes the separator after it: no hidden
+        // `.a.sheet.png`.
+        assert_eq!(sheet("####.a.exr"), PathBuf::from("a.sheet.png"));
+        assert_eq!(sheet("##_##.exr"), PathBuf::from("##.sheet.png"));
+        // No run (one frame): the name as given.
+        assert_eq!(sheet("out/still.exr"), PathBuf::from("out/still.sheet.png"));
+        // The frames keep the second run too: the sheet sits beside them.
+        assert_eq!(
+            frame_path(Path::new("c.####.v##.exr"), 7.0),
+            PathBuf::from("c.0007.v##.exr")
+        );
     }
 
     #[test]

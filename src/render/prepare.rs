@@ -265,13 +265,17 @@ fn clip_triangle_near(tri: [MeshVertex; 3], near: f64) -> Vec<MeshVertex> {
             out.push(a);
         }
         if inside(&a) != inside(&b) {
-            let (da, db) = (-a.p.z, -b.p.z);
-            let t = (near - da) / (db - da);
+            // Cut from the inside end: the neighbour across this edge runs
+            // it the other way and must get the same point, bit for bit,
+            // or a crack opens along the clipped edge.
+            let (i, o) = if inside(&a) { (a, b) } else { (b, a) };
+            let (di, dout) = (-i.p.z, -o.p.z);
+            let t = (near - di) / (dout - di);
             let tf = t as f32;
             out.push(MeshVertex {
-                p: a.p + (b.p - a.p) * t,
-                n: a.n + (b.n - a.n) * tf,
-                c: a.c + (b.c - a.c) * tf,
+                p: i.p + (o.p - i.p) * t,
+                n: i.n + (o.n - i.n) * tf,
+                c: i.c + (o.c - i.c) * tf,
             });
         }
     }
@@ -848,6 +852,32 @@ mod tests {
         // A corner on the plane is inside: nothing changes.
         let on = mesh_vertex([0.0, 4.0, -2.0], [0.0, 0.0, 1.0], [0.0, 0.0, 0.5]);
         assert_eq!(pncs(&clip_triangle_near([a, b, on], 2.0)), pncs(&[a, b, on]));
+    }
+
+    #[test]
+    fn near_clip_cuts_a_shared_edge_at_one_point_from_either_side() {
+        // Two triangles sharing the edge p–q (p in front of the plane, q
+        // behind), each running it its own way: the cut point must be the
+        // same bits in both, or the rasteriser sees two different edges.
+        use crate::interp::testutil::Lcg;
+        let mut rng = Lcg::new(5);
+        let near = 0.37;
+        let mut pt = |d: (f64, f64)| {
+            let v = [rng.uniform(-3.0, 3.0), rng.uniform(-3.0, 3.0), -rng.uniform(d.0, d.1)];
+            let mut f3 = || std::array::from_fn(|_| rng.uniform(0.0, 1.0) as f32);
+            let (n, c) = (f3(), f3());
+            mesh_vertex(v, n, c)
+        };
+        for case in 0..200 {
+            let (p, q) = (pt((0.5, 4.0)), pt((0.01, 0.3)));
+            let (r, s) = (pt((0.5, 4.0)), pt((0.5, 4.0)));
+            // [p, q, r] → p, cut(p–q), cut(q–r), r; [q, p, s] → cut(q–p), p, s, cut(s–q).
+            let one = clip_triangle_near([p, q, r], near);
+            let other = clip_triangle_near([q, p, s], near);
+            assert_eq!((one.len(), other.len()), (4, 4));
+            assert_eq!(pncs(&one[1..2]), pncs(&other[0..1]), "case {case}");
+            assert!((one[1].p.z + near).abs() < 1e-12, "case {case}: on the plane");
+        }
     }
 
     /// A mesh of separate faces over `points`.

@@ -15,6 +15,12 @@
 //! any direction. Segments meet with round joins (distance to the nearer
 //! segment end); a stroke's two ends get butt caps, so a stroke covers its
 //! width times its length.
+//!
+//! **Triangles** cover the pixels whose centres they contain, watertight:
+//! every edge function is computed from its endpoints in (x, y) order
+//! ([`edge_function`]), so the two triangles of a shared edge agree on every
+//! centre's side bit for bit, and the top-left rule gives a centre exactly
+//! on the edge to one of them.
 
 use glam::{Vec2, Vec3};
 
@@ -161,6 +167,20 @@ pub fn segment_rect(a: &RibbonVertex, b: &RibbonVertex) -> Option<PixelRect> {
     PixelRect::around([(a.pos, a.radius + 0.5), (b.pos, b.radius + 0.5)].into_iter())
 }
 
+/// The edge function `(v − u) × (p − u)` of the directed edge `u → v`,
+/// always computed from the endpoint that is smaller in (x, y) order and
+/// negated for the other direction: the two triangles sharing an edge (which
+/// run it in opposite directions) get bit-identical magnitudes, so rounding
+/// cannot leave a centre on it outside both.
+#[inline]
+pub fn edge_function(u: Vec2, v: Vec2, p: Vec2) -> f32 {
+    if u.x < v.x || (u.x == v.x && u.y <= v.y) {
+        (v - u).perp_dot(p - u)
+    } else {
+        -(u - v).perp_dot(p - v)
+    }
+}
+
 /// A projected triangle with per-corner shading inputs.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ScreenTriangle {
@@ -217,31 +237,33 @@ impl ScreenTriangle {
         if area.abs() < 1e-12 || !area.is_finite() {
             return;
         }
-        let inv = 1.0 / area;
-        // Edge functions e_i(p) = (v_j − v_i) × (p − v_i), weights for the opposite vertex.
-        let edge = |u: Vec2, v: Vec2, p: Vec2| (v - u).perp_dot(p - u);
-        // Top-left-like tie break: a centre exactly on a shared edge goes to
-        // one triangle only (the one for which the edge's bias is zero).
-        let bias = |u: Vec2, v: Vec2| {
-            let e = (v - u) * area.signum();
-            if (e.y < 0.0) || (e.y == 0.0 && e.x > 0.0) {
-                0.0
-            } else {
-                -1e-7
-            }
+        let sign = area.signum();
+        // Barycentric weight = oriented edge value / |twice the area|.
+        let inv = 1.0 / area.abs();
+        // Watertight: a shared edge is evaluated with its endpoints in one
+        // canonical order (see `edge_function`), so its two triangles get the
+        // same value, negated, and a centre on it is never missed by both.
+        // Oriented so inside is positive, whatever the winding.
+        let edge = |u: Vec2, v: Vec2, p: Vec2| edge_function(u, v, p) * sign;
+        // Top-left rule for exact zeros: a centre exactly on an edge belongs
+        // to the triangle for which that edge is a left edge (or a top edge,
+        // when horizontal), so one of the two triangles draws it, not both.
+        let top_left = |u: Vec2, v: Vec2| {
+            let e = (v - u) * sign;
+            e.y < 0.0 || (e.y == 0.0 && e.x > 0.0)
         };
-        let (ba, bb, bc) = (bias(b, c), bias(c, a), bias(a, b));
+        let inside = |e: f32, tl: bool| e > 0.0 || (e == 0.0 && tl);
+        let (tl0, tl1, tl2) = (top_left(b, c), top_left(c, a), top_left(a, b));
         let inv_depth = [1.0 / self.depth[0], 1.0 / self.depth[1], 1.0 / self.depth[2]];
         for y in r.y0..r.y1 {
             let py = y as f32 + 0.5;
             for x in r.x0..r.x1 {
                 let p = Vec2::new(x as f32 + 0.5, py);
-                let w0 = edge(b, c, p) * inv;
-                let w1 = edge(c, a, p) * inv;
-                let w2 = edge(a, b, p) * inv;
-                if w0 + ba < 0.0 || w1 + bb < 0.0 || w2 + bc < 0.0 {
+                let (e0, e1, e2) = (edge(b, c, p), edge(c, a, p), edge(a, b, p));
+                if !(inside(e0, tl0) && inside(e1, tl1) && inside(e2, tl2)) {
                     continue;
                 }
+                let (w0, w1, w2) = (e0 * inv, e1 * inv, e2 * inv);
                 let (depth, weights) = if perspective {
                     let q = [w0 * inv_depth[0], w1 * inv_depth[1], w2 * inv_depth[2]];
                     let s = q[0] + q[1] + q[2];
@@ -598,6 +620,170 @@ mod tests {
                     }
                 }
             }
+        }
+    }
+
+    /// Where `p` lies against the simple polygon `outline` (f64, independent
+    /// of the rasteriser): Some(true) strictly inside, Some(false) strictly
+    /// outside, None within 1e-3 px of its boundary (either answer).
+    fn against_outline(p: glam::DVec2, outline: &[glam::DVec2]) -> Option<bool> {
+        let n = outline.len();
+        let mut inside = false;
+        for k in 0..n {
+            let (u, v) = (outline[k], outline[(k + 1) % n]);
+            let d = v - u;
+            let t = ((p - u).dot(d) / d.length_squared()).clamp(0.0, 1.0);
+            if (u + d * t - p).length() < 1e-3 {
+                return None;
+            }
+            // Crossing number along +x.
+            if (u.y > p.y) != (v.y > p.y) && p.x < u.x + (p.y - u.y) / (v.y - u.y) * d.x {
+                inside = !inside;
+            }
+        }
+        Some(inside)
+    }
+
+    /// Rasterises `tris` with each triangle in the winding and first corner
+    /// `order(index)` gives, and checks every pixel centre of `clip` against
+    /// the union's `outline`: covered exactly once strictly inside, never
+    /// strictly outside, at most once on the boundary.
+    fn assert_union_covered_once(
+        tris: &[[Vec2; 3]],
+        outline: &[glam::DVec2],
+        clip: PixelRect,
+        order: impl Fn(usize) -> (bool, usize),
+        what: &str,
+    ) {
+        let w = (clip.x1 - clip.x0) as usize;
+        let mut count = vec![0u8; w * (clip.y1 - clip.y0) as usize];
+        for (k, &corners) in tris.iter().enumerate() {
+            let (clockwise, first) = order(k);
+            let mut c = corners;
+            if clockwise {
+                c.swap(1, 2);
+            }
+            c.rotate_left(first);
+            tri(c, [1.0; 3]).raster(&clip, false, |s| {
+                count[(s.y - clip.y0) as usize * w + (s.x - clip.x0) as usize] += 1;
+            });
+        }
+        for y in clip.y0..clip.y1 {
+            for x in clip.x0..clip.x1 {
+                let n = count[(y - clip.y0) as usize * w + (x - clip.x0) as usize];
+                let p = glam::DVec2::new(x as f64 + 0.5, y as f64 + 0.5);
+                match against_outline(p, outline) {
+                    Some(true) => assert_eq!(n, 1, "{what}: pixel {x},{y} inside the union"),
+                    Some(false) => assert_eq!(n, 0, "{what}: pixel {x},{y} outside the union"),
+                    None => assert!(n <= 1, "{what}: pixel {x},{y} on the boundary drawn {n} times"),
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn shared_edges_through_pixel_centres_leave_no_cracks() {
+        use crate::interp::testutil::Lcg;
+        let all_orders: Vec<(bool, usize)> = [false, true]
+            .into_iter()
+            .flat_map(|cw| (0..3).map(move |first| (cw, first)))
+            .collect();
+        let f32s = |p: glam::DVec2| p.as_vec2();
+
+        // The bug report's quad: corners (±1, ±1) at depth 12 through a
+        // 50 mm lens on a 36 × 24 aperture, i.e. the window x ∈ ±0.36,
+        // y ∈ ±0.24 one unit out, W / 0.72 pixels per unit on a W × 2W/3
+        // image. Its centre (W/2, W/3) has x ± y whole, so both diagonals
+        // run through pixel centres.
+        for width in [360u32, 480, 720, 1200] {
+            let scale = width as f64 / 0.72;
+            let px = |x: f64, y: f64| glam::DVec2::new((x / 12.0 + 0.36) * scale, (0.24 - y / 12.0) * scale);
+            let quad = [px(-1.0, -1.0), px(1.0, -1.0), px(1.0, 1.0), px(-1.0, 1.0)];
+            // The quad's pixels and a margin (the rest of the image is empty).
+            let q = quad.map(f32s);
+            let clip = PixelRect::around(q.iter().map(|&p| (p, 2.0))).unwrap();
+            for (diagonal, tris) in [
+                ("0-2", [[q[0], q[1], q[2]], [q[0], q[2], q[3]]]),
+                ("1-3", [[q[1], q[2], q[3]], [q[1], q[3], q[0]]]),
+            ] {
+                for &o0 in &all_orders {
+                    for &o1 in &all_orders {
+                        let what = format!("quad at {width} px, diagonal {diagonal}, orders {o0:?} {o1:?}");
+                        let order = |k: usize| if k == 0 { o0 } else { o1 };
+                        assert_union_covered_once(&tris, &quad, clip, order, &what);
+                    }
+                }
+            }
+        }
+
+        // Random pairs: the shared edge A–B lies on a line of pixel centres
+        // c + j·(p, q), its ends at fractional steps along it (so they round
+        // in f32), C and D on either side of it.
+        let mut rng = Lcg::new(11);
+        let clip = PixelRect {
+            x0: -4,
+            y0: -4,
+            x1: 68,
+            y1: 68,
+        };
+        for case in 0..300 {
+            let c = glam::DVec2::new(rng.below(24) as f64 + 20.5, rng.below(24) as f64 + 20.5);
+            let dir = loop {
+                let d = glam::DVec2::new(rng.below(7) as f64 - 3.0, rng.below(7) as f64 - 3.0);
+                if d != glam::DVec2::ZERO {
+                    break d;
+                }
+            };
+            let (a, b) = (c + dir * rng.uniform(-6.0, -0.5), c + dir * rng.uniform(0.5, 6.0));
+            let mid = (a + b) * 0.5;
+            let n = dir.perp().normalize();
+            let along = (b - a).normalize();
+            let side = |rng: &mut Lcg, s: f64| mid + n * (s * rng.uniform(2.0, 15.0)) + along * rng.uniform(-8.0, 8.0);
+            let (cc, d) = (side(&mut rng, 1.0), side(&mut rng, -1.0));
+            let outline = [a, cc, b, d];
+            let tris = [[a, b, cc].map(f32s), [b, a, d].map(f32s)];
+            let (o0, o1) = (all_orders[rng.below(6)], all_orders[rng.below(6)]);
+            let order = |k: usize| if k == 0 { o0 } else { o1 };
+            assert_union_covered_once(&tris, &outline, clip, order, &format!("pair {case}"));
+        }
+
+        // Random fans round a vertex on a pixel centre: every spoke runs
+        // through pixel centres, the vertex itself is on all of them.
+        let dirs = [
+            (1.0, 0.0),
+            (3.0, 1.0),
+            (2.0, 1.0),
+            (1.0, 1.0),
+            (1.0, 2.0),
+            (0.0, 1.0),
+            (-1.0, 3.0),
+            (-1.0, 1.0),
+            (-2.0, 1.0),
+            (-1.0, 0.0),
+            (-3.0, -2.0),
+            (-1.0, -1.0),
+            (-1.0, -3.0),
+            (0.0, -1.0),
+            (1.0, -2.0),
+            (1.0, -1.0),
+            (2.0, -1.0),
+        ];
+        for case in 0..200 {
+            let v = glam::DVec2::new(rng.below(8) as f64 + 28.5, rng.below(8) as f64 + 28.5);
+            // A random subset of the directions, no two consecutive more
+            // than half a turn apart (every fourth kept at least).
+            let mut ring = Vec::new();
+            for (k, &(x, y)) in dirs.iter().enumerate() {
+                if k % 4 == 0 || rng.below(2) == 0 {
+                    let d = glam::DVec2::new(x, y);
+                    ring.push(v + d * (rng.uniform(6.0, 20.0) / d.length()));
+                }
+            }
+            let tris: Vec<[Vec2; 3]> = (0..ring.len())
+                .map(|k| [v, ring[k], ring[(k + 1) % ring.len()]].map(f32s))
+                .collect();
+            let orders: Vec<(bool, usize)> = tris.iter().map(|_| all_orders[rng.below(6)]).collect();
+            assert_union_covered_once(&tris, &ring, clip, |k| orders[k], &format!("fan {case}"));
         }
     }
 

@@ -16,7 +16,8 @@ const MARGIN: usize = 12;
 const GAP: usize = 8;
 /// Most columns that fit in [`MAX_SHEET_WIDTH`] at one pixel per thumbnail.
 const MAX_COLUMNS: usize = (MAX_SHEET_WIDTH - 2 * MARGIN + GAP) / (1 + GAP);
-/// Label glyphs are 5 × 7 cells drawn at this scale.
+/// Label glyphs are 5 × 7 cells drawn at this scale (at 1 when a sheet's
+/// labels do not all fit their thumbnails at it).
 const GLYPH_SCALE: usize = 2;
 const LABEL_BAND: usize = 7 * GLYPH_SCALE + 8;
 
@@ -30,11 +31,31 @@ pub struct Thumbnail {
     pub rgb: Vec<Vec3>,
 }
 
-/// Columns for `n` thumbnails of aspect `aspect` so the sheet is roughly
-/// 16:10, at most as many as fit in [`MAX_SHEET_WIDTH`].
-pub fn columns(n: usize, aspect: f64) -> usize {
-    let c = ((n as f64) * 1.6 / aspect).sqrt().round() as usize;
-    c.clamp(1, n.clamp(1, MAX_COLUMNS))
+/// The sheet's size in pixels for `n` thumbnails of `tw` × `th` in `cols`
+/// columns: margins, gaps, and a label band under every row.
+pub fn sheet_size(n: usize, cols: usize, tw: usize, th: usize) -> (usize, usize) {
+    let cols = cols.clamp(1, n.max(1));
+    let rows = n.div_ceil(cols).max(1);
+    (
+        2 * MARGIN + cols * tw + (cols - 1) * GAP,
+        2 * MARGIN + rows * (th + LABEL_BAND) + (rows - 1) * GAP,
+    )
+}
+
+/// Columns for `n` frames of `width` × `height` pixels: the count whose
+/// whole sheet (thumbnails reduced to fit, gaps, label bands, margins) is
+/// closest to 16:10 in ratio, the fewer columns on a tie, at most as many as
+/// fit in [`MAX_SHEET_WIDTH`]. The label bands and gaps count: with small
+/// thumbnails they are most of a row's height.
+pub fn columns(n: usize, width: usize, height: usize) -> usize {
+    let off = |c: usize| {
+        let f = reduction(width, c);
+        let (w, h) = sheet_size(n, c, (width / f).max(1), (height / f).max(1));
+        (w as f64 / h as f64 / 1.6).ln().abs()
+    };
+    (1..=n.clamp(1, MAX_COLUMNS))
+        .min_by(|&a, &b| off(a).total_cmp(&off(b)))
+        .unwrap_or(1)
 }
 
 /// The smallest integer reduction factor so `columns` thumbnails of a
@@ -95,14 +116,34 @@ fn glyph(c: char) -> Option<[u8; 7]> {
     })
 }
 
+/// Pixels from the left of a label's first glyph to the right of its last,
+/// at `scale`.
+fn label_width(glyphs: usize, scale: usize) -> usize {
+    (glyphs * 6).saturating_sub(1) * scale
+}
+
+/// The glyph scale for a sheet's labels: 2 when every label fits its
+/// thumbnail's width at 2, else 1 (one size on a sheet, so the numbers read
+/// alike). At 1 a label still wider than its thumbnail is left out: a
+/// clipped number would read as another number.
+fn label_scale(thumbs: &[Thumbnail]) -> usize {
+    let fits = |t: &Thumbnail| label_width(t.label.chars().filter_map(glyph).count(), GLYPH_SCALE) <= t.width;
+    if thumbs.iter().all(fits) {
+        GLYPH_SCALE
+    } else {
+        1
+    }
+}
+
 /// Lays the thumbnails out; returns (width, height, 8-bit sRGB RGB pixels).
+/// Each thumbnail's cell is its column's width by its row's thumbnail and
+/// label band; nothing is drawn outside it.
 pub fn compose(thumbs: &[Thumbnail], cols: usize, background: Vec3, ink: Vec3) -> (usize, usize, Vec<u8>) {
     let tw = thumbs.iter().map(|t| t.width).max().unwrap_or(1);
     let th = thumbs.iter().map(|t| t.height).max().unwrap_or(1);
     let cols = cols.clamp(1, thumbs.len().max(1));
-    let rows = thumbs.len().div_ceil(cols).max(1);
-    let width = 2 * MARGIN + cols * tw + (cols - 1) * GAP;
-    let height = 2 * MARGIN + rows * (th + LABEL_BAND) + (rows - 1) * GAP;
+    let (width, height) = sheet_size(thumbs.len(), cols, tw, th);
+    let scale = label_scale(thumbs);
     let mut px = vec![background; width * height];
     for (k, t) in thumbs.iter().enumerate() {
         let (c, r) = (k % cols, k / cols);
@@ -112,11 +153,13 @@ pub fn compose(thumbs: &[Thumbnail], cols: usize, background: Vec3, ink: Vec3) -
             let dst = (y0 + y) * width + x0;
             px[dst..dst + t.width].copy_from_slice(&t.rgb[y * t.width..(y + 1) * t.width]);
         }
-        // The label, centred under the thumbnail.
+        // The label, centred under the thumbnail, when it fits its width.
         let glyphs: Vec<[u8; 7]> = t.label.chars().filter_map(glyph).collect();
-        let advance = 6 * GLYPH_SCALE;
-        let text_w = glyphs.len() * advance;
-        let lx = x0 + t.width.saturating_sub(text_w) / 2;
+        if label_width(glyphs.len(), scale) > t.width {
+            continue;
+        }
+        let advance = 6 * scale;
+        let lx = x0 + t.width.saturating_sub(glyphs.len() * advance) / 2;
         let ly = y0 + t.height + 4;
         for (g, rows_bits) in glyphs.iter().enumerate() {
             for (gy, bits) in rows_bits.iter().enumerate() {
@@ -124,13 +167,11 @@ pub fn compose(thumbs: &[Thumbnail], cols: usize, background: Vec3, ink: Vec3) -
                     if bits & (0x10 >> gx) == 0 {
                         continue;
                     }
-                    for sy in 0..GLYPH_SCALE {
-                        for sx in 0..GLYPH_SCALE {
-                            let x = lx + g * advance + gx * GLYPH_SCALE + sx;
-                            let y = ly + gy * GLYPH_SCALE + sy;
-                            if x < width && y < height {
-                                px[y * width + x] = ink;
-                            }
+                    for sy in 0..scale {
+                        for sx in 0..scale {
+                            let x = lx + g * advance + gx * scale + sx;
+                            let y = ly + gy * scale + sy;
+                            px[y * width + x] = ink;
                         }
                     }
                 }
@@ -174,7 +215,6 @@ mod tests {
         assert_eq!(px.len(), w * h * 3);
         assert_eq!(w, 2 * MARGIN + 2 * 2 + GAP);
         assert_eq!(h, 2 * MARGIN + 2 * (1 + LABEL_BAND) + GAP);
-        assert_eq!(columns(48, 16.0 / 9.0), 7);
         assert!(reduction(1920, 7) >= 1920 * 7 / MAX_SHEET_WIDTH);
     }
 
@@ -190,21 +230,32 @@ mod tests {
     }
 
     #[test]
-    fn columns_aim_at_16_10_within_the_width() {
-        // round(√(n · 1.6 / aspect)), at least 1, at most n.
-        assert_eq!(columns(48, 16.0 / 9.0), 7); // √43.2 = 6.57
-        assert_eq!(columns(100, 1.6), 10);
-        assert_eq!(columns(3, 4.0), 1); // √1.2 = 1.10
-        assert_eq!(columns(10, 0.1), 10); // √160 = 12.6, capped at n
-        assert_eq!(columns(1, 1.0), 1);
-        assert_eq!(columns(0, 1.0), 1);
-        assert_eq!(columns(12, 0.8), 5); // √24 = 4.90
-        assert_eq!(columns(12, 1.0), 4); // √19.2 = 4.38
-
+    fn columns_make_the_whole_sheet_about_16_10() {
+        // By hand: c columns reduce by f = ⌊w / (avail + 1)⌋ + 1, avail =
+        // ⌊(1576 − 8 (c − 1)) / c⌋; the sheet is 24 + c·tw + 8 (c − 1) by
+        // 24 + rows·(th + 22) + 8 (rows − 1); the best |ln(aspect / 1.6)| wins.
+        //
+        // The bug report: 1999 frames of 192 × 108. c = 77: avail 12, f 15,
+        // 12 × 7 thumbnails, 26 rows: 1556 × 978 (1.591). c = 76: 27 rows,
+        // 1536 × 1015 (1.513); c = 78: 1576 × 978 (1.611). The old rule
+        // (42 columns by the thumbnails alone) gave a portrait 1486 × 2176.
+        assert_eq!(columns(1999, 192, 108), 77);
+        assert_eq!(sheet_size(1999, 77, 12, 7), (1556, 978));
+        // 9 of 360 × 225, no reduction: c = 3 is 1120 × 781 (1.434), c = 4
+        // 1488 × 781 (1.905), c = 2 752 × 1291.
+        assert_eq!(columns(9, 360, 225), 3);
+        // 12 of 320 × 200: c = 4 is 1328 × 706 (1.881), c = 3 1000 × 936
+        // (1.068), c = 5 reduces by 2: 856 × 406 (2.108).
+        assert_eq!(columns(12, 320, 200), 4);
+        assert_eq!(sheet_size(12, 3, 320, 200), (1000, 936));
+        assert_eq!(columns(1, 1, 1), 1);
+        assert_eq!(columns(0, 100, 100), 1);
         // Tall frames: no more columns than fit one pixel each with their
-        // gaps: (1600 − 2·12 + 8) / 9 = 176.
-        assert_eq!(columns(2000, 0.01), 176);
-        assert_eq!(columns(176, 0.001), 176);
+        // gaps: (1600 − 2·12 + 8) / 9 = 176, even though the sheet stays tall.
+        assert_eq!(columns(2000, 1, 1000), 176);
+        // Wide frames: 3 of 1000 × 100 in one column are 1024 × 406 (2.52);
+        // two columns reduce by 2 to 500 × 50: 1032 × 176 (5.86).
+        assert_eq!(columns(3, 1000, 100), 1);
     }
 
     #[test]
@@ -328,7 +379,7 @@ mod tests {
             code(bg)
         );
         // More columns than thumbnails: one row; a label wider than its
-        // thumbnail starts at its left edge and is clipped at the sheet's.
+        // thumbnail even at scale 1 (10 glyphs: 59 px > 30) is left out.
         let wide = Thumbnail {
             label: "-1234567.5".into(),
             ..thumb("", 0.0)
@@ -336,9 +387,11 @@ mod tests {
         let (w1, h1, px1) = compose(&[wide], 4, bg, ink);
         assert_eq!((w1, h1), (2 * MARGIN + 30, 2 * MARGIN + 20 + LABEL_BAND));
         assert_eq!(px1.len(), w1 * h1 * 3);
-        // '-' is the first glyph: its middle row at the thumbnail's left edge.
-        let i = 3 * ((MARGIN + 20 + 4 + 2 * 3) * w1 + MARGIN);
-        assert_eq!(px1[i..i + 3], code(ink));
+        for y in MARGIN + 20..h1 {
+            for x in 0..w1 {
+                assert_eq!(px1[3 * (y * w1 + x)..3 * (y * w1 + x) + 3], code(bg), "{x},{y}");
+            }
+        }
         // No thumbnails: an empty sheet of margins.
         let (w0, h0, _) = compose(&[], 3, bg, ink);
         assert_eq!((w0, h0), (2 * MARGIN + 1, 2 * MARGIN + 1 + LABEL_BAND));
@@ -371,7 +424,7 @@ mod tests {
     }
 
     #[test]
-    fn labels_run_left_to_right_and_clip_at_the_sheet_edge() {
+    fn labels_run_left_to_right_and_stay_off_the_margin() {
         let (bg, ink) = (Vec3::splat(0.5), Vec3::ZERO);
         let thumb = |label: &str| Thumbnail {
             label: label.into(),
@@ -393,13 +446,117 @@ mod tests {
                 }
             }
         }
-        // A label wider than the sheet is cut at its right edge: nothing wraps
-        // into the next rows' left margin.
+        // A label wider than the sheet is left out: nothing wraps into the
+        // next rows' left margin.
         let (w, h, px) = compose(&[thumb("-1234567.5")], 1, bg, ink);
         for y in 0..h {
             for x in 0..MARGIN {
                 assert_eq!(px[3 * (y * w + x)], b, "{x},{y}");
             }
         }
+    }
+
+    /// Ink pixels of a composed sheet, as (x, y).
+    fn ink_pixels(w: usize, px: &[u8], ink: Vec3) -> Vec<(usize, usize)> {
+        let want = [srgb8(ink.x), srgb8(ink.y), srgb8(ink.z)];
+        px.chunks(3)
+            .enumerate()
+            .filter(|(_, c)| *c == want)
+            .map(|(i, _)| (i % w, i / w))
+            .collect()
+    }
+
+    #[test]
+    fn labels_that_do_not_fit_shrink_or_are_left_out_never_leaving_their_cell() {
+        // The bug report's labels: frames 1, 1.01, 1.02, ... under 27 × 15
+        // thumbnails (192 × 108 reduced by 7). "1.01" is 4 glyphs: 4·6 − 1 =
+        // 23 cells, 46 px at scale 2 (too wide), 23 px at scale 1 (fits).
+        let (bg, ink) = (Vec3::splat(0.5), Vec3::ZERO);
+        let thumb = |label: &str| Thumbnail {
+            label: label.into(),
+            width: 27,
+            height: 15,
+            rgb: vec![Vec3::ONE; 27 * 15],
+        };
+        let labels: Vec<String> = (0..12)
+            .map(|k| if k == 0 { "1".into() } else { format!("1.{k:02}") })
+            .collect();
+        let mut thumbs: Vec<Thumbnail> = labels.iter().map(|l| thumb(l)).collect();
+        // One that fits at neither scale: 10 glyphs, 59 px at scale 1.
+        thumbs[7].label = "-1234567.5".into();
+        let cols = 4;
+        let (w, _, px) = compose(&thumbs, cols, bg, ink);
+        // Cell k: x ∈ [12 + 35 c, +27), y ∈ [12 + 45 r, +15 + 22).
+        let cell = |k: usize| (MARGIN + (k % cols) * 35, MARGIN + (k / cols) * 45);
+        let mut per_cell = vec![0usize; thumbs.len()];
+        for (x, y) in ink_pixels(w, &px, ink) {
+            let k = (0..thumbs.len())
+                .find(|&k| {
+                    let (x0, y0) = cell(k);
+                    (x0..x0 + 27).contains(&x) && (y0 + 15..y0 + 37).contains(&y)
+                })
+                .unwrap_or_else(|| panic!("ink at {x},{y} outside every label cell"));
+            per_cell[k] += 1;
+        }
+        assert_eq!(per_cell[7], 0, "the label that cannot fit is left out");
+        assert!(
+            per_cell.iter().enumerate().all(|(k, &n)| k == 7 || n > 0),
+            "{per_cell:?}"
+        );
+        // Every label at scale 1, "1.05" (cell 5) exactly: 24 px of advance
+        // centred in 27 → 1 px in, 4 px under the thumbnail, one pixel a cell.
+        let (x0, y0) = cell(5);
+        let (lx, ly) = (x0 + 1, y0 + 15 + 4);
+        let at = |x: usize, y: usize| px[3 * (y * w + x)];
+        for (g, ch) in "1.05".chars().enumerate() {
+            for (gy, bits) in glyph(ch).unwrap().iter().enumerate() {
+                for gx in 0..5 {
+                    let want = if bits & (0x10 >> gx) != 0 {
+                        srgb8(0.0)
+                    } else {
+                        srgb8(0.5)
+                    };
+                    assert_eq!(at(lx + 6 * g + gx, ly + gy), want, "{ch} cell {gx},{gy}");
+                }
+            }
+        }
+        // "1" alone would fit at scale 2 but takes the sheet's scale 1: one
+        // pixel per ink cell of its glyph.
+        let one_ink = glyph('1')
+            .unwrap()
+            .iter()
+            .map(|r| r.count_ones() as usize)
+            .sum::<usize>();
+        assert_eq!(per_cell[0], one_ink);
+
+        // `--size 1x1`: one-pixel thumbnails fit no label; nothing but the
+        // thumbnails on the background.
+        let tiny: Vec<Thumbnail> = labels
+            .iter()
+            .map(|l| Thumbnail {
+                label: l.clone(),
+                width: 1,
+                height: 1,
+                rgb: vec![Vec3::ONE],
+            })
+            .collect();
+        let (w, _, px) = compose(&tiny, 6, bg, ink);
+        assert_eq!(ink_pixels(w, &px, ink), []);
+
+        // All labels fit at scale 2 (wide thumbnails): drawn at 2, 2 × 2 px a cell.
+        let wide: Vec<Thumbnail> = labels
+            .iter()
+            .map(|l| Thumbnail {
+                width: 60,
+                rgb: vec![Vec3::ONE; 60 * 15],
+                ..thumb(l)
+            })
+            .collect();
+        let (w, _, px) = compose(&wide, 4, bg, ink);
+        let ones = ink_pixels(w, &px, ink)
+            .into_iter()
+            .filter(|&(x, y)| x < MARGIN + 60 && y < MARGIN + 15 + LABEL_BAND)
+            .count();
+        assert_eq!(ones, 4 * one_ink);
     }
 }
