@@ -287,3 +287,30 @@ def test_view_warns_and_reports_unless_quiet(painterly, tmp_path, repo_root):
     assert (quiet.returncode, quiet.stdout, quiet.stderr) == (0, "", "")
     view = Usd.Stage.Open(str(out))
     assert view.GetDefaultPrim().GetName() == first
+
+
+@pytest.mark.parametrize("kind,why", [("folder", "it is a folder, not a USD file"), ("missing", "no such file")])
+def test_an_input_that_is_not_a_file_is_named_before_any_work(painterly, tmp_path, repo_root, kind, why):
+    """Every command that reads an input or a bake layer says which one is
+    missing or a folder (a TD who passed the shot folder by mistake), exit 1,
+    and writes nothing."""
+    bad = tmp_path / ("shot" if kind == "folder" else "missing.usda")
+    if kind == "folder":
+        bad.mkdir()
+    apple = repo_root / "fixtures" / "apple.usda"
+    out = tmp_path / "out"
+    out.mkdir()
+    cases = [
+        (["bake", bad, "-o", out / "b.usdc"], "input"),
+        (["inspect", bad], "input"),
+        (["bind", bad, "--in-place"], "input"),
+        (["render", bad, "--camera", "/Apple/Camera", "--frames", "1", "-o", out / "f.####.exr"], "input"),
+        (["render", apple, "--camera", "/Apple/Camera", "--frames", "1", "-o", out / "f.####.exr", "--bake", bad], "bake layer"),
+        (["view", bad, "--bake", apple, "-o", out / "v.usda"], "input"),
+        (["view", apple, "--bake", bad, "-o", out / "v.usda"], "bake layer"),
+        (["preview", bad, "--port", "0"], "input"),
+    ]
+    for args, what in cases:
+        proc = painterly(*args, check=False)
+        assert (proc.returncode, proc.stderr) == (1, f"error: {bad}: cannot open {what}: {why}\n"), args
+    assert list(out.iterdir()) == []

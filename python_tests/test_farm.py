@@ -729,3 +729,16 @@ def test_a_plan_without_task_ids_asks_no_scheduler(painterly, tmp_path):
     assert not st["scheduler_queried"]
     assert states(st) == ["missing"] * 4
     assert not (bin_dir / "asked").exists()
+
+
+def test_quiet_submit_and_status_print_nothing_and_keep_their_exit_codes(painterly, tmp_path):
+    """`-q` as for bake: a farm script that reads only exit codes gets them,
+    and nothing on stdout or stderr."""
+    shot = tmp_path / "shot.usda"
+    sub = painterly("farm", "submit", BLOWFISH, "-o", shot, "--chunk", "24", "--scheduler", "openjd", "-q", check=False)
+    assert (sub.returncode, sub.stdout, sub.stderr) == (0, "", "")
+    assert (tmp_path / "shot.clips" / "farm" / "plan.json").is_file()
+    st = painterly("farm", "status", shot, "--quiet", check=False)
+    assert (st.returncode, st.stdout, st.stderr) == (1, "", "")
+    both = painterly("farm", "status", shot, "--quiet", "--json", check=False)
+    assert both.returncode == 2 and "cannot be used with" in both.stderr

@@ -855,3 +855,13 @@ def test_the_slider_stream_closes_on_a_message_over_64_kib(fish):
     finally:
         ws.close()
     assert fish.frame(time=1)[0]["time"] == 1
+
+
+@pytest.mark.parametrize("host,serving", [("localhost", "(serving 127.0.0.1 only; Ctrl-C stops)"), ("0.0.0.0", "(serving every address of this machine; Ctrl-C stops)")])
+def test_host_takes_localhost_and_every_address_prints_an_openable_url(host, serving):
+    with PreviewServer(FISH, "--host", host) as s:
+        assert re.fullmatch(r"http://127\.0\.0\.1:\d+/", s.url), s.url
+        assert s.proc.stdout.readline() == serving + "\n"
+        assert s.scene()["file"] == str(FISH)
+    r = subprocess.run([str(painterly_binary()), "preview", str(FISH), "--host", "example.com"], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 2 and "\"example.com\" is not an IP address (or localhost)" in r.stderr

@@ -234,6 +234,8 @@ def test_interpolate_matches_the_cli_bit_for_bit(method, token, radius):
                 s += float(w[q, i]) * float(values.reshape(6, 12)[i, j])
             expected[q, j] = s
     assert np.array_equal(got.reshape(len(queries), 12), expected)
+    # The USD token the CLI's JSON takes is the same method.
+    assert np.array_equal(painterly.interpolate(keys, np.eye(6), queries, method=token, **kw), w)
 
 
 def test_interpolate_in_one_dimension_and_its_errors():
@@ -419,6 +421,11 @@ def test_times_and_frames_are_checked_before_use():
     # A list is (start, end[, step]) like a tuple, never a list of frames.
     assert painterly.bake(FIXTURES / "tube.usda", frames=[1, 3])["frames"] == 3
     assert painterly.bake(FIXTURES / "tube.usda", frames=[1, 5, 2])["frames"] == 3
+    # A bad range is named as it was written, in Python.
+    for frames, written in [((5, 1), "(5, 1)"), ("5:1", "'5:1'"), ([5, 1], "[5, 1]")]:
+        with pytest.raises(painterly.Error) as e:
+            painterly.bake(FIXTURES / "tube.usda", frames=frames)
+        assert str(e.value) == f"frames={written}: end 1 is before start 5"
     for frames in ([1], [1, 2, 3, 4]):
         with pytest.raises(painterly.Error, match=rf"^frames: a sequence is \(start, end\) or \(start, end, step\), not {len(frames)} numbers"):
             painterly.bake(FIXTURES / "tube.usda", frames=frames)

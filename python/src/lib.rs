@@ -184,9 +184,11 @@ fn frames_from_py(py: Python<'_>, frames: Option<&Bound<'_, PyAny>>) -> PyResult
             "frames: expected \"A:B:STEP\", a number or (start, end[, step])",
         ));
     };
+    // Named as the caller wrote it: `frames=(5, 1)`, not the CLI's "5:1".
+    let written = f.repr().map(|r| r.to_string()).unwrap_or_else(|_| format!("{text:?}"));
     text.parse::<FrameRange>()
         .map(Some)
-        .map_err(|e| msg_err(py, format!("frames {text:?}: {e}")))
+        .map_err(|e| msg_err(py, format!("frames={written}: {e}")))
 }
 
 /// Bakes `input` (a path or an `Sdf.Layer`) and returns the `--json` summary

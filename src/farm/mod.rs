@@ -88,8 +88,11 @@ pub struct SubmitArgs {
     #[arg(long, value_name = "ARG", allow_hyphen_values = true)]
     pub sbatch_arg: Vec<String>,
     /// Print a JSON summary on stdout instead of text.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "quiet")]
     pub json: bool,
+    /// Print nothing on success (errors still go to stderr), as for bake.
+    #[arg(short, long)]
+    pub quiet: bool,
 }
 
 /// `farm status` arguments.
@@ -98,8 +101,11 @@ pub struct StatusArgs {
     /// The clip-set layer given to `farm submit -o`.
     pub output: PathBuf,
     /// Print the status as JSON.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "quiet")]
     pub json: bool,
+    /// Print nothing: the exit code alone says whether the shot is done.
+    #[arg(short, long)]
+    pub quiet: bool,
 }
 
 /// The schedulers `farm submit` knows.
@@ -499,7 +505,7 @@ pub fn run(cmd: FarmCommand) -> i32 {
                 Ok(s) => {
                     if args.json {
                         println!("{}", serde_json::to_string_pretty(&s).unwrap_or_default());
-                    } else {
+                    } else if !args.quiet {
                         print!("{}", s.to_text());
                     }
                     0
@@ -511,7 +517,7 @@ pub fn run(cmd: FarmCommand) -> i32 {
             Ok(st) => {
                 if args.json {
                     println!("{}", serde_json::to_string_pretty(&st).unwrap_or_default());
-                } else {
+                } else if !args.quiet {
                     print!("{}", st.to_text());
                 }
                 if st.complete {

@@ -149,9 +149,7 @@ fn mat(m: &DMat4) -> impl Iterator<Item = f32> {
 /// The bake layer to show: checked against the input, and opened through
 /// a root layer that puts it over the input, as `painterly view` does.
 fn open_bake(input: &Path, b: &Path, start: f64, end: f64, warnings: &mut Vec<String>) -> Result<Bake> {
-    if !b.is_file() {
-        return Err(Error::msg("cannot open bake layer: no such file").in_file(b));
-    }
+    crate::usd_io::stage::require_file(b, "bake layer")?;
     check_bake(input, b, &[start, end], warnings)?;
     let folder = TempDir::new()?;
     let root = write_root(folder.path(), input, Some(b))?;

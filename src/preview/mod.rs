@@ -42,15 +42,37 @@ pub struct PreviewArgs {
     pub port: u16,
     /// Address to listen on. The default serves this machine only; any
     /// other address lets other machines evaluate (never write) the input.
-    #[arg(long, default_value_t = IpAddr::V4(Ipv4Addr::LOCALHOST), value_name = "ADDR")]
+    /// `localhost` is 127.0.0.1; `0.0.0.0` serves every address.
+    #[arg(long, default_value_t = IpAddr::V4(Ipv4Addr::LOCALHOST), value_name = "ADDR", value_parser = parse_host)]
     pub host: IpAddr,
+}
+
+/// `--host`: an IP address, or `localhost` (no name lookup: the address
+/// served is the one given).
+fn parse_host(s: &str) -> std::result::Result<IpAddr, String> {
+    if s.eq_ignore_ascii_case("localhost") {
+        return Ok(IpAddr::V4(Ipv4Addr::LOCALHOST));
+    }
+    s.parse::<IpAddr>()
+        .map_err(|_| format!("{s:?} is not an IP address (or localhost)"))
+}
+
+/// The URL to print for `local`: an unspecified address (0.0.0.0, ::) is
+/// not one a browser can open, so this machine's loopback stands for it.
+fn page_url(local: SocketAddr) -> String {
+    let shown = match local.ip() {
+        IpAddr::V4(ip) if ip.is_unspecified() => SocketAddr::new(IpAddr::V4(Ipv4Addr::LOCALHOST), local.port()),
+        IpAddr::V6(ip) if ip.is_unspecified() => {
+            SocketAddr::new(IpAddr::V6(std::net::Ipv6Addr::LOCALHOST), local.port())
+        }
+        _ => local,
+    };
+    format!("http://{shown}/")
 }
 
 /// Opens the character, binds, prints the URL and serves until killed.
 pub fn run(args: &PreviewArgs) -> Result<()> {
-    if !args.input.is_file() {
-        return Err(Error::msg("cannot open input: no such file").in_file(&args.input));
-    }
+    crate::usd_io::stage::require_file(&args.input, "input")?;
     let evaluator = evaluator::Evaluator::start(&args.input, args.camera.as_deref(), args.bake.as_deref())?;
     let runtime = tokio::runtime::Builder::new_current_thread()
         .enable_all()
@@ -68,9 +90,13 @@ pub fn run(args: &PreviewArgs) -> Result<()> {
             evaluator,
             hosts: allowed_hosts(local),
         });
-        let url = format!("http://{local}/");
+        let url = page_url(local);
         println!("painterly preview of {}: {url}", args.input.display());
-        println!("(serving {} only; Ctrl-C stops)", local.ip());
+        if local.ip().is_unspecified() {
+            println!("(serving every address of this machine; Ctrl-C stops)");
+        } else {
+            println!("(serving {} only; Ctrl-C stops)", local.ip());
+        }
         let _ = std::io::stdout().flush();
         axum::serve(listener, server::router(state))
             .await

@@ -45,6 +45,7 @@ use crate::usd_io::atomic::write_atomic;
 pub(crate) use crate::usd_io::atomic::TempDir;
 use crate::usd_io::bake_layer::check_baked_from;
 use crate::usd_io::render_scene::{layer_timing, RenderScene};
+use crate::usd_io::stage::require_file;
 use crate::usd_io::stage::StageReader;
 use crate::words::plural;
 
@@ -54,6 +55,10 @@ pub struct ImageSize {
     pub width: usize,
     pub height: usize,
 }
+
+/// The most pixels a frame may have (`--size`), so that a typo fails fast
+/// instead of allocating gigabytes.
+pub const MAX_PIXELS: usize = 1 << 26;
 
 impl std::str::FromStr for ImageSize {
     type Err = String;
@@ -65,6 +70,13 @@ impl std::str::FromStr for ImageSize {
         let h: usize = h.trim().parse().map_err(|_| bad())?;
         if w == 0 || h == 0 || w > 16384 || h > 16384 {
             return Err(format!("{s:?}: width and height must be between 1 and 16384"));
+        }
+        // A frame's buffers take tens of bytes a pixel: 64 Mpx is ~2.5 GB.
+        if w * h > MAX_PIXELS {
+            return Err(format!(
+                "{s:?} is {} pixels; at most {MAX_PIXELS} (8192x8192) are rendered",
+                w * h
+            ));
         }
         Ok(ImageSize { width: w, height: h })
     }
@@ -260,13 +272,9 @@ fn check_args(args: &RenderArgs) -> Result<Vec<f64>> {
             times.len()
         )));
     }
-    if !args.input.is_file() {
-        return Err(Error::msg("cannot open input: no such file").in_file(&args.input));
-    }
+    require_file(&args.input, "input")?;
     if let Some(b) = &args.bake {
-        if !b.is_file() {
-            return Err(Error::msg("cannot open bake layer: no such file").in_file(b));
-        }
+        require_file(b, "bake layer")?;
     }
     Ok(times)
 }
@@ -640,16 +648,31 @@ mod tests {
     }
 
     #[test]
-    fn sizes_up_to_16384_on_either_side_parse() {
-        // The message's own bounds: "between 1 and 16384", inclusive.
-        let max = ImageSize {
-            width: 16384,
-            height: 16384,
-        };
-        assert_eq!("16384x16384".parse::<ImageSize>(), Ok(max));
-        for bad in ["16385x2", "2x16385", "2x99999", "3x0"] {
+    fn sizes_up_to_16384_on_either_side_and_64_megapixels_parse() {
+        // The messages' own bounds: "between 1 and 16384", inclusive, and
+        // 8192 x 8192 = 2^26 pixels in all.
+        for (text, width, height) in [
+            ("16384x4096", 16384, 4096),
+            ("4096x16384", 4096, 16384),
+            ("8192x8192", 8192, 8192),
+        ] {
+            assert_eq!(text.parse::<ImageSize>(), Ok(ImageSize { width, height }));
+        }
+        for bad in [
+            "16385x2",
+            "2x16385",
+            "2x99999",
+            "3x0",
+            "16384x4097",
+            "8193x8192",
+            "16384x16384",
+        ] {
             assert!(bad.parse::<ImageSize>().is_err(), "{bad}");
         }
+        assert_eq!(
+            "8193x8192".parse::<ImageSize>(),
+            Err("\"8193x8192\" is 67117056 pixels; at most 67108864 (8192x8192) are rendered".into())
+        );
     }
 
     #[test]

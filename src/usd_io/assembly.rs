@@ -32,9 +32,7 @@ pub fn write_view_layer(input: &Path, bake: &Path, output: &Path) -> Result<View
         return Err(Error::usage("the view layer is text: name it .usda").in_file(output));
     }
     for (p, what) in [(input, "input"), (bake, "bake layer")] {
-        if !p.is_file() {
-            return Err(Error::msg(format!("cannot open {what}: no such file")).in_file(p));
-        }
+        super::stage::require_file(p, what)?;
     }
     let r = StageReader::open_mapped(input)?;
     let meta = r.metadata();

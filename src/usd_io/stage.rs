@@ -154,6 +154,20 @@ pub(crate) fn mapped_resolver() -> openusd::ar::DefaultResolver {
     }
 }
 
+/// Checks that `path`, the command's `what` ("input", "bake layer"), is a
+/// file before anything is read: a missing file, a folder and a device
+/// each get their own words.
+pub fn require_file(path: &Path, what: &str) -> Result<()> {
+    let why = match std::fs::metadata(path) {
+        Ok(m) if m.is_file() => return Ok(()),
+        Ok(m) if m.is_dir() => "it is a folder, not a USD file".to_string(),
+        Ok(_) => "not a regular file".to_string(),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => "no such file".to_string(),
+        Err(e) => e.to_string(),
+    };
+    Err(Error::msg(format!("cannot open {what}: {why}")).in_file(path))
+}
+
 impl StageReader {
     /// Opens and composes `path` (`.usda`, `.usdc` or `.usdz`), reading
     /// every layer into memory: for readers that live on while the user may
@@ -178,10 +192,7 @@ impl StageReader {
 
     /// `path` as a string, when it names a regular file.
     fn checked_input(path: &Path) -> Result<&str> {
-        let meta = std::fs::metadata(path).map_err(|e| Error::msg(format!("cannot open input: {e}")).in_file(path))?;
-        if !meta.is_file() {
-            return Err(Error::msg("cannot open input: not a regular file").in_file(path));
-        }
+        require_file(path, "input")?;
         path.to_str()
             .ok_or_else(|| Error::msg("input path is not valid UTF-8").in_file(path))
     }
