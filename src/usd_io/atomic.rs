@@ -450,18 +450,25 @@ impl Drop for TempDir {
 }
 
 /// Creates the folder `base/<stem><n>` for the first `n` from `first` on
-/// that does not exist yet.
+/// that does not exist yet, trying [`NEW_DIR_TRIES`] names at most.
 fn create_new_dir(base: &Path, stem: &str, first: u128) -> Result<PathBuf> {
-    let mut n = first;
-    loop {
+    for n in first..first + NEW_DIR_TRIES {
         let path = base.join(format!("{stem}{n}"));
         match std::fs::create_dir(&path) {
             Ok(()) => return Ok(path),
-            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => n += 1,
+            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => continue,
             Err(e) => return Err(Error::msg(format!("cannot create a temporary folder: {e}")).in_file(&path)),
         }
     }
+    Err(Error::msg(format!(
+        "cannot create a temporary folder: {NEW_DIR_TRIES} names from {stem}{first} are taken"
+    ))
+    .in_file(base))
 }
+
+/// How many names [`create_new_dir`] tries: a clock tick shared by a few
+/// threads needs a few; more means something else is making them.
+const NEW_DIR_TRIES: u128 = 1000;
 
 /// Removes render folders of dead processes of this host from `base`.
 fn sweep_stale_dirs(base: &Path) {
@@ -749,8 +756,23 @@ mod tests {
         assert_eq!(create_new_dir(&base, "t-", 7).unwrap(), base.join("t-8"));
         assert_eq!(create_new_dir(&base, "t-", 7).unwrap(), base.join("t-9"));
         assert_eq!(std::fs::read(base.join("t-7").join("bake.usda")).unwrap(), b"theirs");
+        // Another error is reported at once, as the system gave it.
         let err = create_new_dir(&base.join("missing"), "t-", 0).unwrap_err();
-        assert!(err.to_string().contains("cannot create a temporary folder"), "{err}");
+        assert!(
+            err.to_string()
+                .ends_with("cannot create a temporary folder: No such file or directory (os error 2)"),
+            "{err}"
+        );
+        // Every name taken: an error, not a hang.
+        for n in 100..100 + NEW_DIR_TRIES {
+            std::fs::create_dir(base.join(format!("u-{n}"))).unwrap();
+        }
+        let err = create_new_dir(&base, "u-", 100).unwrap_err();
+        assert!(
+            err.to_string()
+                .ends_with("cannot create a temporary folder: 1000 names from u-100 are taken"),
+            "{err}"
+        );
     }
 
     #[test]
