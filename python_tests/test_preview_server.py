@@ -857,10 +857,21 @@ def test_the_slider_stream_closes_on_a_message_over_64_kib(fish):
     assert fish.frame(time=1)[0]["time"] == 1
 
 
-@pytest.mark.parametrize("host,serving", [("localhost", "(serving 127.0.0.1 only; Ctrl-C stops)"), ("0.0.0.0", "(serving every address of this machine; Ctrl-C stops)")])
-def test_host_takes_localhost_and_every_address_prints_an_openable_url(host, serving):
+EVERY = "(serving every address of this machine; Ctrl-C stops)"
+
+
+@pytest.mark.parametrize("host,shown,serving", [
+    ("localhost", "127.0.0.1", "(serving 127.0.0.1 only; Ctrl-C stops)"),
+    ("127.0.0.2", "127.0.0.2", "(serving 127.0.0.2 only; Ctrl-C stops)"),
+    ("0.0.0.0", "127.0.0.1", EVERY),
+    ("::1", "[::1]", "(serving ::1 only; Ctrl-C stops)"),
+    ("::", "[::1]", EVERY),
+])
+def test_host_takes_localhost_and_every_address_prints_an_openable_url(host, shown, serving):
+    """The URL printed is one a browser on this machine opens: the address
+    served, or the loopback when every address is served."""
     with PreviewServer(FISH, "--host", host) as s:
-        assert re.fullmatch(r"http://127\.0\.0\.1:\d+/", s.url), s.url
+        assert re.fullmatch(re.escape(f"http://{shown}:") + r"\d+/", s.url), s.url
         assert s.proc.stdout.readline() == serving + "\n"
         assert s.scene()["file"] == str(FISH)
     r = subprocess.run([str(painterly_binary()), "preview", str(FISH), "--host", "example.com"], capture_output=True, text=True, timeout=60)
