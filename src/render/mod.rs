@@ -45,8 +45,7 @@ use crate::usd_io::atomic::write_atomic;
 pub(crate) use crate::usd_io::atomic::TempDir;
 use crate::usd_io::bake_layer::check_baked_from;
 use crate::usd_io::render_scene::{layer_timing, RenderScene};
-use crate::usd_io::stage::require_file;
-use crate::usd_io::stage::StageReader;
+use crate::usd_io::stage::{require_file, StageReader};
 use crate::words::plural;
 
 /// Image size `WIDTHxHEIGHT`.

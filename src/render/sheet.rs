@@ -457,6 +457,28 @@ mod tests {
     }
 
     /// Ink pixels of a composed sheet, as (x, y).
+    #[test]
+    fn a_label_exactly_as_wide_as_its_thumbnail_is_drawn() {
+        // Glyphs are 5 cells wide with 1 cell between: n glyphs take 6n − 1
+        // cells, each `scale` pixels.
+        assert_eq!(
+            [label_width(1, 1), label_width(4, 1), label_width(4, 2), label_width(0, 2)],
+            [5, 23, 46, 0]
+        );
+        // "1.01" is 23 px at scale 1: a thumbnail 23 px wide shows it, 22 px not.
+        let (bg, ink) = (Vec3::splat(0.5), Vec3::ZERO);
+        for (width, drawn) in [(23, true), (22, false)] {
+            let t = Thumbnail {
+                label: "1.01".into(),
+                width,
+                height: 4,
+                rgb: vec![Vec3::ONE; width * 4],
+            };
+            let (w, _, px) = compose(&[t], 1, bg, ink);
+            assert_eq!(!ink_pixels(w, &px, ink).is_empty(), drawn, "{width}");
+        }
+    }
+
     fn ink_pixels(w: usize, px: &[u8], ink: Vec3) -> Vec<(usize, usize)> {
         let want = [srgb8(ink.x), srgb8(ink.y), srgb8(ink.z)];
         px.chunks(3)
