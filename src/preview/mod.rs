@@ -120,3 +120,27 @@ pub fn allowed_hosts(local: SocketAddr) -> Option<Vec<String>> {
     hosts.dedup();
     Some(hosts)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_url_printed_is_the_address_served_or_the_loopback_for_every_address() {
+        let url = |a: &str| page_url(a.parse().unwrap());
+        assert_eq!(url("192.168.1.7:8765"), "http://192.168.1.7:8765/");
+        assert_eq!(url("0.0.0.0:8765"), "http://127.0.0.1:8765/");
+        assert_eq!(url("[fe80::1]:80"), "http://[fe80::1]:80/");
+        assert_eq!(url("[::]:80"), "http://[::1]:80/");
+    }
+
+    #[test]
+    fn host_is_an_ip_address_or_localhost() {
+        assert_eq!(parse_host("LocalHost"), Ok(IpAddr::V4(Ipv4Addr::LOCALHOST)));
+        assert_eq!(parse_host("::1"), Ok("::1".parse().unwrap()));
+        assert_eq!(
+            parse_host("example.com"),
+            Err("\"example.com\" is not an IP address (or localhost)".into())
+        );
+    }
+}

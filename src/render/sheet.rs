@@ -462,7 +462,12 @@ mod tests {
         // Glyphs are 5 cells wide with 1 cell between: n glyphs take 6n − 1
         // cells, each `scale` pixels.
         assert_eq!(
-            [label_width(1, 1), label_width(4, 1), label_width(4, 2), label_width(0, 2)],
+            [
+                label_width(1, 1),
+                label_width(4, 1),
+                label_width(4, 2),
+                label_width(0, 2)
+            ],
             [5, 23, 46, 0]
         );
         // "1.01" is 23 px at scale 1: a thumbnail 23 px wide shows it, 22 px not.
