@@ -148,9 +148,17 @@ fn mat(m: &DMat4) -> impl Iterator<Item = f32> {
 
 /// The bake layer to show: checked against the input, and opened through
 /// a root layer that puts it over the input, as `painterly view` does.
-fn open_bake(input: &Path, b: &Path, start: f64, end: f64, warnings: &mut Vec<String>) -> Result<Bake> {
+/// `opened` is the input's stage, open already.
+fn open_bake(
+    input: &Path,
+    opened: &StageReader,
+    b: &Path,
+    start: f64,
+    end: f64,
+    warnings: &mut Vec<String>,
+) -> Result<Bake> {
     crate::usd_io::stage::require_file(b, "bake layer")?;
-    check_bake(input, b, &[start, end], warnings)?;
+    check_bake(input, Some(opened), b, &[start, end], warnings)?;
     let folder = TempDir::new()?;
     let root = write_root(folder.path(), input, Some(b))?;
     let reader = StageReader::open(&root).map_err(|e| e.in_file(b))?;
@@ -285,7 +293,7 @@ impl State {
         let mut warnings = Vec::new();
         let bake_path = bake.map(|b| b.display().to_string());
         let bake = match bake {
-            Some(b) => Some(open_bake(input, b, start, end, &mut warnings)?),
+            Some(b) => Some(open_bake(input, r, b, start, end, &mut warnings)?),
             None => None,
         };
         // The stage checks of `inspect`, on the stage already open; not its

@@ -361,8 +361,15 @@ impl RenderSummary {
 /// Checks a `--bake` layer against the render: a bake of another input is
 /// refused; a stale one (see [`check_baked_from`]) and frames outside the
 /// baked range are warned about (strokes show their authored points there).
-pub(crate) fn check_bake(input: &Path, bake: &Path, times: &[f64], warnings: &mut Vec<String>) -> Result<()> {
-    let Some(p) = check_baked_from(input, bake, warnings)? else {
+/// `opened` is the input's stage when the caller has it open.
+pub(crate) fn check_bake(
+    input: &Path,
+    opened: Option<&StageReader>,
+    bake: &Path,
+    times: &[f64],
+    warnings: &mut Vec<String>,
+) -> Result<()> {
+    let Some(p) = check_baked_from(input, opened, bake, warnings)? else {
         return Ok(());
     };
     if let Some((a, b, _)) = p.frame_range() {
@@ -392,7 +399,7 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary> {
     };
     let mut warnings = Vec::new();
     if let Some(b) = &args.bake {
-        check_bake(&args.input, b, &times, &mut warnings)?;
+        check_bake(&args.input, None, b, &times, &mut warnings)?;
     }
     let tmp = TempDir::new()?;
     let stage = RenderStage::open(args, tmp.path())?;
@@ -753,7 +760,7 @@ mod tests {
         std::fs::write(&bake, layer).unwrap();
         let warned = |times: &[f64]| {
             let mut w = Vec::new();
-            check_bake(&input, &bake, times, &mut w).unwrap();
+            check_bake(&input, None, &bake, times, &mut w).unwrap();
             w
         };
         assert_eq!(

@@ -37,7 +37,8 @@ pub fn write_view_layer(input: &Path, bake: &Path, output: &Path) -> Result<View
     let r = StageReader::open_mapped(input)?;
     let meta = r.metadata();
     let mut warnings = Vec::new();
-    let range = check_baked_from(input, bake, &mut warnings)?.and_then(|p| p.frame_range().map(|(a, b, _)| (a, b)));
+    let range =
+        check_baked_from(input, Some(&r), bake, &mut warnings)?.and_then(|p| p.frame_range().map(|(a, b, _)| (a, b)));
     let (start, end) = range
         .or(meta.start_time_code.zip(meta.end_time_code))
         .ok_or_else(|| Error::msg("neither the bake nor the input says which frames to show").in_file(bake))?;

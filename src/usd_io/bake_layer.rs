@@ -21,7 +21,7 @@ use openusd::sdf::Value;
 use super::atomic::TempFile;
 use super::layer::{Format, OverLayer};
 use super::spill::ColumnSpill;
-use super::stage::StageMetadata;
+use super::stage::{StageMetadata, StageReader};
 use super::usdc::{CrateStream, Stored, ValueHandle};
 use crate::error::{Error, Result};
 
@@ -101,8 +101,15 @@ pub fn read_provenance(path: &Path) -> Result<Option<Provenance>> {
 /// and preview show a bake over its input) and returns its provenance:
 /// a bake of another input is refused; one whose input's layers changed
 /// since (their `inputHash` or `inputStamp` differs from the recorded one) or that
-/// carries no provenance adds a warning, and is shown.
-pub fn check_baked_from(input: &Path, bake: &Path, warnings: &mut Vec<String>) -> Result<Option<Provenance>> {
+/// carries no provenance adds a warning, and is shown. `opened` is the
+/// input's stage when the caller has it open (else it is opened, and only
+/// when the bake recorded a digest).
+pub fn check_baked_from(
+    input: &Path,
+    opened: Option<&StageReader>,
+    bake: &Path,
+    warnings: &mut Vec<String>,
+) -> Result<Option<Provenance>> {
     let Some(p) = read_provenance(bake)? else {
         warnings.push(format!(
             "{} has no painterly provenance (customLayerData[\"painterly\"]): cannot check it was baked from {}",
@@ -124,13 +131,14 @@ pub fn check_baked_from(input: &Path, bake: &Path, warnings: &mut Vec<String>) -
         ))
         .in_file(bake));
     }
+    let digest = |of: fn(&StageReader) -> Result<String>| match opened {
+        Some(r) => of(r),
+        None => of(&StageReader::open_mapped(input)?),
+    };
     // A chunked bake's content hash when there is one, else the stamp.
     let changed = match (&p.input_hash, &p.input_stamp) {
-        (Some(recorded), _) => Some(("inputHash", super::clips::input_hash(&reader_of(input)?)? != *recorded)),
-        (None, Some(recorded)) => Some((
-            "inputStamp",
-            super::clips::input_stamp(&reader_of(input)?)? != *recorded,
-        )),
+        (Some(recorded), _) => Some(("inputHash", digest(super::clips::input_hash)? != *recorded)),
+        (None, Some(recorded)) => Some(("inputStamp", digest(super::clips::input_stamp)? != *recorded)),
         (None, None) => None,
     };
     if let Some((field, true)) = changed {
@@ -142,10 +150,6 @@ pub fn check_baked_from(input: &Path, bake: &Path, warnings: &mut Vec<String>) -
         ));
     }
     Ok(Some(p))
-}
-
-fn reader_of(input: &Path) -> Result<super::stage::StageReader> {
-    super::stage::StageReader::open_mapped(input)
 }
 
 /// Opens one layer (not what it sublayers) over a read-only memory mapping

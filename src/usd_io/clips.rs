@@ -312,8 +312,11 @@ pub fn input_hash(r: &StageReader) -> Result<String> {
     Ok(r.input_hash.get_or_init(|| h).clone())
 }
 
-/// The layer files the stage used, by resolved path.
-fn layer_files(r: &StageReader) -> BTreeSet<PathBuf> {
+/// SHA-256 over the layer files the stage used, sorted by resolved path:
+/// for each, the path, a NUL byte, then what `content` adds of the file;
+/// hex encoded. Packages (`.usdz`) count as one file.
+fn layers_digest(r: &StageReader, content: impl Fn(&Path, &mut sha2::Sha256) -> std::io::Result<()>) -> Result<String> {
+    use sha2::{Digest, Sha256};
     let mut files: BTreeSet<PathBuf> = BTreeSet::new();
     for id in r.stage.layer_identifiers() {
         // "pkg.usdz[inner.usdc]" names a layer inside a package.
@@ -323,41 +326,36 @@ fn layer_files(r: &StageReader) -> BTreeSet<PathBuf> {
             files.insert(path.canonicalize().unwrap_or(path));
         }
     }
-    files
+    let mut h = Sha256::new();
+    for f in &files {
+        h.update(f.to_string_lossy().as_bytes());
+        h.update([0]);
+        content(f, &mut h).map_err(|e| Error::msg(format!("cannot read: {e}")).in_file(f))?;
+    }
+    Ok(h.finalize().iter().map(|b| format!("{b:02x}")).collect())
 }
 
-/// SHA-256 over the stat of every layer file the stage used (sorted by
-/// path: name, size, modification time in nanoseconds), hex encoded: tells
-/// a changed input from the one baked without reading its bytes, which
-/// [`input_hash`] does (a 160 MiB input costs it about 0.1 s).
+/// [`input_hash`]'s digest: each file's bytes.
+fn hash_layers(r: &StageReader) -> Result<String> {
+    layers_digest(r, |f, h| std::io::copy(&mut std::fs::File::open(f)?, h).map(|_| ()))
+}
+
+/// The same digest over each layer file's size and modification time in
+/// nanoseconds (`"SIZE MTIME\n"`) instead of its bytes: tells a changed
+/// input from the one baked without reading it, which [`input_hash`] does
+/// (a 160 MiB input costs it about 0.1 s).
 pub fn input_stamp(r: &StageReader) -> Result<String> {
-    use sha2::{Digest, Sha256};
-    let mut h = Sha256::new();
-    for f in &layer_files(r) {
-        let meta = std::fs::metadata(f).map_err(|e| Error::msg(format!("cannot read: {e}")).in_file(f))?;
+    use sha2::Digest;
+    layers_digest(r, |f, h| {
+        let meta = std::fs::metadata(f)?;
         let modified = meta
             .modified()
             .ok()
             .and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok())
             .map_or(0, |d| d.as_nanos());
-        h.update(f.to_string_lossy().as_bytes());
-        h.update([0]);
         h.update(format!("{} {modified}\n", meta.len()).as_bytes());
-    }
-    Ok(h.finalize().iter().map(|b| format!("{b:02x}")).collect())
-}
-
-fn hash_layers(r: &StageReader) -> Result<String> {
-    use sha2::{Digest, Sha256};
-    let files = layer_files(r);
-    let mut h = Sha256::new();
-    for f in &files {
-        h.update(f.to_string_lossy().as_bytes());
-        h.update([0]);
-        let mut file = std::fs::File::open(f).map_err(|e| Error::msg(format!("cannot read: {e}")).in_file(f))?;
-        std::io::copy(&mut file, &mut h).map_err(|e| Error::msg(format!("cannot read: {e}")).in_file(f))?;
-    }
-    Ok(h.finalize().iter().map(|b| format!("{b:02x}")).collect())
+        Ok(())
+    })
 }
 
 /// Checks that every chunk of `plan` is on disk and was baked from an input
