@@ -147,3 +147,70 @@ def test_bake_binds_seam_points_to_the_lowest_tied_triangle(painterly, tmp_path)
     diag = Au.bbox_diag(rig.rest)
     gap = max(float(np.linalg.norm(want[t] - wrong[t], axis=1).max()) for t in FRAMES) / diag
     assert gap > 1e-3, f"the two tie rules bake within {gap:.3g} x diagonal: the test cannot tell them apart"
+
+
+def far_tilted_sheet(path):
+    """A flat 2 x 2 sheet of 800 triangles turned off every axis, and
+    stroke points 1e2 to 1e3 units off it along its normal, above and
+    below. So far off, several triangles around the foot of each point tie
+    within the tolerance (distances differ by x^2 / 2r for an offset x
+    along the sheet). Returns (rest points, stroke points)."""
+    n = 20
+    grid = np.array([(0.1 * i, 0.1 * j, 0.0) for j in range(n + 1) for i in range(n + 1)])
+    axis = np.array([0.63, 0.45, 0.52])
+    axis /= np.linalg.norm(axis)
+    angle = 1.09
+    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    rot = np.eye(3) + np.sin(angle) * k + (1 - np.cos(angle)) * (k @ k)  # Rodrigues
+    rest = grid @ rot.T
+    normal = rot[:, 2]
+    feet = [rot @ np.array([0.05 + 0.15 * i, 0.07 + 0.12 * i, 0.0]) for i in range(12)]
+    strokes = [[f + s * r * normal for f in feet[i::3]] for i in range(3)
+               for r in (1e2, 5e2, 1e3) for s in (1.0, -1.0)]
+    stage = Usd.Stage.CreateNew(str(path))
+    Au.set_stage_metadata(stage, 1, 1)
+    world = UsdGeom.Xform.Define(stage, "/World")
+    stage.SetDefaultPrim(world.GetPrim())
+    mesh = UsdGeom.Mesh.Define(stage, "/World/Sheet")
+    quads = [[j * (n + 1) + i, j * (n + 1) + i + 1, (j + 1) * (n + 1) + i + 1, (j + 1) * (n + 1) + i]
+             for j in range(n) for i in range(n)]
+    mesh.CreateFaceVertexCountsAttr(Vt.IntArray([4] * len(quads)))
+    mesh.CreateFaceVertexIndicesAttr(Vt.IntArray([v for q in quads for v in q]))
+    mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
+    mesh.CreatePointsAttr().Set(Au.v3f(rest))
+    Au.add_painterly_rig(stage, "/World/Paint", mesh.GetPath())
+    pts = np.array([p for s in strokes for p in s])
+    Au.add_stroke_layer(stage, "/World/Paint/Strokes", [len(s) for s in strokes], pts)
+    stage.GetRootLayer().Save()
+    # What USD stores (f32), as both sides read it.
+    return np.array(Au.v3f(rest), dtype=np.float64), np.array(Au.v3f(pts), dtype=np.float64)
+
+
+def test_bind_far_from_a_tilted_sheet_keeps_the_lowest_tie(painterly, tmp_path):
+    """Points far from their proxy still bind by the tie rule. Rounding a
+    plane to f32 moves its value at a point in proportion to the point's
+    distance from the origin; the search once pruned lower-indexed ties
+    there (14 of these 72 points bound to another triangle)."""
+    path = tmp_path / "far.usda"
+    rest, pts = far_tilted_sheet(path)
+    stage, rigs = RS.describe(str(path))
+    tris = rigs[0]["topo"].tris
+    want_v, want_w = RS.bind(rest, tris, pts)
+    # Sanity: real ties (several triangles within the tolerance), none of
+    # them near its edge, where rounding could decide either way.
+    A, B, C = rest[tris[:, 0]], rest[tris[:, 1]], rest[tris[:, 2]]
+    d = np.sqrt(np.maximum(RS.closest_on_triangles(pts, A, B, C)[0], 0.0))
+    edge = d.min(axis=1, keepdims=True) + RS.tie_tolerance(rest)
+    assert ((d <= edge).sum(axis=1) >= 2).sum() >= 24, "too few points with tied triangles"
+    assert (np.abs(d - edge) > 1e-12 * np.linalg.norm(pts, axis=1, keepdims=True)).all()
+
+    edits = tmp_path / "edits.usda"
+    painterly("bind", path, "--edit-layer", edits, "--quiet")
+    edited = Usd.Stage.Open(str(edits))
+    prim = edited.GetPrimAtPath("/World/Paint/Strokes")
+    verts = np.array(prim.GetAttribute("painterly:bindVertices").Get(), dtype=np.int64)
+    weights = np.array(prim.GetAttribute("painterly:bindWeights").Get(), dtype=np.float64)
+    bad = np.nonzero((verts != want_v).any(axis=1))[0]
+    assert len(bad) == 0, (f"{len(bad)} of {len(pts)} points bound to another triangle than the lowest tied one, "
+                           f"e.g. point {bad[0]}: {verts[bad[0]].tolist()} vs {want_v[bad[0]].tolist()}")
+    np.testing.assert_allclose(weights, want_w, atol=1e-6)

@@ -79,7 +79,9 @@ pub struct ClosestPoint {
     /// Absolute slack added to pruning distances: covers the rounding of
     /// distances computed at coordinates of this size.
     slack: f64,
-    /// How far an f32 plane distance may undershoot the true one.
+    /// How far a plane distance from f32 `n`, `d` may undershoot the true
+    /// one at the mesh; a query adds its own term for its distance from
+    /// the origin.
     plane_slack: f64,
 }
 
@@ -127,8 +129,11 @@ impl ClosestPoint {
             groups: Vec::new(),
             tol,
             slack: 1e-12 * (extent + tol * 1e6),
-            // Rounding n and d to f32 moves the plane by at most about
-            // 2⁻²⁴·(|x| + |d|) ≤ 2⁻²³·extent at any point x of the triangle.
+            // Rounding n and d to f32 (relative 2⁻²⁴ each), and the f64
+            // error in n's direction (kept below about 5e-8 by the sliver
+            // test in `leaf_tri`), move n·x − d by at most about
+            // 1.2e-7·(|x| + |d|) at a point x; |d| ≤ extent. The query adds
+            // 1e-6·|p| for its own point.
             plane_slack: 1e-6 * extent,
         };
         cp.build();
@@ -140,7 +145,14 @@ impl ClosestPoint {
         let (lo, hi) = (a.min(b).min(c), a.max(b).max(c));
         let n = (b - a).cross(c - a);
         let len = n.length();
-        let plane = if len > 0.0 && len.is_finite() {
+        // A sliver (height below 1e-8 of its longest edge) gets no plane:
+        // its f64 normal's direction may be off by more than the slack
+        // allows (error up to about 4.4e-16 × |ab| |ac| / |n|).
+        let longest2 = (b - a)
+            .length_squared()
+            .max((c - a).length_squared())
+            .max((c - b).length_squared());
+        let plane = if len > 1e-8 * longest2 && len.is_finite() {
             let n = n / len;
             [n.x as f32, n.y as f32, n.z as f32, n.dot(a) as f32]
         } else {
@@ -235,6 +247,9 @@ impl ClosestPoint {
         let q = p32.to_array();
         let limit = |best: f64| f32_bound2(best + self.tol + self.slack + shift);
         let mut limit2 = limit(best);
+        // The plane's f32 rounding moves n·p − d in proportion to |p| too:
+        // a point far from a tilted mesh sees it far more than the mesh.
+        let plane_slack = self.plane_slack + 1e-6 * p.length();
         s.stack.push((0u32, 0.0));
         while let Some((ni, d2)) = s.stack.pop() {
             if d2 > limit2 {
@@ -263,7 +278,7 @@ impl ClosestPoint {
                     }
                     let bound = best + self.tol + self.slack;
                     let [nx, ny, nz, nd] = lt.plane.map(f64::from);
-                    if (nx * p.x + ny * p.y + nz * p.z - nd).abs() - self.plane_slack > bound {
+                    if (nx * p.x + ny * p.y + nz * p.z - nd).abs() - plane_slack > bound {
                         continue;
                     }
                     let [a, b, c] = self.leaf_corners[first + i];
@@ -1246,6 +1261,78 @@ mod tests {
         let b = cp.bind(&q);
         assert_eq!(b, bind_brute_force(&pts, &[[0, 1, 2]], &q));
         assert_eq!(b.weights[1], [0.6, 0.2, 0.2]);
+    }
+
+    #[test]
+    fn far_points_off_tilted_sheets_equal_brute_force() {
+        // A flat sheet of 800 triangles, 2 units wide, turned 40 ways, and
+        // points 1e2 to 1e7 units off it along its normal. Far off, many
+        // triangles tie within the tolerance (their distances differ by
+        // x²/2r for an offset x along the sheet); every plane's f32
+        // rounding then moves n·p − d by up to 1e-7·|p|, which the pruning
+        // must allow for, or it drops the lower-indexed ties.
+        let n = 20u32;
+        let mut tris = Vec::new();
+        for j in 0..n {
+            for i in 0..n {
+                let v = j * (n + 1) + i;
+                tris.push([v, v + 1, v + n + 2]);
+                tris.push([v, v + n + 2, v + n + 1]);
+            }
+        }
+        let mut wrong = Vec::new();
+        for turn in 0..40 {
+            let axis = DVec3::new(0.3 + turn as f64 * 0.11, 0.8 - turn as f64 * 0.07, 0.52).normalize();
+            let rot = glam::DQuat::from_axis_angle(axis, 0.7 + turn as f64 * 0.13);
+            let pts: Vec<DVec3> = (0..=n)
+                .flat_map(|j| (0..=n).map(move |i| DVec3::new(i as f64 * 0.1, j as f64 * 0.1, 0.0)))
+                .map(|p| rot * p)
+                .collect();
+            let cp = ClosestPoint::new(&pts, &tris);
+            let tol = tie_tolerance(&pts);
+            for r in [1e2, 1e3, 1e5, 1e7] {
+                for k in 0..12 {
+                    let foot = rot * DVec3::new(0.05 + 0.15 * k as f64, 0.05 + 0.12 * k as f64, 0.0);
+                    let side = if k % 2 == 0 { 1.0 } else { -1.0 };
+                    let q = foot + rot * DVec3::Z * r * side;
+                    let d: Vec<f64> = tris
+                        .iter()
+                        .map(|t| {
+                            let [a, b, c] = t.map(|v| pts[v as usize]);
+                            triangle_distance(q, a, b, c).0
+                        })
+                        .collect();
+                    let best = d.iter().copied().fold(f64::INFINITY, f64::min);
+                    let want = d.iter().position(|&x| x <= best + tol).expect("a nearest triangle");
+                    let got = cp.query(q).0;
+                    if got != want {
+                        wrong.push((turn, r, k, got, want));
+                    }
+                }
+            }
+        }
+        assert!(
+            wrong.is_empty(),
+            "{} of 1920 differ, e.g. {:?}",
+            wrong.len(),
+            &wrong[..wrong.len().min(5)]
+        );
+    }
+
+    #[test]
+    fn slivers_get_no_plane() {
+        // Height 1e-9 of the longest edge: below the 1e-8 the normal's
+        // direction can be trusted to; height 1e-7: a plane.
+        let pts = [
+            DVec3::ZERO,
+            DVec3::X,
+            DVec3::new(0.5, 1e-9, 0.0),
+            DVec3::new(0.5, 1e-7, 0.0),
+        ];
+        let cp = ClosestPoint::new(&pts, &[[0, 1, 2], [0, 1, 3]]);
+        let plane = |t: u32| cp.leaf_tri(t).plane;
+        assert_eq!(plane(0), [0.0; 4]);
+        assert_eq!(plane(1), [0.0, 0.0, 1.0, 0.0]);
     }
 
     #[test]
