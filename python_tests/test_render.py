@@ -449,3 +449,57 @@ def test_summary_line_counts_in_words(painterly, tmp_path):
     stage = author(tmp_path / "s.usda", camera={"translate": (0, 0, 10)}, strokes=[{"points": [(-1, 0, 0), (1, 0, 0)]}])
     out = render(painterly, stage, tmp_path)
     assert out.stdout.startswith(f"rendered 1 frame at {W}x{H}: 1 curves prim (1 stroke), 0 meshes (0 triangles) -> ")
+
+
+def add_curves(stage_path, path, points, counts=None, width=0.3, curve_type="linear", basis=None):
+    """Adds a BasisCurves prim with usd-core; `counts` None leaves
+    curveVertexCounts unauthored."""
+    s = Usd.Stage.Open(str(stage_path))
+    c = UsdGeom.BasisCurves.Define(s, path)
+    c.CreateTypeAttr(curve_type)
+    if basis:
+        c.CreateBasisAttr(basis)
+    c.CreatePointsAttr([Gf.Vec3f(*p) for p in points])
+    if counts is not None:
+        c.CreateCurveVertexCountsAttr(counts)
+    c.CreateWidthsAttr([width])
+    c.SetWidthsInterpolation(UsdGeom.Tokens.constant)
+    s.GetRootLayer().Save()
+
+
+def test_curves_that_draw_nothing_are_named(painterly, tmp_path):
+    """A cubic B-spline of three points (one span needs four) and a curve
+    of negative width draw nothing; the render says which and why, and
+    its pixels are those of the one drawable stroke alone."""
+    stroke = {"points": [(-1, 0, 0), (1, 0, 0)], "width": 0.3}
+    alone = author(tmp_path / "alone.usda", camera={"translate": (0, 0, 10)}, strokes=[stroke], end=2)
+    stage = author(tmp_path / "s.usda", camera={"translate": (0, 0, 10)}, strokes=[stroke], end=2)
+    add_curves(stage, "/Short", [(-1, 1, 0), (0, 1.5, 0), (1, 1, 0)], [3], curve_type="cubic", basis="bspline")
+    add_curves(stage, "/Thin", [(-1, -1, 0), (1, -1, 0)], [2], width=-0.2)
+    proc = render(painterly, stage, tmp_path, "--json", frames="1:2")
+    summary = json.loads(proc.stdout)
+    assert summary["warnings"] == [
+        "/Short: 1 of 1 curve draw nothing (1 with too few points for one span) at frames 1, 2",
+        "/Thin: 1 of 1 curve draw nothing (1 without a positive width) at frames 1, 2",
+    ]
+    assert summary["curves"] == 3 and summary["empty_frames"] == []
+    assert "warning: /Short: 1 of 1 curve draw nothing" in proc.stderr
+    (tmp_path / "alone").mkdir()
+    render(painterly, alone, tmp_path / "alone", frames="1:2")
+    for f in ("f.0001.exr", "f.0002.exr"):
+        got, want = read_exr(tmp_path / f), read_exr(tmp_path / "alone" / f)
+        assert set(got) == set(want) and all(np.array_equal(got[k], want[k]) for k in got), f
+        assert got["A"].max() > 0, f
+
+
+def test_curves_without_vertex_counts_are_refused(painterly, tmp_path):
+    """USD has no fallback for curveVertexCounts but the empty array, which
+    does not add up to the points: refused like any other mismatch, naming
+    the file, prim and attribute (it was once drawn as one stroke)."""
+    stage = author(tmp_path / "s.usda", camera={"translate": (0, 0, 10)})
+    add_curves(stage, "/NoCounts", [(-1, 0, 0), (0, 1, 0), (1, 0, 0)])
+    proc = render(painterly, stage, tmp_path, check=False)
+    assert proc.returncode == 1
+    assert proc.stderr == (f"error: {stage}: /NoCounts.curveVertexCounts: at time 1: "
+                           "counts sum to 0, but there are 3 points\n")
+    assert not list(tmp_path.glob("f.*"))

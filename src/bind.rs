@@ -981,19 +981,23 @@ mod tests {
             ]);
             tris.push([3 * k, 3 * k + 1, 3 * k + 2]);
         }
-        let cp = ClosestPoint::new(&pts, &tris);
         // p lies in the plane c = 0.01·√3 = 0.0173, between c₁₆ = 0.0161
-        // and c₁₇ = 0.0484.
-        let n = DVec3::ONE / 3f64.sqrt();
-        let p = n * 0.01;
-        let mut s = Scratch::default();
-        let (t, _) = cp.query_with(p, None, &mut s);
-        let want = (0..32)
-            .min_by(|&a, &b| cp.distance(p, a).0.total_cmp(&cp.distance(p, b).0))
-            .unwrap();
-        assert_eq!(t, want as usize);
-        // Measured when written: 2 (32 with the plane test removed).
-        assert!(s.work.exact <= 8, "{} exact distances of 32", s.work.exact);
+        // and c₁₇ = 0.0484. The same soup and point 120 from the origin:
+        // the plane test's slack grows with |p| (1e-6 of it), no more.
+        for off in [DVec3::ZERO, DVec3::new(100.0, -50.0, 40.0)] {
+            let pts: Vec<DVec3> = pts.iter().map(|&x| x + off).collect();
+            let cp = ClosestPoint::new(&pts, &tris);
+            let n = DVec3::ONE / 3f64.sqrt();
+            let p = n * 0.01 + off;
+            let mut s = Scratch::default();
+            let (t, _) = cp.query_with(p, None, &mut s);
+            let want = (0..32)
+                .min_by(|&a, &b| cp.distance(p, a).0.total_cmp(&cp.distance(p, b).0))
+                .unwrap();
+            assert_eq!(t, want as usize);
+            // Measured when written: 2 (32 with the plane test removed).
+            assert!(s.work.exact <= 8, "{} exact distances of 32 at {off}", s.work.exact);
+        }
     }
 
     /// A tie found second: the plane prefilter keeps every triangle within
@@ -1321,18 +1325,19 @@ mod tests {
 
     #[test]
     fn slivers_get_no_plane() {
-        // Height 1e-9 of the longest edge: below the 1e-8 the normal's
-        // direction can be trusted to; height 1e-7: a plane.
-        let pts = [
-            DVec3::ZERO,
-            DVec3::X,
-            DVec3::new(0.5, 1e-9, 0.0),
-            DVec3::new(0.5, 1e-7, 0.0),
-        ];
-        let cp = ClosestPoint::new(&pts, &[[0, 1, 2], [0, 1, 3]]);
-        let plane = |t: u32| cp.leaf_tri(t).plane;
-        assert_eq!(plane(0), [0.0; 4]);
-        assert_eq!(plane(1), [0.0, 0.0, 1.0, 0.0]);
+        // A triangle with a longest edge of 2 away from the origin, at
+        // heights 1.5e-9 and 1.5e-8 (below 1e-8 of the longest edge: no
+        // plane) and 1e-7 (a plane), its corners in each of three orders so
+        // that the longest edge is each of ab, ac and bc in turn.
+        let p = DVec3::new(-3.0, 2.0, 7.0);
+        for (h, has_plane) in [(1.5e-9, false), (1.5e-8, false), (1e-7, true)] {
+            let pts = [p, p + DVec3::new(2.0, 0.0, 0.0), p + DVec3::new(1.0, h, 0.0)];
+            let cp = ClosestPoint::new(&pts, &[[0, 1, 2], [1, 2, 0], [2, 0, 1]]);
+            for t in 0..3 {
+                let plane = cp.leaf_tri(t).plane;
+                assert_eq!(plane != [0.0; 4], has_plane, "height {h}, order {t}: {plane:?}");
+            }
+        }
     }
 
     #[test]

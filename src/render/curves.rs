@@ -186,6 +186,43 @@ impl CurvesData {
         Ok(())
     }
 
+    /// Why some of these curves draw nothing, when they do not: too few
+    /// points for one span of their type and basis (a linear curve needs
+    /// two, a cubic one its basis's minimum), or no positive width along
+    /// the evaluated curve (negative widths draw as 0; a Bézier curve's
+    /// points past its last whole span, and a Catmull-Rom curve's negative
+    /// weights, can leave a positive control width unseen). Call
+    /// [`CurvesData::validate`] first.
+    pub fn undrawn(&self) -> Option<String> {
+        let (mut short, mut thin) = (0, 0);
+        for (line, &n) in self.polylines().iter().zip(&self.counts) {
+            if n == 0 {
+                continue;
+            }
+            if line.points.len() < 2 {
+                short += 1;
+            } else if line.widths.iter().all(|&w| w <= 0.0) {
+                thin += 1;
+            }
+        }
+        let mut why = Vec::new();
+        if short > 0 {
+            why.push(format!("{short} with too few points for one span"));
+        }
+        if thin > 0 {
+            why.push(format!("{thin} without a positive width"));
+        }
+        (!why.is_empty()).then(|| {
+            format!(
+                "{}: {} of {} draw nothing ({})",
+                self.path,
+                short + thin,
+                crate::words::plural(self.counts.len(), "curve"),
+                why.join(", ")
+            )
+        })
+    }
+
     /// Every curve as a polyline (call [`CurvesData::validate`] first).
     /// Cubic curves too short for one span yield an empty polyline.
     pub fn polylines(&self) -> Vec<Polyline> {
@@ -341,6 +378,51 @@ mod tests {
         (0..n)
             .map(|i| DVec3::new(i as f64, (i * i) as f64 * 0.1, 0.0))
             .collect()
+    }
+
+    #[test]
+    fn undrawn_names_the_curves_that_draw_nothing() {
+        let mut c = curves(CurveType::Cubic, Basis::Bspline, Wrap::Nonperiodic, line_pts(9));
+        c.opacities = Primvar::Constant(1.0);
+        // A nonperiodic B-spline needs 4 points; the middle one has them
+        // but no width.
+        c.counts = vec![3, 4, 2];
+        c.widths = Primvar::Uniform(vec![1.0, 0.0, 1.0]);
+        assert_eq!(
+            c.undrawn().unwrap(),
+            "/C: 3 of 3 curves draw nothing (2 with too few points for one span, 1 without a positive width)"
+        );
+        c.widths = Primvar::Constant(1.0);
+        c.counts = vec![4, 5];
+        assert_eq!(c.undrawn(), None);
+        // Empty curves are no problem; a periodic B-spline of 3 points has 3 spans.
+        c.counts = vec![0, 3, 0, 6];
+        c.wrap = Wrap::Periodic;
+        assert_eq!(c.undrawn(), None);
+        c.wrap = Wrap::Nonperiodic;
+        c.counts = vec![9];
+        c.widths = Primvar::Varying(vec![0.0; 7]);
+        assert_eq!(
+            c.undrawn().unwrap(),
+            "/C: 1 of 1 curve draw nothing (1 without a positive width)"
+        );
+        // A Bézier curve of 5 points is one span of 4: the fifth point's
+        // width is never seen.
+        let mut b = curves(CurveType::Cubic, Basis::Bezier, Wrap::Nonperiodic, line_pts(5));
+        b.widths = Primvar::Vertex(vec![0.0, 0.0, 0.0, 0.0, 0.5]);
+        assert_eq!(
+            b.undrawn().unwrap(),
+            "/C: 1 of 1 curve draw nothing (1 without a positive width)"
+        );
+        // A linear curve of one point is no segment.
+        let mut l = curves(CurveType::Linear, Basis::Bezier, Wrap::Nonperiodic, line_pts(3));
+        l.opacities = Primvar::Constant(1.0);
+        l.widths = Primvar::Constant(1.0);
+        l.counts = vec![1, 2];
+        assert_eq!(
+            l.undrawn().unwrap(),
+            "/C: 1 of 2 curves draw nothing (1 with too few points for one span)"
+        );
     }
 
     #[test]

@@ -33,6 +33,7 @@ pub mod raster;
 pub mod shade;
 pub mod sheet;
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -389,6 +390,20 @@ pub(crate) fn check_bake(
     Ok(())
 }
 
+/// Frames for a warning: all of up to five, else the first five and a
+/// count.
+fn frame_list(times: &[f64]) -> String {
+    let shown: Vec<String> = times.iter().take(5).map(|t| t.to_string()).collect();
+    match times.len() {
+        0..=5 => format!(
+            "{} {}",
+            if times.len() == 1 { "frame" } else { "frames" },
+            shown.join(", ")
+        ),
+        n => format!("frames {} and {} more", shown.join(", "), n - 5),
+    }
+}
+
 /// Renders every frame.
 pub fn run(args: &RenderArgs) -> Result<RenderSummary> {
     let started = Instant::now();
@@ -415,9 +430,16 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary> {
     let mut seconds = Vec::with_capacity(times.len());
     let (mut strokes, mut triangles) = (0usize, 0usize);
     let mut empty = Vec::new();
+    // Curves prims that drew nothing: (first message, frames).
+    let mut undrawn: BTreeMap<String, (String, Vec<f64>)> = BTreeMap::new();
     for &t in &times {
         let frame_start = Instant::now();
         let (cam, curves, meshes) = stage.at(t)?;
+        for c in &curves {
+            if let Some(why) = c.undrawn() {
+                undrawn.entry(c.path.clone()).or_insert((why, Vec::new())).1.push(t);
+            }
+        }
         let proj = camera::Projector::new(&cam, w, h);
         let fs = prepare::build_scene(&proj, &curves, &meshes, &style);
         strokes = strokes.max(fs.strokes.len());
@@ -452,6 +474,9 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary> {
             args.camera,
             empty.iter().map(|t| t.to_string()).collect::<Vec<_>>().join(", ")
         ));
+    }
+    for (why, at) in undrawn.into_values() {
+        warnings.push(format!("{why} at {}", frame_list(&at)));
     }
     let (curves, meshes) = stage.scene.counts();
     Ok(RenderSummary {

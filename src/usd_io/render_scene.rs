@@ -474,7 +474,9 @@ impl RenderScene {
                         format!("expected int[], found {}", values::kind_name(&v)),
                     )
                 })?,
-                None => vec![local.len() as i64],
+                // USD's fallback is an empty array: counts that sum to 0
+                // against the points, refused below as any other mismatch.
+                None => Vec::new(),
             };
             if let Some(bad) = counts.iter().find(|&&n| n < 0) {
                 return Err(Error::attr(
