@@ -19,8 +19,6 @@
 //! ```
 
 use glam::{DAffine3, DMat3, DMat4, DVec3, Vec3};
-use openusd::gf;
-use openusd::sdf::Value;
 
 use crate::bind::{Binding, ClosestPoint};
 use crate::character::eval_axes;
@@ -30,7 +28,7 @@ use crate::keys::TimeKeyError;
 use crate::mesh::{fan_triangulate, OneRings};
 use crate::skinning::SkinningRest;
 use crate::tools::{self, Falloff};
-use crate::usd_io::edit::EditSession;
+use crate::usd_io::edit::{Authored, EditSession};
 use crate::usd_io::scene::{layer_axes, Rig, Scene, StrokeLayer};
 use crate::usd_io::stage::StageReader;
 use crate::usd_io::values;
@@ -122,10 +120,6 @@ fn invert(m: &DAffine3, layer: &str, i: usize) -> Result<DAffine3> {
         ));
     }
     Ok(m.inverse())
-}
-
-fn vec3f_value(points: &[Vec3]) -> Value {
-    Value::Vec3fVec(points.iter().map(|p| gf::vec3f(p.x, p.y, p.z)).collect())
 }
 
 /// Reads the scene and the input's time range; checks `time` lies inside it.
@@ -259,19 +253,12 @@ pub fn bind(session: &EditSession, opts: &BindOptions) -> Result<BindReport> {
                     ),
                 ));
             }
-            write_binding(session, &layer.path, &rest, &binding)?;
+            session.set_binding(&layer.path, &rest, &binding)?;
             report.push((layer.path.clone(), rest.len()));
             start = end;
         }
     }
     Ok(report)
-}
-
-fn write_binding(session: &EditSession, layer: &str, rest: &[Vec3], b: &Binding) -> Result<()> {
-    session.set(layer, "painterly:restPoints", "point3f[]", true, vec3f_value(rest))?;
-    let (verts, weights) = crate::usd_io::values::binding_values(b);
-    session.set(layer, "painterly:bindVertices", "int3[]", true, verts)?;
-    session.set(layer, "painterly:bindWeights", "float3[]", true, weights)
 }
 
 /// Which kind of key [`key`] sets.
@@ -688,25 +675,19 @@ fn write_key(
     match opts.kind {
         KeyKind::Pose => {
             let c: Vec<f32> = coords.iter().map(|&x| x as f32).collect();
-            session.set(path, "coordinates", "float[]", true, Value::FloatVec(c))?;
+            session.set(path, "coordinates", Authored::Floats(&c))?;
         }
         KeyKind::Time | KeyKind::Sentinel => {
-            session.set(path, "time", "double", true, Value::Double(opts.time))?;
-            session.set(
-                path,
-                "sentinel",
-                "bool",
-                true,
-                Value::Bool(opts.kind == KeyKind::Sentinel),
-            )?;
+            session.set(path, "time", Authored::Double(opts.time))?;
+            session.set(path, "sentinel", Authored::Bool(opts.kind == KeyKind::Sentinel))?;
         }
     }
     if opts.kind != KeyKind::Sentinel {
         if opts.points {
-            session.set(path, "points", "point3f[]", true, vec3f_value(rest_points))?;
+            session.set(path, "points", Authored::Points(rest_points))?;
         }
         if let Some(o) = opts.opacity {
-            session.set(path, "opacity", "float", true, Value::Float(o))?;
+            session.set(path, "opacity", Authored::Float(o))?;
         }
     }
     Ok(())
@@ -799,7 +780,7 @@ pub fn brush(session: &EditSession, brush: Brush, opts: &BrushOptions) -> Result
             format!("point {i}: the brush moves it past the float range in the proxy's space"),
         ));
     }
-    session.set(&target_prim, target_attr, "point3f[]", true, vec3f_value(&target))?;
+    session.set(&target_prim, target_attr, Authored::Points(&target))?;
     Ok(moved)
 }
 

@@ -24,6 +24,45 @@ use super::stage::{StageMetadata, StageReader};
 use super::usda_splice;
 use crate::error::{Error, Result};
 
+/// A value the authoring commands write, in painterly's own types: the USD
+/// value and its type name are made here, so `author` never touches
+/// `openusd`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Authored<'a> {
+    /// `point3f[]`
+    Points(&'a [glam::Vec3]),
+    /// `float[]`
+    Floats(&'a [f32]),
+    /// `float`
+    Float(f32),
+    /// `double`
+    Double(f64),
+    /// `bool`
+    Bool(bool),
+}
+
+impl Authored<'_> {
+    fn type_name(&self) -> &'static str {
+        match self {
+            Authored::Points(_) => "point3f[]",
+            Authored::Floats(_) => "float[]",
+            Authored::Float(_) => "float",
+            Authored::Double(_) => "double",
+            Authored::Bool(_) => "bool",
+        }
+    }
+
+    fn into_value(self) -> Value {
+        match self {
+            Authored::Points(p) => Value::Vec3fVec(p.iter().map(|p| openusd::gf::vec3f(p.x, p.y, p.z)).collect()),
+            Authored::Floats(f) => Value::FloatVec(f.to_vec()),
+            Authored::Float(x) => Value::Float(x),
+            Authored::Double(x) => Value::Double(x),
+            Authored::Bool(b) => Value::Bool(b),
+        }
+    }
+}
+
 /// Where an edit session writes.
 #[derive(Debug, Clone, PartialEq)]
 pub enum EditTarget {
@@ -207,8 +246,22 @@ impl EditSession {
         &self.target
     }
 
-    /// Authors an attribute's default value (`uniform` when the schema says so).
-    pub fn set(&self, prim: &str, name: &str, type_name: &str, uniform: bool, value: Value) -> Result<()> {
+    /// Authors a painterly attribute's default value (all of them are
+    /// `uniform` in the schema).
+    pub fn set(&self, prim: &str, name: &str, value: Authored) -> Result<()> {
+        self.set_value(prim, name, value.type_name(), true, value.into_value())
+    }
+
+    /// Caches a stroke layer's binding (SPEC §3): its rest points, each
+    /// point's triangle vertices and barycentric weights.
+    pub fn set_binding(&self, layer: &str, rest: &[glam::Vec3], binding: &crate::bind::Binding) -> Result<()> {
+        self.set(layer, "painterly:restPoints", Authored::Points(rest))?;
+        let (verts, weights) = super::values::binding_values(binding);
+        self.set_value(layer, "painterly:bindVertices", "int3[]", true, verts)?;
+        self.set_value(layer, "painterly:bindWeights", "float3[]", true, weights)
+    }
+
+    fn set_value(&self, prim: &str, name: &str, type_name: &str, uniform: bool, value: Value) -> Result<()> {
         let path = format!("{prim}.{name}");
         self.reader
             .stage
