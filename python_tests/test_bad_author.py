@@ -140,6 +140,16 @@ def test_key_name_exists(painterly, case):
             "--replace", names=[f"{LAYER}/key1", "--replace would overwrite two different keys"], existing=True)
 
 
+@pytest.mark.parametrize("camera, why", [
+    ("/Nope", "the camera named by --camera does not exist"),
+    ("/World", "--camera names a Xform prim, not a Camera"),
+])
+def test_key_camera_must_name_a_camera(painterly, case, camera, why):
+    inp, refused = case
+    refused(painterly, "key", inp, "--layer", LAYER, "--time", 5, "--points", "--camera", camera,
+            names=[camera, why])
+
+
 def test_edit_layer_is_the_input(painterly, case):
     inp, refused = case
     refused(painterly, "bind", inp, names=["--in-place"], edit_layer="tube.usda")

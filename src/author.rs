@@ -1,9 +1,9 @@
 //! The artist's side (Bassett §3.1, §3.3): bind strokes painted in any pose,
 //! set keys, smudge and expand. The CLI's `bind`, `key`, `smudge` and
 //! `expand` commands are thin wrappers over these functions, so tools,
-//! scripts and a painting UI share one implementation. Two checks are still
-//! the CLI's own: `key --camera` must name a Camera, and a brush that moved
-//! no point is refused before anything is saved ([`brush`] returns 0).
+//! scripts and a painting UI share one implementation. One check is still
+//! the CLI's own: a brush that moved no point is refused before anything is
+//! saved ([`brush`] returns 0, which a painting UI may well accept).
 //!
 //! Every function edits through an [`EditSession`] (an edit layer over the
 //! input, or the input in place) and leaves saving to the caller:
@@ -299,6 +299,9 @@ pub struct KeyOptions {
 /// coincide with an existing key of the same channel is refused unless
 /// `replace`, which then rewrites that key.
 pub fn key(session: &EditSession, opts: &KeyOptions) -> Result<String> {
+    if let Some(c) = &opts.camera {
+        session.reader.require_camera(c, "--camera")?;
+    }
     if let Some(name) = &opts.name {
         check_prim_name(name)?;
     }

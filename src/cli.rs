@@ -668,9 +668,6 @@ fn run_bind(edit: &EditArgs, opts: BindOptions) -> Result<EditSummary, Error> {
 /// `painterly key`: adds (or replaces) one key on a layer.
 fn run_key(edit: &EditArgs, opts: KeyOptions) -> Result<EditSummary, Error> {
     let session = open_session(edit)?;
-    if let Some(c) = &opts.camera {
-        session.reader.require_camera(c, "--camera")?;
-    }
     let layer = opts.layer.clone();
     let path = author::key(&session, &opts)?;
     let target = session.target().to_path_buf();
