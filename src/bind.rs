@@ -1327,10 +1327,10 @@ mod tests {
     fn slivers_get_no_plane() {
         // A triangle with a longest edge of 2 away from the origin, at
         // heights 1.5e-9 and 1.5e-8 (below 1e-8 of the longest edge: no
-        // plane) and 1e-7 (a plane), its corners in each of three orders so
-        // that the longest edge is each of ab, ac and bc in turn.
+        // plane), 3e-8 and 1e-7 (a plane), its corners in each of three
+        // orders so that the longest edge is each of ab, ac and bc in turn.
         let p = DVec3::new(-3.0, 2.0, 7.0);
-        for (h, has_plane) in [(1.5e-9, false), (1.5e-8, false), (1e-7, true)] {
+        for (h, has_plane) in [(1.5e-9, false), (1.5e-8, false), (3e-8, true), (1e-7, true)] {
             let pts = [p, p + DVec3::new(2.0, 0.0, 0.0), p + DVec3::new(1.0, h, 0.0)];
             let cp = ClosestPoint::new(&pts, &[[0, 1, 2], [1, 2, 0], [2, 0, 1]]);
             for t in 0..3 {

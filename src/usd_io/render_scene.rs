@@ -223,7 +223,13 @@ struct MeshSource {
 }
 
 /// The drawable content of a composed stage, with readers per frame.
+///
+/// Its attribute handles belong to the stage it was discovered on: every
+/// per-frame read takes that stage's reader and refuses another one (whose
+/// handles it would silently not read).
 pub struct RenderScene {
+    /// The stage the handles below belong to.
+    stage: usd::Stage,
     /// None for a scene drawn through cameras given as numbers (the preview).
     camera: Option<usd::Prim>,
     camera_path: String,
@@ -261,6 +267,7 @@ impl RenderScene {
     /// then fails): for views whose camera is given as numbers.
     pub fn discover_drawables(r: &StageReader) -> Result<RenderScene> {
         let mut scene = RenderScene {
+            stage: r.stage.clone(),
             camera: None,
             camera_path: String::new(),
             curves: Vec::new(),
@@ -369,8 +376,20 @@ impl RenderScene {
         (self.curves.len(), self.meshes.len())
     }
 
+    /// Refuses a reader of another stage than the one discovered on.
+    fn same_stage(&self, r: &StageReader) -> Result<()> {
+        if r.stage == self.stage {
+            Ok(())
+        } else {
+            Err(Error::msg(
+                "internal error: drawables read through another stage than the one they were found on",
+            ))
+        }
+    }
+
     /// The camera's parameters at `t` (validated).
     pub fn camera_at(&self, r: &StageReader, t: f64) -> Result<CameraParams> {
+        self.same_stage(r)?;
         let p = self
             .camera
             .as_ref()
@@ -432,6 +451,7 @@ impl RenderScene {
     /// Whether `render` draws the curves or mesh prim at `path` at `t`:
     /// selected (not a guide or proxy purpose) and visible.
     pub fn draws(&self, r: &StageReader, path: &str, t: f64) -> Result<bool> {
+        self.same_stage(r)?;
         let chain = self
             .curves
             .iter()
@@ -445,6 +465,7 @@ impl RenderScene {
     }
 
     fn read_curves(&self, r: &StageReader, t: f64, visible_only: bool) -> Result<Vec<CurvesData>> {
+        self.same_stage(r)?;
         let mut out = Vec::with_capacity(self.curves.len());
         for c in &self.curves {
             if visible_only && !visible(r, &c.visibility, t)? {
@@ -542,6 +563,7 @@ impl RenderScene {
     }
 
     fn read_meshes(&self, r: &StageReader, t: f64, visible_only: bool) -> Result<Vec<MeshData>> {
+        self.same_stage(r)?;
         let mut out = Vec::with_capacity(self.meshes.len());
         for m in &self.meshes {
             if visible_only && !visible(r, &m.visibility, t)? {
@@ -658,6 +680,26 @@ def Xform "W" {
 
     fn paths_of<T>(items: &[T], path: impl Fn(&T) -> &str) -> Vec<String> {
         items.iter().map(|i| path(i).to_string()).collect()
+    }
+
+    #[test]
+    fn a_reader_of_another_stage_is_refused() {
+        // The same file opened twice is two stages: the handles found on
+        // the first do not read the second's values, so every read refuses
+        // it instead of answering from the first.
+        let dir = crate::test_dir::ScratchDir::new("render-scene-other-stage");
+        let file = dir.join("s.usda");
+        std::fs::write(&file, STAGE).unwrap();
+        let (r, other) = (StageReader::open(&file).unwrap(), StageReader::open(&file).unwrap());
+        let scene = RenderScene::discover_drawables(&r).unwrap();
+        assert_eq!(scene.curves_at(&r, 1.0).unwrap().len(), 1);
+        let refused = |e: Error| assert!(e.to_string().contains("another stage"), "{e}");
+        refused(scene.curves_at(&other, 1.0).unwrap_err());
+        refused(scene.curves_at_any_visibility(&other, 1.0).unwrap_err());
+        refused(scene.meshes_at(&other, 1.0).unwrap_err());
+        refused(scene.meshes_at_any_visibility(&other, 1.0).unwrap_err());
+        refused(scene.draws(&other, "/W/Shown", 1.0).unwrap_err());
+        refused(scene.camera_at(&other, 1.0).unwrap_err());
     }
 
     #[test]
