@@ -189,6 +189,35 @@ def test_layers_are_read_with_their_unsaved_edits(tmp_path):
     )
 
 
+def test_a_bake_of_unsaved_edits_says_so_when_shown(tmp_path):
+    """A bake records its input's stamp, which `view`, `render --bake` and
+    `preview --bake` check against the file. A layer edited in memory is
+    not the file: its bake says so, and the check warns (before, the stamp
+    was the untouched file's, and the bake passed for current). A clean
+    layer's bake is the file's."""
+    src = tmp_path / "tube.usda"
+    Sdf.Layer.FindOrOpen(str(FIXTURES / "tube.usda")).Export(str(src))
+    layer = Sdf.Layer.FindOrOpen(str(src))
+    clean, dirty = tmp_path / "clean.usda", tmp_path / "dirty.usda"
+    painterly.bake(layer, clean, frames="1:4")
+    edit = Usd.Stage.Open(layer)
+    edit.GetPrimAtPath("/Tube").SetMetadata("comment", "edited in memory")
+    assert layer.dirty
+    painterly.bake(layer, dirty, frames="1:4")
+
+    def view(bake):
+        out = run_painterly("view", src, "--bake", bake, "-o", tmp_path / "v.usda", "--json").stdout
+        return json.loads(out)["warnings"]
+
+    assert view(clean) == []
+    assert view(dirty) == [
+        f"{dirty} was baked from unsaved edits of {src} (a layer edited in memory), not from the file: "
+        f"strokes may not match it; save the layer and bake again (painterly bake {src} -o {dirty})"
+    ]
+    stamp = Sdf.Layer.FindOrOpen(str(dirty)).customLayerData["painterly"]["inputStamp"]
+    assert stamp.startswith("unsaved:")
+
+
 def test_a_layer_with_relative_sublayers_resolves_them_where_it_lives(tmp_path):
     knob_stage(tmp_path / "character.usda")[0].Save()
     shot = Sdf.Layer.CreateNew(str(tmp_path / "shot.usda"))

@@ -48,6 +48,8 @@ struct Source {
     text: Option<Vec<u8>>,
     /// How errors name it: the path, or the layer's identifier.
     name: String,
+    /// A layer with edits not saved to `path` (`Sdf.Layer.dirty`).
+    dirty: bool,
 }
 
 impl Source {
@@ -58,12 +60,15 @@ impl Source {
                 path: p,
                 text: None,
                 name,
+                dirty: false,
             });
         }
         if obj.hasattr("ExportToString")? {
             let text: String = obj.call_method0("ExportToString")?.extract()?;
             let identifier: String = obj.getattr("identifier")?.extract()?;
             let real: String = obj.getattr("realPath")?.extract().unwrap_or_default();
+            // An anonymous layer has no file a bake could be checked against.
+            let dirty = real.is_empty() || obj.getattr("dirty")?.extract::<bool>().unwrap_or(true);
             // Served where the layer lives, so its relative asset paths
             // resolve as they would on disk; named .usda since the text is usda.
             let path = if real.is_empty() {
@@ -77,6 +82,7 @@ impl Source {
                 path,
                 text: Some(text.into_bytes()),
                 name: identifier,
+                dirty,
             });
         }
         Err(PyTypeError::new_err(format!(
@@ -88,8 +94,15 @@ impl Source {
     fn open(&self) -> painterly::Result<StageReader> {
         match &self.text {
             None => StageReader::open(&self.path),
-            Some(t) => open_bytes(t.clone(), &self.path),
+            Some(t) => self.open_text(t),
         }
+    }
+
+    /// The layer's text, served at `path`, marked unsaved when it is.
+    fn open_text(&self, text: &[u8]) -> painterly::Result<StageReader> {
+        let mut r = open_bytes(text.to_vec(), &self.path)?;
+        r.unsaved = self.dirty;
+        Ok(r)
     }
 
     /// Like [`Self::open`], but a file is mapped, as the CLI's bake and
@@ -98,7 +111,7 @@ impl Source {
     fn open_mapped(&self) -> painterly::Result<StageReader> {
         match &self.text {
             None => StageReader::open_mapped(&self.path),
-            Some(t) => open_bytes(t.clone(), &self.path),
+            Some(t) => self.open_text(t),
         }
     }
 

@@ -131,6 +131,20 @@ pub fn check_baked_from(
         ))
         .in_file(bake));
     }
+    if p.input_hash.is_none()
+        && p.input_stamp
+            .as_deref()
+            .is_some_and(|s| s.starts_with(super::clips::UNSAVED_STAMP))
+    {
+        warnings.push(format!(
+            "{} was baked from unsaved edits of {} (a layer edited in memory), not from the file: strokes may not match it; save the layer and bake again (painterly bake {} -o {})",
+            bake.display(),
+            input.display(),
+            input.display(),
+            bake.display()
+        ));
+        return Ok(Some(p));
+    }
     let digest = |of: fn(&StageReader) -> Result<String>| match opened {
         Some(r) => of(r),
         None => of(&StageReader::open_mapped(input)?),

@@ -346,7 +346,7 @@ fn hash_layers(r: &StageReader) -> Result<String> {
 /// (a 160 MiB input costs it about 0.1 s).
 pub fn input_stamp(r: &StageReader) -> Result<String> {
     use sha2::Digest;
-    layers_digest(r, |f, h| {
+    let stamp = layers_digest(r, |f, h| {
         let meta = std::fs::metadata(f)?;
         let modified = meta
             .modified()
@@ -355,8 +355,17 @@ pub fn input_stamp(r: &StageReader) -> Result<String> {
             .map_or(0, |d| d.as_nanos());
         h.update(format!("{} {modified}\n", meta.len()).as_bytes());
         Ok(())
+    })?;
+    Ok(if r.unsaved {
+        format!("{UNSAVED_STAMP}{stamp}")
+    } else {
+        stamp
     })
 }
+
+/// Prefixes the `inputStamp` of a bake of unsaved edits ([`StageReader::unsaved`]):
+/// no stamp of the files can equal it, and the check says why.
+pub const UNSAVED_STAMP: &str = "unsaved:";
 
 /// Checks that every chunk of `plan` is on disk and was baked from an input
 /// with `hash` by this painterly, for its frames; the error lists every

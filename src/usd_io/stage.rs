@@ -56,6 +56,11 @@ pub struct StageReader {
     /// where an op of the prim or an ancestor may vary in time. A bake asks
     /// for every stroke layer's transform every frame.
     pub(crate) fixed_transforms: Mutex<HashMap<sdf::Path, Option<DMat4>>>,
+    /// The root layer's text came from memory, with edits not saved to
+    /// `file` (the Python package's dirty `Sdf.Layer`): a bake's
+    /// `inputStamp` then says so ([`super::clips::input_stamp`]), since the
+    /// file on disk is not what was baked.
+    pub unsaved: bool,
 }
 
 /// A sublayer, reference or payload whose asset (or target prim) is missing.
@@ -238,6 +243,7 @@ impl StageReader {
             input_hash: std::sync::OnceLock::new(),
             mapped: false,
             fixed_transforms: Mutex::default(),
+            unsaved: false,
         })
     }
 
