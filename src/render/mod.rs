@@ -623,6 +623,14 @@ mod tests {
     use super::*;
 
     #[test]
+    fn a_warning_lists_up_to_five_frames() {
+        assert_eq!(frame_list(&[3.0]), "frame 3");
+        assert_eq!(frame_list(&[1.0, 2.5, 4.0, 5.0, 6.0]), "frames 1, 2.5, 4, 5, 6");
+        let many: Vec<f64> = (1..=12).map(f64::from).collect();
+        assert_eq!(frame_list(&many), "frames 1, 2, 3, 4, 5 and 7 more");
+    }
+
+    #[test]
     fn frame_and_sheet_paths() {
         let p = Path::new("out/fish.####.exr");
         assert_eq!(frame_path(p, 7.0), PathBuf::from("out/fish.0007.exr"));
