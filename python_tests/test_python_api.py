@@ -216,6 +216,16 @@ def test_a_bake_of_unsaved_edits_says_so_when_shown(tmp_path):
     ]
     stamp = Sdf.Layer.FindOrOpen(str(dirty)).customLayerData["painterly"]["inputStamp"]
     assert stamp.startswith("unsaved:")
+    # Chunks and their binding cache are matched to the file by its content
+    # hash: a chunked bake of unsaved edits is refused, and writes nothing.
+    before = sorted(os.listdir(tmp_path))
+    with pytest.raises(painterly.Error) as e:
+        painterly.bake(layer, tmp_path / "clips.usda", frames="1:4", chunk=2)
+    assert e.value.message == (
+        "a chunked bake needs the input saved: its chunks and binding cache are matched to the file, "
+        "and this layer has unsaved edits (save it, or bake without chunks)"
+    )
+    assert sorted(os.listdir(tmp_path)) == before
 
 
 def test_a_layer_with_relative_sublayers_resolves_them_where_it_lives(tmp_path):

@@ -139,6 +139,14 @@ fn open_for_bake_with(
     let opening = Instant::now();
     let reader = open()?;
     crate::character::log_opened(input, &reader, opening);
+    if reader.unsaved && opts.chunk.is_some() {
+        // Chunks, and the binding cache beside them, are matched to the
+        // input by the file's content hash, which is not what was baked.
+        return Err(Error::msg(
+            "a chunked bake needs the input saved: its chunks and binding cache are matched to the file, and this layer has unsaved edits (save it, or bake without chunks)",
+        )
+        .in_file(input));
+    }
     let mut character = match opts.chunk {
         None => Character::from_reader(reader, opts.camera.as_deref()),
         Some(_) => chunked_character(reader, output, opts.camera.as_deref()),
