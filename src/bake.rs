@@ -581,6 +581,35 @@ mod tests {
     use std::sync::Mutex;
     use std::time::Duration;
 
+    #[test]
+    fn a_chunked_bake_of_unsaved_edits_is_refused_and_a_single_one_is_marked() {
+        // The Python package marks a layer with unsaved edits; the CLI never does.
+        let dir = crate::test_dir::ScratchDir::new("bake-unsaved");
+        let unsaved = || {
+            let mut r = StageReader::open_mapped(&tube())?;
+            r.unsaved = true;
+            Ok(r)
+        };
+        let chunked = BakeOptions {
+            chunk: Some(8),
+            ..Default::default()
+        };
+        let e = bake_with(&tube(), &dir.join("clips.usda"), &chunked, &|_, _| {}, unsaved).unwrap_err();
+        assert!(e.to_string().contains("a chunked bake needs the input saved"), "{e}");
+        assert_eq!(
+            std::fs::read_dir(&*dir).unwrap().count(),
+            0,
+            "a refused bake wrote files"
+        );
+        let out = dir.join("one.usda");
+        bake_with(&tube(), &out, &BakeOptions::default(), &|_, _| {}, unsaved).unwrap();
+        let p = crate::usd_io::bake_layer::read_provenance(&out).unwrap().unwrap();
+        assert!(p.input_stamp.unwrap().starts_with(crate::usd_io::clips::UNSAVED_STAMP));
+        // Saved (the CLI's reader): chunks are baked.
+        let saved = || StageReader::open_mapped(&tube());
+        bake_with(&tube(), &dir.join("clips.usda"), &chunked, &|_, _| {}, saved).unwrap();
+    }
+
     /// The tube fixture: 24 frames.
     fn tube() -> PathBuf {
         Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/tube.usda")
