@@ -191,11 +191,11 @@ impl CurvesData {
     /// two, a cubic one its basis's minimum), or no positive width along
     /// the evaluated curve (negative widths draw as 0; a Bézier curve's
     /// points past its last whole span, and a Catmull-Rom curve's negative
-    /// weights, can leave a positive control width unseen). Call
-    /// [`CurvesData::validate`] first.
-    pub fn undrawn(&self) -> Option<String> {
+    /// weights, can leave a positive control width unseen). `lines` are
+    /// this prim's [`CurvesData::polylines`], which the caller draws too.
+    pub fn undrawn(&self, lines: &[Polyline]) -> Option<String> {
         let (mut short, mut thin) = (0, 0);
-        for (line, &n) in self.polylines().iter().zip(&self.counts) {
+        for (line, &n) in lines.iter().zip(&self.counts) {
             if n == 0 {
                 continue;
             }
@@ -389,21 +389,21 @@ mod tests {
         c.counts = vec![3, 4, 2];
         c.widths = Primvar::Uniform(vec![1.0, 0.0, 1.0]);
         assert_eq!(
-            c.undrawn().unwrap(),
+            c.undrawn(&c.polylines()).unwrap(),
             "/C: 3 of 3 curves draw nothing (2 with too few points for one span, 1 without a positive width)"
         );
         c.widths = Primvar::Constant(1.0);
         c.counts = vec![4, 5];
-        assert_eq!(c.undrawn(), None);
+        assert_eq!(c.undrawn(&c.polylines()), None);
         // Empty curves are no problem; a periodic B-spline of 3 points has 3 spans.
         c.counts = vec![0, 3, 0, 6];
         c.wrap = Wrap::Periodic;
-        assert_eq!(c.undrawn(), None);
+        assert_eq!(c.undrawn(&c.polylines()), None);
         c.wrap = Wrap::Nonperiodic;
         c.counts = vec![9];
         c.widths = Primvar::Varying(vec![0.0; 7]);
         assert_eq!(
-            c.undrawn().unwrap(),
+            c.undrawn(&c.polylines()).unwrap(),
             "/C: 1 of 1 curve draw nothing (1 without a positive width)"
         );
         // A Bézier curve of 5 points is one span of 4: the fifth point's
@@ -411,7 +411,7 @@ mod tests {
         let mut b = curves(CurveType::Cubic, Basis::Bezier, Wrap::Nonperiodic, line_pts(5));
         b.widths = Primvar::Vertex(vec![0.0, 0.0, 0.0, 0.0, 0.5]);
         assert_eq!(
-            b.undrawn().unwrap(),
+            b.undrawn(&b.polylines()).unwrap(),
             "/C: 1 of 1 curve draw nothing (1 without a positive width)"
         );
         // A linear curve of one point is no segment.
@@ -420,7 +420,7 @@ mod tests {
         l.widths = Primvar::Constant(1.0);
         l.counts = vec![1, 2];
         assert_eq!(
-            l.undrawn().unwrap(),
+            l.undrawn(&l.polylines()).unwrap(),
             "/C: 1 of 2 curves draw nothing (1 with too few points for one span)"
         );
     }

@@ -33,6 +33,7 @@ pub mod raster;
 pub mod shade;
 pub mod sheet;
 
+use rayon::prelude::*;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -435,13 +436,15 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary> {
     for &t in &times {
         let frame_start = Instant::now();
         let (cam, curves, meshes) = stage.at(t)?;
-        for c in &curves {
-            if let Some(why) = c.undrawn() {
+        let per_prim: Vec<Vec<curves::Polyline>> = curves.par_iter().map(curves::CurvesData::polylines).collect();
+        for (c, lines) in curves.iter().zip(&per_prim) {
+            if let Some(why) = c.undrawn(lines) {
                 undrawn.entry(c.path.clone()).or_insert((why, Vec::new())).1.push(t);
             }
         }
+        let lines: Vec<curves::Polyline> = per_prim.into_iter().flatten().collect();
         let proj = camera::Projector::new(&cam, w, h);
-        let fs = prepare::build_scene(&proj, &curves, &meshes, &style);
+        let fs = prepare::build_scene_of_lines(&proj, &lines, &meshes, &style);
         strokes = strokes.max(fs.strokes.len());
         triangles = triangles.max(fs.triangles.len());
         let frame = composite::render(&fs, brush.as_ref());

@@ -464,6 +464,12 @@ fn silhouette_lines(
 /// Projects everything into a frame's pixel space.
 pub fn build_scene(proj: &Projector, curves: &[CurvesData], meshes: &[MeshData], style: &Style) -> FrameScene {
     let lines: Vec<Polyline> = curves.par_iter().flat_map_iter(|c| c.polylines()).collect();
+    build_scene_of_lines(proj, &lines, meshes, style)
+}
+
+/// [`build_scene`] from the curves' polylines, evaluated already (every
+/// curve's, in stage order).
+pub fn build_scene_of_lines(proj: &Projector, lines: &[Polyline], meshes: &[MeshData], style: &Style) -> FrameScene {
     let mut strokes: Vec<(usize, PreparedStroke)> = lines
         .par_iter()
         .enumerate()

@@ -131,10 +131,10 @@ pub fn check_baked_from(
         ))
         .in_file(bake));
     }
-    if p.input_hash.is_none()
-        && p.input_stamp
-            .as_deref()
-            .is_some_and(|s| s.starts_with(super::clips::UNSAVED_STAMP))
+    // (A chunked bake, with its inputHash, is never of unsaved edits.)
+    if p.input_stamp
+        .as_deref()
+        .is_some_and(|s| s.starts_with(super::clips::UNSAVED_STAMP))
     {
         warnings.push(format!(
             "{} was baked from unsaved edits of {} (a layer edited in memory), not from the file: strokes may not match it; save the layer and bake again (painterly bake {} -o {})",
