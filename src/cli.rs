@@ -75,7 +75,7 @@ pub enum Command {
         /// Write USD value clips: chunk layers of N frames in OUTPUT's
         /// `<stem>.clips/` folder, and OUTPUT (.usda) as the clip set that
         /// composes them. Memory and each file stay small whatever the range.
-        #[arg(long, value_name = "N", value_parser = positive_count)]
+        #[arg(long, value_name = "N", value_parser = crate::frames::positive_count)]
         chunk: Option<usize>,
         /// With --chunk: bake only chunk K (0-based) into its chunk layer;
         /// one farm task per chunk.
@@ -364,14 +364,6 @@ pub enum FalloffArg {
     Cubic,
     /// Constant within the radius.
     None,
-}
-
-/// A count of at least 1 (a usage error otherwise).
-pub(crate) fn positive_count(s: &str) -> Result<usize, String> {
-    match s.parse::<usize>() {
-        Ok(n) if n >= 1 => Ok(n),
-        _ => Err(format!("{s:?} is not a whole number of at least 1")),
-    }
 }
 
 fn parse_point(s: &str) -> Result<glam::DVec3, Error> {

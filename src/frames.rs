@@ -122,6 +122,15 @@ impl FrameRange {
     }
 }
 
+/// `--chunk N`, frames per chunk (bake and farm): a count of at least 1 (a
+/// usage error otherwise).
+pub fn positive_count(s: &str) -> std::result::Result<usize, String> {
+    match s.parse::<usize>() {
+        Ok(n) if n >= 1 => Ok(n),
+        _ => Err(format!("{s:?} is not a whole number of at least 1")),
+    }
+}
+
 /// The frames to run over: `frames` when given (checked against the stage's
 /// range when it has one), else the stage's startTimeCode..endTimeCode.
 /// Stage metadata problems (non-finite values, start after end, a range too
@@ -176,6 +185,18 @@ mod tests {
             start_time_code: start,
             end_time_code: end,
             ..Default::default()
+        }
+    }
+
+    #[test]
+    fn a_chunk_is_a_whole_number_of_at_least_one() {
+        assert_eq!(positive_count("1"), Ok(1));
+        assert_eq!(positive_count("48"), Ok(48));
+        for bad in ["0", "-1", "1.5", "", "x"] {
+            assert_eq!(
+                positive_count(bad),
+                Err(format!("{bad:?} is not a whole number of at least 1"))
+            );
         }
     }
 

@@ -25,7 +25,7 @@
 //! | [`farm`] | the `farm` command: chunked bakes as scheduler jobs (Slurm, Open Job Description) |
 //! | [`rule`] | the schema rules `inspect` checks, with stable ids |
 //! | [`interp`] | configuration-space interpolation (smooth Voronoi, RBF, Shepard) |
-//! | [`render`] | the `render` command: preview EXR/PNG frames and contact sheets |
+//! | [`render`] | the `render` command (`render/mod.rs`) over its math: camera, curves, clipping, rasterising, shading, compositing, sheets (the data types [`usd_io::render_scene`] reads into) |
 //! | [`preview`] | the `preview` command: a live view in the browser (loopback server, WebGL2 page) |
 //! | [`author`], [`tools`] | `bind`, `key`, `smudge`, `expand`: edits through an edit session; the brushes' math |
 //! | [`cli`] | the command line: argument parsing, summary lines, exit codes |

@@ -65,7 +65,7 @@ pub struct SubmitArgs {
     #[arg(short, long)]
     pub output: PathBuf,
     /// Frames per chunk (and so per task).
-    #[arg(long, value_name = "N", value_parser = crate::cli::positive_count)]
+    #[arg(long, value_name = "N", value_parser = crate::frames::positive_count)]
     pub chunk: usize,
     /// The scheduler: `slurm` submits with sbatch; `openjd` writes an Open
     /// Job Description template (run it with `openjd run`).
