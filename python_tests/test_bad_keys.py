@@ -366,3 +366,42 @@ def test_bake_refuses_time_keys_it_counts_as_one_time(painterly, repo_root, tmp_
                 "keys between their sentinels: the time interpolation counts the two as one time"
                 ) in p.stderr + p.stdout, p.stderr
     assert not (tmp_path / "bake.usdc").exists()
+
+
+def test_a_property_of_the_other_key_type_is_named_and_ignored(painterly, tmp_path):
+    """SPEC §4–5: a pose key has coordinates, a time key a time and a
+    sentinel flag. The other type's property on a key (a retyped prim, a
+    copy-paste) is never read: inspect names each one under the rule of
+    what it would have set (exit 1), and the bake ignores it (its points
+    equal the clean stage's)."""
+    rig, rest = good_stage(tmp_path)
+    pose, timed = f"{LAYER}/flat", f"{LAYER}/shock"
+
+    def misplace(stage):
+        flat = stage.GetPrimAtPath(pose)
+        flat.CreateAttribute("sentinel", Sdf.ValueTypeNames.Bool).Set(True)
+        flat.CreateAttribute("time", Sdf.ValueTypeNames.Double).Set(5.0)
+        stage.GetPrimAtPath(timed).CreateAttribute("coordinates", Sdf.ValueTypeNames.FloatArray).Set(Vt.FloatArray([0.9]))
+    edit(rig.path, misplace)
+    proc = painterly("inspect", rig.path, "--json", check=False)
+    assert proc.returncode == 1, proc.stderr
+    problems = [(p["prim"], p["attribute"], p["rule"], p["message"]) for p in json.loads(proc.stdout)["problems"]]
+    assert problems == [
+        (pose, "sentinel", "sentinel-misuse",
+         "a pose key has no sentinel: it would be ignored (only a PainterlyTimeKey's sentinel is read; "
+         "a pose key keys its coordinates)"),
+        (pose, "time", "key-time",
+         "a pose key has no time: it would be ignored (only a PainterlyTimeKey's time is read; "
+         "a pose key keys its coordinates)"),
+        (timed, "coordinates", "key-coordinates",
+         "a time key has no coordinates: they would be ignored (only a PainterlyPoseKey's coordinates "
+         "are read; a time key keys its time)"),
+    ]
+    out = tmp_path / "bake.usda"
+    painterly("bake", rig.path, "-o", out, "--frames", "1:9", "--quiet")
+    clean, _ = good_stage(tmp_path / "clean")
+    painterly("bake", clean.path, "-o", tmp_path / "clean.usda", "--frames", "1:9", "--quiet")
+    baked = [Usd.Stage.Open(str(p)) for p in (out, tmp_path / "clean.usda")]
+    for t in range(1, 10):
+        got, want = (np.array(st.GetPrimAtPath(LAYER).GetAttribute("points").Get(t)) for st in baked)
+        assert got.shape == (len(rest), 3) and np.array_equal(got, want), t

@@ -140,6 +140,15 @@ def _second_untimed_view_key(stage):
     return f"{FACE}/front2", "direction"
 
 
+def _instanced(stage):
+    """The good character again, as an instance: its prims are instance
+    proxies that no bake can override."""
+    crowd = stage.DefinePrim("/Crowd")
+    crowd.GetReferences().AddInternalReference("/World")
+    crowd.SetInstanceable(True)
+    return "/Crowd", None
+
+
 def _missing_proxy(stage):
     prim(stage, "/World/Paint").GetRelationship("painterly:proxy").ClearTargets(True)
     return "/World/Paint", "painterly:proxy"
@@ -179,6 +188,7 @@ BREAK = {
     "view-key-times": _second_untimed_view_key,
     "non-finite": _set(LAYER, "painterly:restPoints", T.Point3fArray, Au.v3f([[0, 0, 0], [NAN, 0, 0], [1, 0, 0], [1, 1, 0]])),
     "attribute-type": lambda s: _spec_with_type(s, LAYER, "painterly:opacity", T.String, "half"),
+    "instanced": _instanced,
 }
 # Rules whose bad input is not a stage edit: tested on their own below.
 SEPARATE = {"chunks", "unreadable"}

@@ -343,6 +343,9 @@ struct ExistingKey {
     points: bool,
     opacity: bool,
     sentinel: bool,
+    /// Why a bake does not read it (deactivated, an `over`, a `class`):
+    /// such a prim holds its name but keys nothing.
+    unread: Option<&'static str>,
 }
 
 /// The keys (and other children) of a layer prim.
@@ -372,6 +375,7 @@ fn existing_keys(r: &StageReader, layer_path: &str) -> Result<Vec<ExistingKey>> 
             points: r.has_authored(&c, "points")?,
             opacity: r.has_authored(&c, "opacity")?,
             sentinel,
+            unread: r.unread_reason(&c)?,
             path: c.path().as_str().to_string(),
             ty,
             coords,
@@ -445,6 +449,12 @@ fn key_path(opts: &KeyOptions, existing: &[ExistingKey], place: &KeyPlace) -> Re
     if let Some(name) = &opts.name {
         let p = format!("{layer_path}/{name}");
         if let Some(e) = existing.iter().find(|e| e.path == p) {
+            if let Some(why) = e.unread {
+                return Err(Error::prim(
+                    &p,
+                    format!("a prim of this name exists but is {why}, so a bake would not read a key there: pick another --name"),
+                ));
+            }
             if !opts.replace {
                 return Err(Error::prim(
                     &p,
@@ -468,7 +478,11 @@ fn key_path(opts: &KeyOptions, existing: &[ExistingKey], place: &KeyPlace) -> Re
         ),
         KeyKind::Sentinel => (Vec::new(), Vec::new()),
     };
-    for (i, e) in existing.iter().enumerate().filter(|(_, e)| e.ty == ty) {
+    for (i, e) in existing
+        .iter()
+        .enumerate()
+        .filter(|(_, e)| e.ty == ty && e.unread.is_none())
+    {
         let clash = match opts.kind {
             KeyKind::Sentinel => e.sentinel && e.coords == *coords,
             KeyKind::Time | KeyKind::Pose => {
@@ -549,6 +563,7 @@ fn pose_layout(
         .filter(|&i| {
             let e = &existing[i];
             e.ty == "PainterlyPoseKey"
+                && e.unread.is_none()
                 && !e.sentinel
                 && in_channel(e)
                 && e.coords.len() == place.coords.len()
@@ -587,7 +602,7 @@ fn time_layout(
     in_channel: impl Fn(&ExistingKey) -> bool,
     without: Option<&str>,
 ) -> (Vec<usize>, Vec<f64>, Vec<f64>) {
-    let is_time = |e: &ExistingKey| e.ty == "PainterlyTimeKey" && e.coords.len() == 1;
+    let is_time = |e: &ExistingKey| e.ty == "PainterlyTimeKey" && e.unread.is_none() && e.coords.len() == 1;
     let members: Vec<usize> = (0..existing.len())
         .filter(|&i| {
             let e = &existing[i];

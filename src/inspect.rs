@@ -103,6 +103,9 @@ pub struct ViewMeshReport {
     pub sharpness: f64,
     /// Whether the key directions' hull encloses the centre.
     pub encloses: bool,
+    /// Where USD's rules give a result an author may not expect (key times
+    /// read through a layer offset); not problems.
+    pub notes: Vec<String>,
 }
 
 #[derive(Debug, Serialize)]
@@ -136,19 +139,50 @@ impl Problem {
 /// Counts the key prims under a layer: (position keys, opacity keys, time
 /// keys, sentinels). A sentinel carrying points or opacity is a problem:
 /// sentinels carry no data, so what was authored there is ignored.
-fn count_keys(r: &StageReader, layer: &str, problems: &mut Vec<Problem>) -> Result<(usize, usize, usize, usize)> {
+fn count_keys(
+    r: &StageReader,
+    layer: &str,
+    problems: &mut Vec<Problem>,
+    notes: &mut Vec<String>,
+) -> Result<(usize, usize, usize, usize)> {
     let prim = r.require_prim(layer)?;
     let (mut pos, mut opa, mut time, mut sent) = (0, 0, 0, 0);
-    let children = prim
-        .children()
-        .map_err(|e| Error::prim(layer, format!("cannot list children: {e}")))?;
-    for c in children {
+    let mut offset_times = Vec::new();
+    for c in r.read_children(&prim)? {
         match r.type_name(&c)?.as_str() {
             "PainterlyPoseKey" => {
                 pos += r.has_authored(&c, "points")? as usize;
                 opa += r.has_authored(&c, "opacity")? as usize;
+                // A time key's properties on a pose key (a retyped prim, a
+                // copy-paste) are never read: say so rather than ignore them.
+                for (attr, rule) in [("sentinel", Rule::SentinelMisuse), ("time", Rule::KeyTime)] {
+                    if r.has_authored(&c, attr)? {
+                        let e = Error::attr(
+                            c.path(),
+                            attr,
+                            format!(
+                                "a pose key has no {attr}: it would be ignored (only a PainterlyTimeKey's {attr} is read; \
+                                 a pose key keys its coordinates)"
+                            ),
+                        );
+                        problems.push(Problem::new(e, rule));
+                    }
+                }
             }
             "PainterlyTimeKey" => {
+                if let Some(offset) = r.value_offset(&c, "time")? {
+                    let t = r.typed(&c, "time", None, "double", crate::usd_io::values::scalar)?;
+                    offset_times.extend(t.map(|t| (format!("{} at ", c.path().name().unwrap_or_default()), t, offset)));
+                }
+                if r.has_authored(&c, "coordinates")? {
+                    let e = Error::attr(
+                        c.path(),
+                        "coordinates",
+                        "a time key has no coordinates: they would be ignored (only a PainterlyPoseKey's \
+                         coordinates are read; a time key keys its time)",
+                    );
+                    problems.push(Problem::new(e, Rule::KeyCoordinates));
+                }
                 let s = r
                     .typed(&c, "sentinel", None, "bool", crate::usd_io::values::scalar)?
                     .unwrap_or(0.0)
@@ -172,7 +206,53 @@ fn count_keys(r: &StageReader, layer: &str, problems: &mut Vec<Problem>) -> Resu
             _ => {}
         }
     }
+    let what = match offset_times.len() {
+        1 => "1 time key's `double time` comes".to_string(),
+        n => format!("{n} time keys' `double time` come"),
+    };
+    if let Some(note) = unretimed_note(layer, &what, &offset_times) {
+        notes.push(note);
+    }
     Ok((pos, opa, time, sent))
+}
+
+/// The note of [`unretimed_note`] for a rig's `painterly:restTime`.
+fn rest_time_note(r: &StageReader, rig: &str) -> Result<Option<String>> {
+    let prim = r.require_prim(rig)?;
+    let Some(offset) = r.value_offset(&prim, "painterly:restTime")? else {
+        return Ok(None);
+    };
+    let t = r.typed(
+        &prim,
+        "painterly:restTime",
+        None,
+        "double",
+        crate::usd_io::values::scalar,
+    )?;
+    let times: Vec<_> = t.map(|t| (String::new(), t, offset)).into_iter().collect();
+    Ok(unretimed_note(rig, "its `double painterly:restTime` comes", &times))
+}
+
+/// A note on `double` times authored through a layer offset: USD retimes
+/// the time samples of that layer but never a `double`, so the times are
+/// read as written, which a retimed asset may not expect. `what` names the
+/// values; `times`: (label, time, (offset, scale, layer)).
+fn unretimed_note(owner: &str, what: &str, times: &[(String, f64, (f64, f64, String))]) -> Option<String> {
+    let (_, _, (offset, scale, layer)) = times.first()?;
+    let shown: Vec<String> = times
+        .iter()
+        .take(5)
+        .map(|(label, t, (o, s, _))| format!("{label}{t} (not {})", o + s * t))
+        .collect();
+    let more = match times.len() {
+        n if n > 5 => format!(" and {} more", n - 5),
+        _ => String::new(),
+    };
+    Some(format!(
+        "{owner}: {what} from {layer} through a layer offset (offset {offset}, scale {scale}); USD retimes that \
+         layer's time samples but never a double, so the stage reads the times written: {list}{more}",
+        list = shown.join(", ")
+    ))
 }
 
 /// The time samples of a stroke layer's `points` hold as many points as its
@@ -286,7 +366,7 @@ pub fn inspect_stage_for(r: &StageReader, frames: Option<FrameRange>) -> Result<
     note_unanimated_blend_shapes(r, &axes, &mut rigs)?;
     let (meshes, view_problems) = read_view_meshes_lenient(r, &r.prim_paths()?).map_err(|e| e.in_file(path))?;
     problems.extend(view_problems.into_iter().map(|e| Problem::new(e, Rule::Unreadable)));
-    let view_meshes = meshes.iter().map(view_mesh_report).collect();
+    let view_meshes = meshes.iter().map(|m| view_mesh_report(r, m, &mut problems)).collect();
     let clip_set = clip_set_report(path, &mut problems)?;
     // One cause can surface once per layer that meets it (an axis that three
     // layers' keys use): the report names it once, where it first surfaced.
@@ -334,16 +414,20 @@ fn stage_problems(r: &StageReader, meta: &StageMetadata, frames: Option<FrameRan
 /// One rig: its proxy, its animation and each stroke layer's counts; what
 /// cannot be read goes to `problems`.
 fn rig_report(r: &StageReader, rig: &Rig, problems: &mut Vec<Problem>) -> RigReport {
-    let (skeleton, animation_source, notes) = match &rig.proxy.motion {
+    let (skeleton, animation_source, mut notes) = match &rig.proxy.motion {
         ProxyMotion::Skel(s) => (Some(s.skeleton.clone()), s.animation.clone(), s.notes.clone()),
         _ => (None, None, Vec::new()),
     };
+    match rest_time_note(r, &rig.path) {
+        Ok(note) => notes.extend(note),
+        Err(e) => problems.push(Problem::new(e, Rule::Unreadable)),
+    }
     let mut layers = Vec::new();
     for l in &rig.layers {
         if let Err(e) = check_point_samples(r, l, problems) {
             problems.push(Problem::new(e, Rule::Unreadable));
         }
-        let (pos, opa, time, sent) = match count_keys(r, &l.path, problems) {
+        let (pos, opa, time, sent) = match count_keys(r, &l.path, problems, &mut notes) {
             Ok(c) => c,
             Err(e) => {
                 problems.push(Problem::new(e, Rule::Unreadable));
@@ -438,7 +522,14 @@ fn note_unanimated_blend_shapes(r: &StageReader, axes: &[AxisReport], rigs: &mut
     Ok(())
 }
 
-fn view_mesh_report(m: &ViewMesh) -> ViewMeshReport {
+fn view_mesh_report(r: &StageReader, m: &ViewMesh, problems: &mut Vec<Problem>) -> ViewMeshReport {
+    let notes = match view_time_notes(r, m) {
+        Ok(notes) => notes,
+        Err(e) => {
+            problems.push(Problem::new(e, Rule::Unreadable));
+            Vec::new()
+        }
+    };
     ViewMeshReport {
         path: m.path.clone(),
         key_viewpoints: m
@@ -454,7 +545,35 @@ fn view_mesh_report(m: &ViewMesh) -> ViewMeshReport {
         uncovered: m.uncovered.token().to_string(),
         sharpness: m.sharpness,
         encloses: m.blend.blender.encloses(),
+        notes,
     }
+}
+
+/// The notes of [`unretimed_note`] for a view-dependent mesh: its
+/// `painterly:restTime` and its keys' `time`.
+fn view_time_notes(r: &StageReader, m: &ViewMesh) -> Result<Vec<String>> {
+    let mut notes = Vec::new();
+    let prim = r.require_prim(&m.path)?;
+    let scalar = crate::usd_io::values::scalar;
+    if let Some(offset) = r.value_offset(&prim, "painterly:restTime")? {
+        let t = r.typed(&prim, "painterly:restTime", None, "double", scalar)?;
+        let times: Vec<_> = t.map(|t| (String::new(), t, offset)).into_iter().collect();
+        notes.extend(unretimed_note(&m.path, "its `double painterly:restTime` comes", &times));
+    }
+    let mut key_times = Vec::new();
+    for path in m.blend.viewpoints.iter().flat_map(|v| &v.paths) {
+        let key = r.require_prim(path)?;
+        if let Some(offset) = r.value_offset(&key, "time")? {
+            let t = r.typed(&key, "time", None, "double", scalar)?;
+            key_times.extend(t.map(|t| (format!("{} at ", key.path().name().unwrap_or_default()), t, offset)));
+        }
+    }
+    let what = match key_times.len() {
+        1 => "1 view key's `double time` comes".to_string(),
+        n => format!("{n} view keys' `double time` come"),
+    };
+    notes.extend(unretimed_note(&m.path, &what, &key_times));
+    Ok(notes)
 }
 
 /// The chunks of a clip-set bake; missing and stale chunks are problems.
@@ -582,6 +701,9 @@ impl Report {
             for k in &v.key_viewpoints {
                 let [x, y, z] = k.direction;
                 let _ = writeln!(s, "  ({x:.3}, {y:.3}, {z:.3}): {}", k.keys.join(", "));
+            }
+            for n in &v.notes {
+                let _ = writeln!(s, "  note: {n}");
             }
         }
         for u in &self.unresolved_assets {

@@ -35,12 +35,13 @@ pub enum Rule {
     NonFinite,
     AttributeType,
     Chunks,
+    Instanced,
     Unreadable,
 }
 
 impl Rule {
     /// Every rule, in the order the docs list them.
-    pub const ALL: [Rule; 24] = [
+    pub const ALL: [Rule; 25] = [
         Rule::MissingProxy,
         Rule::Mesh,
         Rule::Skinning,
@@ -64,6 +65,7 @@ impl Rule {
         Rule::NonFinite,
         Rule::AttributeType,
         Rule::Chunks,
+        Rule::Instanced,
         Rule::Unreadable,
     ];
 
@@ -147,9 +149,13 @@ impl Rule {
             Rule::KeyCoordinates => (
                 "key-coordinates",
                 "KeyCoordinates",
-                "A pose key has coordinates, one per axis of its layer.",
+                "A pose key has coordinates, one per axis of its layer; a time key has none (they would be ignored).",
             ),
-            Rule::KeyTime => ("key-time", "KeyTime", "A time key has a time."),
+            Rule::KeyTime => (
+                "key-time",
+                "KeyTime",
+                "A time key has a time; a pose key has none (it would be ignored).",
+            ),
             Rule::CoincidentKeys => (
                 "coincident-keys",
                 "CoincidentKeys",
@@ -158,7 +164,7 @@ impl Rule {
             Rule::SentinelMisuse => (
                 "sentinel-misuse",
                 "SentinelMisuse",
-                "A sentinel time key carries no points or opacity (they would be ignored).",
+                "A sentinel time key carries no points or opacity, and a pose key no sentinel (they would be ignored).",
             ),
             Rule::Interpolation => (
                 "interpolation",
@@ -199,6 +205,11 @@ impl Rule {
                 "chunks",
                 "Chunks",
                 "Every chunk of a clip-set bake is on disk and baked from the current input.",
+            ),
+            Rule::Instanced => (
+                "instanced",
+                "Instanced",
+                "No rig, stroke layer or view-dependent mesh lies inside an instance (USD ignores a bake's opinions below one).",
             ),
             Rule::Unreadable => (
                 "unreadable",

@@ -6,6 +6,8 @@
 //! `apiSchemas` metadata and fallbacks are applied here, so painterly never
 //! depends on the schema plugin being registered.
 
+use std::collections::HashMap;
+
 use glam::{DMat4, DVec3, Vec3};
 use openusd::usd;
 
@@ -288,6 +290,7 @@ impl Scene {
             }
         }
         check_stroke_point_total(r, &layer_paths, &rig_paths)?;
+        problems.extend(instanced_characters(r, &paths)?);
         let mut rigs = Vec::new();
         for rp in &rig_paths {
             let prim = r.require_prim(rp)?;
@@ -330,6 +333,64 @@ impl Scene {
         }
         Ok((Scene { rigs }, problems))
     }
+}
+
+/// Instances (`instanceable` prims with a composition arc) that hold a
+/// rig, a stroke layer or a view-dependent mesh. Discovery, like usd-core's
+/// default traversal, does not look inside an instance, and a bake could not
+/// write there anyway: USD ignores a layer's opinions on the prims below an
+/// instance. So each such instance is a problem naming the first painterly
+/// prim inside; each prototype is searched once.
+fn instanced_characters(r: &StageReader, paths: &[String]) -> Result<Vec<Error>> {
+    let mut first_inside: HashMap<String, Option<String>> = HashMap::new();
+    let mut problems = Vec::new();
+    for p in paths {
+        let prim = r.require_prim(p)?;
+        let fail = |e: &dyn std::fmt::Display| Error::prim(p, format!("cannot read instancing: {e}"));
+        if !prim.is_instance().map_err(|e| fail(&e))? {
+            continue;
+        }
+        let prototype = prim
+            .prototype()
+            .map_err(|e| fail(&e))?
+            .map_or_else(|| p.clone(), |q| q.as_str().to_string());
+        let relative = match first_inside.get(&prototype) {
+            Some(found) => found.clone(),
+            None => {
+                let found = first_painterly_prim_below(r, &prim)?.map(|q| q[p.len()..].to_string());
+                first_inside.insert(prototype, found.clone());
+                found
+            }
+        };
+        if let Some(rel) = relative {
+            let message = format!(
+                "an instance (instanceable = true) holds painterly prims ({p}{rel}), which a bake cannot override: \
+                 USD ignores opinions below an instance; set `instanceable = false` on {p} to bake it"
+            );
+            problems.push(Error::prim(p, message).rule(Rule::Instanced));
+        }
+    }
+    Ok(problems)
+}
+
+/// The first prim below `prim` (depth first, instance proxies included)
+/// with a painterly API schema.
+fn first_painterly_prim_below(r: &StageReader, prim: &usd::Prim) -> Result<Option<String>> {
+    let mut stack = r.read_children(prim)?;
+    stack.reverse();
+    while let Some(c) = stack.pop() {
+        let apis = r.api_schemas(&c)?;
+        if apis
+            .iter()
+            .any(|a| a == RIG_API || a == STROKE_LAYER_API || a == VIEW_DEPENDENT_API)
+        {
+            return Ok(Some(c.path().as_str().to_string()));
+        }
+        let mut children = r.read_children(&c)?;
+        children.reverse();
+        stack.extend(children);
+    }
+    Ok(None)
 }
 
 /// README, Limits: the stroke points of all layers under a rig, summed
@@ -959,10 +1020,7 @@ fn read_keys(r: &StageReader, all_paths: &[String], rig: &mut Rig, layer: &Strok
 fn read_key_prims(r: &StageReader, layer: &StrokeLayer) -> Result<KeyPrims> {
     let path = layer.path.as_str();
     let npoints = layer.rest_points.len();
-    let children = layer
-        .prim
-        .children()
-        .map_err(|e| Error::prim(path, format!("cannot list children: {e}")))?;
+    let children = r.read_children(&layer.prim)?;
     let read_points = |c: &usd::Prim, cp: &str| -> Result<Option<Vec<Vec3>>> {
         let Some(p) = r.typed(c, "points", None, "point3f[]", values::vec3_array)? else {
             return Ok(None);

@@ -312,6 +312,37 @@ impl StageReader {
         }
     }
 
+    /// Why a bake does not read `prim` (a child of a prim it reads), as
+    /// usd-core's `GetChildren()` leaves it out: deactivated, only an `over`
+    /// (no `def`), or abstract (a `class`). `None` when it is read.
+    pub fn unread_reason(&self, prim: &usd::Prim) -> Result<Option<&'static str>> {
+        let fail = |e: &dyn std::fmt::Display| Error::prim(prim.path(), format!("cannot read prim status: {e}"));
+        Ok(if !prim.is_active().map_err(|e| fail(&e))? {
+            Some("deactivated (active = false)")
+        } else if prim.is_abstract().map_err(|e| fail(&e))? {
+            Some("abstract (a class)")
+        } else if !prim.is_defined().map_err(|e| fail(&e))? {
+            Some("only an over (no def)")
+        } else {
+            None
+        })
+    }
+
+    /// The children of `prim` that a bake reads (see [`Self::unread_reason`]),
+    /// in namespace order.
+    pub fn read_children(&self, prim: &usd::Prim) -> Result<Vec<usd::Prim>> {
+        let children = prim
+            .children()
+            .map_err(|e| Error::prim(prim.path(), format!("cannot list children: {e}")))?;
+        let mut read = Vec::with_capacity(children.len());
+        for c in children {
+            if self.unread_reason(&c)?.is_none() {
+                read.push(c);
+            }
+        }
+        Ok(read)
+    }
+
     /// The composed type name ("" when untyped).
     pub fn type_name(&self, prim: &usd::Prim) -> Result<String> {
         prim.type_name()
@@ -332,6 +363,22 @@ impl StageReader {
         prim.attribute(name)
             .has_authored_value()
             .map_err(|e| Error::attr(prim.path(), name, format!("cannot read: {e}")))
+    }
+
+    /// The layer offset (offset, scale) from the layer holding the strongest
+    /// opinion of `name` to the stage, and that layer's identifier, when the
+    /// offset is not the identity (a sublayer or reference offset). USD
+    /// retimes time samples and `timecode` values through it, never a
+    /// `double`, so a `double` time authored there is read unretimed.
+    pub fn value_offset(&self, prim: &usd::Prim, name: &str) -> Result<Option<(f64, f64, String)>> {
+        let info = prim
+            .attribute(name)
+            .resolve_info()
+            .map_err(|e| Error::attr(prim.path(), name, format!("cannot resolve: {e}")))?;
+        Ok(info.spec_site().and_then(|site| {
+            let o = site.offset;
+            (o.offset != 0.0 || o.scale != 1.0).then(|| (o.offset, o.scale, site.layer.clone()))
+        }))
     }
 
     /// The attribute's resolved value at `time` (None = default value).

@@ -176,10 +176,7 @@ fn read_view_mesh(r: &StageReader, prim: usd::Prim) -> Result<ViewMesh> {
 /// checked alone (SPEC §6).
 fn read_view_keys(r: &StageReader, prim: &usd::Prim, path: &str, n: usize) -> Result<Vec<KeyIn>> {
     let mut keys = Vec::new();
-    for c in prim
-        .children()
-        .map_err(|e| Error::prim(path, format!("cannot list children: {e}")))?
-    {
+    for c in r.read_children(prim)? {
         if r.type_name(&c)? != "PainterlyViewKey" {
             continue;
         }
