@@ -198,3 +198,25 @@ def test_a_character_no_longer_instanced_bakes_like_its_twin(painterly, tmp_path
         a, b = (stage.GetPrimAtPath(f"/{h}/Paint/{layer}").GetAttribute("points") for h in ("Hero1", "Hero2"))
         assert a.GetTimeSamples() == b.GetTimeSamples() == [1.0, 9.0, 17.0, 25.0, 33.0, 41.0]
         assert all(np.array_equal(np.array(a.Get(t)), np.array(b.Get(t))) for t in a.GetTimeSamples())
+
+
+def test_a_layer_targeting_a_deactivated_axis_is_refused(painterly, tmp_path):
+    """usd-core still reads a deactivated prim's attributes, but an axis a
+    shot switched off must not go on shaping the layers that name it in
+    `painterly:axes`: each is a problem (rule `axis`) and the bake stops."""
+    axis = "/Blowfish/Paint/inflate"
+    shot, _ = shot_over(tmp_path, "blowfish.usda", deactivate(axis))
+    stage = Usd.Stage.Open(str(shot))
+    assert stage.GetPrimAtPath(axis).GetAttribute("kind").Get() == "blendShape"  # usd-core reads it
+    proc = painterly("inspect", shot, "--json", check=False)
+    assert proc.returncode == 1
+    problems = json.loads(proc.stdout)["problems"]
+    message = f"targets {axis}, which is deactivated (active = false)"
+    assert {(p["attribute"], p["rule"], p["message"]) for p in problems} == {("painterly:axes", "axis", message)}
+    layers = [p["prim"] for p in problems]
+    assert f"{FISH}" in layers and all(axis in stage.GetPrimAtPath(p).GetRelationship("painterly:axes").GetTargets()
+                                       for p in layers)
+    out = tmp_path / "bake.usdc"
+    proc = painterly("bake", shot, "-o", out, check=False)
+    assert (proc.returncode, proc.stderr) == (1, f"error: {shot}: {layers[0]}.painterly:axes: {message}\n")
+    assert not out.exists()

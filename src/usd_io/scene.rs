@@ -953,10 +953,15 @@ pub fn layer_axes(r: &StageReader, all_paths: &[String], rig: &mut Rig, layer: &
     };
     let mut axes = Vec::new();
     for ap in &axis_paths {
-        if r.prim(ap)?.is_none() {
+        let Some(axis) = r.prim(ap)? else {
             return Err(
                 Error::attr(path, "painterly:axes", format!("targets {ap}, which does not exist")).rule(Rule::Axis),
             );
+        };
+        // usd-core still reads a deactivated prim's attributes, but an axis
+        // switched off must not go on shaping the layer unseen.
+        if let Some(why) = r.unread_reason(&axis)? {
+            return Err(Error::attr(path, "painterly:axes", format!("targets {ap}, which is {why}")).rule(Rule::Axis));
         }
         axes.push(axis_index(r, rig, ap)?);
     }
