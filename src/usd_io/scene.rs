@@ -1358,6 +1358,44 @@ def Xform "World"
         )
     }
 
+    #[test]
+    fn a_character_inside_an_instance_is_named_once_per_instance() {
+        let mut usda = rig(SQUARE, STROKE);
+        usda.push_str(
+            r#"
+def Xform "Crowd1" (instanceable = true; references = </World>) {}
+def Xform "Crowd2" (instanceable = true; references = </World>) {}
+def Xform "Prop" (instanceable = true; references = </World/Proxy>) {}
+def Xform "Plain" (references = </World/Proxy>) {}
+"#,
+        );
+        let r = stage(&usda);
+        let (scene, problems) = Scene::read_lenient(&r).unwrap();
+        assert_eq!(
+            scene.rigs.iter().map(|g| g.path.as_str()).collect::<Vec<_>>(),
+            ["/World/Rig"]
+        );
+        let got: Vec<_> = problems
+            .iter()
+            .map(|e| (e.prim.as_deref().unwrap(), e.rule, e.message.as_str()))
+            .collect();
+        let message = |p: &str| {
+            format!(
+                "an instance (instanceable = true) holds painterly prims ({p}/Rig), which a bake cannot override: \
+                 USD ignores opinions below an instance; set `instanceable = false` on {p} to bake it"
+            )
+        };
+        let (m1, m2) = (message("/Crowd1"), message("/Crowd2"));
+        assert_eq!(
+            got,
+            [
+                ("/Crowd1", Some(Rule::Instanced), m1.as_str()),
+                ("/Crowd2", Some(Rule::Instanced), m2.as_str())
+            ]
+        );
+        assert!(Scene::read(&r).is_err());
+    }
+
     /// The SQUARE proxy skinned to one joint that turns 90° about +Z from
     /// time 0 to 1, with `extra` in the Mesh (`influences`: whether it has
     /// joint influences at all).

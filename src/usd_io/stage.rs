@@ -1179,4 +1179,72 @@ def BasisCurves "L" {
         drop(mapped);
         assert!(!mapped_in(&a), "{} is still mapped", a.display());
     }
+
+    #[test]
+    fn read_children_are_the_children_usd_core_lists() {
+        let r = crate::usd_io::testutil::stage_from_usda(
+            r#"#usda 1.0
+def Xform "L"
+{
+    def Xform "on" {}
+    def Xform "off" (active = false) {}
+    over "ghost" {}
+    class Xform "abstract" {}
+}
+"#,
+        );
+        let l = r.require_prim("/L").unwrap();
+        let names = |v: Vec<usd::Prim>| {
+            v.iter()
+                .map(|p| p.path().name().unwrap().to_string())
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(names(r.read_children(&l).unwrap()), ["on"]);
+        let reasons: Vec<_> = l
+            .children()
+            .unwrap()
+            .iter()
+            .map(|c| r.unread_reason(c).unwrap())
+            .collect();
+        assert_eq!(
+            reasons,
+            [
+                None,
+                Some("deactivated (active = false)"),
+                Some("only an over (no def)"),
+                Some("abstract (a class)")
+            ]
+        );
+    }
+
+    #[test]
+    fn value_offset_is_the_offset_that_reaches_the_strongest_opinion() {
+        let r = crate::usd_io::testutil::stage_from_usda(
+            r#"#usda 1.0
+def Xform "Src"
+{
+    double time = 2
+}
+def Xform "Shifted" (references = </Src> (offset = 10; scale = 2))
+{
+}
+def Xform "Plain" (references = </Src>)
+{
+}
+def Xform "Over" (references = </Src> (offset = 10; scale = 2))
+{
+    double time = 3
+}
+"#,
+        );
+        let at = |p: &str| {
+            let prim = r.require_prim(p).unwrap();
+            r.value_offset(&prim, "time").unwrap().map(|(o, s, _)| (o, s))
+        };
+        assert_eq!(at("/Src"), None);
+        assert_eq!(at("/Shifted"), Some((10.0, 2.0)));
+        assert_eq!(at("/Plain"), None);
+        // A local opinion wins, and it is not behind the reference's offset.
+        assert_eq!(at("/Over"), None);
+    }
 }
