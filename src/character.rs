@@ -114,9 +114,10 @@ pub struct RigFrame {
     /// Every axis of the rig (indices as `Rig::axes`); 0 for axes no keyed
     /// layer needs, unless read with [`Character::configuration`].
     pub axis_values: Vec<f64>,
-    /// Per layer: proxy-local → stroke-local transform, `painterly:opacity`
-    /// and the largest `widths` value (for the extent).
-    pub layers: Vec<(Affine3A, f32, f32)>,
+    /// Per layer: proxy-local → stroke-local transform, `painterly:opacity`,
+    /// the largest `widths` value (for the extent) and, when time-sampled,
+    /// `primvars:displayOpacity` per curve.
+    pub layers: Vec<(Affine3A, f32, f32, Option<Vec<f32>>)>,
 }
 
 /// One view-dependent mesh at one frame, as read from the stage.
@@ -309,7 +310,8 @@ impl Character {
             let mut layers = Vec::with_capacity(rig.layers.len());
             for layer in &rig.layers {
                 let frame = Affine3A::from_mat4((layer.local_to_world(r, t)?.inverse() * proxy_l2w).as_mat4());
-                layers.push((frame, layer.opacity_at(r, t)?, layer.max_width_at(t)));
+                let display = layer.display_opacity_at(r, t)?;
+                layers.push((frame, layer.opacity_at(r, t)?, layer.max_width_at(t), display));
             }
             rigs.push(RigFrame {
                 posed,
@@ -421,7 +423,7 @@ impl Model {
         let mut proxy_normals = Vec::with_capacity(self.rigs.len());
         for (rig, rf) in self.rigs.iter().zip(input.rigs) {
             let motions = to_f32(&rig.skin.vertex_motions(&rf.posed));
-            for (layer, (frame, opacity, max_width)) in rig.layers.iter().zip(rf.layers) {
+            for (layer, (frame, opacity, max_width, display)) in rig.layers.iter().zip(rf.layers) {
                 let rest = &layer.rest_points;
                 let (keyed, keyed_opacity) = keyed_state(&layer.keys, rest, &rf.axis_values, t);
                 let mut points = vec![Vec3::ZERO; rest.len()];
@@ -436,7 +438,12 @@ impl Model {
                 let o = opacity * keyed_opacity;
                 layers.push(LayerFrame {
                     points,
-                    opacity: layer.display_opacity.iter().map(|d| d * o).collect(),
+                    opacity: display
+                        .as_deref()
+                        .unwrap_or(&layer.display_opacity)
+                        .iter()
+                        .map(|d| d * o)
+                        .collect(),
                     max_width,
                     bounds: skinned.extent,
                 });

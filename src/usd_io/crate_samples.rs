@@ -82,8 +82,9 @@ impl CrateSamples {
         self.times.iter().map(|&t| self.offset.apply(t)).collect()
     }
 
-    /// The value at stage time `time`, as openusd resolves it (`None` for a
-    /// blocked sample); an error names what could not be decoded.
+    /// The value at stage time `time`, as [`StageReader::value`] resolves it
+    /// (`None` where a blocked sample withholds it); an error names what
+    /// could not be decoded.
     pub fn value_at(&self, time: f64) -> Result<Option<Value>, String> {
         let lt = self.offset.inverse().apply(time);
         let decode = |i: usize| self.decode(i).ok_or_else(|| format!("cannot decode time sample {i}"));
@@ -102,8 +103,11 @@ impl CrateSamples {
         let (v_lo, v_hi) = (decode(lo)?, decode(hi)?);
         let u = (lt - self.times[lo]) / (self.times[hi] - self.times[lo]);
         Ok(match (v_lo, v_hi) {
-            // A blocked sample on either side withholds the value.
-            (Value::ValueBlock | Value::None, _) | (_, Value::ValueBlock | Value::None) => None,
+            // A block withholds values from its time to the next sample; the
+            // sample before a block holds up to it (usd-core; openusd 0.8
+            // withholds it, and `StageReader::value` corrects that).
+            (Value::ValueBlock | Value::None, _) => None,
+            (a, Value::ValueBlock | Value::None) => Some(a),
             (Value::Vec3fVec(a), Value::Vec3fVec(b)) if a.len() == b.len() => {
                 let u = u as f32;
                 Some(Value::Vec3fVec(
@@ -274,12 +278,11 @@ mod tests {
         let r = StageReader::open_mapped(root).unwrap();
         let prim = r.require_prim("/M").unwrap();
         let lazy = r.crate_samples(&prim, "points").expect("read lazily");
-        let query = usd::AttributeQuery::new(&prim.attribute("points"));
         let mut times: Vec<f64> = (-40..=80).map(|i| i as f64 * 0.37).collect();
         times.extend(lazy.stage_times());
         times.extend(lazy.stage_times().iter().map(|t| t + 1e-9));
         for t in times {
-            let want = query.get_at::<Value>(usd::TimeCode::new(t)).unwrap();
+            let want = r.value(&prim, "points", Some(t)).unwrap();
             let got = lazy.value_at(t).unwrap();
             let bits = |v: &Option<Value>| -> Option<Vec<u32>> {
                 match v {
@@ -336,9 +339,11 @@ mod tests {
     }
 
     #[test]
-    fn mismatched_counts_and_blocked_samples_read_as_openusd_reads_them() {
+    fn mismatched_counts_and_blocked_samples_read_as_usd_core_reads_them() {
         // Between samples of different lengths openusd holds the lower one;
-        // next to a blocked sample there is no value.
+        // a sample before a block holds up to it, and from the block on
+        // there is no value (usd-core: samples 1 at t=1 and a block at t=3
+        // read 1.0 at t=2 and 2.9, none at 3 and after).
         let dir = TempDir::new().unwrap();
         let layer = sample_layer_of(
             dir.path(),
@@ -348,7 +353,8 @@ mod tests {
         let r = StageReader::open_mapped(&layer).unwrap();
         let lazy = r.crate_samples(&r.require_prim("/M").unwrap(), "points").unwrap();
         assert!(matches!(lazy.value_at(1.5).unwrap(), Some(Value::Vec3fVec(p)) if p.len() == 4));
-        assert_eq!(lazy.value_at(3.5).unwrap(), None);
+        assert!(matches!(lazy.value_at(3.5).unwrap(), Some(Value::Vec3fVec(p)) if p.len() == 5));
+        assert_eq!(lazy.value_at(4.0).unwrap(), None);
         assert_eq!(lazy.value_at(9.0).unwrap(), None);
     }
 

@@ -15,7 +15,7 @@ use super::axes::Axis;
 use super::crate_samples::CrateSamples;
 use super::guard::{MAX_PROXY_POINTS, MAX_STROKE_POINTS};
 use super::skel::{skeleton_binding, SkelProxy};
-use super::stage::StageReader;
+use super::stage::{HeldQuery, StageReader};
 use super::values;
 use crate::bind::Binding;
 use crate::error::{Error, Result};
@@ -61,7 +61,7 @@ pub struct Proxy {
     prim: usd::Prim,
     /// A cached query on `points`: per-frame reads through a plain attribute
     /// decode every time sample of a crate file each time.
-    points_query: usd::AttributeQuery,
+    points_query: HeldQuery,
     /// Time-sampled `points` read one sample at a time from the crate file,
     /// where that gives what `points_query` gives (a point cache).
     points_samples: Option<CrateSamples>,
@@ -111,8 +111,12 @@ pub struct StrokeLayer {
     /// `painterly:opacity` at every time, once read, when it cannot vary
     /// in time (read per frame otherwise).
     fixed_opacity: Option<std::sync::OnceLock<f32>>,
-    /// Authored `primvars:displayOpacity` per curve (1 when absent).
+    /// Authored `primvars:displayOpacity` per curve (1 when absent), its
+    /// default value.
     pub display_opacity: Vec<f32>,
+    /// Whether `primvars:displayOpacity` or its indices are time-sampled
+    /// (then read per frame: [`StrokeLayer::display_opacity_at`]).
+    display_varies: bool,
     /// `widths`, as far as the extent needs them (see [`StrokeLayer::max_width_at`]).
     widths: Widths,
     /// Pose and time keys (SPEC §4–5).
@@ -585,7 +589,7 @@ pub fn read_mesh(r: &StageReader, prim: usd::Prim, rest_time: Option<f64>) -> Re
         rest,
         motion,
         normals,
-        points_query: usd::AttributeQuery::new(&prim.attribute("points")),
+        points_query: HeldQuery::new(&prim, "points")?,
         points_samples,
         prim,
     })
@@ -675,10 +679,7 @@ impl Proxy {
     fn sampled_points(&self, t: f64) -> Result<Vec<Vec3>> {
         let v = match &self.points_samples {
             Some(s) => s.value_at(t),
-            None => self
-                .points_query
-                .get_at::<openusd::sdf::Value>(usd::TimeCode::new(t))
-                .map_err(|e| e.to_string()),
+            None => self.points_query.get_at(t),
         };
         let p = points_read(&self.path, t, v)?.unwrap_or_default();
         if p.len() != self.rest.len() {
@@ -799,7 +800,15 @@ fn read_layer(r: &StageReader, path: &str, proxy_points: usize) -> Result<Stroke
         .attribute("painterly:opacity")
         .value_might_be_time_varying()
         .map_err(|e| Error::attr(path, "painterly:opacity", format!("cannot read: {e}")))?;
-    let display_opacity = read_display_opacity(r, &prim, path, &counts).map_err(|e| e.or_rule(Rule::DisplayOpacity))?;
+    let display_opacity =
+        read_display_opacity(r, &prim, path, &counts, None).map_err(|e| e.or_rule(Rule::DisplayOpacity))?;
+    let mut display_varies = false;
+    for name in ["primvars:displayOpacity", "primvars:displayOpacity:indices"] {
+        display_varies |= prim
+            .attribute(name)
+            .value_might_be_time_varying()
+            .map_err(|e| Error::attr(path, name, format!("cannot read: {e}")))?;
+    }
     let widths = read_widths(r, &prim, path)?;
     Ok(StrokeLayer {
         path: path.to_string(),
@@ -810,6 +819,7 @@ fn read_layer(r: &StageReader, path: &str, proxy_points: usize) -> Result<Stroke
         opacity,
         fixed_opacity: (!opacity_varies).then(std::sync::OnceLock::new),
         display_opacity,
+        display_varies,
         widths,
         keys: LayerKeys::default(),
         prim,
@@ -1198,16 +1208,22 @@ pub fn check_binding(
 ///
 /// constant → repeated; uniform → as is; vertex/varying → mean over each
 /// curve's points (the bake writes uniform opacity, SPEC §7).
-fn read_display_opacity(r: &StageReader, prim: &usd::Prim, path: &str, counts: &[i64]) -> Result<Vec<f32>> {
+fn read_display_opacity(
+    r: &StageReader,
+    prim: &usd::Prim,
+    path: &str,
+    counts: &[i64],
+    time: Option<f64>,
+) -> Result<Vec<f32>> {
     const NAME: &str = "primvars:displayOpacity";
     let ncurves = counts.len();
-    let Some(v) = r.typed(prim, NAME, None, "float[]", values::f32_array)? else {
+    let Some(v) = r.typed(prim, NAME, time, "float[]", values::f32_array)? else {
         return Ok(vec![1.0; ncurves]);
     };
     let v = match r.typed(
         prim,
         "primvars:displayOpacity:indices",
-        None,
+        time,
         "int[]",
         values::int_array,
     )? {
@@ -1261,6 +1277,25 @@ impl StrokeLayer {
     }
 
     /// `painterly:opacity` at `t` (it may be animated; fallback 1).
+    /// `primvars:displayOpacity` per curve at `t` when it or its indices
+    /// are time-sampled (an authored fade); `None` when the default value
+    /// ([`StrokeLayer::display_opacity`]) holds at every time.
+    pub fn display_opacity_at(&self, r: &StageReader, t: f64) -> Result<Option<Vec<f32>>> {
+        if !self.display_varies {
+            return Ok(None);
+        }
+        let counts: Vec<i64> = self.curve_counts.iter().map(|&c| i64::from(c)).collect();
+        read_display_opacity(r, &self.prim, &self.path, &counts, Some(t))
+            .map(Some)
+            .map_err(|e| {
+                Error {
+                    message: format!("at time {t}: {}", e.message),
+                    ..e
+                }
+                .or_rule(Rule::DisplayOpacity)
+            })
+    }
+
     pub fn opacity_at(&self, r: &StageReader, t: f64) -> Result<f32> {
         if let Some(o) = self.fixed_opacity.as_ref().and_then(|f| f.get()) {
             return Ok(*o);

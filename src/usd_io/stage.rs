@@ -35,6 +35,57 @@ pub const PAINTERLY_UNIFORM: [&str; 7] = [
     "painterly:uncovered",
 ];
 
+/// usd-core holds a sample up to a blocked sample after it (a block
+/// withholds values from its own time to the next sample, and never
+/// interpolates); openusd 0.8 gives no value there. When `t` lies strictly
+/// between two of the sorted sample `times`, the lower one's time, whose
+/// value then stands (the caller reads it when openusd gave none at `t`).
+fn held_before_block(times: &[f64], t: f64) -> Option<f64> {
+    let after = times.partition_point(|&s| sdf::compare_sample_times(s, t).is_le());
+    match (after.checked_sub(1).map(|i| times[i]), times.get(after)) {
+        (Some(lower), Some(_)) if sdf::compare_sample_times(lower, t).is_lt() => Some(lower),
+        _ => None,
+    }
+}
+
+/// An attribute read at many times (per frame): openusd's query, with the
+/// sample times read once so that a value held up to a block reads as
+/// usd-core gives it ([`held_before_block`]).
+pub struct HeldQuery {
+    query: usd::AttributeQuery,
+    times: Vec<f64>,
+}
+
+impl HeldQuery {
+    pub fn new(prim: &usd::Prim, name: &str) -> Result<Self> {
+        let query = usd::AttributeQuery::new(&prim.attribute(name));
+        let times = query
+            .time_sample_times()
+            .map_err(|e| Error::attr(prim.path(), name, format!("cannot read time samples: {e}")))?;
+        Ok(HeldQuery { query, times })
+    }
+
+    /// The value at `t` (`None` where there is none, or a block withholds it).
+    pub fn get_at(&self, t: f64) -> std::result::Result<Option<Value>, String> {
+        let read = |t: f64| -> std::result::Result<Option<Value>, String> {
+            let v = self
+                .query
+                .get_at::<Value>(TimeCode::new(t))
+                .map_err(|e| e.to_string())?;
+            Ok(v.filter(|v| !matches!(v, Value::None | Value::ValueBlock)))
+        };
+        match read(t)? {
+            None => held_before_block(&self.times, t).map_or(Ok(None), read),
+            v => Ok(v),
+        }
+    }
+
+    /// The authored sample times.
+    pub fn times(&self) -> &[f64] {
+        &self.times
+    }
+}
+
 /// An opened, composed USD stage.
 pub struct StageReader {
     /// The composed stage (sublayers, references and payloads resolved).
@@ -384,10 +435,25 @@ impl StageReader {
     /// The attribute's resolved value at `time` (None = default value).
     pub fn value(&self, prim: &usd::Prim, name: &str, time: Option<f64>) -> Result<Option<Value>> {
         let attr = prim.attribute(name);
-        let v = attr
-            .get_at::<Value>(time.map(TimeCode::new))
-            .map_err(|e| Error::attr(prim.path(), name, format!("cannot read: {e}")))?;
-        Ok(v.filter(|v| !matches!(v, Value::None | Value::ValueBlock)))
+        let read = |t: Option<f64>| -> Result<Option<Value>> {
+            let v = attr
+                .get_at::<Value>(t.map(TimeCode::new))
+                .map_err(|e| Error::attr(prim.path(), name, format!("cannot read: {e}")))?;
+            Ok(v.filter(|v| !matches!(v, Value::None | Value::ValueBlock)))
+        };
+        let v = read(time)?;
+        match (v, time) {
+            (None, Some(t)) => match self.held_before_block(prim, name, t)? {
+                Some(lower) => read(Some(lower)),
+                None => Ok(None),
+            },
+            (v, _) => Ok(v),
+        }
+    }
+
+    /// See [`held_before_block`].
+    fn held_before_block(&self, prim: &usd::Prim, name: &str, t: f64) -> Result<Option<f64>> {
+        Ok(held_before_block(&self.sample_times(prim, name)?, t))
     }
 
     /// The layer whose opinion gives `prim.name` its value at `time` (None =
@@ -1246,5 +1312,36 @@ def Xform "Over" (references = </Src> (offset = 10; scale = 2))
         assert_eq!(at("/Plain"), None);
         // A local opinion wins, and it is not behind the reference's offset.
         assert_eq!(at("/Over"), None);
+    }
+
+    #[test]
+    fn a_sample_holds_up_to_a_block_after_it() {
+        // usd-core 26.11 on these samples, at t = 0, 1, 2, 2.9, 3, 4, 5, 6, 7, 8:
+        // 1, 1, 1, 1, None, None, 5, 6, 7, 7.
+        let r = crate::usd_io::testutil::stage_from_usda(
+            r#"#usda 1.0
+def Xform "P"
+{
+    double x.timeSamples = {1: 1, 3: None, 5: 5, 7: 7}
+    double y.timeSamples = {1: None, 2: 4}
+}
+"#,
+        );
+        let p = r.require_prim("/P").unwrap();
+        let at = |name: &str, t: f64| r.typed(&p, name, Some(t), "double", values::scalar).unwrap();
+        let got: Vec<_> = [0.0, 1.0, 2.0, 2.9, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0]
+            .map(|t| at("x", t))
+            .to_vec();
+        let want = [1.0, 1.0, 1.0, 1.0]
+            .map(Some)
+            .into_iter()
+            .chain([None, None])
+            .chain([5.0, 6.0, 7.0, 7.0].map(Some));
+        assert_eq!(got, want.collect::<Vec<_>>());
+        // A block first: nothing before the next sample.
+        assert_eq!(
+            [0.0, 1.0, 1.5, 2.0, 3.0].map(|t| at("y", t)),
+            [None, None, None, Some(4.0), Some(4.0)]
+        );
     }
 }

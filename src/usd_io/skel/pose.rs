@@ -6,14 +6,14 @@
 use glam::DMat4;
 use openusd::gf;
 use openusd::sdf::Value;
-use openusd::usd::{self, AttributeQuery, TimeCode};
+use openusd::usd;
 
 use super::inherited_attr;
 use super::mapper::OrderMap;
 use super::topology::{duplicates, quoted};
 use crate::error::{Error, Result};
 use crate::skel_deform::local_to_skel;
-use crate::usd_io::stage::StageReader;
+use crate::usd_io::stage::{HeldQuery, StageReader};
 use crate::usd_io::values;
 
 /// How the skeleton is posed at a time, for a mesh skinned by joints.
@@ -34,11 +34,9 @@ pub(super) struct JointPose {
 pub(super) struct AnimJoints {
     path: String,
     joints: usize,
-    translations: AttributeQuery,
-    rotations: AttributeQuery,
-    scales: AttributeQuery,
-    /// Authored times of `scales`, for interpolating half-precision scales.
-    scale_times: Vec<f64>,
+    translations: HeldQuery,
+    rotations: HeldQuery,
+    scales: HeldQuery,
 }
 
 const TRS: [&str; 3] = ["translations", "rotations", "scales"];
@@ -48,12 +46,9 @@ impl AnimJoints {
     /// there (the attribute and the reason): an array missing, of another
     /// type, or not one entry per joint.
     fn local(&self, t: f64) -> Result<std::result::Result<Vec<DMat4>, (&'static str, String)>> {
-        let time = TimeCode::new(t);
-        let get = |q: &AttributeQuery, name: &str| -> Result<Option<Value>> {
-            let v = q
-                .get_at::<Value>(time)
-                .map_err(|e| Error::attr(&self.path, name, format!("cannot read at time {t}: {e}")))?;
-            Ok(v.filter(|v| !matches!(v, Value::None | Value::ValueBlock)))
+        let get = |q: &HeldQuery, name: &str| -> Result<Option<Value>> {
+            q.get_at(t)
+                .map_err(|e| Error::attr(&self.path, name, format!("cannot read at time {t}: {e}")))
         };
         let raw = [
             get(&self.translations, TRS[0])?,
@@ -105,13 +100,14 @@ impl AnimJoints {
     /// rounded to half (openusd rounds once; they differ by up to ~1e-4 of
     /// the character). None where that does not apply.
     fn half_scales_between_samples(&self, t: f64) -> Result<Option<Vec<gf::Vec3h>>> {
-        let Some(i) = self.scale_times.windows(2).position(|w| w[0] < t && t < w[1]) else {
+        let times = self.scales.times();
+        let Some(i) = times.windows(2).position(|w| w[0] < t && t < w[1]) else {
             return Ok(None);
         };
-        let (t0, t1) = (self.scale_times[i], self.scale_times[i + 1]);
+        let (t0, t1) = (times[i], times[i + 1]);
         let sample = |at: f64| {
             self.scales
-                .get_at::<Value>(TimeCode::new(at))
+                .get_at(at)
                 .map_err(|e| Error::attr(&self.path, "scales", format!("cannot read at time {at}: {e}")))
         };
         let (Some(Value::Vec3hVec(a)), Some(Value::Vec3hVec(b))) = (sample(t0)?, sample(t1)?) else {
@@ -326,10 +322,9 @@ fn check_animation(
     let aj = AnimJoints {
         path: path.clone(),
         joints: anim_joints.len(),
-        translations: AttributeQuery::new(&prim.attribute("translations")),
-        rotations: AttributeQuery::new(&prim.attribute("rotations")),
-        scales: AttributeQuery::new(&prim.attribute("scales")),
-        scale_times: r.sample_times(prim, "scales")?,
+        translations: HeldQuery::new(prim, "translations")?,
+        rotations: HeldQuery::new(prim, "rotations")?,
+        scales: HeldQuery::new(prim, "scales")?,
     };
     if map.sparse && !has_rest {
         let driven = map.sources(anim_joints.len()).iter().filter(|s| s.is_some()).count();
@@ -517,10 +512,9 @@ def SkelRoot "R"
         AnimJoints {
             path: "/R/Skel/Anim".into(),
             joints: 2,
-            translations: AttributeQuery::new(&prim.attribute("translations")),
-            rotations: AttributeQuery::new(&prim.attribute("rotations")),
-            scales: AttributeQuery::new(&prim.attribute("scales")),
-            scale_times: r.sample_times(&prim, "scales").unwrap(),
+            translations: HeldQuery::new(&prim, "translations").unwrap(),
+            rotations: HeldQuery::new(&prim, "rotations").unwrap(),
+            scales: HeldQuery::new(&prim, "scales").unwrap(),
         }
     }
 

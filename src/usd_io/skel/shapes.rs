@@ -3,20 +3,19 @@
 //! `blendShapeWeights` mapped onto the mesh's `skel:blendShapes` order.
 
 use glam::DVec3;
-use openusd::sdf::Value;
-use openusd::usd::{self, AttributeQuery, TimeCode};
+use openusd::usd;
 use openusd_schemas::skel::BlendShape as UsdBlendShape;
 
 use super::mapper::OrderMap;
 use crate::error::{Error, Result};
 use crate::skel_deform::{ignores_inbetween_at, BlendShape, Inbetween};
-use crate::usd_io::stage::StageReader;
+use crate::usd_io::stage::{HeldQuery, StageReader};
 use crate::usd_io::values;
 
 /// The animation's blend-shape weights, in the mesh's `skel:blendShapes` order.
 pub(super) struct ShapeWeights {
     path: String,
-    query: AttributeQuery,
+    query: HeldQuery,
     map: OrderMap,
 }
 
@@ -24,7 +23,7 @@ impl ShapeWeights {
     pub(super) fn at(&self, t: f64) -> Result<Vec<f64>> {
         let v = self
             .query
-            .get_at::<Value>(TimeCode::new(t))
+            .get_at(t)
             .map_err(|e| Error::attr(&self.path, "blendShapeWeights", format!("cannot read at time {t}: {e}")))?;
         // Unreadable at this time: usd-core applies no blend shape.
         let raw = v.as_ref().and_then(values::f32_array).unwrap_or_default();
@@ -80,7 +79,7 @@ pub(super) fn read_shapes(
         .unwrap_or_default();
     let weights = ShapeWeights {
         path: anim.path().as_str().to_string(),
-        query: AttributeQuery::new(&anim.attribute("blendShapeWeights")),
+        query: HeldQuery::new(anim, "blendShapeWeights")?,
         map: OrderMap::new(&anim_shapes, &shape_names),
     };
     Ok((shapes, Some(weights)))

@@ -1,0 +1,99 @@
+"""Values resolved as usd-core resolves them (found by a value-resolution
+review, 2026-12-06):
+
+- a time sample holds up to a value block after it (usd-core: samples 1 at
+  t=1 and a block at t=3 read 1 at t=2; openusd 0.8 read no value there,
+  which put joints at rest, blend shapes at 0 and failed a points proxy);
+- a time-sampled `primvars:displayOpacity` (a fade) is baked per frame
+  (the bake wrote its default, or 1, at every frame).
+
+Every expected value comes from usd-core: UsdSkel.BakeSkinning for the
+proxy, `Get(t)` for the primvar.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from pxr import Sdf, Usd, Vt
+
+import authoring as Au
+
+
+def test_a_skel_animation_holds_its_sample_up_to_a_block(painterly, tmp_path):
+    rig = Au.build_skel_rig(tmp_path / "in.usda", blend_shapes={"dense"}, frames=(1, 12),
+                            key_times=[1.0, 4.0, 8.0, 12.0])
+    st = Usd.Stage.Open(str(rig.path))
+    anim = st.GetPrimAtPath("/World/Character/Anim")
+    anim.GetAttribute("blendShapeWeights").Set(Sdf.ValueBlock(), 6.0)
+    anim.GetAttribute("rotations").Set(Sdf.ValueBlock(), 10.0)
+    st.GetRootLayer().Save()
+    del st, anim
+    times = [4.0, 5.0, 5.5, 8.0, 9.0, 9.5]  # 5, 5.5: before the weights' block; 9, 9.5: before the rotations'
+    out = tmp_path / "bake.usda"
+    painterly("bake", rig.path, "-o", out, "--frames", "1:12:0.5", "--bake-proxy", "--quiet")
+    want = Au.usdcore_world_points(rig.path, [rig.mesh], times)[rig.mesh]
+    composed = Au.compose(rig.path, out)
+    for t in times:
+        got = Au.world_points(composed, rig.mesh, t)
+        assert np.abs(got - want[t]).max() < 1e-5, t
+    # The blocks bite: the weights at 5 are the held sample at 4, not 0.
+    src = Usd.Stage.Open(str(rig.path))
+    weights = src.GetPrimAtPath("/World/Character/Anim").GetAttribute("blendShapeWeights")
+    assert list(weights.Get(5.0)) == list(weights.Get(4.0)) and max(weights.Get(4.0)) > 0
+
+
+def test_a_points_proxy_holds_its_sample_up_to_a_block(painterly, tmp_path):
+    """A proxy animated by `points` samples at 1, 4 and 10 with a block
+    added at 3: at 1.5 and 2 the proxy is the sample at 1 (usd-core), so
+    the strokes are where they are at 1."""
+    rig = Au.build_points_rig(tmp_path / "in.usda", frames=(1, 10))
+    st = Usd.Stage.Open(str(rig.path))
+    st.GetPrimAtPath(rig.mesh).GetAttribute("points").Set(Sdf.ValueBlock(), 3.0)
+    st.GetRootLayer().Save()
+    del st
+    src = Usd.Stage.Open(str(rig.path))
+    check = src.GetPrimAtPath(rig.mesh).GetAttribute("points")
+    assert np.array_equal(np.array(check.Get(2.0)), np.array(check.Get(1.0))) and check.Get(3.0) is None
+    out = tmp_path / "bake.usda"
+    painterly("bake", rig.path, "-o", out, "--frames", "1:2:0.5", "--quiet")
+    bake_stage = Usd.Stage.Open(str(out))
+    baked = bake_stage.GetPrimAtPath(rig.layers[0]).GetAttribute("points")
+    at1 = np.array(baked.Get(1.0))
+    for t in (1.5, 2.0):
+        assert np.array_equal(np.array(baked.Get(t)), at1), t
+    # At the block there is no proxy: the bake says so.
+    proc = painterly("bake", rig.path, "-o", tmp_path / "at3.usda", "--frames", "3", check=False)
+    assert proc.returncode == 1 and f"{rig.mesh}.points" in proc.stderr
+
+
+def test_a_display_opacity_fade_is_baked_per_frame(painterly, tmp_path):
+    """`primvars:displayOpacity` samples (with and without a default): the
+    bake's per-curve opacity at each frame is usd-core's value at that frame
+    times `painterly:opacity` (0.5 here)."""
+    for default in (None, 0.25):
+        d = tmp_path / f"default_{default}"
+        d.mkdir()
+        rig = Au.build_skel_rig(d / "in.usda", frames=(1, 10))
+        st = Usd.Stage.Open(str(rig.path))
+        layer = st.GetPrimAtPath(rig.layers[0])
+        n = len(layer.GetAttribute("curveVertexCounts").Get())
+        dop = layer.CreateAttribute("primvars:displayOpacity", Sdf.ValueTypeNames.FloatArray)
+        dop.SetMetadata("interpolation", "uniform")
+        if default is not None:
+            dop.Set(Vt.FloatArray([default] * n))
+        dop.Set(Vt.FloatArray([0.0] * n), 1.0)
+        dop.Set(Vt.FloatArray(list(np.linspace(0.5, 1.0, n))), 10.0)
+        layer.CreateAttribute("painterly:opacity", Sdf.ValueTypeNames.Float).Set(0.5)
+        st.GetRootLayer().Save()
+        del st, layer, dop
+        src_stage = Usd.Stage.Open(str(rig.path))
+        src = src_stage.GetPrimAtPath(rig.layers[0]).GetAttribute("primvars:displayOpacity")
+        out = d / "bake.usda"
+        painterly("bake", rig.path, "-o", out, "--frames", "1:10:1.5", "--quiet")
+        bake_stage = Usd.Stage.Open(str(out))
+        baked = bake_stage.GetPrimAtPath(rig.layers[0]).GetAttribute("primvars:displayOpacity")
+        times = baked.GetTimeSamples()
+        assert times == [1.0, 2.5, 4.0, 5.5, 7.0, 8.5, 10.0]
+        for t in times:
+            want = np.array(src.Get(t), dtype=np.float32) * np.float32(0.5)
+            assert np.allclose(np.array(baked.Get(t)), want, rtol=0, atol=1e-7), (default, t)
