@@ -10,10 +10,9 @@
 
 use glam::{DMat4, DQuat, DVec3};
 use openusd::sdf::Value;
-use openusd::usd::TimeCode;
 use openusd_schemas::skel::{Animation, SkelAnimQuery};
 
-use super::stage::StageReader;
+use super::stage::{HeldQuery, StageReader};
 use super::values;
 use crate::error::{Error, Result};
 
@@ -22,16 +21,17 @@ pub enum AxisSource {
     /// An attribute's resolved value; `element` picks an array element,
     /// `component` a vector/quaternion component.
     Attribute { prim: String, attr: String },
-    /// The weight of blend shape `name` in a SkelAnimation.
+    /// The weight of blend shape `name` in a SkelAnimation: its
+    /// `blendShapeWeights` and the shape's index there.
     BlendShape {
-        anim: Option<SkelAnimQuery>,
+        weights: Option<HeldQuery>,
         index: Option<usize>,
     },
     /// A component of a joint's rotation vector relative to its rest rotation.
     JointRotation {
         rest: DQuat,
-        /// The Skeleton's animation and its path.
-        anim: Option<(SkelAnimQuery, String)>,
+        /// The Skeleton's animation's `rotations`, and the animation's path.
+        anim: Option<(HeldQuery, String)>,
         index: Option<usize>,
     },
     /// A component of a prim's world-space origin, in the proxy's local space.
@@ -130,13 +130,16 @@ fn joint_rotation_source(
         _ => DQuat::IDENTITY,
     };
     let anim_path = r.targets(skel, "skel:animationSource")?.into_iter().next();
-    let anim = match anim_path {
-        Some(a) => anim_query(r, path, &a)?.map(|q| (q, a)),
-        None => None,
+    let (anim, index) = match anim_path {
+        Some(a) => match anim_query(r, path, &a)? {
+            Some(q) => {
+                let index = q.joint_order().iter().position(|n| n == joint);
+                (Some((HeldQuery::new(&r.require_prim(&a)?, "rotations")?, a)), index)
+            }
+            None => (None, None),
+        },
+        None => (None, None),
     };
-    let index = anim
-        .as_ref()
-        .and_then(|(a, _)| a.joint_order().iter().position(|n| n == joint));
     Ok(AxisSource::JointRotation { rest, anim, index })
 }
 
@@ -206,12 +209,15 @@ impl Axis {
             "blendShape" => {
                 let t = need_target("a SkelAnimation")?;
                 let shape = need_name("the blend shape's name")?;
-                require(&t, "SkelAnimation")?;
-                let anim = anim_query(r, path, &t)?;
-                let index = anim
-                    .as_ref()
-                    .and_then(|a| a.blend_shape_order().iter().position(|n| *n == shape));
-                AxisSource::BlendShape { anim, index }
+                let anim_prim = require(&t, "SkelAnimation")?;
+                let (weights, index) = match anim_query(r, path, &t)? {
+                    Some(q) => (
+                        Some(HeldQuery::new(&anim_prim, "blendShapeWeights")?),
+                        q.blend_shape_order().iter().position(|n| *n == shape),
+                    ),
+                    None => (None, None),
+                };
+                AxisSource::BlendShape { weights, index }
             }
             "jointRotation" => {
                 check_component(2)?;
@@ -264,12 +270,14 @@ impl Axis {
                 pick(&v, self.element, self.component)
                     .map_err(|(which, m)| Error::attr(&self.path, which, format!("{prim}.{attr}: {m}")))?
             }
-            AxisSource::BlendShape { anim, index } => match (anim, index) {
-                (Some(a), Some(i)) => a
-                    .compute_blend_shape_weights(TimeCode::new(t))
+            // Read as usd-core reads them (a sample holds up to a block),
+            // which openusd-schemas' animation query does not.
+            AxisSource::BlendShape { weights, index } => match (weights, index) {
+                (Some(w), Some(i)) => w
+                    .get_at(t)
                     .map_err(|e| Error::attr(&self.path, "source", format!("cannot read blend shape weights: {e}")))?
-                    .get(*i)
-                    .copied()
+                    .and_then(|v| values::f32_array(&v))
+                    .and_then(|w| w.get(*i).copied())
                     .unwrap_or(0.0) as f64,
                 _ => 0.0,
             },
@@ -277,14 +285,17 @@ impl Axis {
                 let q = match (anim, index) {
                     (Some((a, anim_path)), Some(i)) => {
                         let rots = reads.joint_rotations(anim_path, || {
-                            a.compute_joint_local_transform_components(TimeCode::new(t))
-                                .map(|(_, rots, _)| rots)
-                                .map_err(|e| {
-                                    Error::attr(&self.path, "source", format!("cannot read joint rotations: {e}"))
-                                })
+                            let v = a.get_at(t).map_err(|e| {
+                                Error::attr(&self.path, "source", format!("cannot read joint rotations: {e}"))
+                            })?;
+                            Ok(v.and_then(|v| v.cast::<Vec<openusd::gf::Quatf>>().ok())
+                                .unwrap_or_default())
                         })?;
-                        let q = rots.get(*i).copied().unwrap_or(openusd::gf::Quatf::IDENTITY);
-                        DQuat::from_xyzw(q.x as f64, q.y as f64, q.z as f64, q.w as f64).normalize()
+                        // No rotation there: usd-core leaves the joint at rest.
+                        match rots.get(*i) {
+                            Some(q) => DQuat::from_xyzw(q.x as f64, q.y as f64, q.z as f64, q.w as f64).normalize(),
+                            None => *rest,
+                        }
                     }
                     _ => *rest,
                 };

@@ -9,9 +9,10 @@ use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 
 use glam::DMat4;
+use openusd::gf;
 use openusd::sdf::{self, Value};
 use openusd::usd::{self, TimeCode};
-use openusd_schemas::geom::XformCache;
+use openusd_schemas::geom::{XformCache, Xformable, XformableExt};
 
 use super::compose_watch;
 use super::crate_samples::CrateSamples;
@@ -46,6 +47,37 @@ fn held_before_block(times: &[f64], t: f64) -> Option<f64> {
         (Some(lower), Some(_)) if sdf::compare_sample_times(lower, t).is_lt() => Some(lower),
         _ => None,
     }
+}
+
+/// `prim`'s local transform at `time` and whether it resets the transform
+/// stack, as openusd-schemas' `XformQuery` evaluates it (ops from the back,
+/// an op beside its own inverse skipped with it), except that an op whose
+/// value openusd withholds between a sample and a block after it is read
+/// at that sample ([`held_before_block`]), as usd-core holds it.
+fn local_transform_held(prim: &usd::Prim, time: f64) -> std::result::Result<(gf::Matrix4d, bool), String> {
+    let Some(x) = Xformable::from_prim(prim.clone()).map_err(|e| e.to_string())? else {
+        return Ok((gf::Matrix4d::IDENTITY, false));
+    };
+    let (ops, resets) = x.ordered_xform_ops().map_err(|e| e.to_string())?;
+    let mut m = gf::Matrix4d::IDENTITY;
+    let mut rev = ops.iter().rev().peekable();
+    while let Some(op) = rev.next() {
+        if rev
+            .peek()
+            .is_some_and(|next| next.attribute() == op.attribute() && next.is_inverse_op() != op.is_inverse_op())
+        {
+            rev.next();
+            continue;
+        }
+        let attr = op.attribute();
+        let value = attr.get_at::<Value>(TimeCode::new(time)).map_err(|e| e.to_string())?;
+        let at = match value {
+            Some(v) if !matches!(v, Value::None | Value::ValueBlock) => time,
+            _ => held_before_block(&attr.time_sample_times().map_err(|e| e.to_string())?, time).unwrap_or(time),
+        };
+        m = m * op.op_transform(TimeCode::new(at)).map_err(|e| e.to_string())?;
+    }
+    Ok((m, resets))
 }
 
 /// An attribute read at many times (per frame): openusd's query, with the
@@ -612,10 +644,20 @@ impl StageReader {
     }
 
     fn compute_local_to_world(&self, prim: &usd::Prim, time: f64) -> Result<DMat4> {
-        let mut cache = XformCache::new(TimeCode::new(time));
-        let m = cache
-            .local_to_world_transform(prim)
-            .map_err(|e| Error::prim(prim.path(), format!("cannot compute transform: {e}")))?;
+        // openusd-schemas' XformCache, climbing the same way, except that
+        // each op is read as usd-core reads it (held up to a block).
+        let mut chain = Vec::new();
+        let mut current = Some(prim.clone());
+        while let Some(p) = current.filter(|p| !p.path().is_abs_root()) {
+            let (local, resets) = local_transform_held(&p, time)
+                .map_err(|e| Error::prim(p.path(), format!("cannot compute transform: {e}")))?;
+            current = if resets { None } else { p.parent() };
+            chain.push(local);
+        }
+        let m = chain
+            .into_iter()
+            .rev()
+            .fold(gf::Matrix4d::IDENTITY, |base, local| local * base);
         let m = values::usd_matrix(&m);
         if !m.is_finite() {
             return Err(Error::prim(
