@@ -160,3 +160,53 @@ def test_axes_read_a_sample_held_up_to_a_block(tmp_path):
     # The blocks bite at these times.
     assert weights.Get(5.0) == weights.Get(4.0) and max(weights.Get(4.0)) > 0
     assert loc.ComputeLocalToWorldTransform(5.0).ExtractTranslation()[0] == 1.0
+
+
+def test_indices_authored_only_as_samples_are_read_per_frame(painterly, tmp_path):
+    """`primvars:displayOpacity:indices` with one time sample and no
+    default: usd-core reads no indices at the default time but flattens
+    them at every frame, and so does the bake (it refused the layer: 2
+    values for 4 curves)."""
+    rig = Au.build_points_rig(tmp_path / "in.usda", mode="static", frames=(1, 3), n_strokes=4)
+    st = Usd.Stage.Open(str(rig.path))
+    pv = UsdGeom.PrimvarsAPI(st.GetPrimAtPath(rig.layers[0])).CreatePrimvar(
+        "displayOpacity", Sdf.ValueTypeNames.FloatArray, "uniform")
+    pv.Set(Vt.FloatArray([0.2, 0.9]))
+    pv.SetIndices(Vt.IntArray([0, 1, 1, 0]), 1.0)
+    st.GetRootLayer().Save()
+    del st, pv
+    src_stage = Usd.Stage.Open(str(rig.path))
+    src = UsdGeom.PrimvarsAPI(src_stage.GetPrimAtPath(rig.layers[0])).GetPrimvar("displayOpacity")
+    out = tmp_path / "bake.usda"
+    painterly("bake", rig.path, "-o", out, "--quiet")
+    bake_stage = Usd.Stage.Open(str(out))
+    baked = bake_stage.GetPrimAtPath(rig.layers[0]).GetAttribute("primvars:displayOpacity")
+    for t in (1.0, 2.0, 3.0):
+        want = np.array(src.ComputeFlattened(t), dtype=np.float32)
+        assert want.shape == (4,) and np.array_equal(np.array(baked.Get(t), dtype=np.float32), want), t
+
+
+def test_render_reads_sampled_color_indices_per_frame(painterly, tmp_path):
+    """`primvars:displayColor:indices` sampled at 1 (all red) and 3 (all
+    blue): render drew frame 1 red and frame 3 blue, as usd-core's
+    ComputeFlattened gives (it refused the primvar at every frame)."""
+    rig = Au.build_points_rig(tmp_path / "in.usda", mode="static", frames=(1, 3), n_strokes=4)
+    st = Usd.Stage.Open(str(rig.path))
+    UsdGeom.Camera.Define(st, "/World/Cam").AddTranslateOp().Set(Gf.Vec3d(0, 2, 9))
+    pv = UsdGeom.PrimvarsAPI(st.GetPrimAtPath(rig.layers[0])).CreatePrimvar(
+        "displayColor", Sdf.ValueTypeNames.Color3fArray, "uniform")
+    pv.Set(Vt.Vec3fArray([(1, 0, 0), (0, 0, 1)]))
+    pv.SetIndices(Vt.IntArray([0, 0, 0, 0]), 1.0)
+    pv.SetIndices(Vt.IntArray([1, 1, 1, 1]), 3.0)
+    st.GetPrimAtPath(rig.mesh).GetAttribute("visibility").Set("invisible")  # strokes only
+    st.GetRootLayer().Save()
+    del st, pv
+    painterly("render", rig.path, "--camera", "/World/Cam", "--frames", "1:3:2", "-o", tmp_path / "f.####.exr",
+              "--size", "64x40", "--quiet")
+    import OpenEXR
+    for frame, (strong, weak) in ((1, ("R", "B")), (3, ("B", "R"))):
+        with OpenEXR.File(str(tmp_path / f"f.{frame:04d}.exr"), separate_channels=True) as f:
+            ch = {k: np.array(v.pixels, dtype=np.float64) for k, v in f.channels().items()}
+        drawn = ch["A"] > 0
+        assert drawn.any(), frame
+        assert (ch[strong][drawn] > 0).all() and (ch[weak][drawn] == 0).all(), frame

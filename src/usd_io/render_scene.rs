@@ -21,7 +21,7 @@ use openusd::usd::{self, AttributeQuery, TimeCode};
 
 use super::scene::{check_face_counts, read_mesh, Proxy};
 use super::skel::skeleton_binding;
-use super::stage::StageReader;
+use super::stage::{HeldQuery, StageReader};
 use super::values;
 use crate::error::{Error, Result};
 use crate::render::camera::{CameraParams, Projection};
@@ -36,9 +36,10 @@ pub const DEFAULT_WIDTH: f32 = 1.0;
 /// A primvar's attribute, its interpolation and optional indices.
 struct PrimvarSource {
     name: String,
-    query: AttributeQuery,
+    query: HeldQuery,
     interpolation: String,
-    indices: Option<Vec<i64>>,
+    /// `:indices`, read at each time with the values (they may be sampled).
+    indices: Option<HeldQuery>,
 }
 
 impl PrimvarSource {
@@ -50,28 +51,44 @@ impl PrimvarSource {
         let interpolation = r.primvar_interpolation(prim, name, default_interp)?;
         let idx_name = format!("{name}:indices");
         let indices = if r.has_authored(prim, &idx_name)? {
-            r.typed(prim, &idx_name, None, "int[]", values::int_array)?
+            Some(HeldQuery::new(prim, &idx_name)?)
         } else {
             None
         };
         Ok(Some(PrimvarSource {
             name: name.to_string(),
-            query: prim.attribute(name).query(),
+            query: HeldQuery::new(prim, name)?,
             interpolation,
             indices,
         }))
     }
 
     fn value(&self, prim: &usd::Prim, t: f64) -> Result<Option<Value>> {
-        let v = self
-            .query
-            .get_at::<Value>(TimeCode::new(t))
-            .map_err(|e| Error::attr(prim.path(), &self.name, format!("cannot read: {e}")))?;
-        Ok(v.filter(|v| !matches!(v, Value::None | Value::ValueBlock)))
+        self.query
+            .get_at(t)
+            .map_err(|e| Error::attr(prim.path(), &self.name, format!("cannot read: {e}")))
     }
 
-    fn expand<T: Copy>(&self, prim: &usd::Prim, vals: Vec<T>) -> Result<Vec<T>> {
-        match &self.indices {
+    fn expand<T: Copy>(&self, prim: &usd::Prim, vals: Vec<T>, t: f64) -> Result<Vec<T>> {
+        let idx_name = || format!("{}:indices", self.name);
+        let indices = match &self.indices {
+            None => None,
+            Some(q) => match q.get_at(t) {
+                Ok(v) => v
+                    .map(|v| {
+                        values::int_array(&v).ok_or_else(|| {
+                            Error::attr(
+                                prim.path(),
+                                &idx_name(),
+                                format!("expected int[], found {}", values::kind_name(&v)),
+                            )
+                        })
+                    })
+                    .transpose()?,
+                Err(e) => return Err(Error::attr(prim.path(), &idx_name(), format!("cannot read: {e}"))),
+            },
+        };
+        match indices {
             None => Ok(vals),
             Some(idx) => idx
                 .iter()
@@ -87,8 +104,8 @@ impl PrimvarSource {
         }
     }
 
-    fn wrap<T: Copy>(&self, prim: &usd::Prim, vals: Vec<T>) -> Result<Option<Primvar<T>>> {
-        let vals = self.expand(prim, vals)?;
+    fn wrap<T: Copy>(&self, prim: &usd::Prim, vals: Vec<T>, t: f64) -> Result<Option<Primvar<T>>> {
+        let vals = self.expand(prim, vals, t)?;
         if vals.is_empty() {
             return Ok(None);
         }
@@ -124,7 +141,7 @@ impl PrimvarSource {
                             format!("expected color3f[], found {}", values::kind_name(&v)),
                         )
                     })?;
-                self.wrap(prim, vals)
+                self.wrap(prim, vals, t)
             }
         }
     }
@@ -142,7 +159,7 @@ impl PrimvarSource {
                             format!("expected float[], found {}", values::kind_name(&v)),
                         )
                     })?;
-                self.wrap(prim, vals)
+                self.wrap(prim, vals, t)
             }
         }
     }

@@ -114,7 +114,7 @@ pub struct StrokeLayer {
     /// Authored `primvars:displayOpacity` per curve (1 when absent), its
     /// default value.
     pub display_opacity: Vec<f32>,
-    /// Whether `primvars:displayOpacity` or its indices are time-sampled
+    /// Whether `primvars:displayOpacity` or its indices have time samples
     /// (then read per frame: [`StrokeLayer::display_opacity_at`]).
     display_varies: bool,
     /// `widths`, as far as the extent needs them (see [`StrokeLayer::max_width_at`]).
@@ -800,15 +800,25 @@ fn read_layer(r: &StageReader, path: &str, proxy_points: usize) -> Result<Stroke
         .attribute("painterly:opacity")
         .value_might_be_time_varying()
         .map_err(|e| Error::attr(path, "painterly:opacity", format!("cannot read: {e}")))?;
-    let display_opacity =
-        read_display_opacity(r, &prim, path, &counts, None).map_err(|e| e.or_rule(Rule::DisplayOpacity))?;
+    // Any time sample (even one: the default time does not read it) means
+    // a read per frame.
     let mut display_varies = false;
+    let mut first_sample = f64::INFINITY;
     for name in ["primvars:displayOpacity", "primvars:displayOpacity:indices"] {
-        display_varies |= prim
-            .attribute(name)
-            .value_might_be_time_varying()
-            .map_err(|e| Error::attr(path, name, format!("cannot read: {e}")))?;
+        let times = r.sample_times(&prim, name)?;
+        display_varies |= !times.is_empty();
+        first_sample = times.first().map_or(first_sample, |&t| first_sample.min(t));
     }
+    // Sampled values or indices need not fit at the default time (indices
+    // authored only as samples): the bake reads them per frame, and what
+    // stands for them at no time is their first sample.
+    let display_opacity = match read_display_opacity(r, &prim, path, &counts, None) {
+        Err(_) if display_varies && first_sample.is_finite() => {
+            read_display_opacity(r, &prim, path, &counts, Some(first_sample))
+        }
+        read => read,
+    }
+    .map_err(|e| e.or_rule(Rule::DisplayOpacity))?;
     let widths = read_widths(r, &prim, path)?;
     Ok(StrokeLayer {
         path: path.to_string(),

@@ -69,6 +69,11 @@ fn local_transform_held(prim: &usd::Prim, time: f64) -> std::result::Result<(gf:
             rev.next();
             continue;
         }
+        // An op of no known kind is the identity, its value never read (a
+        // damaged file's undecodable samples stay unread, as usd-core's do).
+        if op.kind().is_none() {
+            continue;
+        }
         let attr = op.attribute();
         let value = attr.get_at::<Value>(TimeCode::new(time)).map_err(|e| e.to_string())?;
         let at = match value {
