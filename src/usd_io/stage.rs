@@ -85,21 +85,21 @@ fn local_transform_held(prim: &usd::Prim, time: f64) -> std::result::Result<(gf:
     Ok((m, resets))
 }
 
-/// An attribute read at many times (per frame): openusd's query, with the
-/// sample times read once so that a value held up to a block reads as
-/// usd-core gives it ([`held_before_block`]).
+/// An attribute read at many times (per frame): openusd's query, reading
+/// as usd-core reads a sample held up to a block ([`held_before_block`]).
+/// The sample times are read only when openusd gives no value (asking for
+/// them up front decodes a whole point cache).
 pub struct HeldQuery {
     query: usd::AttributeQuery,
-    times: Vec<f64>,
+    times: std::sync::OnceLock<std::result::Result<Vec<f64>, String>>,
 }
 
 impl HeldQuery {
     pub fn new(prim: &usd::Prim, name: &str) -> Result<Self> {
-        let query = usd::AttributeQuery::new(&prim.attribute(name));
-        let times = query
-            .time_sample_times()
-            .map_err(|e| Error::attr(prim.path(), name, format!("cannot read time samples: {e}")))?;
-        Ok(HeldQuery { query, times })
+        Ok(HeldQuery {
+            query: usd::AttributeQuery::new(&prim.attribute(name)),
+            times: std::sync::OnceLock::new(),
+        })
     }
 
     /// The value at `t` (`None` where there is none, or a block withholds it).
@@ -112,14 +112,17 @@ impl HeldQuery {
             Ok(v.filter(|v| !matches!(v, Value::None | Value::ValueBlock)))
         };
         match read(t)? {
-            None => held_before_block(&self.times, t).map_or(Ok(None), read),
+            None => held_before_block(self.times()?, t).map_or(Ok(None), read),
             v => Ok(v),
         }
     }
 
     /// The authored sample times.
-    pub fn times(&self) -> &[f64] {
-        &self.times
+    pub fn times(&self) -> std::result::Result<&[f64], String> {
+        self.times
+            .get_or_init(|| self.query.time_sample_times().map_err(|e| e.to_string()))
+            .as_deref()
+            .map_err(Clone::clone)
     }
 }
 

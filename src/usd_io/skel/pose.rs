@@ -100,7 +100,10 @@ impl AnimJoints {
     /// rounded to half (openusd rounds once; they differ by up to ~1e-4 of
     /// the character). None where that does not apply.
     fn half_scales_between_samples(&self, t: f64) -> Result<Option<Vec<gf::Vec3h>>> {
-        let times = self.scales.times();
+        let times = self
+            .scales
+            .times()
+            .map_err(|e| Error::attr(&self.path, "scales", format!("cannot read time samples: {e}")))?;
         let Some(i) = times.windows(2).position(|w| w[0] < t && t < w[1]) else {
             return Ok(None);
         };
