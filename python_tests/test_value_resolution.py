@@ -22,15 +22,23 @@ import authoring as Au
 import authoring_keys as AK
 
 
-def test_a_skel_animation_holds_its_sample_up_to_a_block(painterly, tmp_path):
+def blocked_skel_rig(tmp_path):
+    """A skinned tube with a blend shape, animated at 1, 4, 8 and 12, whose
+    weights are blocked at 6 and joint rotations at 10; returns the rig and
+    its opened stage (for more edits; save it)."""
     rig = Au.build_skel_rig(tmp_path / "in.usda", blend_shapes={"dense"}, frames=(1, 12),
                             key_times=[1.0, 4.0, 8.0, 12.0])
     st = Usd.Stage.Open(str(rig.path))
     anim = st.GetPrimAtPath("/World/Character/Anim")
     anim.GetAttribute("blendShapeWeights").Set(Sdf.ValueBlock(), 6.0)
     anim.GetAttribute("rotations").Set(Sdf.ValueBlock(), 10.0)
+    return rig, st
+
+
+def test_a_skel_animation_holds_its_sample_up_to_a_block(painterly, tmp_path):
+    rig, st = blocked_skel_rig(tmp_path)
     st.GetRootLayer().Save()
-    del st, anim
+    del st
     times = [4.0, 5.0, 5.5, 8.0, 9.0, 9.5]  # 5, 5.5: before the weights' block; 9, 9.5: before the rotations'
     out = tmp_path / "bake.usda"
     painterly("bake", rig.path, "-o", out, "--frames", "1:12:0.5", "--bake-proxy", "--quiet")
@@ -116,12 +124,8 @@ def test_axes_read_a_sample_held_up_to_a_block(tmp_path):
     sample and a block after it read the sample, as usd-core does (they read
     0, the rest pose and the identity before)."""
     painterly = pytest.importorskip("painterly")
-    rig = Au.build_skel_rig(tmp_path / "in.usda", blend_shapes={"dense"}, frames=(1, 12),
-                            key_times=[1.0, 4.0, 8.0, 12.0])
-    st = Usd.Stage.Open(str(rig.path))
+    rig, st = blocked_skel_rig(tmp_path)
     anim = st.GetPrimAtPath("/World/Character/Anim")
-    anim.GetAttribute("blendShapeWeights").Set(Sdf.ValueBlock(), 6.0)
-    anim.GetAttribute("rotations").Set(Sdf.ValueBlock(), 10.0)
     loc = UsdGeom.Xform.Define(st, "/World/Loc")
     op = loc.AddTranslateOp()
     op.Set(Gf.Vec3d(1, 2, 3), 1)
