@@ -100,3 +100,31 @@ def test_no_note_without_an_offset(painterly, tmp_path, fixture, root):
         rep = report(painterly, path)
         notes = [n for r in rep["rigs"] for n in r["notes"]] + [n for m in rep["view_dependent_meshes"] for n in m["notes"]]
         assert not [n for n in notes if "layer offset" in n], notes
+
+
+@pytest.mark.parametrize("extra,more", [(1, ""), (3, " and 2 more")])
+def test_a_long_list_of_offset_times_names_five(painterly, tmp_path, extra, more):
+    """The note lists five times at most, then how many more."""
+    src_path = tmp_path / "blowfish.usda"
+    shutil.copy(REPO / "fixtures" / "blowfish.usda", src_path)
+    layer = "/Blowfish/Paint/Spikes"
+    asset = Usd.Stage.Open(str(src_path))
+    for i in range(extra):
+        key = asset.DefinePrim(f"{layer}/extra{i}", "PainterlyTimeKey")
+        key.CreateAttribute("time", Sdf.ValueTypeNames.Double).Set(10.0 + i)
+        key.CreateAttribute("sentinel", Sdf.ValueTypeNames.Bool).Set(True)
+    asset.GetRootLayer().Save()
+    keys = [(f"{c.GetName()} at ", c.GetAttribute("time").Get()) for c in asset.GetPrimAtPath(layer).GetChildren()
+            if c.GetTypeName() == "PainterlyTimeKey"]
+    assert len(keys) == 4 + extra
+    stage = Usd.Stage.CreateNew(str(tmp_path / "shot.usda"))
+    stage.SetStartTimeCode(1)
+    stage.SetEndTimeCode(48)
+    stage.DefinePrim("/Hero", "Xform").GetReferences().AddReference(
+        Sdf.Reference("./blowfish.usda", "/Blowfish", Sdf.LayerOffset(3, 1)))
+    stage.GetRootLayer().Save()
+    rig = report(painterly, tmp_path / "shot.usda")["rigs"][0]
+    assert [n for n in rig["notes"] if "layer offset" in n] == [
+        f"/Hero/Paint/Spikes: {len(keys)} time keys' `double time` come from {src_path} through a layer offset "
+        "(offset 3, scale 1); USD retimes that layer's time samples but never a double, so the stage reads "
+        f"the times written: {listed(keys[:5], 3, 1)}{more}"]
