@@ -214,3 +214,23 @@ def test_render_reads_sampled_color_indices_per_frame(painterly, tmp_path):
         drawn = ch["A"] > 0
         assert drawn.any(), frame
         assert (ch[strong][drawn] > 0).all() and (ch[weak][drawn] == 0).all(), frame
+
+
+def test_a_sampled_display_opacity_that_does_not_fit_names_its_time(painterly, tmp_path):
+    """A fade whose sample at 2 has 3 values for 4 curves: the bake stops
+    there, naming the attribute and the time."""
+    rig = Au.build_points_rig(tmp_path / "in.usda", mode="static", frames=(1, 3), n_strokes=4)
+    st = Usd.Stage.Open(str(rig.path))
+    layer = st.GetPrimAtPath(rig.layers[0])
+    counts = list(layer.GetAttribute("curveVertexCounts").Get())
+    dop = layer.CreateAttribute("primvars:displayOpacity", Sdf.ValueTypeNames.FloatArray)
+    dop.Set(Vt.FloatArray([0.5] * len(counts)), 1.0)
+    dop.Set(Vt.FloatArray([0.5] * 3), 2.0)
+    st.GetRootLayer().Save()
+    del st, layer, dop
+    out = tmp_path / "bake.usda"
+    proc = painterly("bake", rig.path, "-o", out, "--frames", "1:2", check=False)
+    assert proc.returncode == 1 and not out.exists()
+    assert proc.stderr == (
+        f"error: {rig.path}: {rig.layers[0]}.primvars:displayOpacity: at time 2: 3 values fit neither 1, "
+        f"{len(counts)} curves nor {sum(counts)} points\n")
