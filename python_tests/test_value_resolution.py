@@ -177,8 +177,29 @@ def test_indices_authored_only_as_samples_are_read_per_frame(painterly, tmp_path
         "displayOpacity", Sdf.ValueTypeNames.FloatArray, "uniform")
     pv.Set(Vt.FloatArray([0.2, 0.9]))
     pv.SetIndices(Vt.IntArray([0, 1, 1, 0]), 1.0)
+    st.GetRootLayer().Export(str(tmp_path / "both.usda"))
     st.GetRootLayer().Save()
     del st, pv
+    # The same with the values sampled too (a fade of an indexed primvar).
+    both = Usd.Stage.Open(str(tmp_path / "both.usda"))
+    values = both.GetPrimAtPath(rig.layers[0]).GetAttribute("primvars:displayOpacity")
+    values.Set(Vt.FloatArray([0.1, 0.5]), 1.0)
+    values.Set(Vt.FloatArray([0.3, 0.7]), 3.0)
+    both.GetRootLayer().Save()
+    del both, values
+    for path, name in ((tmp_path / "both.usda", "both"),):
+        src_stage = Usd.Stage.Open(str(path))
+        src = UsdGeom.PrimvarsAPI(src_stage.GetPrimAtPath(rig.layers[0])).GetPrimvar("displayOpacity")
+        out = tmp_path / f"bake_{name}.usda"
+        painterly("bake", path, "-o", out, "--quiet")
+        bake_stage = Usd.Stage.Open(str(out))
+        baked = bake_stage.GetPrimAtPath(rig.layers[0]).GetAttribute("primvars:displayOpacity")
+        for t in (1.0, 2.0, 3.0):
+            want = np.array(src.ComputeFlattened(t), dtype=np.float32)
+            # openusd and usd-core round the interpolated float apart by an ulp.
+            got = np.array(baked.Get(t), dtype=np.float32)
+            assert want.shape == (4,) and np.allclose(got, want, rtol=0, atol=1e-7), (name, t)
+        assert not np.array_equal(np.array(baked.Get(1.0)), np.array(baked.Get(3.0)))
     src_stage = Usd.Stage.Open(str(rig.path))
     src = UsdGeom.PrimvarsAPI(src_stage.GetPrimAtPath(rig.layers[0])).GetPrimvar("displayOpacity")
     out = tmp_path / "bake.usda"
