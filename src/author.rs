@@ -319,9 +319,9 @@ pub fn key(session: &EditSession, opts: &KeyOptions) -> Result<String> {
             return Err(Error::msg(format!("--opacity {o} is not finite")));
         }
     }
-    let existing = existing_keys(r, &opts.layer)?;
+    let (existing, unread) = existing_keys(r, &opts.layer)?;
     let place = key_place(r, &mut scene.rigs[ri], li, opts)?;
-    let path = key_path(opts, &existing, &place)?;
+    let path = key_path(opts, &existing, &unread, &place)?;
     check_channels_stay_readable(opts, &existing, &place, &path)?;
     write_key(
         session,
@@ -343,19 +343,26 @@ struct ExistingKey {
     points: bool,
     opacity: bool,
     sentinel: bool,
-    /// Why a bake does not read it (deactivated, an `over`, a `class`):
-    /// such a prim holds its name but keys nothing.
-    unread: Option<&'static str>,
 }
 
-/// The keys (and other children) of a layer prim.
-fn existing_keys(r: &StageReader, layer_path: &str) -> Result<Vec<ExistingKey>> {
+/// A child a bake does not read (deactivated, an `over`, a `class`): its
+/// path and why. It holds its name but keys nothing.
+type UnreadChild = (String, &'static str);
+
+/// The keys (and other children) of a layer prim that a bake reads, and
+/// the children it does not.
+fn existing_keys(r: &StageReader, layer_path: &str) -> Result<(Vec<ExistingKey>, Vec<UnreadChild>)> {
     let layer_prim = r.require_prim(layer_path)?;
     let mut existing = Vec::new();
+    let mut unread = Vec::new();
     for c in layer_prim
         .children()
         .map_err(|e| Error::prim(layer_path, format!("cannot list children: {e}")))?
     {
+        if let Some(why) = r.unread_reason(&c)? {
+            unread.push((c.path().as_str().to_string(), why));
+            continue;
+        }
         let ty = r.type_name(&c)?;
         let coords = match ty.as_str() {
             "PainterlyPoseKey" => r
@@ -375,13 +382,12 @@ fn existing_keys(r: &StageReader, layer_path: &str) -> Result<Vec<ExistingKey>> 
             points: r.has_authored(&c, "points")?,
             opacity: r.has_authored(&c, "opacity")?,
             sentinel,
-            unread: r.unread_reason(&c)?,
             path: c.path().as_str().to_string(),
             ty,
             coords,
         });
     }
-    Ok(existing)
+    Ok((existing, unread))
 }
 
 /// Where a new key goes: its prim type, and its coordinates in
@@ -442,19 +448,19 @@ fn check_prim_name(name: &str) -> Result<()> {
 /// The new key's path: the key it replaces (one of the same name, or at the
 /// same coordinates or time in a channel it sets, with `replace`), the name
 /// asked for, or the first free `keyN` / `timeN` / `sentinelN`.
-fn key_path(opts: &KeyOptions, existing: &[ExistingKey], place: &KeyPlace) -> Result<String> {
+fn key_path(opts: &KeyOptions, existing: &[ExistingKey], unread: &[UnreadChild], place: &KeyPlace) -> Result<String> {
     let (ty, coords) = (place.ty, &place.coords);
     let layer_path = &opts.layer;
     let mut replace_path: Option<String> = None;
     if let Some(name) = &opts.name {
         let p = format!("{layer_path}/{name}");
+        if let Some((_, why)) = unread.iter().find(|(q, _)| *q == p) {
+            return Err(Error::prim(
+                &p,
+                format!("a prim of this name exists but is {why}, so a bake would not read a key there: pick another --name"),
+            ));
+        }
         if let Some(e) = existing.iter().find(|e| e.path == p) {
-            if let Some(why) = e.unread {
-                return Err(Error::prim(
-                    &p,
-                    format!("a prim of this name exists but is {why}, so a bake would not read a key there: pick another --name"),
-                ));
-            }
             if !opts.replace {
                 return Err(Error::prim(
                     &p,
@@ -478,11 +484,7 @@ fn key_path(opts: &KeyOptions, existing: &[ExistingKey], place: &KeyPlace) -> Re
         ),
         KeyKind::Sentinel => (Vec::new(), Vec::new()),
     };
-    for (i, e) in existing
-        .iter()
-        .enumerate()
-        .filter(|(_, e)| e.ty == ty && e.unread.is_none())
-    {
+    for (i, e) in existing.iter().enumerate().filter(|(_, e)| e.ty == ty) {
         let clash = match opts.kind {
             KeyKind::Sentinel => e.sentinel && e.coords == *coords,
             KeyKind::Time | KeyKind::Pose => {
@@ -524,7 +526,7 @@ fn key_path(opts: &KeyOptions, existing: &[ExistingKey], place: &KeyPlace) -> Re
                 };
                 (1..)
                     .map(|i| format!("{layer_path}/{stem}{i}"))
-                    .find(|p| !existing.iter().any(|e| e.path == *p))
+                    .find(|p| !existing.iter().any(|e| e.path == *p) && !unread.iter().any(|(q, _)| q == p))
                     .expect("a free name")
             }
         },
@@ -563,7 +565,6 @@ fn pose_layout(
         .filter(|&i| {
             let e = &existing[i];
             e.ty == "PainterlyPoseKey"
-                && e.unread.is_none()
                 && !e.sentinel
                 && in_channel(e)
                 && e.coords.len() == place.coords.len()
@@ -602,7 +603,7 @@ fn time_layout(
     in_channel: impl Fn(&ExistingKey) -> bool,
     without: Option<&str>,
 ) -> (Vec<usize>, Vec<f64>, Vec<f64>) {
-    let is_time = |e: &ExistingKey| e.ty == "PainterlyTimeKey" && e.unread.is_none() && e.coords.len() == 1;
+    let is_time = |e: &ExistingKey| e.ty == "PainterlyTimeKey" && e.coords.len() == 1;
     let members: Vec<usize> = (0..existing.len())
         .filter(|&i| {
             let e = &existing[i];

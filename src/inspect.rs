@@ -16,7 +16,7 @@ use crate::frames::FrameRange;
 use crate::rule::Rule;
 use crate::usd_io::clips::{clip_set_status, ChunkState};
 use crate::usd_io::scene::{ProxyMotion, Rig, Scene, StrokeLayer};
-use crate::usd_io::stage::{StageMetadata, StageReader, UnresolvedAsset};
+use crate::usd_io::stage::{Prim, StageMetadata, StageReader, UnresolvedAsset};
 use crate::usd_io::values;
 use crate::usd_io::view_mesh::{read_view_meshes_lenient, ViewMesh};
 use crate::words::plural;
@@ -170,10 +170,7 @@ fn count_keys(
                 }
             }
             "PainterlyTimeKey" => {
-                if let Some(offset) = r.value_offset(&c, "time")? {
-                    let t = r.typed(&c, "time", None, "double", crate::usd_io::values::scalar)?;
-                    offset_times.extend(t.map(|t| (format!("{} at ", c.path().name().unwrap_or_default()), t, offset)));
-                }
+                offset_times.extend(offset_key_time(r, &c)?);
                 if r.has_authored(&c, "coordinates")? {
                     let e = Error::attr(
                         c.path(),
@@ -206,52 +203,63 @@ fn count_keys(
             _ => {}
         }
     }
-    let what = match offset_times.len() {
-        1 => "1 time key's `double time` comes".to_string(),
-        n => format!("{n} time keys' `double time` come"),
-    };
-    if let Some(note) = unretimed_note(layer, &what, &offset_times) {
-        notes.push(note);
-    }
+    notes.extend(key_times_note(layer, "time key", &offset_times));
     Ok((pos, opa, time, sent))
 }
 
-/// The note of [`unretimed_note`] for a rig's `painterly:restTime`.
-fn rest_time_note(r: &StageReader, rig: &str) -> Result<Option<String>> {
-    let prim = r.require_prim(rig)?;
-    let Some(offset) = r.value_offset(&prim, "painterly:restTime")? else {
+/// A `double` time read through a layer offset: (label, time, (offset,
+/// scale, layer)), as [`unretimed_note`] lists it.
+type OffsetTime = (String, f64, (f64, f64, String));
+
+/// `attr` of `prim` when its strongest opinion lies behind a layer offset
+/// (and it has a value), labelled `label`.
+fn offset_time(r: &StageReader, prim: &Prim, attr: &str, label: String) -> Result<Option<OffsetTime>> {
+    let Some(offset) = r.value_offset(prim, attr)? else {
         return Ok(None);
     };
-    let t = r.typed(
-        &prim,
-        "painterly:restTime",
-        None,
-        "double",
-        crate::usd_io::values::scalar,
-    )?;
-    let times: Vec<_> = t.map(|t| (String::new(), t, offset)).into_iter().collect();
-    Ok(unretimed_note(rig, "its `double painterly:restTime` comes", &times))
+    let t = r.typed(prim, attr, None, "double", crate::usd_io::values::scalar)?;
+    Ok(t.map(|t| (label, t, offset)))
+}
+
+/// A time or view key's `time`, behind a layer offset, labelled by the key's name.
+fn offset_key_time(r: &StageReader, key: &Prim) -> Result<Option<OffsetTime>> {
+    offset_time(r, key, "time", format!("{} at ", key.path().name().unwrap_or_default()))
+}
+
+/// The note of [`unretimed_note`] on `owner`'s (a rig's or a view-dependent
+/// mesh's) `painterly:restTime`.
+fn rest_time_note(r: &StageReader, owner: &str) -> Result<Option<String>> {
+    let prim = r.require_prim(owner)?;
+    let times: Vec<_> = offset_time(r, &prim, "painterly:restTime", String::new())?
+        .into_iter()
+        .collect();
+    Ok(unretimed_note(owner, "its `double painterly:restTime` comes", &times))
+}
+
+/// The note of [`unretimed_note`] on the `time` of `owner`'s keys (`noun`:
+/// "time key", "view key").
+fn key_times_note(owner: &str, noun: &str, times: &[OffsetTime]) -> Option<String> {
+    let what = match times.len() {
+        1 => format!("1 {noun}'s `double time` comes"),
+        n => format!("{n} {noun}s' `double time` come"),
+    };
+    unretimed_note(owner, &what, times)
 }
 
 /// A note on `double` times authored through a layer offset: USD retimes
 /// the time samples of that layer but never a `double`, so the times are
 /// read as written, which a retimed asset may not expect. `what` names the
-/// values; `times`: (label, time, (offset, scale, layer)).
-fn unretimed_note(owner: &str, what: &str, times: &[(String, f64, (f64, f64, String))]) -> Option<String> {
+/// values.
+fn unretimed_note(owner: &str, what: &str, times: &[OffsetTime]) -> Option<String> {
     let (_, _, (offset, scale, layer)) = times.first()?;
-    let shown: Vec<String> = times
-        .iter()
-        .take(5)
-        .map(|(label, t, (o, s, _))| format!("{label}{t} (not {})", o + s * t))
-        .collect();
-    let more = match times.len() {
-        n if n > 5 => format!(" and {} more", n - 5),
-        _ => String::new(),
-    };
+    let list = crate::words::at_most_five(
+        times
+            .iter()
+            .map(|(label, t, (o, s, _))| format!("{label}{t} (not {})", o + s * t)),
+    );
     Some(format!(
         "{owner}: {what} from {layer} through a layer offset (offset {offset}, scale {scale}); USD retimes that \
-         layer's time samples but never a double, so the stage reads the times written: {list}{more}",
-        list = shown.join(", ")
+         layer's time samples but never a double, so the stage reads the times written: {list}"
     ))
 }
 
@@ -552,27 +560,12 @@ fn view_mesh_report(r: &StageReader, m: &ViewMesh, problems: &mut Vec<Problem>) 
 /// The notes of [`unretimed_note`] for a view-dependent mesh: its
 /// `painterly:restTime` and its keys' `time`.
 fn view_time_notes(r: &StageReader, m: &ViewMesh) -> Result<Vec<String>> {
-    let mut notes = Vec::new();
-    let prim = r.require_prim(&m.path)?;
-    let scalar = crate::usd_io::values::scalar;
-    if let Some(offset) = r.value_offset(&prim, "painterly:restTime")? {
-        let t = r.typed(&prim, "painterly:restTime", None, "double", scalar)?;
-        let times: Vec<_> = t.map(|t| (String::new(), t, offset)).into_iter().collect();
-        notes.extend(unretimed_note(&m.path, "its `double painterly:restTime` comes", &times));
-    }
+    let mut notes: Vec<String> = rest_time_note(r, &m.path)?.into_iter().collect();
     let mut key_times = Vec::new();
     for path in m.blend.viewpoints.iter().flat_map(|v| &v.paths) {
-        let key = r.require_prim(path)?;
-        if let Some(offset) = r.value_offset(&key, "time")? {
-            let t = r.typed(&key, "time", None, "double", scalar)?;
-            key_times.extend(t.map(|t| (format!("{} at ", key.path().name().unwrap_or_default()), t, offset)));
-        }
+        key_times.extend(offset_key_time(r, &r.require_prim(path)?)?);
     }
-    let what = match key_times.len() {
-        1 => "1 view key's `double time` comes".to_string(),
-        n => format!("{n} view keys' `double time` come"),
-    };
-    notes.extend(unretimed_note(&m.path, &what, &key_times));
+    notes.extend(key_times_note(&m.path, "view key", &key_times));
     Ok(notes)
 }
 

@@ -12,6 +12,17 @@ pub fn plural(n: usize, word: &str) -> String {
     format!("{n} {word}{}", if es { "es" } else { "s" })
 }
 
+/// The first five `items` joined with commas, and how many more: "a, b,
+/// c, d, e and 7 more".
+pub fn at_most_five(items: impl ExactSizeIterator<Item = String>) -> String {
+    let n = items.len();
+    let shown: Vec<String> = items.take(5).collect();
+    match n {
+        0..=5 => shown.join(", "),
+        n => format!("{} and {} more", shown.join(", "), n - 5),
+    }
+}
+
 /// A prim by its type name, for messages: "a Mesh prim", or "an untyped
 /// prim" for "".
 pub fn prim_of_type(ty: &str) -> String {

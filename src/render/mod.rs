@@ -394,15 +394,11 @@ pub(crate) fn check_bake(
 /// Frames for a warning: all of up to five, else the first five and a
 /// count.
 fn frame_list(times: &[f64]) -> String {
-    let shown: Vec<String> = times.iter().take(5).map(|t| t.to_string()).collect();
-    match times.len() {
-        0..=5 => format!(
-            "{} {}",
-            if times.len() == 1 { "frame" } else { "frames" },
-            shown.join(", ")
-        ),
-        n => format!("frames {} and {} more", shown.join(", "), n - 5),
-    }
+    let word = if times.len() == 1 { "frame" } else { "frames" };
+    format!(
+        "{word} {}",
+        crate::words::at_most_five(times.iter().map(f64::to_string))
+    )
 }
 
 /// Renders every frame.

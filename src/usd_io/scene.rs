@@ -1443,26 +1443,33 @@ def Xform "Plain" (references = </World/Proxy>) {}
 
     #[test]
     fn an_instance_of_a_lone_stroke_layer_or_view_mesh_is_named() {
-        // No rig inside: what the instance holds is found by its own API.
+        // No rig inside: what an instance holds is found by its own API.
         let r = stage(&format!(
             r#"#usda 1.0
 def Xform "Assets"
 {{
-    def BasisCurves "Loose" (prepend apiSchemas = ["PainterlyStrokeLayerAPI"])
+    def Xform "Layers"
     {{
-        {STROKE}
+        def BasisCurves "Loose" (prepend apiSchemas = ["PainterlyStrokeLayerAPI"])
+        {{
+            {STROKE}
+        }}
     }}
-    def Mesh "Face" (prepend apiSchemas = ["PainterlyViewDependentAPI"])
+    def Xform "Faces"
     {{
-        {SQUARE}
+        def Mesh "Face" (prepend apiSchemas = ["PainterlyViewDependentAPI"])
+        {{
+            {SQUARE}
+        }}
     }}
 }}
-def Xform "A" (instanceable = true; references = </Assets/Loose>) {{}}
-def Xform "B" (instanceable = true; references = </Assets>) {{}}
+def Xform "A" (instanceable = true; references = </Assets/Layers/Loose>) {{}}
+def Xform "B" (instanceable = true; references = </Assets/Layers>) {{}}
+def Xform "V" (instanceable = true; references = </Assets/Faces>) {{}}
 def Xform "Holder"
 {{
     def Xform "C" (instanceable = true) {{
-        def Xform "Inner" (references = </Assets/Face>) {{}}
+        def Xform "Inner" (references = </Assets/Faces/Face>) {{}}
     }}
 }}
 "#
@@ -1470,25 +1477,11 @@ def Xform "Holder"
         let found = instanced_characters(&r, &r.prim_paths().unwrap()).unwrap();
         let got: Vec<_> = found.iter().map(|e| (e.prim.as_deref().unwrap(), e.rule)).collect();
         // /A is itself the layer (a reference to it): the walk below it finds
-        // nothing, and the layer-outside-rig rule names it instead.
-        assert_eq!(got, [("/B", Some(Rule::Instanced))]);
+        // nothing, and the layer-outside-rig rule names it instead. /Holder/C
+        // has no arc, so it is no instance.
+        assert_eq!(got, [("/B", Some(Rule::Instanced)), ("/V", Some(Rule::Instanced))]);
         assert!(found[0].message.contains("(/B/Loose)"), "{}", found[0].message);
-        let mut usda = String::from("#usda 1.0\n");
-        usda.push_str(&format!(
-            r#"def Xform "Assets"
-{{
-    def Mesh "Face" (prepend apiSchemas = ["PainterlyViewDependentAPI"])
-    {{
-        {SQUARE}
-    }}
-}}
-def Xform "V" (instanceable = true; references = </Assets>) {{}}
-"#
-        ));
-        let r = stage(&usda);
-        let found = instanced_characters(&r, &r.prim_paths().unwrap()).unwrap();
-        assert_eq!(found.len(), 1);
-        assert!(found[0].message.contains("(/V/Face)"), "{}", found[0].message);
+        assert!(found[1].message.contains("(/V/Face)"), "{}", found[1].message);
     }
 
     /// The SQUARE proxy skinned to one joint that turns 90° about +Z from

@@ -36,6 +36,11 @@ pub const PAINTERLY_UNIFORM: [&str; 7] = [
     "painterly:uncovered",
 ];
 
+/// A read value, unless it is none or a block (which withholds a value).
+fn present(v: Option<Value>) -> Option<Value> {
+    v.filter(|v| !matches!(v, Value::None | Value::ValueBlock))
+}
+
 /// usd-core holds a sample up to a blocked sample after it (a block
 /// withholds values from its own time to the next sample, and never
 /// interpolates); openusd 0.8 gives no value there. When `t` lies strictly
@@ -76,9 +81,9 @@ fn local_transform_held(prim: &usd::Prim, time: f64) -> std::result::Result<(gf:
         }
         let attr = op.attribute();
         let value = attr.get_at::<Value>(TimeCode::new(time)).map_err(|e| e.to_string())?;
-        let at = match value {
-            Some(v) if !matches!(v, Value::None | Value::ValueBlock) => time,
-            _ => held_before_block(&attr.time_sample_times().map_err(|e| e.to_string())?, time).unwrap_or(time),
+        let at = match present(value) {
+            Some(_) => time,
+            None => held_before_block(&attr.time_sample_times().map_err(|e| e.to_string())?, time).unwrap_or(time),
         };
         m = m * op.op_transform(TimeCode::new(at)).map_err(|e| e.to_string())?;
     }
@@ -105,11 +110,10 @@ impl HeldQuery {
     /// The value at `t` (`None` where there is none, or a block withholds it).
     pub fn get_at(&self, t: f64) -> std::result::Result<Option<Value>, String> {
         let read = |t: f64| -> std::result::Result<Option<Value>, String> {
-            let v = self
-                .query
+            self.query
                 .get_at::<Value>(TimeCode::new(t))
-                .map_err(|e| e.to_string())?;
-            Ok(v.filter(|v| !matches!(v, Value::None | Value::ValueBlock)))
+                .map(present)
+                .map_err(|e| e.to_string())
         };
         match read(t)? {
             None => held_before_block(self.times()?, t).map_or(Ok(None), read),
@@ -476,24 +480,17 @@ impl StageReader {
     pub fn value(&self, prim: &usd::Prim, name: &str, time: Option<f64>) -> Result<Option<Value>> {
         let attr = prim.attribute(name);
         let read = |t: Option<f64>| -> Result<Option<Value>> {
-            let v = attr
-                .get_at::<Value>(t.map(TimeCode::new))
-                .map_err(|e| Error::attr(prim.path(), name, format!("cannot read: {e}")))?;
-            Ok(v.filter(|v| !matches!(v, Value::None | Value::ValueBlock)))
+            attr.get_at::<Value>(t.map(TimeCode::new))
+                .map(present)
+                .map_err(|e| Error::attr(prim.path(), name, format!("cannot read: {e}")))
         };
-        let v = read(time)?;
-        match (v, time) {
-            (None, Some(t)) => match self.held_before_block(prim, name, t)? {
+        match (read(time)?, time) {
+            (None, Some(t)) => match held_before_block(&self.sample_times(prim, name)?, t) {
                 Some(lower) => read(Some(lower)),
                 None => Ok(None),
             },
             (v, _) => Ok(v),
         }
-    }
-
-    /// See [`held_before_block`].
-    fn held_before_block(&self, prim: &usd::Prim, name: &str, t: f64) -> Result<Option<f64>> {
-        Ok(held_before_block(&self.sample_times(prim, name)?, t))
     }
 
     /// The layer whose opinion gives `prim.name` its value at `time` (None =
