@@ -255,3 +255,37 @@ def test_a_sampled_display_opacity_that_does_not_fit_names_its_time(painterly, t
     assert proc.stderr == (
         f"error: {rig.path}: {rig.layers[0]}.primvars:displayOpacity: at time 2: 3 values fit neither 1, "
         f"{len(counts)} curves nor {sum(counts)} points\n")
+
+
+def test_render_draws_points_held_up_to_a_block(painterly, tmp_path):
+    """Plain curves and a mesh (no painterly rig: render draws their own
+    `points`) with a points sample at 1 and a block at 3: at 2 usd-core holds
+    the sample, so render draws them there as at 1 (it drew nothing: openusd
+    gave no points), and at 3 draws nothing."""
+    stage = Usd.Stage.CreateNew(str(tmp_path / "in.usda"))
+    stage.SetStartTimeCode(1)
+    stage.SetEndTimeCode(3)
+    UsdGeom.Camera.Define(stage, "/Cam").AddTranslateOp().Set(Gf.Vec3d(0, 0, 5))
+    curves = UsdGeom.BasisCurves.Define(stage, "/Curves")
+    curves.CreateTypeAttr("linear")
+    curves.CreateCurveVertexCountsAttr([2])
+    curves.CreateWidthsAttr([0.2])
+    mesh = UsdGeom.Mesh.Define(stage, "/Quad")
+    mesh.CreateFaceVertexCountsAttr([4])
+    mesh.CreateFaceVertexIndicesAttr([0, 1, 2, 3])
+    for attr, pts in ((curves.GetPointsAttr(), [(-1, 0.5, 0), (1, 0.5, 0)]),
+                      (mesh.GetPointsAttr(), [(-1, -1, 0), (0, -1, 0), (0, -0.2, 0), (-1, -0.2, 0)])):
+        attr.Set(Vt.Vec3fArray(pts), 1.0)
+        attr.Set(Sdf.ValueBlock(), 3.0)
+        assert attr.Get(2.0) is not None and attr.Get(3.0) is None
+    stage.GetRootLayer().Save()
+    del stage, curves, mesh
+    painterly("render", tmp_path / "in.usda", "--camera", "/Cam", "--frames", "1:3", "-o", tmp_path / "f.####.exr",
+              "--size", "64x40", "--quiet")
+    import OpenEXR
+    alpha = {}
+    for frame in (1, 2, 3):
+        with OpenEXR.File(str(tmp_path / f"f.{frame:04d}.exr"), separate_channels=True) as f:
+            alpha[frame] = np.array(f.channels()["A"].pixels, dtype=np.float64)
+    assert (alpha[1] > 0).any() and np.array_equal(alpha[2], alpha[1])
+    assert not (alpha[3] > 0).any()

@@ -17,7 +17,7 @@ use std::path::Path;
 
 use glam::{DMat4, DVec3, Vec3};
 use openusd::sdf::Value;
-use openusd::usd::{self, AttributeQuery, TimeCode};
+use openusd::usd;
 
 use super::scene::{check_face_counts, read_mesh, Proxy};
 use super::skel::skeleton_binding;
@@ -218,8 +218,8 @@ struct CurvesSource {
     curve_type: CurveType,
     basis: Basis,
     wrap: Wrap,
-    counts: AttributeQuery,
-    points: AttributeQuery,
+    counts: HeldQuery,
+    points: HeldQuery,
     widths: Option<PrimvarSource>,
     colors: Option<PrimvarSource>,
     opacities: Option<PrimvarSource>,
@@ -231,7 +231,7 @@ struct MeshSource {
     visibility: Vec<usd::Prim>,
     face_counts: Vec<u32>,
     face_indices: Vec<u32>,
-    points: AttributeQuery,
+    points: HeldQuery,
     skinned: Option<Proxy>,
     colors: Option<PrimvarSource>,
     left_handed: bool,
@@ -338,8 +338,8 @@ impl RenderScene {
             None => PrimvarSource::open(r, &prim, "widths", "vertex")?,
         };
         Ok(CurvesSource {
-            counts: prim.attribute("curveVertexCounts").query(),
-            points: prim.attribute("points").query(),
+            counts: HeldQuery::new(&prim, "curveVertexCounts")?,
+            points: HeldQuery::new(&prim, "points")?,
             widths,
             colors: PrimvarSource::open(r, &prim, "primvars:displayColor", "constant")?,
             opacities: PrimvarSource::open(r, &prim, "primvars:displayOpacity", "constant")?,
@@ -377,7 +377,7 @@ impl RenderScene {
             smooth,
             face_counts: counts.iter().map(|&c| c as u32).collect(),
             face_indices: indices.iter().map(|&i| i as u32).collect(),
-            points: prim.attribute("points").query(),
+            points: HeldQuery::new(&prim, "points")?,
             skinned,
             colors: PrimvarSource::open(r, &prim, "primvars:displayColor", "constant")?,
             left_handed: orientation == "leftHanded",
@@ -488,11 +488,9 @@ impl RenderScene {
             if visible_only && !visible(r, &c.visibility, t)? {
                 continue;
             }
-            let read = |q: &AttributeQuery, name: &str| -> Result<Option<Value>> {
-                let v = q
-                    .get_at::<Value>(TimeCode::new(t))
-                    .map_err(|e| Error::attr(&c.path, name, format!("cannot read: {e}")))?;
-                Ok(v.filter(|v| !matches!(v, Value::None | Value::ValueBlock)))
+            let read = |q: &HeldQuery, name: &str| -> Result<Option<Value>> {
+                q.get_at(t)
+                    .map_err(|e| Error::attr(&c.path, name, format!("cannot read: {e}")))
             };
             let Some(pv) = read(&c.points, "points")? else {
                 continue;
@@ -591,9 +589,8 @@ impl RenderScene {
                 None => {
                     let v = m
                         .points
-                        .get_at::<Value>(TimeCode::new(t))
-                        .map_err(|e| Error::attr(&m.path, "points", format!("cannot read: {e}")))?
-                        .filter(|v| !matches!(v, Value::None | Value::ValueBlock));
+                        .get_at(t)
+                        .map_err(|e| Error::attr(&m.path, "points", format!("cannot read: {e}")))?;
                     let Some(v) = v else { continue };
                     values::vec3_array(&v)
                         .ok_or_else(|| {
