@@ -832,6 +832,12 @@ def test_the_slider_stream_answers_like_the_frame_route(fish):
         op, body = ws.recv()
         reply = json.loads(body)
         assert op == 1 and (reply["id"], reply["status"]) == (0, 400) and reply["error"].startswith("bad request: ")
+        # JSON with a readable id but an unknown field: the error carries the id.
+        ws.send(json.dumps({"id": 9, "time": 1, "bogus": 2}))
+        reply = json.loads(ws.recv()[1])
+        assert (reply["id"], reply["status"]) == (9, 400) and "unknown field `bogus`" in reply["error"]
+        ws.send(json.dumps({"id": -1, "time": 1, "bogus": 2}))
+        assert json.loads(ws.recv()[1])["id"] == 0
         ws.send(json.dumps({"id": 3, "time": 1, "overrides": {"/Blowfish/Nope": 1}}))
         assert json.loads(ws.recv()[1]) == {
             "id": 3, "status": 400, "error": "/Blowfish/Nope is not an axis of this character"}

@@ -10,7 +10,8 @@
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::sync::mpsc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{mpsc, Arc};
 use std::time::Instant;
 
 use glam::Vec3;
@@ -42,7 +43,14 @@ pub struct BakeOptions {
     /// With `chunk`: write only the clip set, after checking that every
     /// chunk layer is there and was baked from this input (a farm's last step).
     pub assemble: bool,
+    /// Set from another thread to stop the bake before its next frame: it
+    /// then fails with [`INTERRUPTED`] and writes nothing (the Python
+    /// binding's Ctrl-C; the CLI's signals remove temporaries themselves).
+    pub cancel: Option<Arc<AtomicBool>>,
 }
+
+/// The message of a bake stopped through [`BakeOptions::cancel`].
+pub const INTERRUPTED: &str = "interrupted: the bake was stopped before its last frame and wrote nothing";
 
 /// What a bake did, for the summary line and `--json`.
 #[derive(Debug, Clone, serde::Serialize)]
@@ -214,7 +222,7 @@ pub fn evaluate_every_frame(
         return Ok(0);
     }
     let times = resolve_frames(&ch.reader, frames)?;
-    stream(&ch, &times, false, Box::new(DiscardSink), progress)?;
+    stream(&ch, &times, false, Box::new(DiscardSink), progress, None)?;
     Ok(times.len())
 }
 
@@ -286,6 +294,7 @@ fn bake_character(
                 opts.bake_proxy,
                 bake_layer::create(output, layout)?,
                 progress,
+                opts.cancel.as_deref(),
             )?;
             (times.len(), Vec::new())
         }
@@ -313,6 +322,7 @@ fn bake_character(
                         opts.bake_proxy,
                         bake_layer::create(&path, chunk_layout)?,
                         progress,
+                        opts.cancel.as_deref(),
                     )?;
                     (frames.len(), vec![path])
                 }
@@ -325,7 +335,7 @@ fn bake_character(
                 (None, false) => {
                     let sink = Box::new(ChunkedSink::new(plan.clone(), layout, &times)?);
                     leave_binding_cache(ch, output);
-                    stream(ch, &times, opts.bake_proxy, sink, progress)?;
+                    stream(ch, &times, opts.bake_proxy, sink, progress, opts.cancel.as_deref())?;
                     (times.len(), plan.chunks.iter().map(|c| plan.chunk_path(c)).collect())
                 }
             }
@@ -469,11 +479,12 @@ fn stream(
     with_proxies: bool,
     sink: Box<dyn FrameSink>,
     progress: Progress,
+    cancel: Option<&AtomicBool>,
 ) -> Result<()> {
     let model: &Model = &ch.model;
     let mask = baked_proxy_mask(model);
     let evaluate = |input| model.evaluate(input, with_proxies).map(|o| frame_samples(o, &mask));
-    stream_with(ch, times, &evaluate, sink, progress)
+    stream_with(ch, times, &evaluate, sink, progress, cancel)
 }
 
 /// Evaluates one frame's input into its samples.
@@ -486,6 +497,7 @@ fn stream_with(
     evaluate: &FrameStep,
     mut sink: Box<dyn FrameSink>,
     progress: Progress,
+    cancel: Option<&AtomicBool>,
 ) -> Result<()> {
     let window = 2 * rayon::current_num_threads() + 2;
     let (done_tx, done_rx) = mpsc::sync_channel::<(usize, Result<Vec<Sample>>)>(window);
@@ -524,6 +536,10 @@ fn stream_with(
                 // The reader stopped early; its error is the one to report.
                 return Err(Error::msg("bake stopped before the last frame"));
             }
+            if cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
+                // Stopped after the last frame: the output is still not replaced.
+                return Err(Error::msg(INTERRUPTED));
+            }
             let t0 = Instant::now();
             sink.finish()?;
             Ok(writing + t0.elapsed().as_secs_f64())
@@ -533,6 +549,9 @@ fn stream_with(
             for (i, &t) in times.iter().enumerate() {
                 if permit_rx.recv().is_err() {
                     break; // the writer failed; it reports why
+                }
+                if cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
+                    return Err(Error::msg(INTERRUPTED));
                 }
                 let t0 = Instant::now();
                 let input = ch.read_frame(t)?;
@@ -624,6 +643,7 @@ mod tests {
         threads: Option<usize>,
         evaluate: E,
         sink: Box<dyn FrameSink>,
+        cancel: Option<Arc<AtomicBool>>,
     ) -> std::result::Result<Result<()>, Box<dyn Any + Send>>
     where
         E: Fn(FrameInput) -> Result<Vec<Sample>> + Sync + Send + 'static,
@@ -635,7 +655,7 @@ mod tests {
                 let ch = Character::open(&src, None).unwrap();
                 let times = resolve_frames(&ch.reader, None).unwrap();
                 assert_eq!(times.len(), 24);
-                stream_with(&ch, &times, &evaluate, sink, &|_, _| {})
+                stream_with(&ch, &times, &evaluate, sink, &|_, _| {}, cancel.as_deref())
             };
             let out = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| match threads {
                 Some(n) => rayon::ThreadPoolBuilder::new()
@@ -655,7 +675,7 @@ mod tests {
     where
         E: Fn(FrameInput) -> Result<Vec<Sample>> + Sync + Send + 'static,
     {
-        stream_file(tube(), None, evaluate, sink)
+        stream_file(tube(), None, evaluate, sink, None)
     }
 
     /// A sink recording the times it was given and whether it was
@@ -699,6 +719,30 @@ mod tests {
             .cloned()
             .or_else(|| payload.downcast_ref::<&str>().map(|s| s.to_string()))
             .unwrap_or_default()
+    }
+
+    #[test]
+    fn a_cancelled_stream_stops_before_its_next_frame_and_is_not_finished() {
+        // Cancelled while frame 5 evaluates: no frame read after that is
+        // written, and the sink (the output's rename) is never finished.
+        let cancel = Arc::new(AtomicBool::new(false));
+        let flag = cancel.clone();
+        let evaluate = move |input: FrameInput| {
+            if input.time == 5.0 {
+                flag.store(true, Ordering::SeqCst);
+            }
+            Ok(Vec::new())
+        };
+        let (sink, written, finished) = recorder(None);
+        let err = stream_file(tube(), None, evaluate, sink, Some(cancel))
+            .unwrap()
+            .unwrap_err();
+        assert_eq!(err.message, INTERRUPTED);
+        assert!(!finished.load(Ordering::SeqCst));
+        let written = written.lock().unwrap();
+        // At most a window of frames (2 × threads + 2) was read before the flag.
+        let window = 2 * rayon::current_num_threads() + 2;
+        assert!(written.iter().all(|&t| t <= 5.0 + window as f64), "{written:?}");
     }
 
     #[test]
@@ -769,7 +813,7 @@ mod tests {
         // reader's.
         let dir = crate::test_dir::ScratchDir::new("bake-unreadable-frame");
         let (sink, times, finished) = recorder(None);
-        let result = stream_file(tube_unreadable_at_frame_5(&dir), None, |_| Ok(Vec::new()), sink).unwrap();
+        let result = stream_file(tube_unreadable_at_frame_5(&dir), None, |_| Ok(Vec::new()), sink, None).unwrap();
         let err = result.expect_err("reading frame 5 fails").to_string();
         assert!(err.contains("opacity is not finite at time 5"), "{err}");
         assert_eq!(*times.lock().unwrap(), vec![1.0, 2.0, 3.0, 4.0]);
@@ -825,7 +869,9 @@ mod tests {
             counter.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
             Ok(Vec::new())
         };
-        stream_file(tube(), Some(THREADS), evaluate, sink).unwrap().unwrap();
+        stream_file(tube(), Some(THREADS), evaluate, sink, None)
+            .unwrap()
+            .unwrap();
         assert_eq!(*in_flight.lock().unwrap(), Some(WINDOW));
         assert_eq!(evaluated.load(std::sync::atomic::Ordering::SeqCst), 24);
     }

@@ -510,6 +510,7 @@ pub fn run(cli: Cli) -> i32 {
                 chunk,
                 chunk_index,
                 assemble,
+                cancel: None,
             };
             run_bake(&input, &output, &opts, quiet, json)
         }

@@ -224,6 +224,7 @@ impl FarmJob {
             chunk: Some(args.chunk),
             chunk_index: None,
             assemble: false,
+            cancel: None,
         };
         let character = open_for_bake(&args.input, &args.output, &opts)?;
         let reader = &character.reader;

@@ -215,7 +215,11 @@ async fn stream(mut socket: WebSocket, state: Arc<AppState>) {
             }
         };
         let reply = match serde_json::from_str::<FrameRequest>(text.as_str()) {
-            Err(e) => error_message(0, StatusCode::BAD_REQUEST, &format!("bad request: {e}")),
+            Err(e) => error_message(
+                readable_id(&text),
+                StatusCode::BAD_REQUEST,
+                &format!("bad request: {e}"),
+            ),
             Ok(req) => {
                 let id = req.id;
                 match req.check(&state.evaluator.axes) {
@@ -234,6 +238,16 @@ async fn stream(mut socket: WebSocket, state: Arc<AppState>) {
             break;
         }
     }
+}
+
+/// The `id` of a message that is JSON but not a valid request (an unknown
+/// field, a wrong type elsewhere), so the page can still match the error to
+/// what it sent; 0 when there is none to read.
+fn readable_id(text: &str) -> u64 {
+    serde_json::from_str::<serde_json::Value>(text)
+        .ok()
+        .and_then(|v| v.get("id")?.as_u64())
+        .unwrap_or(0)
 }
 
 fn error_message(id: u64, status: StatusCode, message: &str) -> Message {
