@@ -289,3 +289,36 @@ def test_render_draws_points_held_up_to_a_block(painterly, tmp_path):
             alpha[frame] = np.array(f.channels()["A"].pixels, dtype=np.float64)
     assert (alpha[1] > 0).any() and np.array_equal(alpha[2], alpha[1])
     assert not (alpha[3] > 0).any()
+
+
+@pytest.mark.parametrize("indices_at", [None, 1.0], ids=["default-indices", "sampled-indices"])
+def test_an_indexed_display_opacity_composes_as_the_input_flattened(painterly, tmp_path, indices_at):
+    """An indexed `primvars:displayOpacity` on the input: the bake writes one
+    value per curve, so over the input (bake stronger) the composed primvar
+    must flatten to the input's flattened values times `painterly:opacity`
+    (usd-core). The bake left the input's indices in force, re-indexing its
+    per-curve values (found by a farm review, 2026-12-06)."""
+    rig = Au.build_points_rig(tmp_path / "in.usda", mode="static", frames=(1, 3), n_strokes=4)
+    st = Usd.Stage.Open(str(rig.path))
+    prim = st.GetPrimAtPath(rig.layers[0])
+    pv = UsdGeom.PrimvarsAPI(prim).CreatePrimvar("displayOpacity", Sdf.ValueTypeNames.FloatArray, "uniform")
+    pv.Set(Vt.FloatArray([0.2, 0.9]))
+    if indices_at is None:
+        pv.SetIndices(Vt.IntArray([1, 0, 1, 1]))
+    else:
+        pv.SetIndices(Vt.IntArray([1, 0, 1, 1]), indices_at)
+    prim.CreateAttribute("painterly:opacity", Sdf.ValueTypeNames.Float).Set(0.8)
+    st.GetRootLayer().Save()
+    del st, pv, prim
+    src = Usd.Stage.Open(str(rig.path))
+    src_pv = UsdGeom.PrimvarsAPI(src.GetPrimAtPath(rig.layers[0])).GetPrimvar("displayOpacity")
+    for out, extra in ((tmp_path / "bake.usdc", ()), (tmp_path / "bake.usda", ()),
+                       (tmp_path / "shot.usda", ("--chunk", "2"))):
+        painterly("bake", rig.path, "-o", out, "--quiet", *extra)
+        composed = Au.compose(rig.path, out)
+        got_pv = UsdGeom.PrimvarsAPI(composed.GetPrimAtPath(rig.layers[0])).GetPrimvar("displayOpacity")
+        for t in (1.0, 2.0, 3.0):
+            want = np.array(src_pv.ComputeFlattened(t), dtype=np.float64) * np.float32(0.8)
+            assert list(want) != sorted(want)  # the indices reorder: a re-indexing shows
+            got = np.array(got_pv.ComputeFlattened(t), dtype=np.float64)
+            assert got.shape == (4,) and np.allclose(got, want, rtol=0, atol=1e-6), (out.name, t, got, want)

@@ -20,7 +20,7 @@ use crate::character::{Character, FrameInput, FrameOutput, Model, RigModel};
 use crate::error::{Error, Result};
 use crate::extent::{pad_curves_extent, point_based_extent};
 use crate::frames::FrameRange;
-use crate::usd_io::bake_layer::{self, BakeAttr, BakeLayout, FrameSink, Provenance, Sample, SampleKind};
+use crate::usd_io::bake_layer::{self, BakeAttr, BakeLayout, BlockedAttr, FrameSink, Provenance, Sample, SampleKind};
 use crate::usd_io::binding_cache::{self, BindingCache};
 use crate::usd_io::clips::{self, ChunkedSink, ClipPlan};
 use crate::usd_io::layer::Format;
@@ -274,6 +274,7 @@ fn bake_character(
         meta: ch.reader.metadata(),
         attrs: layout_attrs(model, opts.bake_proxy),
         blocked_skeletons: blocked_skeletons(model, opts.bake_proxy),
+        blocked_attrs: blocked_attrs(model),
         provenance: Provenance {
             input: std::fs::canonicalize(&ch.reader.file)
                 .unwrap_or_else(|_| ch.reader.file.clone())
@@ -429,6 +430,20 @@ fn baked_proxies(model: &Model) -> impl Iterator<Item = &RigModel> {
         .zip(baked_proxy_mask(model))
         .filter(|(_, keep)| *keep)
         .map(|(r, _)| r)
+}
+
+/// Stroke layers whose input indexes `primvars:displayOpacity`: the bake
+/// writes one value per curve, which the input's indices would re-index.
+fn blocked_attrs(model: &Model) -> Vec<BlockedAttr> {
+    let layers = model.rigs.iter().flat_map(|r| &r.layers);
+    layers
+        .filter(|l| l.display_indexed)
+        .map(|l| BlockedAttr {
+            prim: l.path.clone(),
+            name: "primvars:displayOpacity:indices",
+            type_name: "int[]",
+        })
+        .collect()
 }
 
 /// Baked skinned meshes: their `skel:skeleton` is blocked so viewers do not

@@ -39,6 +39,9 @@ pub struct LayerModel {
     pub display_opacity: Vec<f32>,
     /// Points per stroke.
     pub curve_counts: Vec<u32>,
+    /// Whether the input authors `primvars:displayOpacity:indices` (the
+    /// bake blocks them: it writes one value per curve).
+    pub display_indexed: bool,
 }
 
 /// One rig's pure data: the skinning stencils and its layers.
@@ -517,6 +520,7 @@ impl RigModel {
                     keys: std::mem::take(&mut l.keys),
                     display_opacity: std::mem::take(&mut l.display_opacity),
                     curve_counts: l.curve_counts.clone(),
+                    display_indexed: l.display_indexed,
                 }
             })
             .collect();

@@ -304,7 +304,19 @@ pub struct BakeLayout {
     pub attrs: Vec<BakeAttr>,
     /// Prims whose `skel:skeleton` is blocked (baked skinned meshes).
     pub blocked_skeletons: Vec<String>,
+    /// Attributes whose value is blocked: (prim, name, type), such as
+    /// the input's `primvars:displayOpacity:indices`, which would re-index
+    /// the per-curve opacity the bake writes.
+    pub blocked_attrs: Vec<BlockedAttr>,
     pub provenance: Provenance,
+}
+
+/// An attribute the bake blocks (`= None`), see [`BakeLayout::blocked_attrs`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct BlockedAttr {
+    pub prim: String,
+    pub name: &'static str,
+    pub type_name: &'static str,
 }
 
 /// Receives a bake's frames in time order.
@@ -321,6 +333,14 @@ pub fn create(path: &Path, layout: BakeLayout) -> Result<Box<dyn FrameSink>> {
         Format::Usda => Box::new(UsdaSink::new(path, layout)?),
         Format::Usdc => Box::new(UsdcSink::new(path, layout)?),
     })
+}
+
+/// `prim`'s blocked attributes, as usda lines at `pad`.
+pub fn write_blocked_attrs(out: &mut dyn Write, layout: &BakeLayout, prim: &str, pad: &str) -> std::io::Result<()> {
+    for b in layout.blocked_attrs.iter().filter(|b| b.prim == prim) {
+        writeln!(out, "{pad}{} {} = None", b.type_name, b.name)?;
+    }
+    Ok(())
 }
 
 pub const DOC: &str = "Baked by painterly: over specs only; sublayer above the input.";
@@ -419,6 +439,9 @@ impl FrameSink for UsdcSink {
         for prim in &self.layout.blocked_skeletons {
             layer.block_relationship(prim, "skel:skeleton");
         }
+        for b in &self.layout.blocked_attrs {
+            layer.set_default(&b.prim, b.name, b.type_name, Value::ValueBlock);
+        }
         // One attribute's handles in memory at a time.
         let handles = &self.handles;
         let mut samples = |column: usize| -> Result<Stored> {
@@ -501,7 +524,8 @@ impl UsdaSink {
                 .attrs
                 .iter()
                 .map(|a| a.prim.as_str())
-                .chain(self.layout.blocked_skeletons.iter().map(String::as_str)),
+                .chain(self.layout.blocked_skeletons.iter().map(String::as_str))
+                .chain(self.layout.blocked_attrs.iter().map(|b| b.prim.as_str())),
         );
         let mut copy_buf = Vec::new();
         let mut emit = |out: &mut dyn Write, prim: &str, depth: usize| -> std::io::Result<()> {
@@ -528,6 +552,7 @@ impl UsdaSink {
             if self.layout.blocked_skeletons.iter().any(|p| p == prim) {
                 writeln!(out, "{pad}rel skel:skeleton = None")?;
             }
+            write_blocked_attrs(out, &self.layout, prim, &pad)?;
             Ok(())
         };
         tree.write(out, &mut emit)?;

@@ -211,6 +211,7 @@ pub fn write_clip_set(plan: &ClipPlan, layout: &BakeLayout, times: &[f64]) -> Re
         .iter()
         .map(|a| a.prim.as_str())
         .chain(layout.blocked_skeletons.iter().map(String::as_str))
+        .chain(layout.blocked_attrs.iter().map(|b| b.prim.as_str()))
         .filter_map(|p| p.split('/').nth(1))
         .collect();
     let full = PrimTree::new(
@@ -218,7 +219,8 @@ pub fn write_clip_set(plan: &ClipPlan, layout: &BakeLayout, times: &[f64]) -> Re
             .attrs
             .iter()
             .map(|a| a.prim.as_str())
-            .chain(layout.blocked_skeletons.iter().map(String::as_str)),
+            .chain(layout.blocked_skeletons.iter().map(String::as_str))
+            .chain(layout.blocked_attrs.iter().map(|b| b.prim.as_str())),
     );
     let clip_meta = |root: &str| -> String {
         let mut active = Vec::new();
@@ -290,6 +292,9 @@ fn declare_attrs(
     }
     if full && layout.blocked_skeletons.iter().any(|p| p == prim) {
         writeln!(out, "{pad}rel skel:skeleton = None")?;
+    }
+    if full {
+        bake_layer::write_blocked_attrs(out, layout, prim, &pad)?;
     }
     Ok(())
 }

@@ -117,6 +117,9 @@ pub struct StrokeLayer {
     /// Whether `primvars:displayOpacity` or its indices have time samples
     /// (then read per frame: [`StrokeLayer::display_opacity_at`]).
     display_varies: bool,
+    /// Whether `primvars:displayOpacity:indices` is authored (a value or a
+    /// sample): the bake writes one value per curve, so it blocks them.
+    pub display_indexed: bool,
     /// `widths`, as far as the extent needs them (see [`StrokeLayer::max_width_at`]).
     widths: Widths,
     /// Pose and time keys (SPEC §4–5).
@@ -803,12 +806,23 @@ fn read_layer(r: &StageReader, path: &str, proxy_points: usize) -> Result<Stroke
     // Any time sample (even one: the default time does not read it) means
     // a read per frame.
     let mut display_varies = false;
+    let mut indices_sampled = false;
     let mut first_sample = f64::INFINITY;
     for name in ["primvars:displayOpacity", "primvars:displayOpacity:indices"] {
         let times = r.sample_times(&prim, name)?;
         display_varies |= !times.is_empty();
+        indices_sampled |= name.ends_with(":indices") && !times.is_empty();
         first_sample = times.first().map_or(first_sample, |&t| first_sample.min(t));
     }
+    let display_indexed = indices_sampled
+        || r.typed(
+            &prim,
+            "primvars:displayOpacity:indices",
+            None,
+            "int[]",
+            values::int_array,
+        )?
+        .is_some();
     // Sampled values or indices need not fit at the default time (indices
     // authored only as samples): the bake reads them per frame, and what
     // stands for them at no time is their first sample.
@@ -830,6 +844,7 @@ fn read_layer(r: &StageReader, path: &str, proxy_points: usize) -> Result<Stroke
         fixed_opacity: (!opacity_varies).then(std::sync::OnceLock::new),
         display_opacity,
         display_varies,
+        display_indexed,
         widths,
         keys: LayerKeys::default(),
         prim,
