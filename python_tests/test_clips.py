@@ -110,6 +110,38 @@ def test_assemble_refuses_missing_and_stale_chunks(painterly, tmp_path, repo_roo
     assert not shot.exists()
 
 
+def test_chunks_baked_with_other_options_are_stale(painterly, tmp_path, repo_root):
+    """`--bake-proxy` and `--camera` change what a chunk holds, so a chunk
+    baked without them is stale for a shot baked with them: a re-submit
+    bakes it again and the assembly refuses it (both took the old chunks
+    as done, and the composed proxy had its skeleton blocked and no points;
+    found by a farm review, 2026-12-06)."""
+    src = repo_root / "fixtures" / "tube.usda"
+    shot = tmp_path / "shot.usda"
+    painterly("bake", src, "-o", shot, "--chunk", "5", "--quiet")
+    proc = painterly("bake", src, "-o", shot, "--chunk", "5", "--bake-proxy", "--assemble", check=False)
+    assert proc.returncode == 1
+    assert "5 stale" in proc.stderr and "baked with no options, expected `--bake-proxy`" in proc.stderr
+    sub = json.loads(painterly("farm", "submit", src, "-o", shot, "--chunk", "5", "--scheduler", "openjd",
+                               "--bake-proxy", "--json").stdout)
+    assert (sub["submitted"], sub["skipped"]) == ([0, 1, 2, 3, 4], [])
+    status = painterly("farm", "status", shot, "--json", check=False)
+    assert status.returncode == 1 and json.loads(status.stdout)["assembled"] is False
+    for k in range(5):
+        painterly("bake", src, "-o", shot, "--chunk", "5", "--chunk-index", k, "--bake-proxy", "--quiet")
+    painterly("bake", src, "-o", shot, "--chunk", "5", "--bake-proxy", "--assemble", "--quiet")
+    # Now the shot is the --bake-proxy bake: the proxy has points at every frame (usd-core).
+    root = Sdf.Layer.CreateAnonymous(".usda")
+    root.subLayerPaths = [str(shot), str(src)]
+    composed = Usd.Stage.Open(root)
+    proxy = composed.GetPrimAtPath("/Tube/Rig/Proxy")
+    assert proxy.GetRelationship("skel:skeleton").GetTargets() == []
+    assert all(proxy.GetAttribute("points").Get(t) is not None for t in (1, 12, 24))
+    # And the other way: chunks with an option are stale for a bake without it.
+    proc = painterly("bake", src, "-o", shot, "--chunk", "5", "--assemble", check=False)
+    assert proc.returncode == 1 and "baked with `--bake-proxy`, expected no options" in proc.stderr
+
+
 @pytest.mark.parametrize(
     "args,code,message",
     [

@@ -284,6 +284,7 @@ fn bake_character(
             version: env!("CARGO_PKG_VERSION").to_string(),
             // render, view and preview warn when the input changed since.
             input_stamp: Some(clips::input_stamp(&ch.reader)?),
+            options: options_text(opts.bake_proxy, opts.camera.as_deref()),
             ..Default::default()
         },
     };
@@ -329,7 +330,7 @@ fn bake_character(
                 }
                 (None, true) => {
                     let hash = layout.provenance.input_hash.clone().unwrap_or_default();
-                    clips::check_chunks(&plan, &hash, &times)?;
+                    clips::check_chunks(&plan, &hash, layout.provenance.options.as_deref(), &times)?;
                     clips::write_clip_set(&plan, &layout, &times)?;
                     (0, plan.chunks.iter().map(|c| plan.chunk_path(c)).collect())
                 }
@@ -359,6 +360,20 @@ fn bake_character(
         seconds: started.elapsed().as_secs_f64(),
         chunks,
     })
+}
+
+/// The options that change what a bake writes besides its input and frames,
+/// as the CLI spells them, for the provenance ([`Provenance::options`]):
+/// None without any.
+pub fn options_text(bake_proxy: bool, camera: Option<&str>) -> Option<String> {
+    let mut words = Vec::new();
+    if bake_proxy {
+        words.push("--bake-proxy".to_string());
+    }
+    if let Some(c) = camera {
+        words.push(format!("--camera {c}"));
+    }
+    (!words.is_empty()).then(|| words.join(" "))
 }
 
 /// `A:B:STEP` of the baked frames, as recorded in the layer.

@@ -233,7 +233,8 @@ impl FarmJob {
         let input_hash = clips::input_hash(reader)?;
         let output = absolute(&args.output)?;
         let clips = ClipPlan::new(&output, &times, args.chunk)?;
-        let states = clips::chunk_states(&clips, &input_hash, &times)?;
+        let options = crate::bake::options_text(args.bake_proxy, args.camera.as_deref());
+        let states = clips::chunk_states(&clips, &input_hash, options.as_deref(), &times)?;
         let painterly = std::env::current_exe()
             .map_err(|e| Error::msg(format!("cannot find the painterly binary's own path: {e}")))?;
         let job = FarmJob {

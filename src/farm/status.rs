@@ -109,7 +109,8 @@ pub fn status(output: &Path) -> Result<FarmStatus> {
     let reader = StageReader::open(&plan.input)
         .map_err(|e| Error::msg(format!("cannot open the farm bake's input: {}", e.message)).in_file(&plan.input))?;
     let hash = clips::input_hash(&reader)?;
-    let states = clips::chunk_states(&clips, &hash, &times)?;
+    let options = crate::bake::options_text(plan.bake_proxy, plan.camera.as_deref());
+    let states = clips::chunk_states(&clips, &hash, options.as_deref(), &times)?;
 
     let scheduler = plan.scheduler.scheduler(None);
     let known = scheduler.query(&plan.task_ids());
@@ -153,6 +154,7 @@ pub fn status(output: &Path) -> Result<FarmStatus> {
     };
     let assembled = provenance.as_ref().is_some_and(|p| {
         p.input_hash.as_deref() == Some(hash.as_str())
+            && p.options == options
             && p.chunks.as_ref().is_some_and(|(size, names)| {
                 *size == plan.chunk_size && names.iter().eq(plan.chunks.iter().map(|c| &c.name))
             })

@@ -83,6 +83,10 @@ pub struct Provenance {
     /// SHA-256 over the input's layer files' paths, sizes and modification
     /// times (every bake: render, view and preview tell a stale bake by it).
     pub input_stamp: Option<String>,
+    /// The options that change what is baked besides the input and the
+    /// frames, as the CLI spells them (`--bake-proxy --camera /Cam`); None
+    /// without any. A chunk baked with other options is stale.
+    pub options: Option<String>,
     /// Value-clip bakes: this chunk's index and the chunk count.
     pub chunk: Option<(usize, usize)>,
     /// Value-clip stages: frames per chunk and the chunk layers, in order.
@@ -208,6 +212,7 @@ pub fn provenance_of(layer: &openusd::sdf::Layer) -> Option<Provenance> {
         version: text("version").unwrap_or_default(),
         input_hash: text("inputHash"),
         input_stamp: text("inputStamp"),
+        options: text("options"),
         chunk: int("chunkIndex").zip(int("chunkCount")),
         chunks: match (int("chunkSize"), info.get("chunks")) {
             (Some(size), Some(Value::StringVec(names))) => Some((size, names.clone())),
@@ -248,6 +253,9 @@ impl Provenance {
         }
         if let Some(h) = &self.input_stamp {
             f.push(("inputStamp", DataValue::Str(h.clone())));
+        }
+        if let Some(o) = &self.options {
+            f.push(("options", DataValue::Str(o.clone())));
         }
         if let Some((index, count)) = self.chunk {
             f.push(("chunkIndex", DataValue::Int(index as i64)));

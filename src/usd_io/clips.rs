@@ -375,10 +375,10 @@ pub const UNSAVED_STAMP: &str = "unsaved:";
 /// Checks that every chunk of `plan` is on disk and was baked from an input
 /// with `hash` by this painterly, for its frames; the error lists every
 /// chunk that is missing or stale.
-pub fn check_chunks(plan: &ClipPlan, hash: &str, times: &[f64]) -> Result<()> {
+pub fn check_chunks(plan: &ClipPlan, hash: &str, options: Option<&str>, times: &[f64]) -> Result<()> {
     let mut missing = Vec::new();
     let mut stale = Vec::new();
-    for (c, state) in plan.chunks.iter().zip(chunk_states(plan, hash, times)?) {
+    for (c, state) in plan.chunks.iter().zip(chunk_states(plan, hash, options, times)?) {
         match state {
             ChunkState::Done => {}
             ChunkState::Missing => missing.push(c.name.clone()),
@@ -419,8 +419,9 @@ pub enum ChunkState {
     Stale(String),
 }
 
-/// The state of every chunk of `plan`, for an input with `hash`.
-pub fn chunk_states(plan: &ClipPlan, hash: &str, times: &[f64]) -> Result<Vec<ChunkState>> {
+/// The state of every chunk of `plan`, for an input with `hash` baked with
+/// `options` ([`Provenance::options`]).
+pub fn chunk_states(plan: &ClipPlan, hash: &str, options: Option<&str>, times: &[f64]) -> Result<Vec<ChunkState>> {
     let step = frame_step(times);
     plan.chunks
         .iter()
@@ -435,11 +436,22 @@ pub fn chunk_states(plan: &ClipPlan, hash: &str, times: &[f64]) -> Result<Vec<Ch
                 ChunkState::Stale(format!("baked by painterly {}", stamp.version))
             } else if stamp.frames != frames {
                 ChunkState::Stale(format!("holds frames {}, expected {frames}", stamp.frames))
+            } else if stamp.options.as_deref() != options {
+                ChunkState::Stale(options_differ(stamp.options.as_deref(), options))
             } else {
                 ChunkState::Done
             })
         })
         .collect()
+}
+
+/// Why a chunk baked with options `had` is stale for a bake with `want`.
+fn options_differ(had: Option<&str>, want: Option<&str>) -> String {
+    format!(
+        "baked with {}, expected {}",
+        had.map_or("no options".to_string(), |o| format!("`{o}`")),
+        want.map_or("no options".to_string(), |o| format!("`{o}`"))
+    )
 }
 
 /// A clip-set layer's chunks and their state, for `inspect`.
@@ -471,6 +483,9 @@ pub fn clip_set_status(path: &Path) -> Result<Option<ClipSetStatus>> {
             }
             Some(stamp) if stamp.version != clip_set.version => {
                 ChunkState::Stale(format!("baked by painterly {}", stamp.version))
+            }
+            Some(stamp) if stamp.options != clip_set.options => {
+                ChunkState::Stale(options_differ(stamp.options.as_deref(), clip_set.options.as_deref()))
             }
             Some(_) => ChunkState::Done,
         };
