@@ -821,6 +821,7 @@ mod tests {
                 meta: StageMetadata::default(),
                 attrs: vec![attr("/A", "widths", SampleKind::Floats, None)],
                 blocked_skeletons: vec![],
+                blocked_attrs: vec![],
                 provenance: Provenance::default(),
             };
             let mut sink = create(&dir.join(format!("out.{ext}")), layout).unwrap();
@@ -832,7 +833,8 @@ mod tests {
     /// The whole text of a small usda bake, written out by hand: an attribute
     /// on a root prim (with its interpolation), two children (a blank line
     /// between siblings only), sample lines two levels inside their prim,
-    /// samples in frame order, the blocked skeleton only on /Root/B.
+    /// samples in frame order, the blocked skeleton and primvar indices only
+    /// on /Root/B, the options in the provenance.
     #[test]
     fn usda_bake_text() {
         let dir = scratch_dir("text");
@@ -849,10 +851,16 @@ mod tests {
                 attr("/Root/B", "points", SampleKind::Points, None),
             ],
             blocked_skeletons: vec!["/Root/B".into()],
+            blocked_attrs: vec![BlockedAttr {
+                prim: "/Root/B".into(),
+                name: "primvars:displayOpacity:indices",
+                type_name: "int[]",
+            }],
             provenance: Provenance {
                 input: "/in.usda".into(),
                 frames: "1:2:1".into(),
                 version: "v".into(),
+                options: Some("--bake-proxy".into()),
                 ..Default::default()
             },
         };
@@ -884,6 +892,7 @@ mod tests {
         dictionary painterly = {
             string frames = "1:2:1"
             string input = "/in.usda"
+            string options = "--bake-proxy"
             string version = "v"
         }
     }
@@ -916,6 +925,7 @@ over "Root"
             2.5: [(7, 8, 9), (1, 1, 1)],
         }
         rel skel:skeleton = None
+        int[] primvars:displayOpacity:indices = None
     }
 }
 "#;

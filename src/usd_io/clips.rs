@@ -500,7 +500,7 @@ pub fn clip_set_status(path: &Path) -> Result<Option<ClipSetStatus>> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::usd_io::bake_layer::{BakeAttr, SampleKind};
+    use crate::usd_io::bake_layer::{BakeAttr, BlockedAttr, SampleKind};
 
     #[test]
     fn frame_step_is_the_gap_between_the_first_two_frames() {
@@ -510,7 +510,8 @@ mod tests {
         assert_eq!(frame_step(&[]), 1.0);
     }
 
-    /// Two attributes on /A/B (one a primvar), B's skeleton blocked, frames
+    /// Two attributes on /A/B (one a primvar), B's skeleton and primvar
+    /// indices blocked, frames
     /// 1, 2, 3 in chunks of 2: the manifest declares the attributes, the
     /// clip-set layer also their interpolation and the blocked relationship,
     /// nested like the prims (written out by hand from the module docs).
@@ -537,6 +538,11 @@ mod tests {
                 },
             ],
             blocked_skeletons: vec!["/A/B".into()],
+            blocked_attrs: vec![BlockedAttr {
+                prim: "/A/B".into(),
+                name: "primvars:displayOpacity:indices",
+                type_name: "int[]",
+            }],
             provenance: Default::default(),
         };
         plan.create_dir().unwrap();
@@ -569,6 +575,7 @@ over "A" (
             interpolation = "vertex"
         )
         rel skel:skeleton = None
+        int[] primvars:displayOpacity:indices = None
     }
 }
 "#;
