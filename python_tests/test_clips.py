@@ -16,7 +16,7 @@ import shutil
 import numpy as np
 import pytest
 from clip_compare import compare
-from pxr import Sdf, Usd
+from pxr import Sdf, Usd, Vt
 
 FIXTURES = ["blowfish.usda", "tube.usda", "wave.usda", "static.usda", "apple.usda", "head.usda", "walk.usda", "building.usda"]
 
@@ -140,6 +140,69 @@ def test_chunks_baked_with_other_options_are_stale(painterly, tmp_path, repo_roo
     # And the other way: chunks with an option are stale for a bake without it.
     proc = painterly("bake", src, "-o", shot, "--chunk", "5", "--assemble", check=False)
     assert proc.returncode == 1 and "baked with `--bake-proxy`, expected no options" in proc.stderr
+
+
+def _proxy_animated_by_a_clip(repo_root, tmp_path):
+    """The wave fixture with its proxy's `points`/`extent` samples moved into
+    a value clip `wave_anim.usda` on /Wave/Rig (as point-cache pipelines
+    deliver animation); returns the root layer's path and the clip's."""
+    src = Sdf.Layer.FindOrOpen(str(repo_root / "fixtures" / "wave.usda"))
+    root = Sdf.Layer.CreateNew(str(tmp_path / "wave_clipped.usda"))
+    root.TransferContent(src)
+    clip = Sdf.Layer.CreateNew(str(tmp_path / "wave_anim.usda"))
+    proxy = Sdf.Path("/Wave/Rig/Proxy")
+    Sdf.CreatePrimInLayer(clip, proxy)
+    for name in ("points", "extent"):
+        ap = proxy.AppendProperty(name)
+        spec = root.GetAttributeAtPath(ap)
+        Sdf.AttributeSpec(clip.GetPrimAtPath(proxy), name, spec.typeName)
+        times = list(root.ListTimeSamplesForPath(ap))
+        for t in times:
+            clip.SetTimeSample(ap, t, root.QueryTimeSample(ap, t))
+            root.EraseTimeSample(ap, t)
+        spec.ClearDefaultValue()  # the rest pose too comes from the clip
+    clip.Save()
+    root.Save()
+    stage = Usd.Stage.Open(root)
+    api = Usd.ClipsAPI(stage.GetPrimAtPath("/Wave/Rig"))
+    api.SetClipAssetPaths([Sdf.AssetPath("./wave_anim.usda")], "anim")
+    api.SetClipPrimPath("/Wave/Rig", "anim")
+    api.SetClipActive([(times[0], 0)], "anim")
+    api.SetClipTimes([(times[0], times[0]), (times[-1], times[-1])], "anim")
+    root.Save()
+    del stage
+    fresh = Usd.Stage.Open(root.realPath)
+    assert len(times) > 2 and fresh.GetAttributeAtPath(proxy.AppendProperty("points")).GetNumTimeSamples() == len(times)
+    return pathlib.Path(root.realPath), pathlib.Path(clip.realPath)
+
+
+def test_a_change_in_an_input_value_clip_makes_its_chunks_stale(painterly, tmp_path, repo_root):
+    """The input's value clips are part of its hash: a chunk baked before
+    its clip file changed is stale, and the binding cache of the old input
+    is not reused (both missed it, and the re-bake reused the old binding;
+    found by a farm review, 2026-12-06)."""
+    src, clip_path = _proxy_animated_by_a_clip(repo_root, tmp_path)
+    shot = tmp_path / "out" / "shot.usda"
+    shot.parent.mkdir()
+    painterly("bake", src, "-o", shot, "--chunk", "10", "--chunk-index", "0", "--quiet")
+    # The clip's animation moves by +1 in y: a new delivery of the cache.
+    clip = Sdf.Layer.FindOrOpen(str(clip_path))
+    ap = Sdf.Path("/Wave/Rig/Proxy.points")
+    for t in clip.ListTimeSamplesForPath(ap):
+        pts = np.array(clip.QueryTimeSample(ap, t))
+        pts[:, 1] += 1.0
+        clip.SetTimeSample(ap, t, Vt.Vec3fArray.FromNumpy(pts.astype(np.float32)))
+    clip.Save()
+    for k in (1, 2, 3):
+        painterly("bake", src, "-o", shot, "--chunk", "10", "--chunk-index", k, "--quiet")
+    proc = painterly("bake", src, "-o", shot, "--chunk", "10", "--assemble", check=False)
+    assert proc.returncode == 1
+    assert "1 stale: shot.0000.0-9.usdc (baked from a different input)" in proc.stderr
+    # A full re-bake in the same folder equals a single bake of the new input.
+    single = tmp_path / "single.usdc"
+    painterly("bake", src, "-o", single, "--quiet")
+    painterly("bake", src, "-o", shot, "--chunk", "10", "--quiet")
+    compare(single, shot, src, [float(t) for t in range(0, 31)], exact=True)
 
 
 @pytest.mark.parametrize(

@@ -330,6 +330,13 @@ fn layers_digest(r: &StageReader, content: impl Fn(&Path, &mut sha2::Sha256) -> 
         if path.is_file() {
             files.insert(path.canonicalize().unwrap_or(path));
         }
+        // Value clips are no layer of the stage, yet their samples are part
+        // of the input (a point cache delivered as clips).
+        if !id.contains('[') {
+            if let Some(layer) = r.stage.layer(&id) {
+                files.extend(input_clip_files(layer.data(), Path::new(file)));
+            }
+        }
     }
     let mut h = Sha256::new();
     for f in &files {
@@ -338,6 +345,80 @@ fn layers_digest(r: &StageReader, content: impl Fn(&Path, &mut sha2::Sha256) -> 
         content(f, &mut h).map_err(|e| Error::msg(format!("cannot read: {e}")).in_file(f))?;
     }
     Ok(h.finalize().iter().map(|b| format!("{b:02x}")).collect())
+}
+
+/// The files the value clips authored in one input layer (at `layer_file`)
+/// read: each clip set's `assetPaths` and `manifestAssetPath`, and for a
+/// `templateAssetPath` every file beside it its pattern matches (`#` a
+/// digit, `.` or `-`; more than the template's times may pick, never fewer).
+/// Relative paths are anchored at the layer, as usd-core's resolver does;
+/// paths that name no file are left out.
+fn input_clip_files(data: &dyn openusd::sdf::AbstractData, layer_file: &Path) -> Vec<PathBuf> {
+    use openusd::sdf::{SpecType, Value};
+    let anchor = layer_file.parent().unwrap_or(Path::new("."));
+    let resolve = |asset: &str| -> Option<PathBuf> {
+        let p = anchor.join(asset); // an absolute asset replaces the anchor
+        p.is_file().then(|| p.canonicalize().unwrap_or(p))
+    };
+    let mut out = Vec::new();
+    for path in data.spec_paths() {
+        if !matches!(data.spec_type(&path), Some(SpecType::Prim | SpecType::Variant)) {
+            continue;
+        }
+        let Ok(Some(clips)) = data.try_field(&path, "clips") else {
+            continue;
+        };
+        let Value::Dictionary(sets) = clips.as_ref() else {
+            continue;
+        };
+        for set in sets.values() {
+            let Value::Dictionary(set) = set else { continue };
+            match set.get("assetPaths") {
+                Some(Value::AssetPathVec(v)) => out.extend(v.iter().filter_map(|a| resolve(&a.authored_path))),
+                Some(Value::AssetPath(a)) => out.extend(resolve(&a.authored_path)),
+                _ => {}
+            }
+            if let Some(Value::AssetPath(a)) = set.get("manifestAssetPath") {
+                out.extend(resolve(&a.authored_path));
+            }
+            if let Some(Value::String(t)) = set.get("templateAssetPath") {
+                out.extend(template_files(&anchor.join(t)));
+            }
+        }
+    }
+    out
+}
+
+/// The files a clip template such as `anim/cache.###.usdc` can name: those
+/// in its folder with its text before and after the `#`s and only digits,
+/// `.` or `-` between.
+fn template_files(template: &Path) -> Vec<PathBuf> {
+    let name = template.file_name().unwrap_or_default().to_string_lossy().into_owned();
+    let (Some(first), Some(last)) = (name.find('#'), name.rfind('#')) else {
+        return Vec::new();
+    };
+    let (prefix, suffix) = (&name[..first], &name[last + 1..]);
+    let dir = template.parent().unwrap_or(Path::new("."));
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return Vec::new();
+    };
+    let mut out: Vec<PathBuf> = entries
+        .flatten()
+        .filter(|e| {
+            let n = e.file_name().to_string_lossy().into_owned();
+            n.len() > prefix.len() + suffix.len()
+                && n.starts_with(prefix)
+                && n.ends_with(suffix)
+                && n[prefix.len()..n.len() - suffix.len()]
+                    .chars()
+                    .all(|c| c.is_ascii_digit() || c == '.' || c == '-')
+        })
+        .map(|e| e.path())
+        .filter(|p| p.is_file())
+        .map(|p| p.canonicalize().unwrap_or(p))
+        .collect();
+    out.sort();
+    out
 }
 
 /// [`input_hash`]'s digest: each file's bytes.
