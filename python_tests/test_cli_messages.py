@@ -169,6 +169,42 @@ def test_bake_refuses_to_write_over_its_input(painterly, tmp_path, repo_root):
         assert sorted(p.name for p in tmp_path.iterdir()) == ["link.usda", "tube.usda"]
 
 
+def test_no_output_overwrites_a_file_the_input_reads(painterly, tmp_path, repo_root):
+    """`bake -o` and `view -o` naming a sublayer or a referenced layer of
+    the input, or `view -o` naming the input or the bake, are refused (exit
+    1) and every file keeps its bytes; they replaced the layer (exit 0)
+    before (found by an edit-fidelity review, 2026-12-06)."""
+    (tmp_path / "char.usda").write_bytes((repo_root / "fixtures" / "tube.usda").read_bytes())
+    (tmp_path / "prop.usda").write_text('#usda 1.0\n(\n    defaultPrim = "Prop"\n)\ndef Xform "Prop"\n{\n}\n')
+    shot = tmp_path / "shot.usda"
+    shot.write_text('#usda 1.0\n(\n    subLayers = [@./char.usda@]\n    startTimeCode = 1\n    endTimeCode = 24\n'
+                    '    defaultPrim = "Tube"\n)\nover "Tube"\n{\n    def "Prop" (references = @./prop.usda@)\n    {\n    }\n}\n')
+    bake = tmp_path / "bake.usdc"
+    painterly("bake", shot, "-o", bake, "--frames", "1:2", "--quiet")
+    files = sorted(tmp_path.iterdir())
+    before = {f: f.read_bytes() for f in files}
+    cases = [
+        (("bake", shot, "-o", tmp_path / "char.usda"), f"{tmp_path / 'char.usda'}, a file the input reads"),
+        (("bake", shot, "-o", tmp_path / "prop.usda"), f"{tmp_path / 'prop.usda'}, a file the input reads"),
+        (("view", shot, "--bake", bake, "-o", tmp_path / "char.usda"), f"{tmp_path / 'char.usda'}, a file the input reads"),
+        (("view", shot, "--bake", bake, "-o", shot), "the input"),
+    ]
+    for args, what in cases:
+        proc = painterly(*args, check=False)
+        assert proc.returncode == 1, (args, proc.stderr)
+        assert proc.stderr.strip() == f"error: {args[-1]}: output would overwrite {what}; inputs are never modified"
+    # The bake itself, as view's output (view layers are .usda: a .usda bake).
+    bake_a = tmp_path / "bake.usda"
+    painterly("bake", shot, "-o", bake_a, "--frames", "1:2", "--quiet")
+    bake_bytes = bake_a.read_bytes()
+    proc = painterly("view", shot, "--bake", bake_a, "-o", bake_a, check=False)
+    assert proc.returncode == 1
+    assert proc.stderr.strip() == f"error: {bake_a}: output would overwrite the bake layer; the view layer is a new file"
+    assert bake_a.read_bytes() == bake_bytes
+    assert {f: f.read_bytes() for f in files} == before
+    assert sorted(tmp_path.iterdir()) == sorted(files + [bake_a])
+
+
 def test_bake_names_a_missing_output_folder(painterly, tmp_path, repo_root):
     out = tmp_path / "no" / "such" / "bake.usdc"
     proc = painterly("bake", repo_root / "fixtures" / "tube.usda", "-o", out, check=False)

@@ -147,6 +147,7 @@ fn open_for_bake_with(
     let opening = Instant::now();
     let reader = open()?;
     crate::character::log_opened(input, &reader, opening);
+    clips::check_not_an_input_file(&reader, output)?;
     if reader.unsaved && opts.chunk.is_some() {
         // Chunks, and the binding cache beside them, are matched to the
         // input by the file's content hash, which is not what was baked.

@@ -322,6 +322,19 @@ pub fn input_hash(r: &StageReader) -> Result<String> {
 /// hex encoded. Packages (`.usdz`) count as one file.
 fn layers_digest(r: &StageReader, content: impl Fn(&Path, &mut sha2::Sha256) -> std::io::Result<()>) -> Result<String> {
     use sha2::{Digest, Sha256};
+    let mut h = Sha256::new();
+    for f in &input_files(r) {
+        h.update(f.to_string_lossy().as_bytes());
+        h.update([0]);
+        content(f, &mut h).map_err(|e| Error::msg(format!("cannot read: {e}")).in_file(f))?;
+    }
+    Ok(h.finalize().iter().map(|b| format!("{b:02x}")).collect())
+}
+
+/// Every file the stage reads, canonical: its layers (a package counts as
+/// one file) and the files its value clips read. The reader composed every
+/// prim when it opened, so every referenced layer is among them.
+pub fn input_files(r: &StageReader) -> BTreeSet<PathBuf> {
     let mut files: BTreeSet<PathBuf> = BTreeSet::new();
     for id in r.stage.layer_identifiers() {
         // "pkg.usdz[inner.usdc]" names a layer inside a package.
@@ -338,13 +351,25 @@ fn layers_digest(r: &StageReader, content: impl Fn(&Path, &mut sha2::Sha256) -> 
             }
         }
     }
-    let mut h = Sha256::new();
-    for f in &files {
-        h.update(f.to_string_lossy().as_bytes());
-        h.update([0]);
-        content(f, &mut h).map_err(|e| Error::msg(format!("cannot read: {e}")).in_file(f))?;
+    files
+}
+
+/// Refuses an `output` that is a file the input reads (a sublayer, a
+/// referenced layer, a clip): writing it would change the input, and
+/// inputs are never modified.
+pub fn check_not_an_input_file(r: &StageReader, output: &Path) -> Result<()> {
+    let Ok(out) = output.canonicalize() else {
+        return Ok(()); // a new file is no input
+    };
+    if input_files(r).contains(&out) {
+        let what = if r.file.canonicalize().is_ok_and(|f| f == out) {
+            "the input".to_string()
+        } else {
+            format!("{}, a file the input reads", out.display())
+        };
+        return Err(Error::msg(format!("output would overwrite {what}; inputs are never modified")).in_file(output));
     }
-    Ok(h.finalize().iter().map(|b| format!("{b:02x}")).collect())
+    Ok(())
 }
 
 /// The files the value clips authored in one input layer (at `layer_file`)
