@@ -1,10 +1,12 @@
 """painterly from Python: bake, evaluate, inspect and validate painted characters.
 
 Thin over the Rust library; long work releases the GIL, so Python threads
-run bakes at once. Inputs are a file path or a usd-core ``Sdf.Layer`` (read
-through ``ExportToString()``, as if it were its own file, so relative asset
-paths still resolve). A bake without ``output`` returns its layer's usda
-text under ``"layer"``; :func:`to_layer` opens such text in usd-core.
+run bakes at once. Inputs are a file path or a usd-core ``Sdf.Layer``: a
+saved layer is read from its file (what a farm would read); an unsaved or
+anonymous one through ``ExportToString()``, as if it were its own file, so
+relative asset paths still resolve. A bake without ``output`` returns its
+layer's usda text under ``"layer"``; :func:`to_layer` opens such text in
+usd-core.
 
 The usd-core validators (one per rule ``painterly inspect`` checks) live in
 :mod:`painterly.validators`; ``painterly-validate FILE`` runs them.

@@ -7,11 +7,20 @@ import numpy as np
 import numpy.typing as npt
 
 class _LayerLike(Protocol):
-    """A usd-core ``Sdf.Layer`` (read through its text)."""
+    """A usd-core ``Sdf.Layer``: read from its file when saved (not dirty,
+    its ``realPath`` a regular file), else through its text, as unsaved.
+    A layer it composes with unsaved edits, or an anonymous one, raises
+    ``painterly.Error`` (save it, or pass ``stage.Flatten()``). A
+    ``Usd.Stage`` is a ``TypeError``: pass ``stage.GetRootLayer()`` or
+    ``stage.Flatten()``."""
 
     identifier: str
     realPath: str
+    dirty: bool
+    anonymous: bool
     def ExportToString(self) -> str: ...
+    def GetFileFormatArguments(self) -> dict[str, str]: ...
+    def GetCompositionAssetDependencies(self) -> list[str]: ...
 
 Input: TypeAlias = str | os.PathLike[str] | _LayerLike
 #: "A:B:STEP" as ``--frames``, one frame, or (start, end[, step]); a list of
@@ -47,7 +56,9 @@ def bake(
     ``painterly.to_layer``). ``progress(done, total)`` is called from a worker
     thread as frames are written; an exception it raises is re-raised after
     the bake, which still runs to the end and writes its output. The GIL is
-    released while baking."""
+    released while baking. Ctrl-C (in the main thread) stops the bake before
+    its next frame and raises ``KeyboardInterrupt``: the output is left as it
+    was, and no temporary file remains."""
 
 def inspect(input: Input, camera: str | None = None, frames: Frames | None = None) -> dict[str, Any]:
     """The ``painterly inspect --json [--camera CAMERA] [--frames A:B]`` report;

@@ -6,14 +6,21 @@
 //! single-threaded (`Rc` inside), so it stays on the thread that opened it
 //! (`unsendable`); its reads run with the GIL held, its evaluation without.
 //!
-//! Inputs are a file path or a usd-core `Sdf.Layer`: C++ objects cannot
-//! cross into Rust, so a layer is taken through its text
-//! (`ExportToString()`) and opened as if it were its own file
-//! ([`painterly::usd_io::memory`]), so relative asset paths still resolve.
+//! Inputs are a file path or a usd-core `Sdf.Layer`. A saved layer is read
+//! from its file, as its path would be. C++ objects cannot cross into Rust,
+//! so any other layer (edited, anonymous, inside a package) is taken
+//! through its text (`ExportToString()`) and opened as if it were its own
+//! file ([`painterly::usd_io::memory`]), so relative asset paths still
+//! resolve; its bake is stamped unsaved. Layers it composes are read from
+//! their files, so one with unsaved edits is refused.
+//!
+//! A bake runs on a thread of its own while the calling thread waits and
+//! runs Python's signal handlers: Ctrl-C stops the bake, writing nothing.
 
 use std::collections::BTreeMap;
-use std::path::PathBuf;
-use std::sync::Mutex;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
 
 use glam::Vec3;
 use numpy::{PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray2, PyUntypedArrayMethods};
@@ -44,12 +51,11 @@ create_exception!(
 struct Source {
     /// The path the stage is opened at (for a layer: where its text is served).
     path: PathBuf,
-    /// A layer's text, when given an `Sdf.Layer`.
+    /// The text of a layer that is not its file as saved (edited,
+    /// anonymous, inside a package): read as unsaved edits.
     text: Option<Vec<u8>>,
     /// How errors name it: the path, or the layer's identifier.
     name: String,
-    /// A layer with edits not saved to `path` (`Sdf.Layer.dirty`).
-    dirty: bool,
 }
 
 impl Source {
@@ -60,15 +66,36 @@ impl Source {
                 path: p,
                 text: None,
                 name,
-                dirty: false,
             });
         }
-        if obj.hasattr("ExportToString")? {
-            let text: String = obj.call_method0("ExportToString")?.extract()?;
+        // A Stage has ExportToString too (its flattened text), but which
+        // of its layers and edits was meant is the caller's to say.
+        if obj.hasattr("GetRootLayer")? {
+            return Err(PyTypeError::new_err(format!(
+                "expected a file path or an Sdf.Layer, got {}: pass stage.GetRootLayer() (read as saved), \
+                 or stage.Flatten() to include unsaved edits across its layers",
+                obj.get_type().name()?
+            )));
+        }
+        if obj.hasattr("ExportToString")? && obj.hasattr("identifier")? {
             let identifier: String = obj.getattr("identifier")?.extract()?;
             let real: String = obj.getattr("realPath")?.extract().unwrap_or_default();
-            // An anonymous layer has no file a bake could be checked against.
-            let dirty = real.is_empty() || obj.getattr("dirty")?.extract::<bool>().unwrap_or(true);
+            let anonymous = obj.getattr("anonymous")?.extract::<bool>().unwrap_or(true);
+            let dirty = obj.getattr("dirty")?.extract::<bool>().unwrap_or(true);
+            // Format arguments make the layer something other than the file read plainly.
+            let format_args = obj.call_method0("GetFileFormatArguments")?.is_truthy()?;
+            refuse_unsaved_dependencies(obj, &identifier)?;
+            // A saved layer is its file: read it as the path would be (what
+            // a farm reads, with the file's stamp), not the layer's text,
+            // which may predate the file on disk.
+            if !anonymous && !dirty && !format_args && !real.is_empty() && Path::new(&real).is_file() {
+                return Ok(Source {
+                    path: PathBuf::from(&real),
+                    text: None,
+                    name: real,
+                });
+            }
+            let text: String = obj.call_method0("ExportToString")?.extract()?;
             // Served where the layer lives, so its relative asset paths
             // resolve as they would on disk; named .usda since the text is usda.
             let path = if real.is_empty() {
@@ -82,7 +109,6 @@ impl Source {
                 path,
                 text: Some(text.into_bytes()),
                 name: identifier,
-                dirty,
             });
         }
         Err(PyTypeError::new_err(format!(
@@ -94,14 +120,15 @@ impl Source {
     fn open(&self) -> painterly::Result<StageReader> {
         match &self.text {
             None => StageReader::open(&self.path),
-            Some(t) => self.open_text(t),
+            Some(t) => Self::open_text(t, &self.path),
         }
     }
 
-    /// The layer's text, served at `path`, marked unsaved when it is.
-    fn open_text(&self, text: &[u8]) -> painterly::Result<StageReader> {
-        let mut r = open_bytes(text.to_vec(), &self.path)?;
-        r.unsaved = self.dirty;
+    /// A layer's text, served at `path`: never the file as saved, so a
+    /// bake of it is stamped unsaved.
+    fn open_text(text: &[u8], path: &Path) -> painterly::Result<StageReader> {
+        let mut r = open_bytes(text.to_vec(), path)?;
+        r.unsaved = true;
         Ok(r)
     }
 
@@ -111,7 +138,29 @@ impl Source {
     fn open_mapped(&self) -> painterly::Result<StageReader> {
         match &self.text {
             None => StageReader::open_mapped(&self.path),
-            Some(t) => self.open_text(t),
+            Some(t) => Self::open_text(t, &self.path),
+        }
+    }
+
+    /// `text` with the path a layer's text was served at replaced by the
+    /// layer's identifier: that path is made up (`anonymous.usda` in the
+    /// working directory, `x.usdc.usda`), the identifier is what the caller knows.
+    fn rename(&self, text: &str) -> String {
+        match &self.text {
+            Some(_) => text.replace(&self.path.display().to_string(), &self.name),
+            None => text.to_string(),
+        }
+    }
+
+    /// [`Self::rename`] inside JSON text, where both are escaped.
+    fn rename_json(&self, json: &str) -> String {
+        let escaped = |s: &str| {
+            let quoted = serde_json::Value::from(s).to_string();
+            quoted[1..quoted.len() - 1].to_string()
+        };
+        match &self.text {
+            Some(_) => json.replace(&escaped(&self.path.display().to_string()), &escaped(&self.name)),
+            None => json.to_string(),
         }
     }
 
@@ -120,8 +169,62 @@ impl Source {
         if self.text.is_some() && e.file.as_deref() == Some(self.path.as_path()) {
             e.file = Some(PathBuf::from(&self.name));
         }
+        e.message = self.rename(&e.message);
         e
     }
+}
+
+/// Fails when a layer that `layer` composes (a sublayer, reference or
+/// payload, at any depth, in variants too) is open in this session with
+/// unsaved edits, or is anonymous: painterly reads those from their files,
+/// so the edits would be silently ignored. Only layers already loaded are
+/// looked at (`Sdf.Layer.Find`); nothing new is opened.
+fn refuse_unsaved_dependencies(layer: &Bound<'_, PyAny>, identifier: &str) -> PyResult<()> {
+    let py = layer.py();
+    let sdf = py.import("pxr.Sdf")?;
+    let layers = sdf.getattr("Layer")?;
+    let mut seen = std::collections::HashSet::from([identifier.to_string()]);
+    let mut todo = vec![layer.clone()];
+    while let Some(l) = todo.pop() {
+        let anchored = !l.getattr("anonymous")?.extract::<bool>().unwrap_or(true);
+        let assets: Vec<String> = l.call_method0("GetCompositionAssetDependencies")?.extract()?;
+        for asset in assets {
+            let mut id: String = sdf
+                .call_method1("ComputeAssetPathRelativeToLayer", (&l, &asset))?
+                .extract()?;
+            // An anonymous layer's text is served in the working directory,
+            // so its relative paths resolve from there.
+            if !anchored && !id.starts_with("anon:") && Path::new(&id).is_relative() {
+                id = std::env::current_dir()
+                    .unwrap_or_default()
+                    .join(&id)
+                    .display()
+                    .to_string();
+            }
+            let found = layers.call_method1("Find", (&id,))?;
+            if found.is_none() {
+                continue;
+            }
+            let dep: String = found.getattr("identifier")?.extract()?;
+            if !seen.insert(dep.clone()) {
+                continue;
+            }
+            let (what, lost) = if found.getattr("anonymous")?.extract::<bool>().unwrap_or(true) {
+                ("an anonymous layer (only in memory)", "it would be missing")
+            } else if found.getattr("dirty")?.extract::<bool>().unwrap_or(true) {
+                ("a layer with unsaved edits", "the edits would be ignored")
+            } else {
+                todo.push(found);
+                continue;
+            };
+            let message = format!(
+                "{what} that {identifier} composes (a sublayer, reference or payload): painterly reads \
+                 composed layers from their files, so {lost}; save it, or pass stage.Flatten() instead"
+            );
+            return Err(to_py(py, painterly::Error::msg(message).in_file(Path::new(&dep))));
+        }
+    }
+    Ok(())
 }
 
 /// How the library's messages name a CLI option, and how Python names it
@@ -166,8 +269,11 @@ fn msg_err(py: Python<'_>, m: impl Into<String>) -> PyErr {
 /// `v` as the dict `json.loads` makes of what the CLI's `--json` prints
 /// (straight to text: f32 fields keep their shortest form, as in the CLI).
 fn json_to_py<'py>(py: Python<'py>, v: &impl serde::Serialize) -> PyResult<Bound<'py, PyAny>> {
-    let text = serde_json::to_string(v).map_err(|e| msg_err(py, format!("cannot encode the result: {e}")))?;
-    py.import("json")?.call_method1("loads", (text,))
+    py.import("json")?.call_method1("loads", (json_text(py, v)?,))
+}
+
+fn json_text(py: Python<'_>, v: &impl serde::Serialize) -> PyResult<String> {
+    serde_json::to_string(v).map_err(|e| msg_err(py, format!("cannot encode the result: {e}")))
 }
 
 /// `frames`: None, "A:B:STEP" (as `--frames`), a number, or (start, end[, step]).
@@ -221,11 +327,15 @@ fn bake(
     progress: Option<Py<PyAny>>,
 ) -> PyResult<Py<PyAny>> {
     let src = Source::from_py(input)?;
+    // Set when Ctrl-C reaches the waiting thread: the bake stops before its
+    // next frame and before replacing the output, and writes nothing.
+    let cancel = Arc::new(AtomicBool::new(false));
     let opts = BakeOptions {
         frames: frames_from_py(py, frames)?,
         bake_proxy,
         camera,
         chunk,
+        cancel: Some(cancel.clone()),
         ..Default::default()
     };
     if chunk.is_some() && output.is_none() {
@@ -254,7 +364,7 @@ fn bake(
             });
         }
     };
-    let result = py.detach(|| {
+    let run = || {
         let summary = bake_with(&src.path, &out_path, &opts, &report, || src.open_mapped())?;
         let text = match &temp {
             Some(_) => Some(
@@ -264,8 +374,42 @@ fn bake(
             None => None,
         };
         Ok::<_, painterly::Error>((summary, text))
+    };
+    // The bake runs on its own thread; this one waits without the GIL in
+    // short slices and, between them, runs Python's signal handlers, which
+    // only the main thread can: Ctrl-C then stops the bake, not only the
+    // script after it.
+    let result = std::thread::scope(|scope| {
+        let (done_tx, mut done_rx) = std::sync::mpsc::channel();
+        let worker = scope.spawn(move || {
+            let r = run();
+            let _ = done_tx.send(());
+            r
+        });
+        loop {
+            // The receiver is moved in and back out: it is not Sync.
+            let (rx, waited) = py.detach(move || {
+                let w = done_rx.recv_timeout(std::time::Duration::from_millis(50));
+                (done_rx, w)
+            });
+            done_rx = rx;
+            if !matches!(waited, Err(std::sync::mpsc::RecvTimeoutError::Timeout)) {
+                break;
+            }
+            if let Err(interrupt) = py.check_signals() {
+                cancel.store(true, Ordering::Relaxed);
+                // Joined without the GIL: the progress callback may need it.
+                let _ = py.detach(move || worker.join());
+                return Err(interrupt);
+            }
+        }
+        match py.detach(move || worker.join()) {
+            Ok(r) => Ok(r),
+            Err(panic) => std::panic::resume_unwind(panic),
+        }
     });
     drop(temp);
+    let result = result?;
     if let Some(e) = callback_error.into_inner().unwrap_or_else(|p| p.into_inner()) {
         return Err(e);
     }
@@ -301,7 +445,9 @@ fn inspect(
         Ok(rep)
     });
     let report = report.map_err(|e| to_py(py, src.name_in(e)))?;
-    Ok(json_to_py(py, &report)?.unbind())
+    // Problems and unresolved assets name the layer, not where its text was served.
+    let text = src.rename_json(&json_text(py, &report)?);
+    Ok(py.import("json")?.call_method1("loads", (text,))?.unbind())
 }
 
 /// Blends `values` (n × k) with the basis weights of `keys` (n × d) at each
@@ -370,7 +516,9 @@ fn _rules() -> Vec<(&'static str, &'static str, &'static str)> {
 #[pyclass(unsendable, module = "painterly")]
 struct Character {
     inner: Inner,
-    name: String,
+    /// What its input was, without a layer's text: errors of later frames
+    /// name the layer, as the constructor's do.
+    source: Source,
 }
 
 /// A time code must be a number: NaN would read every sample as held.
@@ -402,9 +550,10 @@ impl Character {
         let input = self
             .inner
             .read_frame_with(t, &Self::overrides(configuration))
-            .map_err(|e| to_py(py, e))?;
+            .map_err(|e| to_py(py, self.source.name_in(e)))?;
         let model = &self.inner.model;
-        py.detach(|| model.evaluate(input, false)).map_err(|e| to_py(py, e))
+        py.detach(|| model.evaluate(input, false))
+            .map_err(|e| to_py(py, self.source.name_in(e)))
     }
 
     fn layer_paths(&self) -> Vec<String> {
@@ -427,7 +576,12 @@ impl Character {
             .open()
             .and_then(|r| Inner::from_reader(r, camera.as_deref()))
             .map_err(|e| to_py(py, src.name_in(e.in_file(&src.path))))?;
-        Ok(Character { inner, name: src.name })
+        // The text is no longer needed, only that there was one.
+        let source = Source {
+            text: src.text.as_ref().map(|_| Vec::new()),
+            ..src
+        };
+        Ok(Character { inner, source })
     }
 
     /// Stroke layer prim paths, in bake order.
@@ -451,7 +605,9 @@ impl Character {
     /// Every axis's value at `t` (axis path → value, in axis units).
     fn configuration(&self, py: Python<'_>, t: f64) -> PyResult<BTreeMap<String, f64>> {
         finite_time(py, t)?;
-        self.inner.configuration(t).map_err(|e| to_py(py, e))
+        self.inner
+            .configuration(t)
+            .map_err(|e| to_py(py, self.source.name_in(e)))
     }
 
     /// Points at `t` (prim path → float32 (N, 3)): every stroke layer in its
@@ -495,7 +651,7 @@ impl Character {
     fn __repr__(&self) -> String {
         format!(
             "painterly.Character({:?}: {} layers, {} axes, {} view-dependent meshes)",
-            self.name,
+            self.source.name,
             self.inner.model.num_layers(),
             self.inner.axes().len(),
             self.inner.model.views.len()
