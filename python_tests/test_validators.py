@@ -305,6 +305,93 @@ def test_unreadable(tmp_path):
     assert "shot.usda" in found[f"{PLUGIN}:Unreadable"][0].GetMessage()
 
 
+def shot_with_a_wip_layer_and_a_payload(tmp_path):
+    """shot.usda: /Good references a good character, with wip.usda sublayered
+    over it breaking its key coordinates; /Bad is a payload of a character
+    without a proxy."""
+    good_stage(tmp_path / "good.usda").Save()
+    bad = good_stage(tmp_path / "bad.usda")
+    _missing_proxy(bad)
+    bad.Save()
+    wip = Usd.Stage.CreateNew(str(tmp_path / "wip.usda"))
+    wip.OverridePrim("/Good/Paint/Hair/high").CreateAttribute("coordinates", T.FloatArray).Set(Vt.FloatArray([1, 2]))
+    wip.Save()
+    shot = Usd.Stage.CreateNew(str(tmp_path / "shot.usda"))
+    Au.set_stage_metadata(shot, 1, 11)
+    shot.GetRootLayer().subLayerPaths.append("./wip.usda")
+    shot.DefinePrim("/Good").GetReferences().AddReference("./good.usda", "/World")
+    shot.DefinePrim("/Bad").GetPayloads().AddPayload("./bad.usda", "/World")
+    shot.Save()
+    return tmp_path / "shot.usda", wip.GetRootLayer().identifier
+
+
+def expected_problems(stage):
+    """What usd-core composes of the two breakages: (validator, prim) each."""
+    out = set()
+    coords = stage.GetPrimAtPath("/Good/Paint/Hair/high").GetAttribute("coordinates").Get()
+    if len(coords) != 1:  # one axis: one coordinate per key
+        out.add((f"{PLUGIN}:KeyCoordinates", "/Good/Paint/Hair/high"))
+    rig = stage.GetPrimAtPath("/Bad/Paint")
+    if rig and not rig.GetRelationship("painterly:proxy").GetTargets():
+        out.add((f"{PLUGIN}:MissingProxy", "/Bad/Paint"))
+    return out
+
+
+def found_problems(stage):
+    out = set()
+    for e in validate(stage):
+        site = e.GetSites()[0]
+        prim = site.GetProperty().GetPrimPath() if site.IsProperty() else site.GetPrim().GetPath()
+        out.add((e.GetValidator().GetMetadata().name, str(prim)))
+    return out
+
+
+def test_validators_judge_the_stage_as_opened_not_its_file(tmp_path):
+    """A muted layer, a population mask and load rules leave content out of
+    the stage: the validators judge what the stage composes (before, they
+    inspected the file, so muting wip.usda or unloading /Bad changed nothing)."""
+    shot, wip = shot_with_a_wip_layer_and_a_payload(tmp_path)
+    stage = Usd.Stage.Open(str(shot))
+    assert expected_problems(stage) == {(f"{PLUGIN}:KeyCoordinates", "/Good/Paint/Hair/high"), (f"{PLUGIN}:MissingProxy", "/Bad/Paint")}
+    assert found_problems(stage) == expected_problems(stage)
+    # The same stage, changed in place: what it composes changes each time.
+    stage.MuteLayer(wip)
+    assert found_problems(stage) == expected_problems(stage) == {(f"{PLUGIN}:MissingProxy", "/Bad/Paint")}
+    stage.Unload("/Bad")
+    assert found_problems(stage) == expected_problems(stage) == set()
+    stage.UnmuteLayer(wip)
+    stage.Load("/Bad")
+    assert found_problems(stage) == expected_problems(stage) and len(expected_problems(stage)) == 2
+    # Opened without payloads, or masked to /Good.
+    unloaded = Usd.Stage.Open(str(shot), load=Usd.Stage.LoadNone)
+    assert found_problems(unloaded) == expected_problems(unloaded) == {(f"{PLUGIN}:KeyCoordinates", "/Good/Paint/Hair/high")}
+    masked = Usd.Stage.OpenMasked(str(shot), Usd.StagePopulationMask(["/Good"]))
+    masked.MuteLayer(wip)
+    assert found_problems(masked) == expected_problems(masked) == set()
+
+
+def test_validators_take_the_time_range_they_are_given(tmp_path):
+    """An asset without startTimeCode/endTimeCode is unreadable for inspect
+    without frames; a validation with a finite time range gives them (before,
+    the range was ignored and the validators said "pass --frames A:B")."""
+    path = tmp_path / "asset.usda"
+    stage = good_stage(path)
+    stage.GetRootLayer().ClearStartTimeCode()
+    stage.GetRootLayer().ClearEndTimeCode()
+    stage.Save()
+    stage = Usd.Stage.Open(str(path))
+    context = UsdValidation.ValidationContext(keywords=["painterly"])
+    cli = json.loads(run_painterly("inspect", path, "--json", check=False).stdout)["problems"]
+    assert [p["rule"] for p in cli] == ["unreadable"]
+    assert [e.GetName() for e in context.Validate(stage)] == ["unreadable"]
+    cli = json.loads(run_painterly("inspect", path, "--json", "--frames", "1:2").stdout)["problems"]
+    assert cli == []
+    ranged = UsdValidation.ValidationTimeRange(Gf.Interval(1, 2))
+    assert [e.GetName() for e in context.Validate(stage, ranged)] == []
+    # The inspection is cached per stage state and range: without it, unreadable again.
+    assert [e.GetName() for e in context.Validate(stage)] == ["unreadable"]
+
+
 def test_points_samples_must_match_the_curves_and_be_finite(tmp_path):
     """Bake reads only rest points, but usdview and preview draw a `points`
     time sample: one of another length than the curves is a point-counts

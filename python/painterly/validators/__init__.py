@@ -18,7 +18,7 @@ from __future__ import annotations
 import os
 import threading
 
-from pxr import Sdf, UsdValidation
+from pxr import Sdf, Usd, UsdValidation
 
 import painterly
 
@@ -32,9 +32,14 @@ _cache: dict = {}
 
 def _fingerprint(stage):
     """What the inspection of `stage` depends on: its layers' content (text
-    for unsaved or anonymous layers, size and mtime for files) and the
-    chunk files of a clip-set bake."""
-    parts = []
+    for unsaved or anonymous layers, size and mtime for files), what the
+    stage leaves out of them (muted layers, population mask, load rules) and
+    the chunk files of a clip-set bake."""
+    parts = [
+        ("\0muted", tuple(sorted(stage.GetMutedLayers()))),
+        ("\0mask", tuple(str(p) for p in stage.GetPopulationMask().GetPaths())),
+        ("\0load", tuple((str(p), str(r)) for p, r in stage.GetLoadRules().GetRules())),
+    ]
     for layer in stage.GetUsedLayers():
         real = layer.realPath
         if layer.anonymous or layer.dirty or not real or not os.path.isfile(real):
@@ -55,7 +60,8 @@ def _fingerprint(stage):
 def _source(stage):
     """The file itself when the stage is exactly what is on disk (relative
     paths, clips and chunk checks work as in the CLI), else the flattened
-    stage, which holds every unsaved edit."""
+    stage, which holds every unsaved edit and leaves out what the stage
+    does (muted layers, prims outside its population mask, unloaded payloads)."""
     root = stage.GetRootLayer()
     session = stage.GetSessionLayer()
     clean = (
@@ -63,19 +69,32 @@ def _source(stage):
         and not root.anonymous
         and not any(layer.dirty for layer in stage.GetUsedLayers() if layer != session)
         and (session is None or session.empty)
+        and not stage.GetMutedLayers()
+        and stage.GetPopulationMask() == Usd.StagePopulationMask.All()
+        and stage.GetLoadRules() == Usd.StageLoadRules.LoadAll()
     )
     return root.realPath if clean else stage.Flatten()
 
 
-def problems(stage):
-    """The inspection of `stage`: (problems as in ``inspect --json``, None)
-    or ([], the ``painterly.Error`` that stopped it)."""
-    key = (stage.GetRootLayer().identifier, _fingerprint(stage))
+def _frames(time_range):
+    """The validation's time range as inspect's frames: (min, max) when it
+    is a finite interval (as ``--frames A:B``), else None (the stage's own)."""
+    interval = time_range.GetInterval() if time_range is not None else None
+    if interval is None or interval.IsEmpty() or not interval.IsFinite():
+        return None
+    return (interval.GetMin(), interval.GetMax())
+
+
+def problems(stage, frames=None):
+    """The inspection of `stage` (over `frames`, (start, end), when given):
+    (problems as in ``inspect --json``, None) or ([], the
+    ``painterly.Error`` that stopped it)."""
+    key = (stage.GetRootLayer().identifier, frames, _fingerprint(stage))
     with _lock:
         if key not in _cache:
             try:
                 _cache.clear()  # one stage state at a time: validators of one run share it
-                _cache[key] = (painterly.inspect(_source(stage))["problems"], None)
+                _cache[key] = (painterly.inspect(_source(stage), frames=frames)["problems"], None)
             except painterly.Error as e:
                 _cache[key] = ([], e)
         return _cache[key]
@@ -108,7 +127,7 @@ def _error(stage, name, p):
 
 def _rule_task(rule):
     def task(stage, time_range=None):
-        found, failure = problems(stage)
+        found, failure = problems(stage, _frames(time_range))
         errors = [_error(stage, rule["id"], p) for p in found if p["rule"] == rule["id"]]
         if failure is not None and rule["id"] == UNREADABLE:
             # The inspection could not even open the stage.
