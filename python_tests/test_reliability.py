@@ -466,6 +466,38 @@ def test_a_replaced_file_keeps_its_permission_bits(tmp_path, mode):
     assert (src.stat().st_mode & 0o7777, out.stat().st_mode & 0o7777) == (mode, mode)
 
 
+def test_a_write_through_a_symlink_replaces_the_file_it_names(tmp_path):
+    """`--in-place` (and a bake's -o) through a symbolic
+    link edits the file the link names and keeps the link, as usd-core's
+    `Layer.Save()` through a link does; it replaced the link by a regular
+    file beside it and left the real file unedited (found by an
+    edit-fidelity review, 2026-12-06). The edit's bytes equal the same
+    edit made on the file directly."""
+    versions = tmp_path / "versions"
+    versions.mkdir()
+    real = versions / "fish_v003.usda"
+    shutil.copy(BLOWFISH, real)
+    direct = tmp_path / "direct.usda"
+    shutil.copy(BLOWFISH, direct)
+    link = tmp_path / "fish_latest.usda"
+    link.symlink_to("versions/fish_v003.usda")
+    key = ("--layer", "/Blowfish/Paint/Hair", "--time", "5", "--sentinel", "-q")
+    for target, args in ((link, ("--in-place",)), (direct, ("--in-place",))):
+        proc = run("key", target, *key, *args)
+        assert proc.returncode == 0, proc.stderr
+    assert link.is_symlink() and os.readlink(link) == "versions/fish_v003.usda"
+    assert real.read_bytes() == direct.read_bytes() != BLOWFISH.read_bytes()
+    # A bake's output reached through a link: written through it too.
+    out_real, out_link = versions / "bake.usdc", tmp_path / "bake.usdc"
+    out_real.write_bytes(b"old")
+    out_link.symlink_to(out_real)
+    bake = run("bake", direct, "-o", out_link, "--frames", "1:2", "-q")
+    assert bake.returncode == 0, bake.stderr
+    assert out_link.is_symlink()
+    assert Usd.Stage.Open(str(out_real)).GetPrimAtPath("/Blowfish/Paint/Hair").GetAttribute("points").GetNumTimeSamples() == 2
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bake.usdc", "direct.usda", "fish_latest.usda", "versions"]
+
+
 @pytest.mark.skipif(os.geteuid() != 0 or not shutil.which("setpriv"), reason="needs root to run as another user")
 def test_a_file_the_user_may_not_write_is_not_replaced(request):
     """In a folder anyone may write, a rename could replace another user's

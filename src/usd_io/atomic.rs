@@ -274,6 +274,7 @@ impl TempFile {
     /// `target` (`tag` tells several temporaries of one target apart, e.g.
     /// `.samples`), read-write, after sweeping the folder's stale ones.
     pub fn create(target: &Path, tag: &str) -> Result<(TempFile, File)> {
+        let target = &through_links(target);
         // Fail before the work, not after it.
         check_replaceable(target)?;
         sweep_stale(dir_of(target));
@@ -303,6 +304,7 @@ impl TempFile {
     /// Renames the temporary to `target` (its file must be closed), with
     /// the permission bits of the file it replaces; on failure it is removed.
     pub fn persist(mut self, target: &Path) -> Result<()> {
+        let target = &through_links(target);
         if let Some(old) = check_replaceable(target)? {
             std::fs::set_permissions(&self.path, old.permissions()).map_err(|e| e.report().in_file(target))?;
         }
@@ -325,6 +327,18 @@ impl Drop for TempFile {
         if !self.persisted {
             discard(&self.path);
         }
+    }
+}
+
+/// The file a write to `target` replaces: through a symbolic link, the
+/// file it names (as usd-core's `Save` writes through a link and keeps
+/// it: a versioned `tube_latest.usda -> v003/tube.usda` stays a link, and
+/// the relative assets of the file stay anchored where they were).
+/// A dangling link is replaced itself.
+fn through_links(target: &Path) -> PathBuf {
+    match std::fs::symlink_metadata(target) {
+        Ok(m) if m.file_type().is_symlink() => std::fs::canonicalize(target).unwrap_or_else(|_| target.to_path_buf()),
+        _ => target.to_path_buf(),
     }
 }
 
