@@ -205,6 +205,36 @@ def test_a_change_in_an_input_value_clip_makes_its_chunks_stale(painterly, tmp_p
     compare(single, shot, src, [float(t) for t in range(0, 31)], exact=True)
 
 
+@pytest.mark.parametrize("damage", ["truncated", "empty", "text"])
+def test_a_damaged_chunk_is_stale_and_baked_again(painterly, tmp_path, repo_root, damage):
+    """A chunk file that cannot be read (a full disk, a copy cut short) is
+    stale, named with why: status lists it, a re-submit bakes it again, the
+    assembly refuses it. All three failed whole on it, naming no chunk
+    (found by a farm review, 2026-12-06)."""
+    src = repo_root / "fixtures" / "tube.usda"
+    shot = tmp_path / "shot.usda"
+    painterly("bake", src, "-o", shot, "--chunk", "5", "--quiet")
+    painterly("farm", "submit", src, "-o", shot, "--chunk", "5", "--scheduler", "openjd", "--quiet")
+    chunk = tmp_path / "shot.clips" / "shot.0001.6-10.usdc"
+    data = chunk.read_bytes()
+    chunk.write_bytes({"truncated": data[: len(data) // 2], "empty": b"", "text": b"not usd"}[damage])
+    status = painterly("farm", "status", shot, "--json", check=False)
+    assert status.returncode == 1, status.stderr
+    states = {c["name"]: (c["state"], c["detail"]) for c in json.loads(status.stdout)["chunks"]}
+    assert states["shot.0001.6-10.usdc"][0] == "stale" and "unreadable" in states["shot.0001.6-10.usdc"][1]
+    assert [st for name, (st, _) in states.items() if name != "shot.0001.6-10.usdc"] == ["done"] * 4
+    proc = painterly("bake", src, "-o", shot, "--chunk", "5", "--assemble", check=False)
+    assert proc.returncode == 1 and "1 stale: shot.0001.6-10.usdc (unreadable: " in proc.stderr
+    sub = json.loads(painterly("farm", "submit", src, "-o", shot, "--chunk", "5", "--scheduler", "openjd",
+                               "--json").stdout)
+    assert (sub["submitted"], sub["skipped"]) == ([1], [0, 2, 3, 4])
+    painterly("bake", src, "-o", shot, "--chunk", "5", "--chunk-index", "1", "--quiet")
+    painterly("bake", src, "-o", shot, "--chunk", "5", "--assemble", "--quiet")
+    single = tmp_path / "single.usdc"
+    painterly("bake", src, "-o", single, "--quiet")
+    compare(single, shot, src, [float(t) for t in range(1, 25)], exact=True)
+
+
 @pytest.mark.parametrize(
     "args,code,message",
     [

@@ -299,12 +299,23 @@ fn declare_attrs(
     Ok(())
 }
 
-/// A chunk layer's provenance; None when the file does not exist.
-fn read_stamp(path: &Path) -> Result<Option<Provenance>> {
+/// A chunk layer's stamp: its provenance, or why it cannot be read.
+enum Stamp {
+    Missing,
+    /// Truncated, not USD, ...: stale, so that a re-submit bakes it again.
+    Unreadable(String),
+    Read(Provenance),
+}
+
+/// A chunk layer's stamp.
+fn read_stamp(path: &Path) -> Stamp {
     if !path.is_file() {
-        return Ok(None);
+        return Stamp::Missing;
     }
-    Ok(Some(read_provenance(path)?.unwrap_or_default()))
+    match read_provenance(path) {
+        Ok(p) => Stamp::Read(p.unwrap_or_default()),
+        Err(e) => Stamp::Unreadable(format!("unreadable: {}", e.message)),
+    }
 }
 
 /// SHA-256 over every layer file the stage used (sorted by path: name, then
@@ -532,8 +543,10 @@ pub fn chunk_states(plan: &ClipPlan, hash: &str, options: Option<&str>, times: &
     plan.chunks
         .iter()
         .map(|c| {
-            let Some(stamp) = read_stamp(&plan.chunk_path(c))? else {
-                return Ok(ChunkState::Missing);
+            let stamp = match read_stamp(&plan.chunk_path(c)) {
+                Stamp::Missing => return Ok(ChunkState::Missing),
+                Stamp::Unreadable(why) => return Ok(ChunkState::Stale(why)),
+                Stamp::Read(p) => p,
             };
             let frames = format!("{}:{}:{}", times[c.start], times[c.end - 1], step);
             Ok(if stamp.input_hash.as_deref() != Some(hash) {
@@ -582,18 +595,19 @@ pub fn clip_set_status(path: &Path) -> Result<Option<ClipSetStatus>> {
     let dir = path.with_file_name(format!("{stem}.clips"));
     let mut chunks = Vec::with_capacity(names.len());
     for name in names {
-        let state = match read_stamp(&dir.join(name))? {
-            None => ChunkState::Missing,
-            Some(stamp) if stamp.input_hash != clip_set.input_hash => {
+        let state = match read_stamp(&dir.join(name)) {
+            Stamp::Missing => ChunkState::Missing,
+            Stamp::Unreadable(why) => ChunkState::Stale(why),
+            Stamp::Read(stamp) if stamp.input_hash != clip_set.input_hash => {
                 ChunkState::Stale("baked from a different input".into())
             }
-            Some(stamp) if stamp.version != clip_set.version => {
+            Stamp::Read(stamp) if stamp.version != clip_set.version => {
                 ChunkState::Stale(format!("baked by painterly {}", stamp.version))
             }
-            Some(stamp) if stamp.options != clip_set.options => {
+            Stamp::Read(stamp) if stamp.options != clip_set.options => {
                 ChunkState::Stale(options_differ(stamp.options.as_deref(), clip_set.options.as_deref()))
             }
-            Some(_) => ChunkState::Done,
+            Stamp::Read(_) => ChunkState::Done,
         };
         chunks.push((name.clone(), state));
     }
