@@ -235,6 +235,31 @@ def test_a_damaged_chunk_is_stale_and_baked_again(painterly, tmp_path, repo_root
     compare(single, shot, src, [float(t) for t in range(1, 25)], exact=True)
 
 
+def test_a_failed_rebake_leaves_the_published_clip_set_whole(painterly, tmp_path, repo_root):
+    """A chunked re-bake writes every chunk under a temporary name and puts
+    them in place only once all are written: one that fails part way (here
+    at frame 20, where the new input's opacity is not finite) leaves the
+    published clip set and its chunks byte for byte as they were, and no
+    temporary. It replaced the chunks it had finished, so the published
+    shot mixed two inputs (found by a farm review, 2026-12-06)."""
+    src = tmp_path / "tube.usda"
+    text = (repo_root / "fixtures" / "tube.usda").read_text()
+    src.write_text(text)
+    shot = tmp_path / "shot.usda"
+    painterly("bake", src, "-o", shot, "--chunk", "5", "--quiet")
+    published = {p: p.read_bytes() for p in sorted(tmp_path.rglob("*")) if p.is_file() and p != src}
+    v2 = text.replace("float painterly:opacity = 0.8",
+                      "float painterly:opacity.timeSamples = {1: 0.5, 19: 0.5, 20: nan}", 1)
+    assert v2 != text
+    src.write_text(v2)
+    proc = painterly("bake", src, "-o", shot, "--chunk", "5", check=False)
+    assert proc.returncode == 1 and "not finite" in proc.stderr, proc.stderr
+    after = {p: p.read_bytes() for p in sorted(tmp_path.rglob("*")) if p.is_file() and p != src}
+    assert sorted(after) == sorted(published)
+    # Only the binding cache is new: it is stamped with the input it binds.
+    assert [p.name for p in published if after[p] != published[p]] == ["shot.binding.usdc"]
+
+
 @pytest.mark.parametrize(
     "args,code,message",
     [

@@ -371,7 +371,27 @@ fn check_sample(attr: &BakeAttr, s: &Sample) -> Result<()> {
 /// Streams `.usdc`: each sample goes into a temporary crate file as it
 /// arrives and only its handle is kept; `finish` adds the specs and tables,
 /// then renames the file into place.
-struct UsdcSink {
+/// A written layer waiting under its temporary name: [`Staged::commit`]
+/// renames it into place; dropped, it is removed. A chunked bake stages
+/// every chunk and commits them only once all are written, so a stopped
+/// re-bake leaves the clip set already published as it was.
+pub struct Staged {
+    tmp: TempFile,
+    path: PathBuf,
+}
+
+impl Staged {
+    pub fn commit(self) -> Result<()> {
+        self.tmp.persist(&self.path)
+    }
+}
+
+/// A `.usdc` bake sink whose layer can be staged ([`UsdcSink::finish_staged`]).
+pub fn create_usdc(path: &Path, layout: BakeLayout) -> Result<UsdcSink> {
+    UsdcSink::new(path, layout)
+}
+
+pub struct UsdcSink {
     path: PathBuf,
     /// Registered with [`super::atomic`]: removed on failure and on signals.
     tmp: Option<TempFile>,
@@ -428,7 +448,14 @@ impl FrameSink for UsdcSink {
         Ok(())
     }
 
-    fn finish(mut self: Box<Self>) -> Result<()> {
+    fn finish(self: Box<Self>) -> Result<()> {
+        self.finish_staged()?.commit()
+    }
+}
+
+impl UsdcSink {
+    /// Writes the layer under its temporary name, not yet in place.
+    pub fn finish_staged(mut self: Box<Self>) -> Result<Staged> {
         let path = self.path.clone();
         let mut stream = self
             .stream
@@ -475,11 +502,12 @@ impl FrameSink for UsdcSink {
             .into_inner()
             .map_err(|e| io(e.into_error()))?;
         drop(file);
-        // A bake that fails (or is dropped) before this leaves no file.
-        self.tmp
+        // A bake that fails (or is dropped) before the commit leaves no file.
+        let tmp = self
+            .tmp
             .take()
-            .ok_or_else(|| Error::msg("internal: bake already finished"))?
-            .persist(&path)
+            .ok_or_else(|| Error::msg("internal: bake already finished"))?;
+        Ok(Staged { tmp, path })
     }
 }
 

@@ -23,9 +23,10 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use super::bake_layer::{
-    self, quoted, read_provenance, usda_header, BakeLayout, FrameSink, PrimTree, Provenance, Sample, UsdaNumber,
+    self, quoted, read_provenance, usda_header, BakeLayout, FrameSink, PrimTree, Provenance, Sample, Staged,
+    UsdaNumber, UsdcSink,
 };
-use super::layer::write_atomic_with;
+use super::layer::{write_atomic_with, Format};
 use super::stage::StageReader;
 use crate::error::{Error, Result};
 
@@ -126,12 +127,16 @@ impl ClipPlan {
     }
 }
 
-/// Writes chunk after chunk as frames arrive, then the clip set.
+/// Writes chunk after chunk as frames arrive, each staged under its
+/// temporary name; once the last is written, puts every chunk in place,
+/// then writes the clip set. A re-bake stopped before its end (a signal, an
+/// error) so leaves the clip set already published whole.
 pub struct ChunkedSink {
     plan: ClipPlan,
     layout: BakeLayout,
     times: Vec<f64>,
-    current: Option<Box<dyn FrameSink>>,
+    current: Option<Box<UsdcSink>>,
+    staged: Vec<Staged>,
     written: usize,
 }
 
@@ -143,6 +148,7 @@ impl ChunkedSink {
             layout,
             times: times.to_vec(),
             current: None,
+            staged: Vec::new(),
             written: 0,
         })
     }
@@ -163,11 +169,15 @@ impl FrameSink for ChunkedSink {
         let chunk = &self.plan.chunks[i / self.plan.chunk_size];
         if i == chunk.start {
             if let Some(done) = self.current.take() {
-                done.finish()?;
+                self.staged.push(done.finish_staged()?);
             }
             let step = frame_step(&self.times);
             let layout = chunk_layout(&self.layout, &self.plan, chunk, &self.times, step);
-            self.current = Some(bake_layer::create(&self.plan.chunk_path(chunk), layout)?);
+            let path = self.plan.chunk_path(chunk);
+            if Format::from_path(&path)? != Format::Usdc {
+                return Err(Error::msg("internal: chunk layers are .usdc").in_file(&path));
+            }
+            self.current = Some(Box::new(bake_layer::create_usdc(&path, layout)?));
         }
         self.written += 1;
         match &mut self.current {
@@ -178,7 +188,10 @@ impl FrameSink for ChunkedSink {
 
     fn finish(mut self: Box<Self>) -> Result<()> {
         if let Some(done) = self.current.take() {
-            done.finish()?;
+            self.staged.push(done.finish_staged()?);
+        }
+        for chunk in std::mem::take(&mut self.staged) {
+            chunk.commit()?;
         }
         write_clip_set(&self.plan, &self.layout, &self.times)
     }
