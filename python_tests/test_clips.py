@@ -264,7 +264,11 @@ def test_a_failed_rebake_leaves_the_published_clip_set_whole(painterly, tmp_path
     "args,code,message",
     [
         (["--chunk", "0"], 2, "not a whole number of at least 1"),
-        (["--chunk", "5", "--chunk-index", "9"], 1, "--chunk-index 9 is out of range"),
+        (["--chunk", "5", "--chunk-index", "9"], 1,
+         "--chunk-index 9 is out of range: 24 frames in chunks of 5 make 5 chunks, numbered 0 to 4"),
+        (["--chunk", "24", "--chunk-index", "1"], 1,
+         "--chunk-index 1 is out of range: 24 frames in chunks of 24 make 1 chunk, numbered 0 to 0"),
+        (["--chunk", "99999999999999999999"], 2, '"99999999999999999999" is too large (at most 18446744073709551615)'),
         (["--chunk-index", "1"], 2, "--chunk"),
         (["--assemble"], 2, "--chunk"),
     ],

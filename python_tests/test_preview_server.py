@@ -472,7 +472,7 @@ def test_a_render_of_the_bake_draws_the_bake_even_when_stale(tmp_path):
         messages = [p["message"] for p in s.scene()["problems"]]
         assert messages == [
             f"{path} changed since this bake was made (its layers differ from the bake's inputStamp): "
-            f"strokes show the old bake; bake again (painterly bake {path} -o {bake})"
+            f"strokes show the old bake; bake again (painterly bake {path} -o {bake} --frames 1:48:1)"
         ]
         baked = render_rgba(s, {**frame, "bake": True}, cam, 96, 64)
         live = render_rgba(s, frame, cam, 96, 64)

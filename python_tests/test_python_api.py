@@ -212,7 +212,7 @@ def test_a_bake_of_unsaved_edits_says_so_when_shown(tmp_path):
     assert view(clean) == []
     assert view(dirty) == [
         f"{dirty} was baked from unsaved edits of {src} (a layer edited in memory), not from the file: "
-        f"strokes may not match it; save the layer and bake again (painterly bake {src} -o {dirty})"
+        f"strokes may not match it; save the layer and bake again (painterly bake {src} -o {dirty} --frames 1:4:1)"
     ]
     stamp = Sdf.Layer.FindOrOpen(str(dirty)).customLayerData["painterly"]["inputStamp"]
     assert stamp.startswith("unsaved:")

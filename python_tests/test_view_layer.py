@@ -109,7 +109,8 @@ def test_a_stale_bake_is_shown_with_a_warning(painterly, tmp_path, repo_root, ch
     body.Save()
     warning = (
         f"{src} changed since this bake was made (its layers differ from the bake's {field}): "
-        f"strokes show the old bake; bake again (painterly bake {src} -o {bake})"
+        f"strokes show the old bake; bake again (painterly bake {src} -o {bake} --frames {recorded['frames']}"
+        + (f" --chunk {chunk})" if chunk else ")")
     )
     proc = painterly(*args)
     assert json.loads(proc.stdout)["warnings"] == [warning]

@@ -308,10 +308,10 @@ fn bake_character(
                 (Some(k), _) => {
                     let chunk = plan.chunks.get(k).ok_or_else(|| {
                         Error::msg(format!(
-                            "--chunk-index {k} is out of range: {} frames in chunks of {size} make {} chunks (0..{})",
-                            times.len(),
-                            plan.chunks.len(),
-                            plan.chunks.len()
+                            "--chunk-index {k} is out of range: {} in chunks of {size} make {}, numbered 0 to {}",
+                            crate::words::plural(times.len(), "frame"),
+                            crate::words::plural(plan.chunks.len(), "chunk"),
+                            plan.chunks.len() - 1
                         ))
                     })?;
                     plan.create_dir()?;

@@ -127,6 +127,9 @@ impl FrameRange {
 pub fn positive_count(s: &str) -> std::result::Result<usize, String> {
     match s.parse::<usize>() {
         Ok(n) if n >= 1 => Ok(n),
+        Err(e) if *e.kind() == std::num::IntErrorKind::PosOverflow => {
+            Err(format!("{s:?} is too large (at most {})", usize::MAX))
+        }
         _ => Err(format!("{s:?} is not a whole number of at least 1")),
     }
 }

@@ -141,11 +141,10 @@ pub fn check_baked_from(
         .is_some_and(|s| s.starts_with(super::clips::UNSAVED_STAMP))
     {
         warnings.push(format!(
-            "{} was baked from unsaved edits of {} (a layer edited in memory), not from the file: strokes may not match it; save the layer and bake again (painterly bake {} -o {})",
+            "{} was baked from unsaved edits of {} (a layer edited in memory), not from the file: strokes may not match it; save the layer and bake again ({})",
             bake.display(),
             input.display(),
-            input.display(),
-            bake.display()
+            rebake_command(input, bake, &p)
         ));
         return Ok(Some(p));
     }
@@ -161,13 +160,29 @@ pub fn check_baked_from(
     };
     if let Some((field, true)) = changed {
         warnings.push(format!(
-            "{} changed since this bake was made (its layers differ from the bake's {field}): strokes show the old bake; bake again (painterly bake {} -o {})",
+            "{} changed since this bake was made (its layers differ from the bake's {field}): strokes show the old bake; bake again ({})",
             input.display(),
-            input.display(),
-            bake.display()
+            rebake_command(input, bake, &p)
         ));
     }
     Ok(Some(p))
+}
+
+/// The command that bakes `bake` again as it was made: its frames, its
+/// chunks (a clip set re-baked without `--chunk` would become one file) and
+/// its options.
+fn rebake_command(input: &Path, bake: &Path, p: &Provenance) -> String {
+    let mut cmd = format!("painterly bake {} -o {}", input.display(), bake.display());
+    if !p.frames.is_empty() {
+        let _ = write!(cmd, " --frames {}", p.frames);
+    }
+    if let Some((size, _)) = &p.chunks {
+        let _ = write!(cmd, " --chunk {size}");
+    }
+    if let Some(o) = &p.options {
+        let _ = write!(cmd, " {o}");
+    }
+    cmd
 }
 
 /// Opens one layer (not what it sublayers) over a read-only memory mapping
