@@ -58,7 +58,7 @@ def test_fractional_steps_and_uneven_last_chunk(painterly, tmp_path, repo_root):
         "shot.0004.14-14.usdc",
     ]
     assert sorted(p.name for p in (tmp_path / "shot.clips").iterdir()) == sorted(
-        names + ["shot.manifest.usda", "shot.binding.usdc"]
+        names + ["shot.manifest.usda", "shot.binding.usdc", "shot.lock"]
     )
     times = [10 + 0.25 * k for k in range(17)]
     compare(single, shot, src, times, exact=True)
@@ -258,6 +258,33 @@ def test_a_failed_rebake_leaves_the_published_clip_set_whole(painterly, tmp_path
     assert sorted(after) == sorted(published)
     # Only the binding cache is new: it is stamped with the input it binds.
     assert [p.name for p in published if after[p] != published[p]] == ["shot.binding.usdc"]
+
+
+def test_one_process_at_a_time_writes_a_shot_and_tasks_share_it(painterly, tmp_path, repo_root):
+    """A whole chunked bake and an assembly take the clips folder's lock
+    alone, chunk tasks together (flock on shot.clips/shot.lock): two local
+    bakes into one output mixed their inputs' chunks under one clip set
+    with exit 0 (found by a farm review, 2026-12-06). The lock is held here
+    by this test, as another process would."""
+    import fcntl
+
+    src = repo_root / "fixtures" / "tube.usda"
+    shot = tmp_path / "shot.usda"
+    painterly("bake", src, "-o", shot, "--chunk", "5", "--quiet")
+    before = {p: p.read_bytes() for p in sorted(tmp_path.rglob("*")) if p.is_file()}
+    busy = f"error: {tmp_path / 'shot.clips'}: another painterly process is writing this shot's chunks or clip set"
+    with open(tmp_path / "shot.clips" / "shot.lock", "a") as held:
+        fcntl.flock(held, fcntl.LOCK_SH)  # a running chunk task
+        for args in (("--chunk", "5"), ("--chunk", "5", "--assemble")):
+            proc = painterly("bake", src, "-o", shot, *args, check=False)
+            assert proc.returncode == 1 and proc.stderr.startswith(busy), proc.stderr
+        painterly("bake", src, "-o", shot, "--chunk", "5", "--chunk-index", "2", "--quiet")
+        fcntl.flock(held, fcntl.LOCK_EX)  # a running whole bake
+        proc = painterly("bake", src, "-o", shot, "--chunk", "5", "--chunk-index", "2", check=False)
+        assert proc.returncode == 1 and proc.stderr.startswith(busy), proc.stderr
+    after = {p: p.read_bytes() for p in sorted(tmp_path.rglob("*")) if p.is_file()}
+    assert after == before  # the task's chunk 2 is the same bake again
+    painterly("bake", src, "-o", shot, "--chunk", "5", "--assemble", "--quiet")
 
 
 @pytest.mark.parametrize(

@@ -315,6 +315,7 @@ fn bake_character(
                         ))
                     })?;
                     plan.create_dir()?;
+                    let _lock = clips::lock_clips(&plan, false)?;
                     leave_binding_cache(ch, output);
                     let path = plan.chunk_path(chunk);
                     let chunk_layout = clips::chunk_layout(&layout, &plan, chunk, &times, clips::frame_step(&times));
@@ -330,6 +331,8 @@ fn bake_character(
                     (frames.len(), vec![path])
                 }
                 (None, true) => {
+                    // No folder, no chunks: the check below says so.
+                    let _lock = plan.dir.is_dir().then(|| clips::lock_clips(&plan, true)).transpose()?;
                     let hash = layout.provenance.input_hash.clone().unwrap_or_default();
                     clips::check_chunks(&plan, &hash, layout.provenance.options.as_deref(), &times)?;
                     clips::write_clip_set(&plan, &layout, &times)?;
@@ -337,6 +340,7 @@ fn bake_character(
                 }
                 (None, false) => {
                     let sink = Box::new(ChunkedSink::new(plan.clone(), layout, &times)?);
+                    let _lock = clips::lock_clips(&plan, true)?;
                     leave_binding_cache(ch, output);
                     stream(ch, &times, opts.bake_proxy, sink, progress, opts.cancel.as_deref())?;
                     (times.len(), plan.chunks.iter().map(|c| plan.chunk_path(c)).collect())

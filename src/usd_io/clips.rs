@@ -127,6 +127,45 @@ impl ClipPlan {
     }
 }
 
+/// An advisory lock on a shot's clips folder, held while a process writes
+/// there (`flock` on `<stem>.clips/<stem>.lock`): a whole chunked bake and
+/// an assembly hold it alone, farm tasks (one chunk each) together. Two
+/// local bakes into one output mixed their inputs' chunks under one clip
+/// set. `flock` is per machine: tasks on several nodes are kept apart by
+/// the farm (one task per chunk) and checked by the assembly.
+pub struct ClipsLock {
+    _file: std::fs::File,
+}
+
+/// Takes the lock of `plan`'s clips folder (which must exist) without
+/// waiting: `exclusive` for a whole bake or an assembly, shared for one
+/// chunk's task; fails naming the folder when another holds it.
+pub fn lock_clips(plan: &ClipPlan, exclusive: bool) -> Result<ClipsLock> {
+    use std::os::fd::AsRawFd;
+    let stem = plan.output.file_stem().unwrap_or_default().to_string_lossy();
+    let path = plan.dir.join(format!("{stem}.lock"));
+    let file = std::fs::OpenOptions::new()
+        .create(true)
+        .truncate(false)
+        .write(true)
+        .open(&path)
+        .map_err(|e| Error::msg(format!("cannot open the clips folder's lock: {e}")).in_file(&path))?;
+    let how = if exclusive { libc::LOCK_EX } else { libc::LOCK_SH };
+    // SAFETY: flock on a file descriptor this function owns.
+    if unsafe { libc::flock(file.as_raw_fd(), how | libc::LOCK_NB) } != 0 {
+        let e = std::io::Error::last_os_error();
+        return Err(if e.kind() == std::io::ErrorKind::WouldBlock {
+            Error::msg(
+                "another painterly process is writing this shot's chunks or clip set: wait for it to end (or stop it), then run again",
+            )
+        } else {
+            Error::msg(format!("cannot lock the clips folder: {e}"))
+        }
+        .in_file(&plan.dir));
+    }
+    Ok(ClipsLock { _file: file })
+}
+
 /// Writes chunk after chunk as frames arrive, each staged under its
 /// temporary name; once the last is written, puts every chunk in place,
 /// then writes the clip set. A re-bake stopped before its end (a signal, an
