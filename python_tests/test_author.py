@@ -1025,3 +1025,96 @@ def test_in_place(painterly, tmp_path):
     for key in ("startTimeCode", "endTimeCode", "timeCodesPerSecond", "upAxis", "metersPerUnit", "defaultPrim"):
         assert st.GetRootLayer().pseudoRoot.GetInfo(key) == orig.GetRootLayer().pseudoRoot.GetInfo(key), key
     open_quietly(rig.path)
+
+
+# ---------------------------------------------------------------------------
+# (e) in-place edits of usda text keep what usd-core wrote
+
+
+from test_usdc_fidelity import contents, differences  # noqa: E402
+
+TUBE = pathlib.Path(__file__).parent.parent / "fixtures" / "tube.usda"
+RINGS = "/Tube/Paint/Rings"
+
+
+def tube_copy(make=None):
+    """fixtures/tube.usda as usd-core writes it, after `make(layer)`."""
+    layer = Sdf.Layer.CreateAnonymous(".usda")
+    layer.TransferContent(Sdf.Layer.OpenAsAnonymous(str(TUBE)))
+    if make:
+        make(layer)
+    return layer
+
+
+def test_in_place_bind_keeps_a_connection_usd_core_wrote_without_a_declaration(painterly, tmp_path):
+    """usd-core writes a connection-only attribute as one `name.connect` statement.
+    Adding properties to its prim (bind) splices them after it; openusd 0.8
+    lists such a property after all declared ones, which made the check refuse.
+    The result is what usd-core makes of the same edit: the original properties
+    in their order, then the new ones, nothing else changed."""
+    def connect(layer):
+        a = Sdf.AttributeSpec(layer.GetPrimAtPath(RINGS), "inputs:c", T.Float)
+        a.connectionPathList.explicitItems = ["/Tube.outputs:out"]
+
+    inp = tmp_path / "t.usda"
+    tube_copy(connect).Export(str(inp))
+    text = inp.read_text()
+    assert "float inputs:c.connect = </Tube.outputs:out>" in text and "float inputs:c\n" not in text, "test setup"
+    original = Sdf.Layer.OpenAsAnonymous(str(inp))
+
+    p = painterly("bind", inp, "--layer", RINGS, "--in-place", "--quiet", check=False)
+    assert (p.returncode, p.stderr) == (0, ""), p.stderr
+    edited = Sdf.Layer.OpenAsAnonymous(str(inp))
+
+    # usd-core's own edit: set the bind's values (painterly's numbers, which
+    # test_in_place checks) on a copy of the original; new attributes append.
+    expected = Sdf.Layer.CreateAnonymous(".usda")
+    expected.TransferContent(original)
+    prim = expected.GetPrimAtPath(RINGS)
+    added = [n for n in edited.GetPrimAtPath(RINGS).properties.keys()
+             if n not in original.GetPrimAtPath(RINGS).properties.keys()]
+    assert added == ["painterly:bindVertices", "painterly:bindWeights"], added
+    for name in ("painterly:restPoints", *added):
+        src = edited.GetAttributeAtPath(f"{RINGS}.{name}")
+        a = prim.properties.get(name) or Sdf.AttributeSpec(prim, name, src.typeName, Sdf.VariabilityUniform)
+        a.default = src.default
+    assert differences(contents(expected), contents(edited)) == []
+    assert list(edited.GetPrimAtPath(RINGS).properties.keys()) == list(prim.properties.keys())
+    assert edited.GetAttributeAtPath(f"{RINGS}.inputs:c").connectionPathList.explicitItems == \
+        [Sdf.Path("/Tube.outputs:out")]
+    # Everything before the edit is still byte for byte in the text.
+    assert text.split("inputs:c.connect")[0] in inp.read_text()
+    assert open_quietly(inp) > 0
+
+
+def test_key_replace_keeps_the_key_prims_metadata_properties_and_children_in_usda(painterly, tmp_path):
+    """`key --replace` of a key prim with prim metadata re-types its header and
+    sets its attributes; the metadata, other properties and children stay, as
+    they do for the same file as .usdc (the .usda edit was refused)."""
+    inp = tmp_path / "t.usda"
+    tube_copy().Export(str(inp))
+    painterly("key", inp, "--layer", RINGS, "--time", 12, "--name", "k", "--in-place", "--quiet")
+    layer = Sdf.Layer.FindOrOpen(str(inp))
+    layer.Reload(force=True)
+    k = layer.GetPrimAtPath(f"{RINGS}/k")
+    k.documentation = "approved by lead"
+    k.customData = {"reviewed": True}
+    Sdf.AttributeSpec(k, "note", T.String).default = "keep"
+    Sdf.CreatePrimInLayer(layer, f"{RINGS}/k/Child").specifier = Sdf.SpecifierDef
+    assert layer.Save()
+    crate = tmp_path / "t.usdc"
+    layer.Export(str(crate))
+    for f in (inp, crate):
+        # (usd-core writes a usda prim's properties sorted, a crate's in order)
+        original = contents(Sdf.Layer.OpenAsAnonymous(str(f)))
+        p = painterly("key", f, "--layer", RINGS, "--time", 12, "--name", "k", "--opacity", 0.25, "--replace",
+                      "--in-place", "--quiet", check=False)
+        assert (p.returncode, p.stderr) == (0, ""), f"{f.suffix}: {p.stderr}"
+        edited = contents(Sdf.Layer.OpenAsAnonymous(str(f)))
+        # Only the key's new opacity, which usd-core appends to its properties.
+        assert differences(original, edited) == [(f"{RINGS}/k", "<properties>"), (f"{RINGS}/k.opacity", "<spec>")]
+        assert edited[f"{RINGS}/k"][1]["<properties>"] == [*original[f"{RINGS}/k"][1]["<properties>"], "opacity"]
+        assert edited[f"{RINGS}/k.opacity"][1]["default"] == 0.25
+        spec = edited[f"{RINGS}/k"][1]
+        assert spec["documentation"] == "approved by lead" and dict(spec["customData"]) == {"reviewed": True}
+        assert spec["<children>"] == ["Child"] and "note" in spec["<properties>"]

@@ -22,7 +22,7 @@ import shutil
 
 import numpy as np
 import pytest
-from pxr import Gf, Sdf, Usd, Vt
+from pxr import Gf, Sdf, Ts, Usd, Vt
 
 import authoring as Au
 import crate_reps
@@ -382,29 +382,111 @@ def test_in_place_plain_usdc_stays_0_8(painterly, tmp_path):
     assert on_disk(rig.path) == held
 
 
-# Values usd-core writes that openusd 0.8's crate reader gets wrong, so an
-# --in-place edit cannot keep them (painterly's writer is not involved).
-OPENUSD_READER_BUGS = {
-    # usd-core inlines small int64s; openusd zero-extends the 32-bit payload.
-    "negative int64": (T.Int64, -5),
-    # usd-core stores an empty string[] as payload 0; openusd reads it as an offset.
-    "empty string[]": (T.StringArray, Vt.StringArray()),
+# Valid usd-core values that openusd 0.8's crate reader cannot read (an error)
+# or reads wrong (silently): an --in-place edit takes them from the file's
+# bytes (src/usd_io/usdc/recover.rs) and must keep each one as usd-core wrote it.
+def _spline(custom_data=None):
+    s = Ts.Spline()
+    for t, v in ((1.0, 0.0), (4.0, 2.5)):
+        k = Ts.Knot()
+        k.SetTime(t)
+        k.SetValue(v)
+        if custom_data:
+            k.SetCustomData(custom_data)
+        s.SetKnot(k)
+    return s
+
+
+def _int64s(n, seed, lo=-2**62, hi=2**62):
+    return [int(x) for x in np.random.default_rng(seed).integers(lo, hi, n, dtype=np.int64)]
+
+
+def _attr(prim, type_name, default=None, **info):
+    a = Sdf.AttributeSpec(prim, "v", type_name)
+    if default is not None:
+        a.default = default  # cast to type_name (SetInfo would keep a Python int an int)
+    for key, value in info.items():
+        a.SetInfo(key, value)
+    return a
+
+
+def _samples(prim, type_name, values):
+    a = Sdf.AttributeSpec(prim, "v", type_name)
+    for t, v in enumerate(values):
+        prim.layer.SetTimeSample(a.path, float(t + 1), v)
+
+
+OPENUSD_READER_GAPS = {
+    # Stored as payload 0, which openusd reads as a file offset.
+    "empty string[]": lambda x: _attr(x, T.StringArray, default=Vt.StringArray()),
+    "empty asset[]": lambda x: _attr(x, T.AssetArray, default=Sdf.AssetPathArray()),
+    # 64-bit differences: openusd's decompression buffer is sized for 32-bit ones.
+    "int64[] (1040 random)": lambda x: _attr(x, T.Int64Array, default=Vt.Int64Array(_int64s(1040, 1))),
+    "uint64[] (20 random)": lambda x: _attr(x, T.UInt64Array, default=Vt.UInt64Array(
+        [v + 2**62 for v in _int64s(20, 2)])),
+    # Inlined as 32 bits; openusd zero-extends them (no error).
+    "negative int64": lambda x: _attr(x, T.Int64, default=-5),
+    # Types openusd does not know: copied as the file holds them.
+    "animation block": lambda x: _attr(x, T.Double, default=Sdf.AnimationBlock()),
+    "spline": lambda x: _attr(x, T.Double, spline=_spline()),
+    # The same inside time samples and dictionaries.
+    "int64[] and int64 time samples": lambda x: _samples(x, T.Int64Array, [
+        Vt.Int64Array(_int64s(300, 3)), Vt.Int64Array(), Vt.Int64Array([-7])]),
+    "negative int64 time samples": lambda x: _samples(x, T.Int64, [-1, 5, -(2**31)]),
+    "customData": lambda x: _attr(x, T.Float, default=1.5, customData={
+        "empty": Vt.StringArray(), "big": Vt.Int64Array(_int64s(64, 4)), "neg": Vt.Int64Array([-3]),
+        "nested": {"n": Vt.Int64(-9), "assets": Sdf.AssetPathArray()}}),
 }
 
 
-@pytest.mark.xfail(strict=True, reason="openusd 0.8 crate reader bugs (see OPENUSD_READER_BUGS)")
-@pytest.mark.parametrize("case", sorted(OPENUSD_READER_BUGS))
-def test_in_place_keeps_values_openusd_misreads(painterly, tmp_path, case):
-    type_name, value = OPENUSD_READER_BUGS[case]
-    rig = skel_rig(tmp_path, name="bug.usda")
-    src = Sdf.Layer.FindOrOpen(str(rig.path))
-    x = Sdf.CreatePrimInLayer(src, "/Bug")
+def _gap_file(tmp_path, make, name="gap.usdc"):
+    """fixtures/tube.usda with /Tube/Extra holding one value, as a usd-core crate file."""
+    src = Sdf.Layer.OpenAsAnonymous(str(pathlib.Path(__file__).parent.parent / "fixtures" / "tube.usda"))
+    layer = Sdf.Layer.CreateAnonymous(".usda")
+    layer.TransferContent(src)
+    x = Sdf.CreatePrimInLayer(layer, "/Tube/Extra")
     x.specifier = Sdf.SpecifierDef
-    Sdf.AttributeSpec(x, "v", type_name).default = value
-    inp = tmp_path / "bug.usdc"
-    src.Export(str(inp))
-    painterly("bind", inp, "--in-place", "--quiet")
-    assert Sdf.Layer.OpenAsAnonymous(str(inp)).GetAttributeAtPath("/Bug.v").default == value
+    make(x)
+    inp = tmp_path / name
+    layer.Export(str(inp))
+    return inp
+
+
+@pytest.mark.parametrize("case", sorted(OPENUSD_READER_GAPS))
+def test_in_place_keeps_values_openusds_reader_cannot_read(painterly, tmp_path, case):
+    inp = _gap_file(tmp_path, OPENUSD_READER_GAPS[case])
+    version = crate_version(inp)
+    original = contents(Sdf.Layer.OpenAsAnonymous(str(inp)))
+    assert "/Tube/Extra.v" in original, "test setup"
+
+    painterly("key", inp, "--layer", "/Tube/Paint/Rings", "--time", 3, "--sentinel", "--in-place", "--quiet")
+    edited = contents(Sdf.Layer.OpenAsAnonymous(str(inp)))
+    key = "/Tube/Paint/Rings/sentinel1"
+    # The edit as usd-core reads it: a sentinel key at time 3.
+    assert edited[key][1]["typeName"] == "PainterlyTimeKey"
+    assert edited[f"{key}.time"][1]["default"] == 3.0
+    assert edited[f"{key}.sentinel"][1]["default"] is True
+    # Everything else, spec by spec and field by field, as usd-core wrote it.
+    unexpected = [d for d in differences(original, edited)
+                  if not d[0].startswith(key) and d != ("/Tube/Paint/Rings", "<children>")]
+    assert not unexpected, f"--in-place changed more than the key: {unexpected}"
+    assert crate_version(inp) == version, "not the version usd-core gave the content"
+    # usd-core edits and saves it in place, and reads back what it held.
+    held = usd_core_touch(inp)
+    assert on_disk(inp) == held
+
+
+def test_in_place_refuses_a_spline_with_knot_custom_data(painterly, tmp_path):
+    """Knot custom data refers to the file's string table: not copied, refused
+    naming the file, the attribute, the field and why; the file is unchanged."""
+    inp = _gap_file(tmp_path, lambda x: _attr(x, T.Double, spline=_spline({"note": "keep me"})))
+    before = inp.read_bytes()
+    p = painterly("key", inp, "--layer", "/Tube/Paint/Rings", "--time", 3, "--sentinel", "--in-place",
+                  check=False)
+    assert p.returncode == 1, p.stderr
+    assert str(inp) in p.stderr and "/Tube/Extra.v" in p.stderr and "`spline`" in p.stderr, p.stderr
+    assert "a spline whose knots hold custom data cannot be kept" in p.stderr, p.stderr
+    assert inp.read_bytes() == before
 
 
 # ---------------------------------------------------------------------------

@@ -83,6 +83,9 @@ pub struct EditSession {
     /// The target's text before editing (the new header for a new layer),
     /// when the target is usda text; None for crate files.
     original_text: Option<String>,
+    /// An existing crate target as read: the values openusd cannot read, or
+    /// reads wrong, are written back from it.
+    crate_source: Option<super::usdc::CrateSource>,
     /// The header a new edit layer is opened from; removed on drop.
     _scratch: Option<ScratchFile>,
     /// Prim specs defined, and attribute specs set, in order.
@@ -115,6 +118,35 @@ fn read_text(path: &Path) -> Result<Option<String>> {
         .map_err(|_| Error::msg("the usda text is not valid UTF-8; cannot edit it").in_file(path))
 }
 
+/// What identifies a file's version for [`crate_source`]: size and time.
+fn stamp(path: &Path) -> Option<(u64, std::time::SystemTime)> {
+    let m = std::fs::metadata(path).ok()?;
+    Some((m.len(), m.modified().ok()?))
+}
+
+/// The crate file at `path` (None for usda text), mapped, for the values
+/// openusd cannot read; `before` is its [`stamp`] from before the stage
+/// read it, so a file replaced in between is refused rather than mixed in.
+fn crate_source(
+    path: &Path,
+    text: &Option<String>,
+    before: Option<(u64, std::time::SystemTime)>,
+) -> Result<Option<super::usdc::CrateSource>> {
+    use openusd::ar::{Asset, Resolver};
+    if text.is_some() {
+        return Ok(None);
+    }
+    let cannot = |e: String| Error::msg(format!("cannot read the crate file: {e}")).in_file(path);
+    let buffer = super::stage::mapped_resolver()
+        .open_asset(&openusd::ar::ResolvedPath::new(path))
+        .and_then(|a: Box<dyn Asset>| a.into_buffer())
+        .map_err(|e| cannot(e.to_string()))?;
+    if before.is_none() || stamp(path) != before {
+        return Err(Error::msg("the file changed while it was read; run the edit again").in_file(path));
+    }
+    super::usdc::CrateSource::open(buffer).map(Some).map_err(cannot)
+}
+
 /// An existing edit layer must have `input` in its layer stack: otherwise
 /// the edits would be computed from the character it was made over, and
 /// `input` silently ignored.
@@ -141,17 +173,19 @@ fn require_over(reader: &StageReader, input: &Path, edit: &Path) -> Result<()> {
 impl EditSession {
     /// Opens `input` for editing into `target`.
     pub fn open(input: &Path, target: &EditTarget) -> Result<EditSession> {
+        let input_stamp = stamp(input);
         // Reading the input first gives its own errors (missing, unreadable).
         let input_reader = StageReader::open(input)?;
         // Edits are computed from the composed character: a missing asset
         // would change what they capture.
         input_reader.require_resolved().map_err(|e| e.in_file(input))?;
         let input_meta = input_reader.metadata();
-        let session = |reader, target: &Path, original_text, scratch| EditSession {
+        let session = |reader, target: &Path, original_text, crate_source, scratch| EditSession {
             reader,
             input_meta: input_meta.clone(),
             target: target.to_path_buf(),
             original_text,
+            crate_source,
             _scratch: scratch,
             prims: RefCell::new(Vec::new()),
             attrs: RefCell::new(Vec::new()),
@@ -164,7 +198,8 @@ impl EditSession {
                     return Err(Error::msg("cannot edit a .usdz package in place; use --edit-layer").in_file(input));
                 }
                 let text = read_text(input)?;
-                Ok(session(input_reader, input, text, None))
+                let source = crate_source(input, &text, input_stamp)?;
+                Ok(session(input_reader, input, text, source, None))
             }
             EditTarget::Layer(edit) => {
                 Format::from_path(edit)?;
@@ -177,10 +212,12 @@ impl EditSession {
                     }
                 }
                 if edit.exists() {
+                    let edit_stamp = stamp(edit);
                     let text = read_text(edit)?;
                     let reader = StageReader::open(edit)?;
                     require_over(&reader, input, edit)?;
-                    return Ok(session(reader, edit, text, None));
+                    let source = crate_source(edit, &text, edit_stamp)?;
+                    return Ok(session(reader, edit, text, source, None));
                 }
                 let dir = match edit.parent() {
                     Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
@@ -236,7 +273,7 @@ impl EditSession {
                     ..StageReader::open(scratch.path())?
                 };
                 let text = (Format::from_path(edit)? == Format::Usda).then_some(header);
-                Ok(session(reader, edit, text, Some(scratch)))
+                Ok(session(reader, edit, text, None, Some(scratch)))
             }
         }
     }
@@ -323,7 +360,10 @@ impl EditSession {
         let root = self.reader.stage.root_layer();
         let Some(text) = &self.original_text else {
             // Not a usda target: a crate file, from painterly's crate writer.
-            let written = super::usdc::write_layer_file(&self.target, root.data());
+            let written = match &self.crate_source {
+                Some(source) => super::usdc::write_edited_layer_file(&self.target, root.data(), source),
+                None => super::usdc::write_layer_file(&self.target, root.data()),
+            };
             drop(root);
             return written;
         };
@@ -342,7 +382,7 @@ impl EditSession {
             .in_file(&self.target)
         };
         let out = usda_splice::splice(text, data, &prims, &defined, &attrs).map_err(refuse)?;
-        check_round_trip(&out, data).map_err(refuse)?;
+        check_round_trip(text, &out, data).map_err(refuse)?;
         drop(root);
         write_atomic(&self.target, out.as_bytes())
     }
@@ -361,11 +401,54 @@ fn same_value(a: &Value, b: &Value) -> bool {
     a == b || format!("{a:?}") == format!("{b:?}")
 }
 
+/// Property orders as usd-core reads them from the text before and after
+/// the splice (see [`usda_splice::property_orders`]).
+struct TextOrders {
+    before: std::collections::HashMap<String, Vec<String>>,
+    after: std::collections::HashMap<String, Vec<String>>,
+}
+
+fn token_names(v: &Value) -> Option<Vec<&str>> {
+    match v {
+        Value::TokenVec(t) => Some(t.iter().map(|t| t.as_str()).collect()),
+        _ => None,
+    }
+}
+
+/// Whether prim `p`'s `propertyChildren`, which openusd read differently
+/// from the spliced text (`got`) than the edited layer holds them
+/// (`expected`), still name the same properties in usd-core's order: the
+/// text lists the prim's original properties in their original order, then
+/// the added ones, as usd-core orders them after adding properties.
+fn same_properties_in_text_order(p: &str, expected: &Value, got: &Value, orders: &TextOrders) -> bool {
+    let (Some(e), Some(g)) = (token_names(expected), token_names(got)) else {
+        return false;
+    };
+    fn sorted(mut v: Vec<&str>) -> Vec<&str> {
+        v.sort_unstable();
+        v
+    }
+    let before: Vec<&str> = orders
+        .before
+        .get(p)
+        .map_or_else(Vec::new, |v| v.iter().map(String::as_str).collect());
+    let after: Vec<&str> = orders
+        .after
+        .get(p)
+        .map_or_else(Vec::new, |v| v.iter().map(String::as_str).collect());
+    let mut want = before.clone();
+    want.extend(e.iter().filter(|n| !before.contains(n)));
+    let e = sorted(e);
+    e.windows(2).all(|w| w[0] != w[1]) && e == sorted(g) && e == sorted(after.clone()) && after == want
+}
+
 /// Parses the spliced text and checks it holds exactly the edited layer:
 /// the same specs, and the same fields with the same values on each.
-fn check_round_trip(text: &str, expected: &dyn AbstractData) -> std::result::Result<(), String> {
+/// `original` is the text before the splice (for property order).
+fn check_round_trip(original: &str, text: &str, expected: &dyn AbstractData) -> std::result::Result<(), String> {
     let got = sdf::LayerRegistry::read_bytes(openusd::ar::AssetBuffer::Owned(text.as_bytes().to_vec()), "edit.usda")
         .map_err(|e| format!("the spliced text does not parse: {e}"))?;
+    let mut orders: Option<TextOrders> = None;
     let (a, b) = (expected.spec_paths(), got.spec_paths());
     if a != b {
         let missing = a.iter().find(|p| !b.contains(p));
@@ -390,6 +473,17 @@ fn check_round_trip(text: &str, expected: &dyn AbstractData) -> std::result::Res
             let va = expected.try_field(p, &f).ok().flatten();
             let vb = got.try_field(p, &f).ok().flatten();
             let same = match (va.as_deref(), vb.as_deref()) {
+                (Some(x), Some(y)) if f == "propertyChildren" && !same_value(x, y) => {
+                    if orders.is_none() {
+                        orders = Some(TextOrders {
+                            before: usda_splice::property_orders(original)?,
+                            after: usda_splice::property_orders(text)?,
+                        });
+                    }
+                    orders
+                        .as_ref()
+                        .is_some_and(|o| same_properties_in_text_order(p.as_str(), x, y, o))
+                }
                 (Some(x), Some(y)) => same_value(x, y),
                 (Some(x), None) | (None, Some(x)) => is_fallback(&f, x),
                 (None, None) => true,
@@ -442,31 +536,56 @@ mod tests {
     fn round_trip_check_names_the_first_spec_or_field_that_would_change() {
         let base = parse(BASE);
         // The same text (with its NaN default) holds exactly the layer.
-        assert_eq!(check_round_trip(BASE, &base), Ok(()));
+        assert_eq!(check_round_trip(BASE, BASE, &base), Ok(()));
         // /A/B dropped from the text: lost.
         let without_b = BASE.replace("\n    def Xform \"B\"\n    {\n    }\n", "");
         assert!(!without_b.contains("\"B\""));
         assert_eq!(
-            check_round_trip(&without_b, &base),
+            check_round_trip(BASE, &without_b, &base),
             Err("spec /A/B would be lost".to_string())
         );
         // /A/B only in the text: it would appear.
         assert_eq!(
-            check_round_trip(BASE, &parse(&without_b)),
+            check_round_trip(BASE, BASE, &parse(&without_b)),
             Err("spec /A/B would appear".to_string())
         );
         // A changed default.
         assert_eq!(
-            check_round_trip(&BASE.replace("float x = 1", "float x = 2"), &base),
+            check_round_trip(BASE, &BASE.replace("float x = 1", "float x = 2"), &base),
             Err("field default of /A.x would change".to_string())
         );
         // A field only the text has (prim documentation): not a fallback.
         let documented = BASE.replace("def Xform \"A\"\n", "def Xform \"A\" (\n    doc = \"d\"\n)\n");
-        let e = check_round_trip(&documented, &base).unwrap_err();
+        let e = check_round_trip(BASE, &documented, &base).unwrap_err();
         assert!(e.starts_with("field ") && e.ends_with(" of /A would change"), "{e}");
         // ... and only the layer has it.
-        let e = check_round_trip(BASE, &parse(&documented)).unwrap_err();
+        let e = check_round_trip(BASE, BASE, &parse(&documented)).unwrap_err();
         assert!(e.starts_with("field ") && e.ends_with(" of /A would change"), "{e}");
+    }
+
+    #[test]
+    fn round_trip_check_takes_property_order_from_the_text() {
+        // usd-core reads /A's properties as [c, x]; openusd lists the
+        // connection-only c last, [x, c].
+        let before = "#usda 1.0\n\ndef \"A\"\n{\n    float c.connect = </A.x>\n    float x = 1\n}\n";
+        let after = before.replace("float x = 1\n", "float x = 1\n    float y = 2\n");
+        let mut edited = parse(before);
+        let a = sdf::Path::new("/A").unwrap();
+        let y = sdf::Path::new("/A.y").unwrap();
+        edited.create_spec(y.clone(), sdf::SpecType::Attribute);
+        edited.set_field(&y, "typeName", Value::Token("float".into()));
+        edited.set_field(&y, "default", Value::Float(2.0));
+        let names = |v: &[&str]| Value::TokenVec(v.iter().map(|&n| n.into()).collect());
+        assert_eq!(*edited.get_field(&a, "propertyChildren").unwrap(), names(&["x", "c"]));
+        edited.set_field(&a, "propertyChildren", names(&["x", "c", "y"]));
+        // The new property after the others: what usd-core makes of the edit.
+        assert_eq!(check_round_trip(before, &after, &edited), Ok(()));
+        // Before the connection, it would move c after y for usd-core.
+        let moved = before.replace("    float c", "    float y = 2\n    float c");
+        assert_eq!(
+            check_round_trip(before, &moved, &edited),
+            Err("field propertyChildren of /A would change".to_string())
+        );
     }
 
     #[test]

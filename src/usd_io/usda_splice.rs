@@ -423,12 +423,19 @@ fn prim_header(data: &dyn AbstractData, path: &sdf::Path) -> PResult<String> {
         _ => String::new(),
     };
     let name = path.name().ok_or_else(|| format!("{path} has no name"))?;
+    Ok(format!("{spec} {ty}{}", quote(name)))
+}
+
+/// A new prim block is written from its header alone: any other prim field
+/// (metadata) would be lost. An existing prim keeps its metadata as written,
+/// since only its header is replaced.
+fn check_prim_fields(data: &dyn AbstractData, path: &sdf::Path) -> PResult<()> {
     for f in data.list_fields(path).unwrap_or_default() {
         if !["specifier", "typeName", "primChildren", "propertyChildren"].contains(&f.as_str()) {
             return Err(format!("{path}: cannot write the prim field {f}"));
         }
     }
-    Ok(format!("{spec} {ty}{}", quote(name)))
+    Ok(())
 }
 
 /// `[custom] [uniform] type name = value` for an attribute spec of `data`.
@@ -528,6 +535,7 @@ pub fn splice(
         out: &mut String,
     ) -> PResult<()> {
         let sp = sdf::Path::new(path).map_err(|e| format!("{path}: {e}"))?;
+        check_prim_fields(data, &sp)?;
         let _ = writeln!(out, "{indent}{}", prim_header(data, &sp)?);
         let _ = writeln!(out, "{indent}{{");
         for name in attrs_of.get(path).into_iter().flatten() {
@@ -630,6 +638,30 @@ pub fn splice(
     }
     out.push_str(&text[pos..]);
     Ok(out)
+}
+
+/// Each prim's property names in the order usd-core reads them from `text`:
+/// the order of their first statements, a declaration or a suffixed one
+/// (`name.connect`, `.timeSamples`, `.spline`) alike. openusd 0.8 differs: it
+/// lists a property that has only suffixed statements after all declared
+/// ones, so its `propertyChildren` cannot tell whether a splice kept them.
+pub fn property_orders(text: &str) -> PResult<HashMap<String, Vec<String>>> {
+    let mut p = Parser::new(text)?;
+    let roots = p.layer()?;
+    let mut blocks = HashMap::new();
+    index(&roots, &mut blocks);
+    Ok(blocks
+        .into_iter()
+        .map(|(path, b)| {
+            let mut names: Vec<String> = Vec::new();
+            for prop in &b.props {
+                if !names.contains(&prop.name) {
+                    names.push(prop.name.clone());
+                }
+            }
+            (path, names)
+        })
+        .collect())
 }
 
 fn check_attr_fields(data: &dyn AbstractData, path: &sdf::Path) -> PResult<()> {
@@ -915,6 +947,34 @@ def Xform "A" (
         assert_eq!(header("/C"), "class Xform \"C\"");
         assert_eq!(header("/D"), "def \"D\"");
         assert_eq!(header("/O"), "over \"O\"");
+    }
+
+    #[test]
+    fn an_existing_prim_keeps_its_metadata_a_new_one_cannot_have_any() {
+        let text = "#usda 1.0\ndef PainterlyPoseKey \"K\" (\n    doc = \"d\"\n)\n{\n}\n";
+        let mut data = parse(text);
+        let k = sdf::Path::new("/K").unwrap();
+        data.set_field(&k, "typeName", Value::Token("PainterlyTimeKey".into()));
+        // Only the header is replaced; the metadata stays as written.
+        let out = splice(text, &data, &["/K".into()], &["/K".into()], &[]).unwrap();
+        assert_eq!(out, text.replace("PainterlyPoseKey", "PainterlyTimeKey"));
+        // A new prim is written from its header alone.
+        let n = sdf::Path::new("/N").unwrap();
+        data.create_spec(n.clone(), sdf::SpecType::Prim);
+        data.set_field(&n, "specifier", Value::Specifier(Specifier::Def));
+        data.set_field(&n, "documentation", Value::String("d".into()));
+        assert_eq!(
+            splice(text, &data, &["/N".into()], &["/N".into()], &[]),
+            Err("/N: cannot write the prim field documentation".to_string())
+        );
+    }
+
+    #[test]
+    fn property_order_is_first_statements_order_suffixed_ones_included() {
+        let text = "#usda 1.0\ndef \"A\"\n{\n    float c.connect = </A.x>\n    float x = 1\n    float c = 2\n    double s.spline = {\n        1: 2,\n    }\n\n    def \"B\"\n    {\n        rel r\n    }\n}\n";
+        let orders = property_orders(text).unwrap();
+        assert_eq!(orders["/A"], ["c", "x", "s"]);
+        assert_eq!(orders["/A/B"], ["r"]);
     }
 
     #[test]

@@ -239,6 +239,19 @@ impl Encoder {
         Ok(r)
     }
 
+    /// The rep of a value copied from another crate file as it was stored
+    /// there ([`super::recover`]); the file needs that file's version.
+    pub fn raw(&mut self, buf: &mut Buf, v: &super::recover::RawValue) -> Res<u64> {
+        self.need(v.minor);
+        if v.bytes.is_empty() {
+            return Ok(v.rep);
+        }
+        buf.align8();
+        let at = buf.pos();
+        buf.bytes.extend_from_slice(&v.bytes);
+        Ok((v.rep & !PAYLOAD_MASK) | at)
+    }
+
     /// The rep of `v`, writing its bytes into `buf` when it is not inlined.
     pub fn value(&mut self, buf: &mut Buf, v: &Value) -> Res<u64> {
         Ok(match v {

@@ -56,6 +56,7 @@ mod compress;
 mod dedup;
 mod encode;
 mod paths;
+mod recover;
 mod stream;
 mod tables;
 
@@ -68,6 +69,7 @@ use std::path::Path;
 
 use openusd::sdf::{self, AbstractData};
 
+pub use recover::CrateSource;
 pub use stream::{CrateStream, Field, ValueHandle};
 
 /// Time samples whose values a [`CrateStream`] stored: the times (shareable
@@ -97,6 +99,23 @@ pub fn add_layer_specs<W: Write + Seek>(
     data: &dyn AbstractData,
     stored: &mut dyn FnMut(&sdf::Path) -> Result<Option<Stored>>,
 ) -> Result<()> {
+    add_specs(stream, data, None, stored)
+}
+
+/// A field's value as it will be written.
+enum Held<'d> {
+    Value(std::borrow::Cow<'d, sdf::Value>),
+    Raw(recover::RawValue),
+}
+
+/// [`add_layer_specs`]; with `source`, the crate file `data` was read from,
+/// the values openusd cannot read (or reads wrong) are taken from it.
+fn add_specs<W: Write + Seek>(
+    stream: &mut CrateStream<W>,
+    data: &dyn AbstractData,
+    source: Option<&CrateSource>,
+    stored: &mut dyn FnMut(&sdf::Path) -> Result<Option<Stored>>,
+) -> Result<()> {
     for path in data.spec_paths() {
         let ty = data
             .spec_type(&path)
@@ -104,14 +123,33 @@ pub fn add_layer_specs<W: Write + Seek>(
         let names = data.list_fields(&path).unwrap_or_default();
         let mut values = Vec::with_capacity(names.len());
         for name in &names {
-            let v = data
-                .try_field(&path, name)
-                .map_err(|e| Error::prim(&path, format!("cannot read field `{name}`: {e}")))?;
-            if let Some(v) = v {
-                values.push((name.as_str(), v));
-            }
+            let read = data.try_field(&path, name);
+            let kept = match source {
+                Some(src) => src
+                    .correct(&path, name, read.as_ref().map(|v| v.as_deref()))
+                    .map_err(|e| Error::prim(&path, format!("cannot keep field `{name}`: {e}")))?,
+                None => None,
+            };
+            let held = match kept {
+                Some(recover::Kept::Value(v)) => Held::Value(std::borrow::Cow::Owned(v)),
+                Some(recover::Kept::Raw(r)) => Held::Raw(r),
+                None => match read.map_err(|e| Error::prim(&path, format!("cannot read field `{name}`: {e}")))? {
+                    Some(v) => Held::Value(v),
+                    None => continue,
+                },
+            };
+            values.push((name.as_str(), held));
         }
-        let mut fields: Vec<(&str, Field<'_>)> = values.iter().map(|(n, v)| (*n, Field::Value(v.as_ref()))).collect();
+        let mut fields: Vec<(&str, Field<'_>)> = values
+            .iter()
+            .map(|(n, v)| {
+                let f = match v {
+                    Held::Value(v) => Field::Value(v.as_ref()),
+                    Held::Raw(r) => Field::Raw(r),
+                };
+                (*n, f)
+            })
+            .collect();
         let samples = stored(&path)?;
         if let Some(s) = &samples {
             fields.push((
@@ -131,6 +169,18 @@ pub fn add_layer_specs<W: Write + Seek>(
 /// it, then a rename).
 pub fn write_layer_file(path: &Path, data: &dyn AbstractData) -> Result<()> {
     write_atomically(path, |out| write_layer(data, out).map(|_| ()))
+}
+
+/// [`write_layer_file`] of `data` read from the crate file `source` and
+/// edited: values openusd 0.8 cannot read, or reads wrong, are kept as
+/// `source` holds them ([`recover`]); one that cannot be kept is refused
+/// naming its spec and field, and nothing is written.
+pub fn write_edited_layer_file(path: &Path, data: &dyn AbstractData, source: &CrateSource) -> Result<()> {
+    write_atomically(path, |out| {
+        let mut stream = CrateStream::new(out)?;
+        add_specs(&mut stream, data, Some(source), &mut |_| Ok(None))?;
+        stream.finish().map(|_| ())
+    })
 }
 
 /// Runs `write` on a buffered temporary file that becomes `path` only if it

@@ -58,6 +58,9 @@ pub enum Field<'a> {
         times: &'a [f64],
         values: &'a [ValueHandle],
     },
+    /// A value copied as another crate file stored it (one openusd cannot
+    /// hold, see [`super::recover`]).
+    Raw(&'a super::recover::RawValue),
 }
 
 /// A crate file being written. See the module docs of [`super`].
@@ -137,6 +140,7 @@ impl<W: Write + Seek> CrateStream<W> {
             let rep = match field {
                 Field::Value(v) => self.enc.field(&mut buf, name, v),
                 Field::TimeSamples { times, values } => self.handle_samples(&mut buf, times, values),
+                Field::Raw(v) => self.enc.raw(&mut buf, v),
             };
             match rep {
                 Ok(rep) => {
