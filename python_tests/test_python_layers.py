@@ -230,7 +230,10 @@ def test_errors_about_a_layer_read_through_its_text_name_its_identifier(tmp_path
 
 
 CHILD = """
-import sys, time, painterly
+import signal, sys, time, painterly
+# A shell's background job starts with SIGINT ignored, and Python then
+# installs no KeyboardInterrupt handler: install it, as an interactive run has.
+signal.signal(signal.SIGINT, signal.default_int_handler)
 seen = [0, 0]
 def progress(done, total):
     if done == 1:
