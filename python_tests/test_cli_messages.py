@@ -53,6 +53,20 @@ def test_verbose_logs_phases_on_stderr_only(painterly, tmp_path, repo_root):
     assert lines[3].startswith("painterly: 24 frames: read ") and "evaluate" in lines[3] and "write" in lines[3]
     quiet = painterly("bake", repo_root / "fixtures" / "tube.usda", "-o", tmp_path / "c.usdc", "--json")
     assert quiet.stderr == ""
+    # The layer count is the stage's: a shot sublayering the tube and a
+    # referenced prop has three (usd-core: len(stage.GetUsedLayers()) minus the session layer).
+    (tmp_path / "tube.usda").write_bytes((repo_root / "fixtures" / "tube.usda").read_bytes())
+    (tmp_path / "prop.usda").write_text('#usda 1.0\ndef Xform "Prop"\n{\n}\n')
+    shot = tmp_path / "shot.usda"
+    shot.write_text('#usda 1.0\n(\n    subLayers = [@./tube.usda@]\n)\n'
+                    'def "Set" (references = @./prop.usda@</Prop>)\n{\n}\n')
+    from pxr import Usd
+
+    stage = Usd.Stage.Open(str(shot))
+    used = [l for l in stage.GetUsedLayers() if not l.identifier.startswith("anon:")]
+    assert len(used) == 3
+    out = painterly("-v", "bake", shot, "-o", tmp_path / "d.usdc", "--frames", "1:2", "--quiet")
+    assert f"opened {shot} (3 layers) in " in out.stderr.splitlines()[0]
 
 
 def test_interpolate_is_listed_in_help(painterly):
