@@ -401,11 +401,6 @@ impl Staged {
     }
 }
 
-/// A `.usdc` bake sink whose layer can be staged ([`UsdcSink::finish_staged`]).
-pub fn create_usdc(path: &Path, layout: BakeLayout) -> Result<UsdcSink> {
-    UsdcSink::new(path, layout)
-}
-
 pub struct UsdcSink {
     path: PathBuf,
     /// Registered with [`super::atomic`]: removed on failure and on signals.
@@ -422,7 +417,8 @@ pub struct UsdcSink {
 }
 
 impl UsdcSink {
-    fn new(path: &Path, layout: BakeLayout) -> Result<Self> {
+    /// A `.usdc` sink whose layer can also be staged ([`UsdcSink::finish_staged`]).
+    pub fn new(path: &Path, layout: BakeLayout) -> Result<Self> {
         let (tmp, file) = TempFile::create(path, "")?;
         let n = layout.attrs.len();
         // Owned by the sink from here, so an error below removes the file.

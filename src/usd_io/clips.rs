@@ -26,7 +26,7 @@ use super::bake_layer::{
     self, quoted, read_provenance, usda_header, BakeLayout, FrameSink, PrimTree, Provenance, Sample, Staged,
     UsdaNumber, UsdcSink,
 };
-use super::layer::{write_atomic_with, Format};
+use super::layer::write_atomic_with;
 use super::stage::StageReader;
 use crate::error::{Error, Result};
 
@@ -212,11 +212,8 @@ impl FrameSink for ChunkedSink {
             }
             let step = frame_step(&self.times);
             let layout = chunk_layout(&self.layout, &self.plan, chunk, &self.times, step);
-            let path = self.plan.chunk_path(chunk);
-            if Format::from_path(&path)? != Format::Usdc {
-                return Err(Error::msg("internal: chunk layers are .usdc").in_file(&path));
-            }
-            self.current = Some(Box::new(bake_layer::create_usdc(&path, layout)?));
+            // Chunk layers are .usdc (ClipPlan names them so).
+            self.current = Some(Box::new(UsdcSink::new(&self.plan.chunk_path(chunk), layout)?));
         }
         self.written += 1;
         match &mut self.current {
