@@ -129,7 +129,8 @@ def differences(a: dict, b: dict) -> list:
 
 def same(x, y) -> bool:
     eq = x == y
-    return bool(eq) if isinstance(eq, bool) else bool(np.all(eq))
+    # NaN != NaN: the same printed value is the same value.
+    return (bool(eq) if isinstance(eq, bool) else bool(np.all(eq))) or str(x) == str(y)
 
 
 def composed(layer_path, input_path, out):
@@ -486,6 +487,141 @@ def test_in_place_refuses_a_spline_with_knot_custom_data(painterly, tmp_path):
     assert p.returncode == 1, p.stderr
     assert str(inp) in p.stderr and "/Tube/Extra.v" in p.stderr and "`spline`" in p.stderr, p.stderr
     assert "a spline whose knots hold custom data cannot be kept" in p.stderr, p.stderr
+    assert inp.read_bytes() == before
+
+
+def _key_in_place_keeps_the_rest(painterly, inp):
+    """Keys /Tube/Paint/Rings in place; every other spec and field must read
+    in usd-core as it did before. Returns (before, after) contents()."""
+    original = contents(Sdf.Layer.OpenAsAnonymous(str(inp)))
+    painterly("key", inp, "--layer", "/Tube/Paint/Rings", "--time", 3, "--sentinel", "--in-place", "--quiet")
+    edited = contents(Sdf.Layer.OpenAsAnonymous(str(inp)))
+    key = "/Tube/Paint/Rings/sentinel1"
+    assert edited[key][1]["typeName"] == "PainterlyTimeKey"
+    unexpected = [d for d in differences(original, edited)
+                  if not d[0].startswith(key) and d != ("/Tube/Paint/Rings", "<children>")]
+    assert not unexpected, f"--in-place changed more than the key: {unexpected}"
+    return original, edited
+
+
+def test_in_place_keeps_a_negative_int64_in_a_dictionary_holding_a_nan(painterly, tmp_path):
+    """openusd reads an inlined negative int64 zero-extended; the field is
+    taken from the file unless the edit changed it, which NaN != NaN made
+    every dictionary with a NaN look like (review t5: -12 became 4294967284)."""
+    def make(x):
+        x.customData = {"neg": Vt.Int64(-5), "nan": float("nan"), "inner": {"n": Vt.Int64(-7), "f": float("nan")}}
+        x.layer.customLayerData = {"frame": Vt.Int64(-12), "nan": float("nan")}
+        y = Sdf.CreatePrimInLayer(x.layer, "/Tube/Extra2")
+        y.specifier = Sdf.SpecifierDef
+        y.customData = {"neg": Vt.Int64(-5)}
+        _attr(x, T.Float, default=1.0, customData={"i": Vt.Int64(-3), "nan": float("nan")})
+
+    inp = _gap_file(tmp_path, make)
+    original, edited = _key_in_place_keeps_the_rest(painterly, inp)
+    assert repr(edited["/"][1]["customLayerData"]) == repr(original["/"][1]["customLayerData"])
+    assert edited["/"][1]["customLayerData"]["frame"] == -12
+    assert edited["/Tube/Extra"][1]["customData"]["neg"] == -5
+    assert edited["/Tube/Extra"][1]["customData"]["inner"]["n"] == -7
+    assert edited["/Tube/Extra.v"][1]["customData"]["i"] == -3
+
+
+def test_in_place_keeps_negative_int64s_in_references_custom_data(painterly, tmp_path):
+    """A reference's customData is a dictionary inside the reference list
+    op, where openusd zero-extends a negative int64 too (review t6: -2 became
+    4294967294); payloads and their layer offsets beside it are kept."""
+    def make(x):
+        src = Sdf.CreatePrimInLayer(x.layer, "/Src")
+        src.specifier = Sdf.SpecifierDef
+        refs = x.referenceList
+        refs.prependedItems = [
+            Sdf.Reference("", "/Src", Sdf.LayerOffset(2, 0.5), {"k": Vt.Int64(-2), "nan": float("nan")}),
+            Sdf.Reference("", "/Src"),
+        ]
+        refs.appendedItems = [Sdf.Reference("", "/Src", Sdf.LayerOffset(-3, 2),
+                                            {"nested": {"m": Vt.Int64(-(2**31))}})]
+        refs.deletedItems = [Sdf.Reference("", "/Gone", customData={"d": Vt.Int64(-9)})]
+        x.payloadList.appendedItems = [Sdf.Payload("", "/Src", Sdf.LayerOffset(-3, 2))]
+        y = Sdf.CreatePrimInLayer(x.layer, "/Tube/Extra2")
+        y.specifier = Sdf.SpecifierDef
+        y.referenceList.explicitItems = [Sdf.Reference("", "/Src", customData={"k": Vt.Int64(-1)})]
+
+    inp = _gap_file(tmp_path, make)
+    original, edited = _key_in_place_keeps_the_rest(painterly, inp)
+    refs = edited["/Tube/Extra"][1]["references"]
+    assert refs.prependedItems[0].customData["k"] == -2
+    assert refs.appendedItems[0].customData["nested"]["m"] == -(2**31)
+    assert refs.deletedItems[0].customData["d"] == -9
+    assert edited["/Tube/Extra2"][1]["references"].explicitItems[0].customData["k"] == -1
+
+
+def _hostile_dictionary(tmp_path, patch):
+    """/Tube/Extra's customData {"e": empty string[]} (which openusd cannot
+    read, so the edit reads it from the file), its bytes then changed by
+    `patch(data, at)`, `at` the dictionary's offset."""
+    import struct
+
+    inp = _gap_file(tmp_path, lambda x: setattr(x, "customData", {"e": Vt.StringArray()}))
+    data = bytearray(inp.read_bytes())
+    # The dictionary: a count of 1, a key, a recursive offset of 8, the rep
+    # of an empty string[] (type 10, array, payload 0).
+    rep = struct.pack("<Q", (1 << 63) | (10 << 48))
+    hits = [i for i in range(0, len(data) - 28)
+            if data[i:i + 8] == struct.pack("<Q", 1) and data[i + 12:i + 20] == struct.pack("<q", 8)
+            and data[i + 20:i + 28] == rep]
+    assert len(hits) == 1, f"test setup: {hits}"
+    patch(data, hits[0])
+    inp.write_bytes(bytes(data))
+    return inp
+
+
+def _doubling_chain(data, at):
+    """Appends 30 dictionaries, each of two entries that are both the next
+    one (the last holds the empty string[]), and makes the entry the first:
+    2^30 values within the nesting limit, from 1.5 KB."""
+    import struct
+
+    key = bytes(data[at + 8:at + 12])
+    leaf = bytes(data[at + 20:at + 28])
+    start = len(data)
+    size = 8 + 2 * 20
+    for i in range(30):
+        nxt = struct.pack("<Q", (31 << 48) | (start + (i + 1) * size))
+        data += struct.pack("<Q", 2) + (key + struct.pack("<q", 8) + nxt) * 2
+    data += struct.pack("<Q", 1) + key + struct.pack("<q", 8) + leaf
+    data[at + 20:at + 28] = struct.pack("<Q", (31 << 48) | start)
+
+
+HOSTILE_DICTIONARIES = {
+    # A count of 2^64-1 and an offset of -12 back onto the entry itself (review t8).
+    "endless entries": lambda data, at: (data.__setitem__(slice(at, at + 8), (2**64 - 1).to_bytes(8, "little")),
+                                         data.__setitem__(slice(at + 12, at + 20), (-12).to_bytes(8, "little", signed=True))),
+    # Values shared: a few bytes describe exponentially many.
+    "doubling chain": _doubling_chain,
+}
+
+
+@pytest.mark.parametrize("case", sorted(HOSTILE_DICTIONARIES))
+def test_in_place_refuses_a_hostile_dictionary(tmp_path, case):
+    """Counts bounded by the bytes left, offsets that must move forward, a
+    cap on nesting and on values: a clear error and exit 1, under a memory
+    limit and in bounded time, the file unchanged."""
+    import resource
+    import subprocess
+
+    from conftest import painterly_binary
+
+    inp = _hostile_dictionary(tmp_path, HOSTILE_DICTIONARIES[case])
+    before = inp.read_bytes()
+
+    def limit():
+        resource.setrlimit(resource.RLIMIT_AS, (2 << 30, 2 << 30))
+
+    p = subprocess.run([str(painterly_binary()), "key", str(inp), "--layer", "/Tube/Paint/Rings", "--time", "3",
+                        "--sentinel", "--in-place"], capture_output=True, text=True, timeout=60,
+                       preexec_fn=limit)
+    assert p.returncode == 1, (p.returncode, p.stderr[-2000:])
+    assert str(inp) in p.stderr and "/Tube/Extra" in p.stderr and "`customData`" in p.stderr, p.stderr
+    assert "panicked" not in p.stderr, p.stderr
     assert inp.read_bytes() == before
 
 

@@ -15,9 +15,17 @@
 //!   must be empty: its dictionaries refer to the file's string table and
 //!   other offsets, so they are not copied, and such a field is refused).
 //!
-//! Time samples and dictionaries are walked here too, with their other
-//! values decoded by openusd.
+//! Time samples, dictionaries and reference list ops (each reference's
+//! customData) are walked here too, with their other values decoded by
+//! openusd. A field openusd reads wrong that the edit changed is refused
+//! (the edit's value was made from the wrong reading), as is an unregistered
+//! value (or list op) holding anything openusd reads wrong or drops.
+//!
+//! The walk trusts nothing in the file: every count is bounded by the bytes
+//! left, every recursive offset must move forward, nesting is capped, and so
+//! is the number of values one field may expand to.
 
+use std::cell::Cell;
 use std::collections::HashMap;
 
 use openusd::ar::AssetBuffer;
@@ -41,6 +49,15 @@ const MIN_COMPRESSED: u64 = 16;
 
 /// How deep dictionaries and time samples may nest here (openusd's limit).
 const MAX_NESTING: usize = 32;
+
+/// How many values one field may expand to here, at least: values may be
+/// shared, so a few bytes can describe exponentially many. The limit is the
+/// file's size in bytes when larger (a stored value takes at least 8, and
+/// each is visited a few times).
+const MAX_VALUES: usize = 1 << 22;
+
+/// List op header bits (`SdfListOp`), in the order the lists are stored.
+const LIST_OP_LISTS: [u8; 6] = [1 << 1, 1 << 2, 1 << 5, 1 << 6, 1 << 3, 1 << 4];
 
 /// A value copied as the file holds it.
 #[derive(Debug, Clone, PartialEq)]
@@ -66,6 +83,8 @@ pub struct CrateSource {
     file: CrateFile,
     /// Each spec's first field-set slot.
     specs: HashMap<sdf::Path, usize>,
+    /// Values visited for the current field ([`MAX_VALUES`]).
+    visited: Cell<usize>,
 }
 
 type Res<T> = Result<T, String>;
@@ -108,6 +127,22 @@ impl<'a> Cursor<'a> {
         Ok(s)
     }
 
+    fn left(&self) -> u64 {
+        (self.bytes.len() - self.pos) as u64
+    }
+
+    /// A count of items at least `each` bytes long, bounded by the bytes left.
+    fn count(&mut self, each: u64, what: &str) -> Res<u64> {
+        let n = self.u64()?;
+        if n > self.left() / each {
+            return Err(format!(
+                "{what} of {n} items at offset {} is longer than the file",
+                self.pos
+            ));
+        }
+        Ok(n)
+    }
+
     fn u64(&mut self) -> Res<u64> {
         Ok(u64::from_le_bytes(self.take(8)?.try_into().unwrap_or_default()))
     }
@@ -116,10 +151,16 @@ impl<'a> Cursor<'a> {
         Ok(u32::from_le_bytes(self.take(4)?.try_into().unwrap_or_default()))
     }
 
-    /// usd-core's recursive offset: an `i64` counted from where it starts.
+    /// usd-core's recursive offset: an `i64` counted from where it starts,
+    /// always forward, past itself (so a walk cannot loop).
     fn jump(&mut self) -> Res<()> {
         let start = self.pos;
         let delta = self.u64()? as i64;
+        if delta < 8 {
+            return Err(format!(
+                "a recursive offset of {delta} bytes at offset {start} does not move forward"
+            ));
+        }
         let to = isize::try_from(delta)
             .ok()
             .and_then(|d| start.checked_add_signed(d))
@@ -137,7 +178,11 @@ impl CrateSource {
             let path = file.paths.get(s.path_index).ok_or("a spec names no path")?;
             specs.insert(path.clone(), s.fieldset_index);
         }
-        Ok(CrateSource { file, specs })
+        Ok(CrateSource {
+            file,
+            specs,
+            visited: Cell::new(0),
+        })
     }
 
     fn minor(&self) -> u8 {
@@ -173,6 +218,7 @@ impl CrateSource {
         let Some(rep) = self.rep(path, name) else {
             return Ok(None); // authored by the edit
         };
+        self.visited.set(0);
         match read {
             // Values the edit authors always read; a failure is the file's.
             Err(e) => {
@@ -184,21 +230,42 @@ impl CrateSource {
                 if !self.misread(rep, 0)? {
                     return Ok(None);
                 }
-                // The file's value, unless the edit replaced it.
+                // The file's value, unless the edit changed it: then the
+                // edit's value was made from openusd's wrong reading.
                 match self.file.value(bytemuck::cast(rep)) {
-                    Ok(file_value) if file_value == *v => self.keep(rep, 0).map(Some),
-                    _ => Ok(None),
+                    Ok(file_value) if same_value(&file_value, v) => self.keep(rep, 0).map(Some),
+                    _ => Err(
+                        "the file holds a value openusd 0.8 reads wrong (a negative int64, read \
+                              zero-extended, or an unregistered value it drops part of), and the edit \
+                              changes this field, so it would be written from the wrong reading"
+                            .into(),
+                    ),
                 }
             }
         }
     }
 
-    /// Whether openusd reads `rep` without an error but wrong (a negative
-    /// inlined int64, also inside time samples and dictionaries).
-    fn misread(&self, rep: u64, depth: usize) -> Res<bool> {
+    /// Counts one more value of the current field ([`MAX_VALUES`]) and
+    /// checks the nesting.
+    fn visit(&self, depth: usize) -> Res<()> {
         if depth > MAX_NESTING {
             return Err(format!("values nested more than {MAX_NESTING} deep"));
         }
+        let n = self.visited.get() + 1;
+        let most = MAX_VALUES.max(self.file.bytes().len());
+        if n > most {
+            return Err(format!("a value that expands to more than {most} values"));
+        }
+        self.visited.set(n);
+        Ok(())
+    }
+
+    /// Whether openusd reads `rep` without an error but wrong: a negative
+    /// inlined int64, also inside time samples, dictionaries, references'
+    /// customData and unregistered values; or an unregistered list op item
+    /// that is not a string (openusd drops it).
+    fn misread(&self, rep: u64, depth: usize) -> Res<bool> {
+        self.visit(depth)?;
         let t = kind(rep);
         if t == ty::INT64 && is(rep, INLINED) && !is(rep, ARRAY) {
             return Ok((payload(rep) as u32 as i32) < 0);
@@ -215,9 +282,15 @@ impl CrateSource {
                 }
                 Ok(false)
             }
-            ty::DICTIONARY => {
-                for (_, r) in self.entries(rep)? {
-                    if self.misread(r, depth + 1)? {
+            ty::DICTIONARY => self.any_misread(self.entries(rep)?.into_iter().map(|(_, r)| r), depth),
+            ty::REFERENCE_LIST_OP => {
+                let dicts = self.reference_dicts(rep)?;
+                self.any_misread(dicts.into_iter().flatten().map(|(_, r)| r), depth)
+            }
+            ty::UNREGISTERED_VALUE => self.misread(self.unregistered(rep)?, depth + 1),
+            ty::UNREGISTERED_VALUE_LIST_OP => {
+                for r in self.unregistered_items(rep)? {
+                    if kind(r) != ty::STRING || self.misread(r, depth + 1)? {
                         return Ok(true);
                     }
                 }
@@ -225,6 +298,15 @@ impl CrateSource {
             }
             _ => Ok(false),
         }
+    }
+
+    fn any_misread(&self, reps: impl IntoIterator<Item = u64>, depth: usize) -> Res<bool> {
+        for r in reps {
+            if self.misread(r, depth + 1)? {
+                return Ok(true);
+            }
+        }
+        Ok(false)
     }
 
     /// The value of `rep` read here, or openusd's reading when it is right.
@@ -246,9 +328,7 @@ impl CrateSource {
     /// `rep` read here: the cases in the module docs; anything else is
     /// refused with what it is.
     fn keep(&self, rep: u64, depth: usize) -> Res<Kept> {
-        if depth > MAX_NESTING {
-            return Err(format!("values nested more than {MAX_NESTING} deep"));
-        }
+        self.visit(depth)?;
         let t = kind(rep);
         let bytes: &[u8] = self.file.bytes();
         let value = match t {
@@ -279,11 +359,31 @@ impl CrateSource {
                 Value::TimeSamples(sdf::normalize_time_samples(samples))
             }
             ty::DICTIONARY if !is(rep, INLINED | ARRAY) => {
-                let mut dict = HashMap::new();
-                for (key, r) in self.entries(rep)? {
-                    dict.insert(key, self.nested(r, depth + 1)?);
+                Value::Dictionary(self.dictionary(self.entries(rep)?, depth)?)
+            }
+            ty::REFERENCE_LIST_OP if !is(rep, INLINED | ARRAY) => {
+                // openusd's reading, with each reference's customData read here.
+                let Ok(Value::ReferenceListOp(mut op)) = self.file.value(bytemuck::cast(rep)) else {
+                    return Err("openusd 0.8 cannot read this reference list op".into());
+                };
+                let dicts = self.reference_dicts(rep)?;
+                let items = [
+                    &mut op.explicit_items,
+                    &mut op.added_items,
+                    &mut op.prepended_items,
+                    &mut op.appended_items,
+                    &mut op.deleted_items,
+                    &mut op.ordered_items,
+                ];
+                let mut dicts = dicts.into_iter();
+                for r in items.into_iter().flat_map(|v| v.iter_mut()) {
+                    let entries = dicts.next().ok_or("a reference list op read with more references")?;
+                    r.custom_data = self.dictionary(entries, depth)?;
                 }
-                Value::Dictionary(dict)
+                if dicts.next().is_some() {
+                    return Err("a reference list op read with fewer references".into());
+                }
+                Value::ReferenceListOp(op)
             }
             ANIMATION_BLOCK if is(rep, INLINED) && !is(rep, ARRAY) => {
                 return Ok(Kept::Raw(RawValue {
@@ -353,14 +453,23 @@ impl CrateSource {
         decode_ints64(&coded, n as usize)
     }
 
+    /// A dictionary of `entries`, its values read by [`Self::nested`].
+    fn dictionary(&self, entries: Vec<(String, u64)>, depth: usize) -> Res<HashMap<String, Value>> {
+        let mut dict = HashMap::with_capacity(entries.len());
+        for (key, r) in entries {
+            dict.insert(key, self.nested(r, depth + 1)?);
+        }
+        Ok(dict)
+    }
+
     /// The times rep and the value reps of a time-samples value.
     fn samples(&self, rep: u64) -> Res<(u64, Vec<u64>)> {
         let mut c = Cursor::at(self.file.bytes(), payload(rep))?;
         c.jump()?;
         let times = c.u64()?;
         c.jump()?;
-        let n = c.u64()?;
-        let raw = c.take(n.checked_mul(8).ok_or("too many time samples")?)?;
+        let n = c.count(8, "time samples")?;
+        let raw = c.take(n * 8)?;
         Ok((
             times,
             raw.chunks_exact(8)
@@ -371,10 +480,15 @@ impl CrateSource {
 
     /// The keys and value reps of a dictionary.
     fn entries(&self, rep: u64) -> Res<Vec<(String, u64)>> {
+        self.entries_at(&mut Cursor::at(self.file.bytes(), payload(rep))?)
+    }
+
+    /// The keys and value reps of the dictionary at `c`, leaving `c` past it.
+    fn entries_at(&self, c: &mut Cursor<'_>) -> Res<Vec<(String, u64)>> {
         let f = &self.file;
-        let mut c = Cursor::at(f.bytes(), payload(rep))?;
-        let n = c.u64()?;
-        let mut out = Vec::new();
+        // An entry: a key, a recursive offset and a rep.
+        let n = c.count(20, "a dictionary")?;
+        let mut out = Vec::with_capacity(n as usize);
         for _ in 0..n {
             let s = c.u32()? as usize;
             let key = f
@@ -390,6 +504,93 @@ impl CrateSource {
         }
         Ok(out)
     }
+
+    /// Each reference's customData entries in a reference list op, in the
+    /// order the lists are stored (explicit, added, prepended, appended,
+    /// deleted, ordered): a header byte, then each list's count and
+    /// references (an asset string, a path, a layer offset, customData).
+    fn reference_dicts(&self, rep: u64) -> Res<Vec<Vec<(String, u64)>>> {
+        let mut c = Cursor::at(self.file.bytes(), payload(rep))?;
+        let header = c.take(1)?[0];
+        let mut out = Vec::new();
+        for bit in LIST_OP_LISTS {
+            if header & bit == 0 {
+                continue;
+            }
+            for _ in 0..c.count(4 + 4 + 16 + 8, "a reference list")? {
+                c.take(4 + 4 + 16)?;
+                out.push(self.entries_at(&mut c)?);
+            }
+        }
+        Ok(out)
+    }
+
+    /// The rep an unregistered value wraps.
+    fn unregistered(&self, rep: u64) -> Res<u64> {
+        let mut c = Cursor::at(self.file.bytes(), payload(rep))?;
+        c.jump()?;
+        c.u64()
+    }
+
+    /// The reps of an unregistered list op's items, every list's.
+    fn unregistered_items(&self, rep: u64) -> Res<Vec<u64>> {
+        let mut c = Cursor::at(self.file.bytes(), payload(rep))?;
+        let header = c.take(1)?[0];
+        let mut out = Vec::new();
+        for bit in LIST_OP_LISTS {
+            if header & bit == 0 {
+                continue;
+            }
+            for _ in 0..c.count(16, "an unregistered list")? {
+                c.jump()?;
+                out.push(c.u64()?);
+            }
+        }
+        Ok(out)
+    }
+}
+
+/// Whether two values are the same, NaNs included (NaN != NaN), and
+/// dictionaries compared key by key (their printed order is the hash's).
+fn same_value(a: &Value, b: &Value) -> bool {
+    match (a, b) {
+        (Value::Dictionary(x), Value::Dictionary(y))
+        | (Value::UnregisteredDictionary(x), Value::UnregisteredDictionary(y)) => same_dict(x, y),
+        (Value::TimeSamples(x), Value::TimeSamples(y)) => {
+            x.len() == y.len()
+                && x.iter()
+                    .zip(y)
+                    .all(|((t, v), (u, w))| t.to_bits() == u.to_bits() && same_value(v, w))
+        }
+        (Value::ReferenceListOp(x), Value::ReferenceListOp(y)) => {
+            let lists = |o: &sdf::ListOp<sdf::Reference>| {
+                [
+                    o.explicit_items.clone(),
+                    o.added_items.clone(),
+                    o.prepended_items.clone(),
+                    o.appended_items.clone(),
+                    o.deleted_items.clone(),
+                    o.ordered_items.clone(),
+                ]
+            };
+            x.explicit == y.explicit
+                && lists(x).iter().zip(lists(y).iter()).all(|(p, q)| {
+                    p.len() == q.len()
+                        && p.iter().zip(q).all(|(r, s)| {
+                            let bare = |r: &sdf::Reference| sdf::Reference {
+                                custom_data: HashMap::new(),
+                                ..r.clone()
+                            };
+                            bare(r) == bare(s) && same_dict(&r.custom_data, &s.custom_data)
+                        })
+                })
+        }
+        _ => a == b || format!("{a:?}") == format!("{b:?}"),
+    }
+}
+
+fn same_dict(x: &HashMap<String, Value>, y: &HashMap<String, Value>) -> bool {
+    x.len() == y.len() && x.iter().all(|(k, v)| y.get(k).is_some_and(|w| same_value(v, w)))
 }
 
 /// Undoes usd-core's LZ4 framing (`TfFastCompression`): a chunk count (0 is
@@ -442,6 +643,9 @@ fn type_name(t: u8) -> String {
         ty::ASSET_PATH => "asset".into(),
         ty::TIME_SAMPLES => "time samples".into(),
         ty::DICTIONARY => "dictionary".into(),
+        ty::REFERENCE_LIST_OP => "reference list op".into(),
+        ty::UNREGISTERED_VALUE => "unregistered".into(),
+        ty::UNREGISTERED_VALUE_LIST_OP => "unregistered list op".into(),
         other => format!("crate type {other}"),
     }
 }
@@ -472,5 +676,79 @@ mod tests {
         // Truncated data is an error, not a panic.
         assert!(decode_ints64(&encode_ints(&ints)[..100], ints.len()).is_err());
         assert!(unframe(&[], 10).is_err());
+    }
+
+    /// `text` as painterly's writer writes it, with its stored int64s
+    /// inlined as 32 bits the way usd-core writes small ones.
+    fn usd_core_like(text: &str) -> CrateSource {
+        let data =
+            openusd::sdf::LayerRegistry::read_bytes(AssetBuffer::Owned(text.as_bytes().to_vec()), "t.usda").unwrap();
+        let mut bytes = super::super::write_layer(&data, std::io::Cursor::new(Vec::new()))
+            .unwrap()
+            .into_inner();
+        let mut inlined = 0;
+        for i in 0..bytes.len() - 8 {
+            let rep = u64::from_le_bytes(bytes[i..i + 8].try_into().unwrap());
+            let at = payload(rep) as usize;
+            if kind(rep) == ty::INT64 && rep >> 56 == 0 && at > 0 && at + 8 <= bytes.len() {
+                let v = i64::from_le_bytes(bytes[at..at + 8].try_into().unwrap());
+                if v == -5 {
+                    let new = INLINED | (ty::INT64 as u64) << 48 | (v as i32 as u32) as u64;
+                    bytes[i..i + 8].copy_from_slice(&new.to_le_bytes());
+                    inlined += 1;
+                }
+            }
+        }
+        assert_eq!(inlined, 1, "test setup");
+        CrateSource::open(AssetBuffer::Owned(bytes)).unwrap()
+    }
+
+    #[test]
+    fn a_misread_field_is_kept_unless_changed_and_then_refused() {
+        let src = usd_core_like(
+            "#usda 1.0\n\ndef \"A\" (\n    customData = {\n        int64 n = -5\n        double d = nan\n    }\n)\n{\n}\n",
+        );
+        let a = sdf::Path::new("/A").unwrap();
+        let rep = src.rep(&a, "customData").unwrap();
+        assert!(src.misread(rep, 0).unwrap(), "test setup: -5 inlined as 32 bits");
+        let read = src.file.value(bytemuck::cast(rep)).unwrap();
+        // Unchanged (NaN and all): the file's value, -5 sign-extended.
+        let Some(Kept::Value(Value::Dictionary(kept))) = src.correct(&a, "customData", Ok(Some(&read))).unwrap() else {
+            panic!("not kept")
+        };
+        assert_eq!(kept.get("n"), Some(&Value::Int64(-5)));
+        // Changed: made from openusd's wrong reading, so refused.
+        let Value::Dictionary(mut changed) = read.clone() else {
+            panic!()
+        };
+        changed.insert("added".into(), Value::Int(1));
+        let err = src
+            .correct(&a, "customData", Ok(Some(&Value::Dictionary(changed))))
+            .unwrap_err();
+        assert!(err.contains("the edit changes this field"), "{err}");
+        // A field the file does not hold is the edit's.
+        assert_eq!(src.correct(&a, "documentation", Ok(Some(&read))).unwrap(), None);
+    }
+
+    #[test]
+    fn values_compare_with_nans_and_dictionaries_key_by_key() {
+        let dict = |pairs: &[(&str, Value)]| {
+            Value::Dictionary(pairs.iter().map(|(k, v)| (k.to_string(), v.clone())).collect())
+        };
+        let many: Vec<(&str, Value)> = ["a", "b", "c", "d", "e", "f", "g", "h"]
+            .iter()
+            .map(|&k| (k, Value::Double(f64::NAN)))
+            .collect();
+        let mut reversed = many.clone();
+        reversed.reverse();
+        assert!(same_value(&dict(&many), &dict(&reversed)));
+        assert!(!same_value(
+            &dict(&[("a", Value::Int64(-5))]),
+            &dict(&[("a", Value::Int64(4294967291))])
+        ));
+        assert!(!same_value(
+            &dict(&[("a", Value::Double(f64::NAN))]),
+            &dict(&[("a", Value::Double(0.0))])
+        ));
     }
 }
