@@ -510,6 +510,22 @@ impl CrateSource {
     /// deleted, ordered): a header byte, then each list's count and
     /// references (an asset string, a path, a layer offset, customData).
     fn reference_dicts(&self, rep: u64) -> Res<Vec<Vec<(String, u64)>>> {
+        self.list_op_items(rep, 4 + 4 + 16 + 8, "a reference list", |c| {
+            c.take(4 + 4 + 16)?;
+            self.entries_at(c)
+        })
+    }
+
+    /// `item` read for every item of every list a list op at `rep` stores
+    /// (a header byte naming the lists, then each list's count and items
+    /// of at least `min_size` bytes).
+    fn list_op_items<T>(
+        &self,
+        rep: u64,
+        min_size: u64,
+        what: &str,
+        mut item: impl FnMut(&mut Cursor) -> Res<T>,
+    ) -> Res<Vec<T>> {
         let mut c = Cursor::at(self.file.bytes(), payload(rep))?;
         let header = c.take(1)?[0];
         let mut out = Vec::new();
@@ -517,9 +533,8 @@ impl CrateSource {
             if header & bit == 0 {
                 continue;
             }
-            for _ in 0..c.count(4 + 4 + 16 + 8, "a reference list")? {
-                c.take(4 + 4 + 16)?;
-                out.push(self.entries_at(&mut c)?);
+            for _ in 0..c.count(min_size, what)? {
+                out.push(item(&mut c)?);
             }
         }
         Ok(out)
@@ -534,19 +549,10 @@ impl CrateSource {
 
     /// The reps of an unregistered list op's items, every list's.
     fn unregistered_items(&self, rep: u64) -> Res<Vec<u64>> {
-        let mut c = Cursor::at(self.file.bytes(), payload(rep))?;
-        let header = c.take(1)?[0];
-        let mut out = Vec::new();
-        for bit in LIST_OP_LISTS {
-            if header & bit == 0 {
-                continue;
-            }
-            for _ in 0..c.count(16, "an unregistered list")? {
-                c.jump()?;
-                out.push(c.u64()?);
-            }
-        }
-        Ok(out)
+        self.list_op_items(rep, 16, "an unregistered list", |c| {
+            c.jump()?;
+            c.u64()
+        })
     }
 }
 
