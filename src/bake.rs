@@ -140,6 +140,14 @@ fn open_for_bake_with(
     if opts.chunk.is_some() && Format::from_path(output)? != Format::Usda {
         return Err(Error::usage("with --chunk the output is the clip-set layer: name it .usda").in_file(output));
     }
+    if opts.chunk.is_some() && std::fs::symlink_metadata(output).is_ok_and(|m| m.file_type().is_symlink()) {
+        // The chunks go beside the name given, the clip set through the link:
+        // opened from the linked file, its ./<stem>.clips paths would miss.
+        return Err(Error::msg(
+            "with --chunk the output (the clip-set layer) must not be a symbolic link: name the file it links to",
+        )
+        .in_file(output));
+    }
     if opts.chunk.is_none() && (opts.chunk_index.is_some() || opts.assemble) {
         return Err(Error::usage("--chunk-index and --assemble need --chunk N"));
     }
