@@ -219,6 +219,32 @@ def test_no_output_overwrites_a_file_the_input_reads(painterly, tmp_path, repo_r
     assert sorted(tmp_path.iterdir()) == sorted(files + [bake_a])
 
 
+def test_a_chunked_output_through_a_symbolic_link_is_refused(painterly, tmp_path, repo_root):
+    """Writes go through a link to the file it names, but a clip set's
+    chunks sit beside the name given: opened from the linked file, its
+    relative clip paths would miss them, so the link is refused."""
+    real = tmp_path / "real" / "shot.usda"
+    real.parent.mkdir()
+    real.write_text("#usda 1.0\n")
+    link = tmp_path / "shot.usda"
+    link.symlink_to(real)
+    proc = painterly("bake", repo_root / "fixtures" / "tube.usda", "-o", link, "--chunk", "5", check=False)
+    assert proc.returncode == 1
+    assert proc.stderr.strip() == (f"error: {link}: with --chunk the output (the clip-set layer) must not be a "
+                                   "symbolic link: name the file it links to")
+    assert real.read_text() == "#usda 1.0\n" and sorted(p.name for p in tmp_path.iterdir()) == ["real", "shot.usda"]
+    # The file itself is a fine output; and without --chunk the link is written through.
+    painterly("bake", repo_root / "fixtures" / "tube.usda", "-o", real, "--chunk", "12", "--quiet")
+    assert (real.parent / "shot.clips").is_dir()
+    plain = tmp_path / "plain.usda"
+    (real.parent / "plain.usda").write_text("#usda 1.0\n")
+    plain.symlink_to(real.parent / "plain.usda")
+    painterly("bake", repo_root / "fixtures" / "tube.usda", "-o", plain, "--frames", "1:2", "--quiet")
+    from pxr import Sdf
+
+    assert plain.is_symlink() and Sdf.Layer.FindOrOpen(str(real.parent / "plain.usda")).customLayerData["painterly"]
+
+
 def test_bake_names_a_missing_output_folder(painterly, tmp_path, repo_root):
     out = tmp_path / "no" / "such" / "bake.usdc"
     proc = painterly("bake", repo_root / "fixtures" / "tube.usda", "-o", out, check=False)

@@ -287,22 +287,6 @@ def test_one_process_at_a_time_writes_a_shot_and_tasks_share_it(painterly, tmp_p
     painterly("bake", src, "-o", shot, "--chunk", "5", "--assemble", "--quiet")
 
 
-def test_a_chunked_output_through_a_symbolic_link_is_refused(painterly, tmp_path, repo_root):
-    """Writes go through a link to the file it names, but a clip set's
-    chunks sit beside the name given: opened from the linked file, its
-    relative clip paths would miss them, so the link is refused."""
-    real = tmp_path / "real" / "shot.usda"
-    real.parent.mkdir()
-    real.write_text("#usda 1.0\n")
-    link = tmp_path / "shot.usda"
-    link.symlink_to(real)
-    proc = painterly("bake", repo_root / "fixtures" / "tube.usda", "-o", link, "--chunk", "5", check=False)
-    assert proc.returncode == 1
-    assert proc.stderr.strip() == (f"error: {link}: with --chunk the output (the clip-set layer) must not be a "
-                                   "symbolic link: name the file it links to")
-    assert real.read_text() == "#usda 1.0\n" and sorted(p.name for p in tmp_path.iterdir()) == ["real", "shot.usda"]
-
-
 @pytest.mark.parametrize(
     "args,code,message",
     [
