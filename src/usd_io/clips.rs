@@ -458,10 +458,9 @@ fn input_clip_files(data: &dyn openusd::sdf::AbstractData, layer_file: &Path) ->
         };
         for set in sets.values() {
             let Value::Dictionary(set) = set else { continue };
-            match set.get("assetPaths") {
-                Some(Value::AssetPathVec(v)) => out.extend(v.iter().filter_map(|a| resolve(&a.authored_path))),
-                Some(Value::AssetPath(a)) => out.extend(resolve(&a.authored_path)),
-                _ => {}
+            // `asset[]`, the only type usd-core's ClipsAPI reads there.
+            if let Some(Value::AssetPathVec(v)) = set.get("assetPaths") {
+                out.extend(v.iter().filter_map(|a| resolve(&a.authored_path)));
             }
             if let Some(Value::AssetPath(a)) = set.get("manifestAssetPath") {
                 out.extend(resolve(&a.authored_path));
