@@ -87,10 +87,8 @@ fn check_output_dir(input: &Path, output: &Path) -> Result<()> {
     if !dir.is_dir() {
         return Err(Error::msg(format!("output directory {} does not exist", dir.display())).in_file(output));
     }
-    if let (Ok(a), Ok(b)) = (input.canonicalize(), output.canonicalize()) {
-        if a == b {
-            return Err(Error::msg("output would overwrite the input; inputs are never modified").in_file(output));
-        }
+    if crate::usd_io::stage::same_file(input, output) {
+        return Err(Error::msg("output would overwrite the input; inputs are never modified").in_file(output));
     }
     Ok(())
 }

@@ -36,12 +36,8 @@ pub fn write_view_layer(input: &Path, bake: &Path, output: &Path) -> Result<View
     }
     let r = StageReader::open_mapped(input)?;
     super::clips::check_not_an_input_file(&r, output)?;
-    if let (Ok(a), Ok(b)) = (bake.canonicalize(), output.canonicalize()) {
-        if a == b {
-            return Err(
-                Error::msg("output would overwrite the bake layer; the view layer is a new file").in_file(output),
-            );
-        }
+    if super::stage::same_file(bake, output) {
+        return Err(Error::msg("output would overwrite the bake layer; the view layer is a new file").in_file(output));
     }
     let meta = r.metadata();
     let mut warnings = Vec::new();

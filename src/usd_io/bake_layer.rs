@@ -122,11 +122,7 @@ pub fn check_baked_from(
         ));
         return Ok(None);
     };
-    let same = match (std::fs::canonicalize(input), std::fs::canonicalize(&p.input)) {
-        (Ok(a), Ok(b)) => a == b,
-        _ => false,
-    };
-    if !same {
+    if !super::stage::same_file(input, Path::new(&p.input)) {
         return Err(Error::msg(format!(
             "this bake was made from {}, not from the input {}: bake the input first (painterly bake {} -o LAYER)",
             p.input,

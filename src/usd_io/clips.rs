@@ -383,7 +383,7 @@ pub fn input_hash(r: &StageReader) -> Result<String> {
 fn layers_digest(r: &StageReader, content: impl Fn(&Path, &mut sha2::Sha256) -> std::io::Result<()>) -> Result<String> {
     use sha2::{Digest, Sha256};
     let mut h = Sha256::new();
-    for f in &input_files(r) {
+    for f in input_files(r) {
         h.update(f.to_string_lossy().as_bytes());
         h.update([0]);
         content(f, &mut h).map_err(|e| Error::msg(format!("cannot read: {e}")).in_file(f))?;
@@ -393,8 +393,13 @@ fn layers_digest(r: &StageReader, content: impl Fn(&Path, &mut sha2::Sha256) -> 
 
 /// Every file the stage reads, canonical: its layers (a package counts as
 /// one file) and the files its value clips read. The reader composed every
-/// prim when it opened, so every referenced layer is among them.
-pub fn input_files(r: &StageReader) -> BTreeSet<PathBuf> {
+/// prim when it opened, so every referenced layer is among them. Listed
+/// once per reader.
+pub fn input_files(r: &StageReader) -> &BTreeSet<PathBuf> {
+    r.input_files.get_or_init(|| list_input_files(r))
+}
+
+fn list_input_files(r: &StageReader) -> BTreeSet<PathBuf> {
     let mut files: BTreeSet<PathBuf> = BTreeSet::new();
     for id in r.stage.layer_identifiers() {
         // "pkg.usdz[inner.usdc]" names a layer inside a package.

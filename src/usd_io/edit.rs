@@ -203,13 +203,11 @@ impl EditSession {
             }
             EditTarget::Layer(edit) => {
                 Format::from_path(edit)?;
-                if let (Ok(a), Ok(b)) = (input.canonicalize(), edit.canonicalize()) {
-                    if a == b {
-                        return Err(Error::msg(
-                            "the edit layer is the input itself: pass --in-place to edit the input",
-                        )
-                        .in_file(edit));
-                    }
+                if super::stage::same_file(input, edit) {
+                    return Err(
+                        Error::msg("the edit layer is the input itself: pass --in-place to edit the input")
+                            .in_file(edit),
+                    );
                 }
                 if edit.exists() {
                     let edit_stamp = stamp(edit);

@@ -142,6 +142,9 @@ pub struct StageReader {
     /// SHA-256 over the stage's layer files, once computed
     /// ([`super::clips::input_hash`]): a chunked bake needs it more than once.
     pub input_hash: std::sync::OnceLock<String>,
+    /// Every file the stage reads, once listed ([`super::clips::input_files`]):
+    /// the output check and the input's hash both need it.
+    pub input_files: std::sync::OnceLock<std::collections::BTreeSet<PathBuf>>,
     /// Whether the layers are mapped files on disk, unedited, for one
     /// command ([`StageReader::open_mapped`]): only then are time samples read
     /// straight from the files ([`super::crate_samples`]) and fixed world
@@ -268,6 +271,13 @@ pub fn require_file(path: &Path, what: &str) -> Result<()> {
     Err(Error::msg(format!("cannot open {what}: {why}")).in_file(path))
 }
 
+/// Whether two paths name one existing file (through links and `..`):
+/// how every "would overwrite" check compares an output with what it must
+/// not replace.
+pub fn same_file(a: &Path, b: &Path) -> bool {
+    matches!((a.canonicalize(), b.canonicalize()), (Ok(a), Ok(b)) if a == b)
+}
+
 impl StageReader {
     /// Opens and composes `path` (`.usda`, `.usdc` or `.usdz`), reading
     /// every layer into memory: for readers that live on while the user may
@@ -336,6 +346,7 @@ impl StageReader {
             file: path.to_path_buf(),
             unresolved,
             input_hash: std::sync::OnceLock::new(),
+            input_files: std::sync::OnceLock::new(),
             mapped: false,
             fixed_transforms: Mutex::default(),
             unsaved: false,
