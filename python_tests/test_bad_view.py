@@ -3,6 +3,8 @@
 attribute (both keys for a duplicate), writes no output file, leaves the
 input untouched and never panics."""
 
+import json
+
 import numpy as np
 import pytest
 from pxr import Gf, Sdf, Usd, UsdGeom, UsdShade
@@ -170,3 +172,27 @@ def test_bad_key_in_one_mesh_fails_the_whole_bake(painterly, tmp_path):
     r = painterly("bake", path, "-o", out, check=False)
     assert r.returncode == 1 and "/World/Other/Only.points" in r.stderr, r.stderr
     assert not out.exists()
+
+
+@pytest.mark.parametrize("target, make, why", [
+    ("/World/Nope", None, "targets /World/Nope, which does not exist"),
+    ("/World/Looks", scope, "targets /World/Looks, a Scope prim, which has no transform"),
+])
+def test_a_bad_camera_relationship_is_a_problem_of_the_mesh(painterly, tmp_path, target, make, why):
+    """The fault is authored on the mesh's `painterly:camera`, so that is the
+    prim and attribute `inspect --json` and the bake name (a validator keys on
+    them), under the view-mesh rule; the target is named in the message."""
+    path = tmp_path / "bad.usda"
+    RV.build_view_stage(path, keys=[(d, None, None, None) for d in OCTAHEDRON], eyes=RV.orbit_eyes(4))
+    st = Usd.Stage.Open(str(path))
+    rel_to(target, make)(st)
+    st.GetRootLayer().Save()
+    del st
+    r = painterly("inspect", path, "--json", check=False)
+    assert r.returncode == 1, r.stderr
+    problems = json.loads(r.stdout)["problems"]
+    assert [(p["prim"], p["attribute"], p["rule"]) for p in problems] == [(MESH, "painterly:camera", "view-mesh")], problems
+    assert why in problems[0]["message"], problems
+    r = painterly("bake", path, "-o", tmp_path / "out.usdc", check=False)
+    assert r.returncode == 1
+    assert r.stderr.splitlines()[0].startswith(f"error: {path}: {MESH}.painterly:camera: {why}"), r.stderr

@@ -221,7 +221,7 @@ impl Character {
         for vm in view_meshes {
             let camera_path = vm.camera_for(camera)?.to_string();
             if camera.is_none() {
-                check_camera(&reader, &camera_path, &format!("{}.painterly:camera", vm.path))?;
+                check_camera(&reader, &camera_path, &vm.path)?;
             }
             let camera_prim = reader.require_prim(&camera_path)?;
             let ViewMesh { path, mesh, blend, .. } = vm;

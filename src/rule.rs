@@ -174,7 +174,7 @@ impl Rule {
             Rule::ViewMesh => (
                 "view-mesh",
                 "ViewMesh",
-                "PainterlyViewDependentAPI is on a Mesh with a positive sharpness and a known uncovered mode.",
+                "PainterlyViewDependentAPI is on a Mesh with a positive sharpness, a known uncovered mode and a painterly:camera that targets a prim with a transform.",
             ),
             Rule::ViewKeyCounts => (
                 "view-key-counts",

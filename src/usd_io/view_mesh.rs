@@ -365,21 +365,21 @@ fn point_cache_time(r: &StageReader, prim: &usd::Prim, rest_time: Option<f64>) -
     }
 }
 
-/// Checks that `path` names an existing prim with a transform; `origin`
-/// says who named it ("--camera", or "/Mesh.painterly:camera").
-pub fn check_camera(r: &StageReader, path: &str, origin: &str) -> Result<()> {
+/// Checks that the `painterly:camera` of the view-dependent mesh `mesh`
+/// targets an existing prim with a transform (only its position is used, so
+/// any Xformable serves, as for a `position` axis). Errors name the mesh and
+/// the relationship, where the fault is authored.
+pub fn check_camera(r: &StageReader, path: &str, mesh: &str) -> Result<()> {
+    let fault = |why: String| Error::attr(mesh, "painterly:camera", why).rule(Rule::ViewMesh);
     let p = r
         .prim(path)?
-        .ok_or_else(|| Error::prim(path, format!("camera named by {origin} does not exist")))?;
+        .ok_or_else(|| fault(format!("targets {path}, which does not exist")))?;
     let ty = r.type_name(&p)?;
     if NOT_XFORMABLE.contains(&ty.as_str()) {
-        return Err(Error::prim(
-            path,
-            format!(
-                "camera named by {origin} is {}, which has no transform (expected a Camera or another Xformable)",
-                crate::words::prim_of_type(&ty)
-            ),
-        ));
+        return Err(fault(format!(
+            "targets {path}, {}, which has no transform (expected a Camera or another Xformable)",
+            crate::words::prim_of_type(&ty)
+        )));
     }
     Ok(())
 }
