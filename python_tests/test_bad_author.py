@@ -92,7 +92,10 @@ def test_unknown_layer(painterly, case, existing):
 @pytest.mark.parametrize("t", ["0", "13", "nan"])
 def test_time_outside_range(painterly, case, t, mode):
     inp, refused = case
-    kw = dict(names=[t]) if mode == "edit-layer" else dict(names=[t], edit_layer=None)
+    # NaN is a bad command-line value (exit 2); 0 and 13 lie outside the stage's range (exit 1).
+    kw = dict(names=[t], code=2 if t == "nan" else 1)
+    if mode == "in-place":
+        kw["edit_layer"] = None
     extra = ["--in-place"] if mode == "in-place" else []
     refused(painterly, "bind", inp, "--time", t, *extra, **kw)
     refused(painterly, "key", inp, "--layer", LAYER, "--time", t, *extra, **kw)
@@ -103,7 +106,7 @@ def test_time_outside_range(painterly, case, t, mode):
 def test_tool_path_too_short(painterly, case, path):
     inp, refused = case
     for which in ("smudge", "expand"):
-        refused(painterly, *brush_args(inp, which, path=path), names=["path"])
+        refused(painterly, *brush_args(inp, which, path=path), code=2, names=["--path"])
 
 
 def test_tool_path_prim_too_short_or_missing(painterly, case):
@@ -123,9 +126,33 @@ def test_tool_path_prim_too_short_or_missing(painterly, case):
 
 @pytest.mark.parametrize("radius", ["0", "-1", "inf"])
 def test_radius_not_positive(painterly, case, radius):
+    """A bad command-line value is a usage error: exit 2 (README, exit codes)."""
     inp, refused = case
     for which in ("smudge", "expand"):
-        refused(painterly, *brush_args(inp, which, radius=radius), names=[f"--radius {radius} must be positive"])
+        refused(painterly, *brush_args(inp, which, radius=radius), code=2,
+                names=[f"--radius {radius} must be positive"])
+
+
+@pytest.mark.parametrize("extra, why", [
+    ({"path": "3,6,-2"}, "--path has 1 point(s); a tool path needs at least two"),
+    ({"path": "3,6,-2 3,6,-2"}, "--path has no segment of non-zero length"),
+    ({"strength": "nan"}, "--strength NaN is not finite"),
+    ({"extra": ("--strokes", "12-7")}, '--strokes: range "12-7" ends before it starts'),
+    ({"extra": ("--strokes", "x")}, '--strokes: "x" is not a stroke index'),
+])
+def test_bad_brush_values_are_usage_errors(painterly, case, extra, why):
+    """Every bad brush option is a command-line value: exit 2, the option named."""
+    inp, refused = case
+    for which in ("smudge", "expand"):
+        refused(painterly, *brush_args(inp, which, **extra), code=2, names=[why])
+
+
+def test_bad_key_values_are_usage_errors(painterly, case):
+    inp, refused = case
+    refused(painterly, "key", inp, "--layer", LAYER, "--time", "nan", "--points", code=2,
+            names=["--time NaN is not a finite number"])
+    refused(painterly, "key", inp, "--layer", LAYER, "--time", 1, "--opacity", "inf", code=2,
+            names=["--opacity inf is not finite"])
 
 
 def test_key_name_exists(painterly, case):
@@ -197,7 +224,7 @@ def test_brush_bad_key_and_strokes(painterly, case):
 def test_bad_path_text(painterly, case):
     inp, refused = case
     for bad in ("1,2 3,4,5", "a,b,c 1,2,3"):
-        msg = refused(painterly, *brush_args(inp, path=bad), code=1)
+        msg = refused(painterly, *brush_args(inp, path=bad), code=2)
         assert "--path" in msg
 
 

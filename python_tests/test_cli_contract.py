@@ -65,10 +65,10 @@ def cases(tmp):
         ("key-time-not-number", ["key", FISH, "--layer", "/Blowfish/Paint/Spikes", "--time", "x", *edit], None, 2),
         ("smudge-ok", ["smudge", FISH, *brush, *edit, "-q"], None, 0),
         ("smudge-misses-everything", ["smudge", FISH, *brush[:3], "100,100,100 101,100,100", *brush[4:], *edit], None, 1),
-        ("smudge-bad-path-point", ["smudge", FISH, *brush[:3], "1,2 3,4", *brush[4:], *edit], None, 1),
+        ("smudge-bad-path-point", ["smudge", FISH, *brush[:3], "1,2 3,4", *brush[4:], *edit], None, 2),
         ("smudge-no-radius", ["smudge", FISH, *brush[:4], *brush[6:], *edit], None, 2),
         ("expand-ok", ["expand", FISH, *brush, *edit, "-q"], None, 0),
-        ("expand-bad-strokes", ["expand", FISH, *brush, "--strokes", "x-y", *edit], None, 1),
+        ("expand-bad-strokes", ["expand", FISH, *brush, "--strokes", "x-y", *edit], None, 2),
         ("expand-bad-falloff", ["expand", FISH, *brush, "--falloff", "linear", *edit], None, 2),
         # render
         ("render-ok", ["render", APPLE, "--camera", "/Apple/Camera", "--frames", "1", "-o", frames_out, "--size", "16x16", "-q"], None, 0),

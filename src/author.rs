@@ -129,7 +129,7 @@ fn scene_at(session: &EditSession, time: Option<f64>) -> Result<(Scene, f64)> {
     let start = meta.start_time_code.unwrap_or(0.0);
     if let Some(t) = time {
         if !t.is_finite() {
-            return Err(Error::msg(format!("--time {t} is not a finite number")));
+            return Err(Error::usage(format!("--time {t} is not a finite number")));
         }
         if let (Some(s), Some(e)) = (meta.start_time_code, meta.end_time_code) {
             if t < s - 1e-9 || t > e + 1e-9 {
@@ -316,7 +316,7 @@ pub fn key(session: &EditSession, opts: &KeyOptions) -> Result<String> {
     }
     if let Some(o) = opts.opacity {
         if !o.is_finite() {
-            return Err(Error::msg(format!("--opacity {o} is not finite")));
+            return Err(Error::usage(format!("--opacity {o} is not finite")));
         }
     }
     let (existing, unread) = existing_keys(r, &opts.layer)?;
@@ -818,10 +818,10 @@ fn check_brush_options(opts: &BrushOptions) -> Result<()> {
         return Err(Error::msg("the tool path has no segment of non-zero length"));
     }
     if !(opts.radius.is_finite() && opts.radius > 0.0) {
-        return Err(Error::msg(format!("--radius {} must be positive", opts.radius)));
+        return Err(Error::usage(format!("--radius {} must be positive", opts.radius)));
     }
     if !opts.strength.is_finite() {
-        return Err(Error::msg(format!("--strength {} is not finite", opts.strength)));
+        return Err(Error::usage(format!("--strength {} is not finite", opts.strength)));
     }
     Ok(())
 }

@@ -140,8 +140,9 @@ pub enum Command {
     /// Set a pose key (configuration at --time), a time key or a sentinel.
     ///
     /// A pose key captures every axis of the layer at --time as its
-    /// coordinates; --points captures the layer's current rest positions and
-    /// --opacity V keys an opacity. --time-key sets a PainterlyTimeKey at
+    /// coordinates; it captures the layer's current rest positions (--points)
+    /// unless only --opacity V is given, which keys an opacity alone (pass
+    /// both to key both). --time-key sets a PainterlyTimeKey at
     /// --time instead; --sentinel a sentinel time key. A key at the same
     /// coordinates (or time) as an existing key of the same channel, or with
     /// an existing name, is refused unless --replace.
@@ -160,7 +161,8 @@ pub enum Command {
         /// sentinel1, ...): letters, digits and _, not starting with a digit.
         #[arg(long)]
         name: Option<String>,
-        /// Capture the layer's current rest positions.
+        /// Capture the layer's current rest positions (the default, unless
+        /// only --opacity is given).
         #[arg(long)]
         points: bool,
         /// Key this opacity.
@@ -371,11 +373,31 @@ fn parse_point(s: &str) -> Result<glam::DVec3, Error> {
         .split(',')
         .map(|x| x.trim().parse::<f64>())
         .collect::<Result<_, _>>()
-        .map_err(|_| Error::msg(format!("--path point {s:?} is not X,Y,Z")))?;
+        .map_err(|_| Error::usage(format!("--path point {s:?} is not X,Y,Z")))?;
     match v.as_slice() {
         [x, y, z] => Ok(glam::DVec3::new(*x, *y, *z)),
-        _ => Err(Error::msg(format!("--path point {s:?} is not X,Y,Z"))),
+        _ => Err(Error::usage(format!("--path point {s:?} is not X,Y,Z"))),
     }
+}
+
+/// `--path`: points separated by spaces or `;`, a tool path of at least two
+/// distinct points (a bad value is a usage error, exit 2).
+fn parse_path(s: &str) -> Result<Vec<glam::DVec3>, Error> {
+    let path: Vec<glam::DVec3> = s
+        .split([' ', ';'])
+        .filter(|p| !p.trim().is_empty())
+        .map(parse_point)
+        .collect::<Result<_, _>>()?;
+    if path.len() < 2 {
+        return Err(Error::usage(format!(
+            "--path has {} point(s); a tool path needs at least two",
+            path.len()
+        )));
+    }
+    if path.iter().all(|p| p.is_finite()) && crate::tools::closest_on_path(&path, glam::DVec3::ZERO).is_none() {
+        return Err(Error::usage("--path has no segment of non-zero length"));
+    }
+    Ok(path)
 }
 
 fn open_session(e: &EditArgs) -> Result<EditSession, Error> {
@@ -391,17 +413,10 @@ fn run_brush(edit: &EditArgs, b: &BrushArgs, which: Brush) -> Result<EditSummary
     let start = session.reader.metadata().start_time_code.unwrap_or(0.0);
     let path = match &b.path_prim {
         Some(p) => author::path_from_prim(&session.reader, p, b.time, start)?,
-        None => b
-            .path
-            .as_deref()
-            .unwrap_or("")
-            .split([' ', ';'])
-            .filter(|s| !s.trim().is_empty())
-            .map(parse_point)
-            .collect::<Result<_, _>>()?,
+        None => parse_path(b.path.as_deref().unwrap_or(""))?,
     };
     let strokes = match &b.strokes {
-        Some(s) => Some(crate::tools::parse_strokes(s).map_err(|m| Error::msg(format!("--strokes: {m}")))?),
+        Some(s) => Some(crate::tools::parse_strokes(s).map_err(|m| Error::usage(format!("--strokes: {m}")))?),
         None => None,
     };
     let opts = BrushOptions {

@@ -74,7 +74,7 @@ impl ClipPlan {
     /// Splits `times` into chunks of `chunk_size` frames for `output`.
     pub fn new(output: &Path, times: &[f64], chunk_size: usize) -> Result<ClipPlan> {
         if chunk_size == 0 {
-            return Err(Error::msg("--chunk must be at least 1"));
+            return Err(Error::usage("--chunk must be at least 1"));
         }
         let (stem, dir) = clips_dir(output)?;
         let count = times.len().div_ceil(chunk_size);
