@@ -238,6 +238,9 @@ def test_a_proxy_over_the_point_limit_is_refused(tmp_path):
 def test_tiny_frame_step_is_a_usage_error(tmp_path, frames):
     proc = bake_fails(tmp_path, BLOWFISH, "at most 500000", code=2, extra=["--frames", frames])
     assert "--frames" in proc.stderr
+    # The advice is one the CLI can follow: --chunk does not lift the limit.
+    assert "bake the range in parts, each with its own --frames A:B" in proc.stderr
+    assert "chunk" not in proc.stderr
 
 
 # ---------------------------------------------------------------------------

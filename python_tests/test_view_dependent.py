@@ -671,3 +671,21 @@ def test_fixture_generator_is_deterministic(tmp_path):
     for name in FIXTURES:
         assert (tmp_path / "a" / name).read_bytes() == (REPO / "fixtures" / name).read_bytes(), \
             f"fixtures/{name} is stale: rerun fixtures/view_fixtures.py"
+
+
+def test_a_camera_at_the_centre_sees_the_base_model(painterly, tmp_path):
+    """A camera placed at the base's bounding-box centre through the mesh's
+    own transform (scale, rotation, translation) lands there only up to the
+    rounding of M·M⁻¹: its eye direction is noise, and it must see the base
+    model, as a camera exactly at the centre does (docs/choices.md), not a
+    key picked by that noise."""
+    vs = RV.build_view_stage(tmp_path / "v.usda", keys=[(d, None, None, None) for d in OCTAHEDRON],
+                             eyes=[(1.0, 0.0, 0.0), (0.0, 0.6, 0.8)], radius=0.0)
+    stage = Usd.Stage.Open(str(vs.path))
+    for t in vs.frames:
+        local = RV.camera_local(stage, stage.GetPrimAtPath(vs.mesh), "/World/Camera", t)
+        c = 0.5 * (vs.rest.min(axis=0) + vs.rest.max(axis=0))
+        assert np.linalg.norm(local - c) < 1e-12 * Au.bbox_diag(vs.rest)
+    got = baked_points(vs, bake(painterly, vs, tmp_path))
+    for t in vs.frames:
+        assert np.abs(got[t] - vs.rest).max() < 1e-6, t

@@ -71,7 +71,7 @@ impl FrameRange {
         if !(n.is_finite() && n <= MAX_FRAMES as f64) {
             return Err(format!(
                 "{start}:{end} with step {step} is {n:.3e} time codes; painterly covers at most \
-                 {MAX_FRAMES} per run (split the range into chunks)"
+                 {MAX_FRAMES} per run (bake the range in parts, each with its own --frames A:B)"
             ));
         }
         // Every time code `times` makes must differ from the previous one in
