@@ -405,3 +405,87 @@ def test_a_property_of_the_other_key_type_is_named_and_ignored(painterly, tmp_pa
     for t in range(1, 10):
         got, want = (np.array(st.GetPrimAtPath(LAYER).GetAttribute("points").Get(t)) for st in baked)
         assert got.shape == (len(rest), 3) and np.array_equal(got, want), t
+
+
+BLOWFISH_AXIS = "/Blowfish/Paint/inflate"
+
+
+def _blowfish_with_axis_fault(repo_root, tmp_path, fault):
+    """fixtures/blowfish.usda with one fault on the inflate axis, which the
+    Spikes, Cheeks and GapFill layers' keys use: a bad `kind` or `source`
+    authored in a copy, or the axis deactivated by a shot that sublayers it."""
+    asset = tmp_path / "blowfish.usda"
+    asset.write_bytes((repo_root / "fixtures" / "blowfish.usda").read_bytes())
+    if fault == "deactivated":
+        src = Sdf.Layer.FindOrOpen(str(asset))
+        shot = Sdf.Layer.CreateNew(str(tmp_path / "shot.usda"))
+        shot.subLayerPaths.append("./blowfish.usda")
+        shot.startTimeCode, shot.endTimeCode = src.startTimeCode, src.endTimeCode
+        stage = Usd.Stage.Open(shot)
+        stage.SetEditTarget(shot)
+        stage.OverridePrim(BLOWFISH_AXIS).SetActive(False)
+        shot.Save()
+        return tmp_path / "shot.usda"
+    stage = Usd.Stage.Open(str(asset))
+    axis = stage.GetPrimAtPath(BLOWFISH_AXIS)
+    if fault == "kind":
+        axis.GetAttribute("kind").Set("blendShap")
+    else:
+        axis.GetRelationship("source").SetTargets([Sdf.Path("/Blowfish/Rig/Skel/NoAnim")])
+    stage.GetRootLayer().Save()
+    return asset
+
+
+def _stroke_layers(stage):
+    """usd-core's count: {path: (strokes, points)} of every BasisCurves with
+    PainterlyStrokeLayerAPI under a prim with PainterlyRigAPI."""
+    rigs = [p.GetPath() for p in stage.Traverse() if "PainterlyRigAPI" in p.GetAppliedSchemas()]
+    out = {}
+    for p in stage.Traverse():
+        if (p.GetTypeName() == "BasisCurves" and "PainterlyStrokeLayerAPI" in p.GetAppliedSchemas()
+                and any(p.GetPath().HasPrefix(r) for r in rigs)):
+            counts = list(p.GetAttribute("curveVertexCounts").Get())
+            out[str(p.GetPath())] = (len(counts), sum(counts))
+    return out
+
+
+@pytest.mark.parametrize("fault", ["kind", "source", "deactivated"])
+def test_inspect_lists_the_layers_of_a_broken_axis_and_names_it_once(painterly, repo_root, tmp_path, fault):
+    """README: inspect lists each stroke layer, and a cause several layers
+    meet (an axis their keys share) is one problem, named once. The layers
+    whose keys use a broken axis used to vanish from the listing (11 of the
+    blowfish's 14), and a deactivated axis was one problem per layer; now
+    every layer is listed with its strokes and points and the axis is one
+    problem on the axis (rule axis), as a bad kind or source already was."""
+    shot = _blowfish_with_axis_fault(repo_root, tmp_path, fault)
+    stage = Usd.Stage.Open(str(shot))
+    layers = _stroke_layers(stage)
+    users = [p for p in layers if Sdf.Path(BLOWFISH_AXIS) in
+             stage.GetPrimAtPath(p).GetRelationship("painterly:axes").GetTargets()]
+    assert len(users) == 3, users  # the fault is shared
+    strokes = sum(s for s, _ in layers.values())
+    points = sum(n for _, n in layers.values())
+
+    proc = painterly("inspect", shot, "--json", check=False)
+    assert proc.returncode == 1, proc.stderr
+    report = json.loads(proc.stdout)
+    [rig] = report["rigs"]
+    got = {lay["path"]: (lay["strokes"], lay["points"]) for lay in rig["layers"]}
+    assert len(rig["layers"]) == len(layers) and got == layers
+    problems = [(p["prim"], p["attribute"], p["rule"]) for p in report["problems"]]
+    attribute = {"kind": "kind", "source": "source", "deactivated": None}[fault]
+    assert problems == [(BLOWFISH_AXIS, attribute, "axis")], report["problems"]
+    if fault == "deactivated":
+        message = report["problems"][0]["message"]
+        assert message.startswith("the axis is deactivated (active = false)"), message
+        assert f"({', '.join(users)})" in message, message
+
+    proc = painterly("inspect", shot, check=False)
+    assert proc.returncode == 1, proc.stderr
+    assert f"  total: {len(layers)} layers, {strokes} strokes, {points} points\n" in proc.stdout, proc.stdout
+    assert "1 problem(s):\n" in proc.stdout, proc.stdout
+    # bake still refuses the stage, naming the axis
+    out = tmp_path / "bake.usdc"
+    proc = painterly("bake", shot, "-o", out, check=False)
+    assert proc.returncode == 1 and f": {BLOWFISH_AXIS}" in proc.stderr, proc.stderr
+    assert not out.exists()

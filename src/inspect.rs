@@ -924,6 +924,37 @@ def PainterlyAxis "outside" { uniform token kind = "blendShape"  rel source = </
     }
 
     #[test]
+    fn a_deactivated_axis_three_layers_use_is_one_problem_and_they_stay_listed() {
+        // fixtures/blowfish.usda: Spikes, Cheeks and GapFill key the inflate
+        // axis. Deactivated, it is one problem on the axis naming the three,
+        // and the three layers are still listed with their strokes.
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/blowfish.usda");
+        let text = std::fs::read_to_string(&path).unwrap();
+        let text = text.replacen(
+            "def PainterlyAxis \"inflate\"",
+            "def PainterlyAxis \"inflate\" (active = false)",
+            1,
+        );
+        let r = open_bytes(text.into_bytes(), &path).unwrap();
+        let report = inspect_stage(&r).unwrap();
+        let problems = &report.problems;
+        assert_eq!(problems.len(), 1, "{problems:?}");
+        assert_eq!(site(&problems[0]), (Some("/Blowfish/Paint/inflate"), None, Rule::Axis));
+        assert_eq!(
+            problems[0].message,
+            "the axis is deactivated (active = false), but 3 stroke layers target it in `painterly:axes` \
+             (/Blowfish/Paint/Spikes, /Blowfish/Paint/Cheeks, /Blowfish/Paint/GapFill): it would go on shaping them unseen"
+        );
+        let layers = &report.rigs[0].layers;
+        assert_eq!(layers.len(), 14);
+        let spikes = layers.iter().find(|l| l.path == "/Blowfish/Paint/Spikes").unwrap();
+        assert_eq!(
+            (spikes.strokes, spikes.points, spikes.pose_position_keys),
+            (260, 780, 3)
+        );
+    }
+
+    #[test]
     fn skel_proxy_reports_its_skeleton_and_animation() {
         // fixtures/tube.usda: the proxy binds rel skel:skeleton = </Tube/Rig/Skel>,
         // whose rel skel:animationSource = </Tube/Rig/Skel/Anim>.

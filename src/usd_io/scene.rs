@@ -329,14 +329,22 @@ impl Scene {
                 }
                 continue;
             };
-            let layer = read_layer(r, lp, owner.proxy.rest.len()).and_then(|mut layer| {
-                layer.keys = read_keys(r, &paths, owner, &layer)?;
-                Ok(layer)
-            });
-            match layer {
-                Ok(layer) => owner.layers.push(layer),
+            let mut layer = match read_layer(r, lp, owner.proxy.rest.len()) {
+                Ok(layer) => layer,
+                Err(e) => {
+                    problems.push(e.or_rule(Rule::Unreadable));
+                    continue;
+                }
+            };
+            // A layer whose keys (or their axes) cannot be read is still the
+            // rig's layer, with its strokes and points: it stays, keyless,
+            // beside the problem, so inspect lists it. Bake stops at the
+            // problem, so the keyless layer is never baked.
+            match read_keys(r, &paths, owner, &layer) {
+                Ok(keys) => layer.keys = keys,
                 Err(e) => problems.push(e.or_rule(Rule::Unreadable)),
             }
+            owner.layers.push(layer);
         }
         Ok((Scene { rigs }, problems))
     }
@@ -994,13 +1002,42 @@ pub fn layer_axes(r: &StageReader, all_paths: &[String], rig: &mut Rig, layer: &
             );
         };
         // usd-core still reads a deactivated prim's attributes, but an axis
-        // switched off must not go on shaping the layer unseen.
+        // switched off must not go on shaping the layer unseen. The cause is
+        // the axis, whichever layer meets it first: one problem on the axis,
+        // the same for every layer that targets it (as a bad `kind` is), so
+        // inspect names it once.
         if let Some(why) = r.unread_reason(&axis)? {
-            return Err(Error::attr(path, "painterly:axes", format!("targets {ap}, which is {why}")).rule(Rule::Axis));
+            let users = layers_targeting(r, all_paths, ap)?;
+            let (verb, them) = if users.len() == 1 {
+                ("targets", "it")
+            } else {
+                ("target", "them")
+            };
+            let message = format!(
+                "the axis is {why}, but {} {verb} it in `painterly:axes` ({}): it would go on shaping {them} unseen",
+                crate::words::plural(users.len(), "stroke layer"),
+                crate::words::at_most_five(users.iter().cloned()),
+            );
+            return Err(Error::prim(ap, message).rule(Rule::Axis));
         }
         axes.push(axis_index(r, rig, ap)?);
     }
     Ok(axes)
+}
+
+/// The stroke layers (among `all_paths`) whose `painterly:axes` target
+/// `axis`, in namespace order.
+fn layers_targeting(r: &StageReader, all_paths: &[String], axis: &str) -> Result<Vec<String>> {
+    let mut users = Vec::new();
+    for p in all_paths {
+        let prim = r.require_prim(p)?;
+        if r.api_schemas(&prim)?.iter().any(|a| a == STROKE_LAYER_API)
+            && r.targets(&prim, "painterly:axes")?.iter().any(|t| t == axis)
+        {
+            users.push(p.clone());
+        }
+    }
+    Ok(users)
 }
 
 /// Reads a layer's axes, pose keys and time keys.
