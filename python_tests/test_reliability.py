@@ -214,6 +214,33 @@ def test_too_many_stroke_points_fail_before_the_points_are_read(tmp_path):
     assert proc.returncode == 1 and "at most 20000000" in proc.stdout + proc.stderr
 
 
+def test_the_stroke_point_limits_advice_can_be_followed(tmp_path):
+    """Two layers over the limit together: the message says to bake them in
+    several runs, deactivating the others in a layer over the input, and a
+    shot layer that deactivates one takes the other under the limit."""
+    src = tmp_path / "rig.usda"
+    shutil.copy(REPO / "fixtures" / "static.usda", src)
+    stage = Usd.Stage.Open(str(src))
+    dabs = stage.GetPrimAtPath("/Static/Paint/Dabs")
+    Sdf.CopySpec(stage.GetRootLayer(), dabs.GetPath(), stage.GetRootLayer(), "/Static/Paint/Dabs2")
+    for p in ("/Static/Paint/Dabs", "/Static/Paint/Dabs2"):
+        stage.GetPrimAtPath(p).GetAttribute("curveVertexCounts").Set([10_000_001])
+    stage.GetRootLayer().Save()
+    bake_fails(tmp_path, src, "at most 20000000",
+               "bake its stroke layers in several runs, deactivating the others in a layer over the input")
+    shot = Sdf.Layer.CreateNew(str(tmp_path / "part.usda"))
+    shot.subLayerPaths.append(src.name)
+    over = Sdf.CreatePrimInLayer(shot, "/Static/Paint/Dabs2")
+    over.specifier = Sdf.SpecifierOver
+    over.active = False
+    shot.Save()
+    proc = run("inspect", tmp_path / "part.usda")
+    # Under the limit now: the remaining layer's own 10,000,001 counts
+    # against its 60 points is what is left to fix.
+    assert "at most 20000000" not in proc.stdout + proc.stderr, proc.stdout + proc.stderr
+    assert "/Static/Paint/Dabs" in proc.stdout + proc.stderr
+
+
 def test_a_proxy_over_the_point_limit_is_refused(tmp_path):
     """A 10,000,001-point proxy (a 120 MB crate file from usd-core) fails
     fast naming the proxy instead of binding for minutes."""

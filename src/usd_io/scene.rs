@@ -427,7 +427,7 @@ fn check_stroke_point_total(r: &StageReader, layer_paths: &[String], rig_paths: 
         if total > MAX_STROKE_POINTS as i64 {
             let message = format!(
                 "{total} stroke points; painterly bakes at most {MAX_STROKE_POINTS} in one run \
-                 (bake the character's stroke layers in several runs)"
+                 (bake its stroke layers in several runs, deactivating the others in a layer over the input)"
             );
             return Err(Error::attr(lp, "curveVertexCounts", message).rule(Rule::PointCounts));
         }
@@ -1825,7 +1825,7 @@ def SkelRoot "Char"
         );
         assert_eq!(
             e.message,
-            "20000001 stroke points; painterly bakes at most 20000000 in one run (bake the character's stroke layers in several runs)"
+            "20000001 stroke points; painterly bakes at most 20000000 in one run (bake its stroke layers in several runs, deactivating the others in a layer over the input)"
         );
     }
 
