@@ -169,6 +169,79 @@ def test_stroke_covers_width_times_length(painterly, tmp_path):
     assert alpha.max() == pytest.approx(opacity, abs=1e-5)
 
 
+def conformed_view_projection(stage_path, size, time=1):
+    """usd-core's frustum for /Cam, conformed as predict() does: the view
+    matrix and the world-to-pixel function."""
+    stage = Usd.Stage.Open(str(stage_path))
+    frustum = UsdGeom.Camera(stage.GetPrimAtPath("/Cam")).GetCamera(time).frustum
+    win = frustum.window
+    cy = 0.5 * (win.min[1] + win.max[1])
+    half = 0.5 * (win.max[0] - win.min[0]) / (size[0] / size[1])
+    frustum.window = Gf.Range2d(Gf.Vec2d(win.min[0], cy - half), Gf.Vec2d(win.max[0], cy + half))
+    view = frustum.ComputeViewMatrix()
+    m = view * frustum.ComputeProjectionMatrix()
+
+    def pixel(p):
+        ndc = m.Transform(Gf.Vec3d(*p))
+        return (ndc[0] + 1) / 2 * size[0], (1 - ndc[1]) / 2 * size[1]
+
+    return view, pixel
+
+
+def test_a_receding_stroke_is_interpolated_perspective_correctly(painterly, tmp_path):
+    """A stroke from 5 to 100 units in front of a perspective camera, in
+    front of a wall 20 units away, red at its near end and green at its far
+    end. Each pixel column sees the point of the stroke where the ray
+    through its centre meets it (found with usd-core's frustum, by
+    bisection along the segment): the stroke is drawn over the wall exactly
+    where that point is nearer than 20, Z is its depth, and its colour is
+    the mix at that point of the segment. Depth interpolated linearly on
+    screen put the stroke behind the wall where it is 6 to 18 units away."""
+    size = (256, 191)  # odd height: the centre row's centres lie on y = 0
+    row = size[1] // 2
+    near_end, far_end = (0.5, 0.0, -5.0), (0.5, 0.0, -100.0)
+    wall = {"points": [(-20, -20, -20), (20, -20, -20), (20, 20, -20), (-20, 20, -20)],
+            "counts": [4], "indices": [0, 1, 2, 3]}
+    cam = {"translate": (0, 0, 0), "attrs": {"clippingRange": Gf.Vec2f(1, 1000)}}
+    path = author(tmp_path / "s.usda", camera=cam, meshes=[wall])
+    stage = Usd.Stage.Open(str(path))
+    c = UsdGeom.BasisCurves.Define(stage, "/Receding")
+    c.CreateTypeAttr("linear")
+    c.CreateCurveVertexCountsAttr([2])
+    c.CreatePointsAttr([Gf.Vec3f(*near_end), Gf.Vec3f(*far_end)])
+    c.CreateWidthsAttr([0.2])
+    c.SetWidthsInterpolation(UsdGeom.Tokens.constant)
+    c.CreateDisplayColorPrimvar(UsdGeom.Tokens.vertex).Set([Gf.Vec3f(1, 0, 0), Gf.Vec3f(0, 1, 0)])
+    stage.GetRootLayer().Save()
+    render(painterly, path, tmp_path, size=size)
+    exr = read_exr(tmp_path / "f.0001.exr")
+
+    view, pixel = conformed_view_projection(path, size)
+    at = lambda s: tuple(a + s * (b - a) for a, b in zip(near_end, far_end))  # noqa: E731
+    depth_at = lambda s: -view.Transform(Gf.Vec3d(*at(s)))[2]  # noqa: E731
+    x_near, x_far = pixel(near_end)[0], pixel(far_end)[0]
+    assert x_far < x_near
+    checked = {"stroke": 0, "wall": 0}
+    for col in range(math.ceil(x_far) + 2, math.floor(x_near) - 2):
+        lo, hi = 0.0, 1.0  # x falls from x_near at s = 0 to x_far at s = 1
+        for _ in range(60):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if pixel(at(mid))[0] > col + 0.5 else (lo, mid)
+        s = 0.5 * (lo + hi)
+        depth = depth_at(s)
+        if 19.0 < depth < 21.5:
+            continue  # where the stroke passes through the wall (depth-test bias)
+        z, rgb = exr["Z"][row, col], np.array([exr[k][row, col] for k in "RGB"])
+        if depth < 20:
+            checked["stroke"] += 1
+            assert z == pytest.approx(depth, rel=1e-3), f"column {col}: Z {z}, the stroke is {depth:.3f} away"
+            assert np.allclose(rgb, [1 - s, s, 0], atol=5e-3), f"column {col}: {rgb} vs the mix at s = {s:.4f}"
+        else:
+            checked["wall"] += 1
+            assert z == pytest.approx(20.0, rel=1e-4), f"column {col}: Z {z}, the wall is 20 away"
+    assert checked["stroke"] > 30 and checked["wall"] > 5, checked
+
+
 @pytest.mark.parametrize("red_nearer", [True, False])
 @pytest.mark.parametrize("authored_red_first", [True, False])
 def test_compositing_order_follows_depth(painterly, tmp_path, red_nearer, authored_red_first):

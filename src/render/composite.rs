@@ -25,6 +25,12 @@
 //! `d ≤ z·(1 + tolerance) + s·(reach + 1)`, `reach` the fragment's distance
 //! in pixels from the surface it lies on (a line's half width).
 //!
+//! Along a stroke or line segment, depth, colour and opacity vary linearly
+//! in the scene, so on screen they are interpolated perspective-correctly
+//! (1/depth linear in screen space) under a perspective camera, linearly
+//! under an orthographic one ([`along_segment`]); the brush's arc length is
+//! measured on screen.
+//!
 //! Colours are linear and premultiplied. Z is the camera depth of the
 //! nearest mesh pixel or stroke fragment (alpha > 0), +∞ where empty.
 
@@ -276,6 +282,30 @@ pub fn render(scene: &FrameScene, brush: Option<&Brush>) -> Frame {
     }
 }
 
+/// Where the fragment a fraction `t` of the way along a projected segment
+/// (on screen, from the end at depth `da` to the end at depth `db`) lies on
+/// the segment in the scene: its camera depth and the fraction `s` of the
+/// way in the scene, by which attributes that vary linearly along the scene
+/// segment (colour, opacity) are interpolated.
+///
+/// Orthographic projection keeps ratios along a segment: `s = t`, and depth
+/// is linear. Perspective projection does not: `1/depth` is what varies
+/// linearly on screen, `1/d = (1 − t)/da + t/db`, and `s = (t/db)·d`, so the
+/// near half of a receding segment takes more than half of its pixels.
+/// (The pixel radius needs no such care: it is proportional to
+/// width/depth, itself linear on screen, so its endpoints' values
+/// interpolate linearly in `t`.)
+#[inline]
+fn along_segment(da: f32, db: f32, t: f32, perspective: bool) -> (f32, f32) {
+    if !perspective || da == db {
+        return (da + (db - da) * t, t);
+    }
+    let (ia, ib) = (1.0 / da, 1.0 / db);
+    let inv = ia + (ib - ia) * t;
+    let d = 1.0 / inv;
+    (d, (t * ib * d).clamp(0.0, 1.0))
+}
+
 fn draw_meshes(scene: &FrameScene, list: &[u32], tile: &PixelRect, buf: &mut TileBuffers) {
     let shading = scene.shading.unwrap_or_default();
     for &ti in list {
@@ -328,7 +358,7 @@ fn draw_lines(scene: &FrameScene, list: &[u32], tile: &PixelRect, buf: &mut Tile
                     continue;
                 };
                 let i = (y - tile.y0) as usize * TILE + (x - tile.x0) as usize;
-                let depth = a.depth + (b.depth - a.depth) * f.t;
+                let (depth, _) = along_segment(a.depth, b.depth, f.t, scene.perspective);
                 if !buf.visible(i, depth, a.radius) {
                     continue;
                 }
@@ -372,19 +402,20 @@ fn draw_strokes(scene: &FrameScene, list: &[u32], tile: &PixelRect, buf: &mut Ti
                         continue;
                     };
                     let i = (y - tile.y0) as usize * TILE + (x - tile.x0) as usize;
-                    let depth = a.depth + (b.depth - a.depth) * f.t;
+                    let (depth, scene_t) = along_segment(a.depth, b.depth, f.t, scene.perspective);
                     if !buf.visible(i, depth, 0.0) {
                         continue;
                     }
-                    let mut alpha = f.coverage * (a.opacity + (b.opacity - a.opacity) * f.t);
+                    let mut alpha = f.coverage * (a.opacity + (b.opacity - a.opacity) * scene_t);
                     if let Some(brush) = brush {
+                        // The brush runs along the screen-space arc length.
                         let arc = a.arc + (b.arc - a.arc) * f.t;
                         let v = if s.length > 0.0 { arc / s.length } else { 0.5 };
                         alpha *= brush.sample(0.5 * (f.across + 1.0), v);
                     }
                     if alpha > buf.alpha[i] {
                         buf.alpha[i] = alpha;
-                        buf.tint[i] = a.color + (b.color - a.color) * f.t;
+                        buf.tint[i] = a.color + (b.color - a.color) * scene_t;
                         buf.depth[i] = depth;
                     }
                 }
@@ -532,10 +563,25 @@ mod tests {
         }
     }
 
+    /// Where the pixel column `x` sees the scene segment whose ends project
+    /// to columns `xa`, `xb` at depths `da`, `db`, by a pinhole (column =
+    /// X / depth, any scale and centre give the same answer): the ray through
+    /// `x` meets the segment `(X, Z)(s) = (xa·da, da) + s·(xb·db − xa·da, db − da)`
+    /// where `X(s) = x·Z(s)`. Returns (s, depth there).
+    fn ray_meets_segment(xa: f64, da: f64, xb: f64, db: f64, x: f64) -> (f64, f64) {
+        let (pa, pb) = (xa * da, xb * db);
+        let s = (x * da - pa) / ((pb - pa) - x * (db - da));
+        (s, da + s * (db - da))
+    }
+
     #[test]
     fn stroke_attributes_follow_the_segment_and_the_brush() {
         // One segment from (10, 20) to (54, 20), radius 6: depth, opacity,
-        // colour and arc length all change along it.
+        // colour and arc length all change along it. The scene is
+        // perspective: depth, opacity and colour vary linearly along the
+        // segment in the scene, so on screen they follow the ray through
+        // each pixel ([`ray_meets_segment`]); the brush follows the
+        // screen-space arc length.
         let (red, blue) = (Vec3::new(1.0, 0.0, 0.0), Vec3::new(0.0, 0.0, 1.0));
         let end = |x: f32, depth: f32, opacity: f32, color: Vec3, arc: f32| RibbonVertex {
             pos: Vec2::new(x, 20.0),
@@ -556,9 +602,13 @@ mod tests {
                 // Pixel centre (x + ½, y + ½): inside the ribbon, away from
                 // its caps, so fully covered.
                 let t = (x as f32 + 0.5 - 10.0) / 44.0;
+                let (s, depth) = ray_meets_segment(10.0, 4.0, 54.0, 8.0, x as f64 + 0.5);
+                let (s, depth) = (s as f32, depth as f32);
+                // Receding: the near end takes more than its share of pixels.
+                assert!(s < t, "{s} {t}");
                 let across = (y as f32 + 0.5 - 20.0) / 6.0;
-                let opacity = 0.2 + 0.8 * t;
-                let color = red * (1.0 - t) + blue * t;
+                let opacity = 0.2 + 0.8 * s;
+                let color = red * (1.0 - s) + blue * s;
                 let i = y * 64 + x;
                 for (frame, alpha) in [
                     (&plain, opacity),
@@ -572,13 +622,20 @@ mod tests {
                     for k in 0..4 {
                         assert!((c[k] - want[k]).abs() < 1e-5, "({x}, {y}): {c:?} vs {want:?}");
                     }
-                    assert!(
-                        (frame.z[i] - (4.0 + 4.0 * t)).abs() < 1e-5,
-                        "({x}, {y}) z {}",
-                        frame.z[i]
-                    );
+                    assert!((frame.z[i] - depth).abs() < 1e-5, "({x}, {y}) z {}", frame.z[i]);
                 }
             }
+        }
+        // Orthographic: everything linear on screen.
+        scene.perspective = false;
+        let f = render(&scene, None);
+        for x in [14usize, 25, 40, 49] {
+            let t = (x as f32 + 0.5 - 10.0) / 44.0;
+            let i = 20 * 64 + x;
+            let opacity = 0.2 + 0.8 * t;
+            assert!((f.rgba[i][3] - opacity).abs() < 1e-5, "({x}, 20): {:?}", f.rgba[i]);
+            assert!((f.rgba[i][2] - t * opacity).abs() < 1e-5, "({x}, 20): {:?}", f.rgba[i]);
+            assert!((f.z[i] - (4.0 + 4.0 * t)).abs() < 1e-5, "({x}, 20) z {}", f.z[i]);
         }
     }
 
@@ -667,8 +724,9 @@ mod tests {
     #[test]
     fn silhouette_lines_interpolate_depth_and_cover_their_rows() {
         // A horizontal line through pixel centres of row 20, radius 1,
-        // opacity 0.5, depth 4 to 8; the same line again at depth 9 ties
-        // everywhere and changes nothing.
+        // opacity 0.5, depth 4 to 8 (perspective: 1/depth is linear on
+        // screen); the same line again at depth 9 ties everywhere and
+        // changes nothing.
         let end = |x: f32, depth: f32| RibbonVertex {
             pos: Vec2::new(x, 20.5),
             radius: 1.0,
@@ -683,7 +741,7 @@ mod tests {
         s.lines.push([end(4.0, 9.0), end(44.0, 9.0)]);
         let f = render(&s, None);
         for x in [10usize, 24, 37] {
-            let t = (x as f32 + 0.5 - 4.0) / 40.0;
+            let (_, depth) = ray_meets_segment(4.0, 4.0, 44.0, 8.0, x as f64 + 0.5);
             // Row 20 is fully covered, rows 19 and 21 half (box filter), 22 not.
             for (y, coverage) in [(19usize, 0.5), (20, 1.0), (21, 0.5), (22, 0.0)] {
                 let c = f.rgba[y * 64 + x];
@@ -694,8 +752,8 @@ mod tests {
                 }
             }
             assert!(
-                (f.z[20 * 64 + x] - (4.0 + 4.0 * t)).abs() < 1e-5,
-                "z at {x}: {}",
+                (f.z[20 * 64 + x] - depth as f32).abs() < 1e-5,
+                "z at {x}: {} vs {depth}",
                 f.z[20 * 64 + x]
             );
         }
