@@ -400,3 +400,40 @@ def test_an_input_that_is_a_device_or_under_a_file_gets_the_system_s_words(paint
         for args in (["inspect", bad], ["render", bad, "--camera", "/C", "--frames", "1", "-o", tmp_path / "f.####.exr"]):
             proc = painterly(*args, check=False)
             assert (proc.returncode, proc.stderr) == (1, f"error: {bad}: cannot open input: {why}\n"), args
+
+
+@pytest.mark.parametrize("args, named", [
+    (["bake", "{head}", "--camera", "/Head/Camera.focalLength", "--frames", "1:2", "-o", "{out}/b.usdc"],
+     "--camera /Head/Camera.focalLength is a property path, not a prim path"),
+    (["bake", "{fish}", "--camera", "/Blowfish/Camera{v=x}", "--frames", "1", "-o", "{out}/b.usdc"],
+     "--camera /Blowfish/Camera{v=x} is a variant selection path, not a prim path"),
+    (["key", "{fish}", "--layer", "/Blowfish/Paint/Spikes", "--time", "15", "--points", "--camera",
+      "/Blowfish/Camera.focalLength", "--edit-layer", "{out}/e.usda"],
+     "--camera /Blowfish/Camera.focalLength is a property path, not a prim path"),
+    (["key", "{fish}", "--layer", "/Blowfish/Paint/Spikes.points", "--time", "15", "--points",
+      "--edit-layer", "{out}/e.usda"],
+     "--layer /Blowfish/Paint/Spikes.points is a property path, not a prim path"),
+    (["bind", "{fish}", "--layer", "Blowfish/Paint/Hair", "--edit-layer", "{out}/e.usda"],
+     "--layer Blowfish/Paint/Hair is a relative path, not an absolute prim path"),
+    (["smudge", "{fish}", "--layer", "/Blowfish/Paint/Hair", "--path-prim", "/Blowfish/Paint/Hair.points",
+      "--radius", "1", "--strength", "0.2", "--edit-layer", "{out}/e.usda"],
+     "--path-prim /Blowfish/Paint/Hair.points is a property path, not a prim path"),
+])
+def test_an_option_naming_a_prim_refuses_a_path_that_is_not_a_prim_path(painterly, tmp_path, repo_root, args,
+                                                                         named):
+    """usd-core's GetPrimAtPath finds no prim at a property path, a variant
+    selection or a relative path: an option naming a prim refuses them as a
+    usage error (exit 2) naming the option and the path, and writes nothing,
+    where the prim the path ends in (/Head/Camera) was silently used."""
+    from pxr import Usd
+
+    fish, head = repo_root / "fixtures" / "blowfish.usda", repo_root / "fixtures" / "head.usda"
+    stage = Usd.Stage.Open(str(head))
+    assert stage.GetPrimAtPath("/Head/Camera") and not stage.GetPrimAtPath("/Head/Camera.focalLength")
+    out = tmp_path / "out"
+    out.mkdir()
+    given = {"{fish}": str(fish), "{head}": str(head)}
+    proc = painterly(*[given.get(a, a.replace("{out}", str(out))) for a in args], check=False)
+    assert proc.returncode == 2, proc.stderr
+    assert named in proc.stderr, proc.stderr
+    assert list(out.iterdir()) == []

@@ -442,6 +442,23 @@ def test_bad_inputs_exit_1_without_serving(tmp_path):
     assert r.returncode == 1 and "bad.usda" in r.stderr
 
 
+@pytest.mark.parametrize("camera, what", [
+    ("/Head/Camera.focalLength", "is a property path, not a prim path"),
+    ("/Head/Camera{v=x}", "is a variant selection path, not a prim path"),
+    ("Head/Camera", "is a relative path, not an absolute prim path"),
+])
+def test_a_camera_that_is_not_a_prim_path_is_a_usage_error_without_serving(camera, what):
+    """usd-core's GetPrimAtPath finds no prim there: --camera refuses it
+    (exit 2, as bake and render do) instead of starting at /Head/Camera."""
+    args = [str(painterly_binary()), "preview", str(HEAD), "--port", "0", "--camera", camera]
+    try:
+        r = subprocess.run(args, capture_output=True, text=True, timeout=30)
+    except subprocess.TimeoutExpired as e:  # run() killed the server it started
+        pytest.fail(f"preview served with --camera {camera}: {e.stdout!r}")
+    assert r.returncode == 2, r.stderr
+    assert f"--camera {camera} {what}" in r.stderr and r.stdout == ""
+
+
 def test_a_busy_port_is_a_clear_error(fish):
     port = int(fish.url.rsplit(":", 1)[1].strip("/"))
     r = subprocess.run([str(painterly_binary()), "preview", str(FISH), "--port", str(port)], capture_output=True, text=True, timeout=120)

@@ -224,6 +224,28 @@ def test_a_scene_without_strokes_with_bad_timing_is_refused(painterly, tmp_path,
     assert not any(out.iterdir())
 
 
+@pytest.mark.parametrize("camera, what", [
+    ("/Cam.focalLength", "is a property path, not a prim path"),
+    ("/Cam.no:such:attr", "is a property path, not a prim path"),
+    ("/Cam{v=x}", "is a variant selection path, not a prim path"),
+    ("Cam", "is a relative path, not an absolute prim path"),
+])
+def test_a_camera_path_that_is_not_a_prim_path_is_a_usage_error(painterly, tmp_path, scene, repo_root, camera, what):
+    """usd-core's GetPrimAtPath finds no prim at a property, variant or
+    relative path: --camera there is refused (exit 2), not read as /Cam. The
+    scene without a rig is rendered without a bake; blowfish is baked first."""
+    stage = Usd.Stage.Open(str(scene))
+    assert stage.GetPrimAtPath("/Cam") and not stage.GetPrimAtPath(camera)
+    for path, cam in [(scene, camera), (repo_root / "fixtures" / "blowfish.usda", camera.replace("Cam", "Blowfish/Camera", 1))]:
+        out = tmp_path / "out"
+        out.mkdir(exist_ok=True)
+        proc = painterly("render", path, "--camera", cam, "--frames", "1", "-o", out / "f.####.exr",
+                         "--size", "20x16", check=False)
+        assert proc.returncode == 2, proc.stderr
+        assert f"--camera {cam} {what}" in proc.stderr, proc.stderr
+        assert not any(out.iterdir())
+
+
 def test_a_sheet_of_more_than_2000_frames_is_refused_up_front(painterly, tmp_path, scene):
     """README, Limits: the sheet holds every thumbnail until it is written, so its frames are capped."""
     out = tmp_path / "out"

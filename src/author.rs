@@ -149,7 +149,7 @@ fn find_layer(r: &StageReader, scene: &Scene, path: &str) -> Result<(usize, usiz
             return Ok((ri, li));
         }
     }
-    if r.prim(path).ok().flatten().is_none() {
+    if r.user_prim("--layer", path)?.is_none() {
         return Err(Error::prim(
             path,
             "prim does not exist (--layer names a stroke layer's prim path)",
@@ -838,7 +838,7 @@ fn brush_target(r: &StageReader, layer: &StrokeLayer, key: Option<&str>) -> Resu
         format!("{}/{k}", layer.path)
     };
     let prim = r
-        .prim(&kp)?
+        .user_prim("--key", &kp)?
         .ok_or_else(|| Error::prim(&kp, format!("no such key under {}", layer.path)))?;
     let pts = r
         .typed(&prim, "points", None, "point3f[]", values::vec3_array)?
@@ -901,7 +901,9 @@ fn world_normals(pose: &PosedRig, binding: &Binding, to_proxy: DMat3) -> Vec<DVe
 /// Reads a tool path from a BasisCurves prim: its first curve's points at
 /// `time` (default value when None), in world space.
 pub fn path_from_prim(r: &StageReader, prim_path: &str, time: Option<f64>, xform_time: f64) -> Result<Vec<DVec3>> {
-    let prim = r.require_prim(prim_path)?;
+    let prim = r
+        .user_prim("--path-prim", prim_path)?
+        .ok_or_else(|| Error::prim(prim_path, "prim does not exist"))?;
     // A mesh's points would make a path through its vertices in index order.
     let ty = r.type_name(&prim)?;
     if ty != "BasisCurves" {

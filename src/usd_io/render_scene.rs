@@ -263,7 +263,7 @@ impl RenderScene {
     /// Finds the camera (it must be a `Camera` prim) and everything drawable.
     pub fn discover(r: &StageReader, camera: &str) -> Result<RenderScene> {
         let cam = r
-            .prim(camera)?
+            .user_prim("--camera", camera)?
             .ok_or_else(|| Error::prim(camera, "camera prim does not exist (--camera)"))?;
         let ty = r.type_name(&cam)?;
         if ty != "Camera" {

@@ -271,6 +271,32 @@ pub fn require_file(path: &Path, what: &str) -> Result<()> {
     Err(Error::msg(format!("cannot open {what}: {why}")).in_file(path))
 }
 
+/// Checks that `path`, given by the user as `option` (`--camera`,
+/// `--layer`), is an absolute prim path: usd-core's `GetPrimAtPath` finds no
+/// prim at a property path (`/Cam.focalLength`), a variant selection
+/// (`/Cam{v=x}`) or a relative path, where openusd would give the prim the
+/// path ends in. A usage error (exit 2) naming the option and the path.
+pub fn check_prim_path(option: &str, path: &str) -> Result<()> {
+    let refuse = |what: String| Err(Error::usage(format!("{option} {path} {what}")));
+    let p = match sdf::Path::new(path) {
+        Ok(p) => p,
+        Err(e) => return refuse(format!("is not a prim path: {e}")),
+    };
+    if p.is_abs_root() {
+        refuse("is the pseudo-root, not a prim path".into())
+    } else if !p.is_abs() {
+        refuse("is a relative path, not an absolute prim path (one starting with /)".into())
+    } else if p.is_property_path() {
+        refuse("is a property path, not a prim path".into())
+    } else if p.contains_prim_variant_selection() {
+        refuse("is a variant selection path, not a prim path".into())
+    } else if !p.is_prim_path() {
+        refuse("is not a prim path".into())
+    } else {
+        Ok(())
+    }
+}
+
 /// Whether two paths name one existing file (through links and `..`):
 /// how every "would overwrite" check compares an output with what it must
 /// not replace.
@@ -398,6 +424,15 @@ impl StageReader {
         }
     }
 
+    /// The prim at `path`, a path the user gave as `option` (see
+    /// [`check_prim_path`]), if the stage composes one: every prim path the
+    /// command line or the Python API names is resolved here, paths read
+    /// from the file through [`Self::prim`].
+    pub fn user_prim(&self, option: &str, path: &str) -> Result<Option<usd::Prim>> {
+        check_prim_path(option, path)?;
+        self.prim(path)
+    }
+
     /// The prim at `path`, or an error saying it is missing.
     pub fn require_prim(&self, path: &str) -> Result<usd::Prim> {
         self.prim(path)?.ok_or_else(|| Error::prim(path, "prim does not exist"))
@@ -407,7 +442,7 @@ impl StageReader {
     /// render and key): a Mesh or an Xform there is a mistake, not a camera.
     pub fn require_camera(&self, path: &str, origin: &str) -> Result<()> {
         let prim = self
-            .prim(path)?
+            .user_prim(origin, path)?
             .ok_or_else(|| Error::prim(path, format!("the camera named by {origin} does not exist")))?;
         match self.type_name(&prim)?.as_str() {
             "Camera" => Ok(()),
@@ -1266,6 +1301,28 @@ def BasisCurves "L" {
         assert_eq!(why("/Box"), "--camera names a Mesh prim, not a Camera");
         assert_eq!(why("/Bare"), "--camera names an untyped prim, not a Camera");
         assert_eq!(why("/Nowhere"), "the camera named by --camera does not exist");
+        // A path naming something other than a prim is the command line's
+        // fault (exit 2), though openusd finds /Cam at the end of each.
+        for (p, what) in [
+            ("/Cam.focalLength", "is a property path, not a prim path"),
+            ("/Cam.no:such:attr", "is a property path, not a prim path"),
+            ("/Cam{v=x}", "is a variant selection path, not a prim path"),
+            ("/Cam{v=x}Inner", "is a variant selection path, not a prim path"),
+            (
+                "Cam",
+                "is a relative path, not an absolute prim path (one starting with /)",
+            ),
+            ("/", "is the pseudo-root, not a prim path"),
+        ] {
+            let e = r.require_camera(p, "--camera").unwrap_err();
+            assert_eq!((e.message, e.usage), (format!("--camera {p} {what}"), true));
+        }
+        let e = r.user_prim("--layer", "/Cam[").unwrap_err();
+        assert!(
+            e.usage && e.message.starts_with("--layer /Cam[ is not a prim path: "),
+            "{e}"
+        );
+        assert!(r.user_prim("--layer", "/Cam").unwrap().is_some());
     }
 
     /// `open_mapped` serves the layers from read-only memory mappings (as
