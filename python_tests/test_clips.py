@@ -326,7 +326,9 @@ def test_inspect_reports_chunks(painterly, tmp_path, repo_root):
     assert report["clip_set"]["chunk_size"] == 10
     assert [c["state"] for c in report["clip_set"]["chunks"]] == ["done"] * 3
     (tmp_path / "shot.clips" / "shot.0001.11-20.usdc").unlink()
-    # a chunk re-baked from another input is stale
+    # The input changes and one chunk is baked again from it: the chunks
+    # are judged against the input as it is now, as the assembly judges
+    # them, so the old ones are stale and the new one done.
     text = src.read_text().replace("timeCodesPerSecond = 24", "timeCodesPerSecond = 24.0")
     src.write_text(text)
     painterly("bake", src, "-o", shot, "--chunk", "10", "--chunk-index", "2", "--quiet")
@@ -334,13 +336,76 @@ def test_inspect_reports_chunks(painterly, tmp_path, repo_root):
     assert proc.returncode == 1
     chunks = json.loads(proc.stdout)["clip_set"]["chunks"]
     assert [(pathlib.Path(c["path"]).name, c["state"]) for c in chunks] == [
-        ("shot.0000.1-10.usdc", "done"),
+        ("shot.0000.1-10.usdc", "stale"),
         ("shot.0001.11-20.usdc", "missing"),
-        ("shot.0002.21-24.usdc", "stale"),
+        ("shot.0002.21-24.usdc", "done"),
     ]
-    assert chunks[2]["detail"] == "baked from a different input"
+    assert chunks[0]["detail"] == "baked from a different input"
     text = painterly("inspect", shot, check=False).stdout
     assert "1 done, 1 missing, 1 stale" in text and "shot.0001.11-20.usdc is missing" in text
+    assert f"{src} changed since this clip set was assembled" in text
+
+
+def _move_the_tube(src):
+    """Moves the tube fixture's root transform, with usd-core, and saves."""
+    stage = Usd.Stage.Open(str(src))
+    op = stage.GetPrimAtPath("/Tube").GetAttribute("xformOp:translate")
+    assert op.Get() == (1, 0, 0)
+    op.Set((2, 0, 0))
+    stage.Save()
+
+
+def test_inspect_judges_chunks_against_the_current_input(painterly, tmp_path, repo_root):
+    """A chunked bake whose input changed since is stale: inspect names its
+    chunks stale as farm status and the assembly do (it compared each
+    chunk's stamp with the hash the clip set recorded, never with the
+    input's, and called the bake current; found by a review, 2026-12-07)."""
+    src, shot = tmp_path / "in.usda", tmp_path / "shot.usda"
+    shutil.copy(repo_root / "fixtures" / "tube.usda", src)
+    painterly("bake", src, "-o", shot, "--chunk", "8", "--quiet")
+    report = json.loads(painterly("inspect", shot, "--json").stdout)
+    assert report["problems"] == []
+    assert "3 done, 0 missing, 0 stale" in painterly("inspect", shot).stdout
+    _move_the_tube(src)
+    proc = painterly("inspect", shot, "--json", check=False)
+    assert proc.returncode == 1, proc.stderr
+    report = json.loads(proc.stdout)
+    assert [(c["state"], c["detail"]) for c in report["clip_set"]["chunks"]] == [
+        ("stale", "baked from a different input")
+    ] * 3
+    messages = [p["message"] for p in report["problems"] if p["rule"] == "chunks"]
+    assert len(messages) == len(report["problems"]) == 4, report["problems"]
+    assert f"{src} changed since this clip set was assembled" in messages[0]
+    for name in ("shot.0000.1-8.usdc", "shot.0001.9-16.usdc", "shot.0002.17-24.usdc"):
+        assert any(name in m and "is stale (baked from a different input)" in m for m in messages), name
+    proc = painterly("inspect", shot, check=False)
+    assert proc.returncode == 1
+    assert "clip set: 3 chunks of 8 frames: 0 done, 0 missing, 3 stale" in proc.stdout
+    # The assembly agrees.
+    proc = painterly("bake", src, "-o", shot, "--chunk", "8", "--assemble", check=False)
+    assert proc.returncode == 1 and "3 stale" in proc.stderr
+    # Baked again from the changed input, the shot is current again.
+    painterly("bake", src, "-o", shot, "--chunk", "8", "--quiet")
+    assert json.loads(painterly("inspect", shot, "--json").stdout)["problems"] == []
+
+
+@pytest.mark.parametrize("damage", ["deleted", "not usd"])
+def test_inspect_names_the_input_of_a_clip_set_it_cannot_read(painterly, tmp_path, repo_root, damage):
+    """Without its input, a clip set's chunks cannot be checked against it:
+    inspect says so, naming the input, instead of calling them current."""
+    src, shot = tmp_path / "in.usda", tmp_path / "shot.usda"
+    shutil.copy(repo_root / "fixtures" / "tube.usda", src)
+    painterly("bake", src, "-o", shot, "--chunk", "8", "--quiet")
+    if damage == "deleted":
+        src.unlink()
+    else:
+        src.write_text("not usd\n")
+    proc = painterly("inspect", shot, "--json", check=False)
+    assert proc.returncode == 1, proc.stderr
+    problems = json.loads(proc.stdout)["problems"]
+    assert len(problems) == 1 and problems[0]["rule"] == "chunks", problems
+    assert problems[0]["message"].startswith(f"the clip set's input {src} cannot be read"), problems
+    assert str(src) in painterly("inspect", shot, check=False).stdout
 
 
 @pytest.mark.parametrize("ext", ["usdc", "usda"])

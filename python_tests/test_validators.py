@@ -291,6 +291,25 @@ def test_chunks(tmp_path):
     assert chunk.name in found[f"{PLUGIN}:Chunks"][0].GetMessage()
 
 
+def test_chunks_of_a_changed_input(tmp_path):
+    """The chunks of a clip set whose input changed since are stale, as in
+    `painterly inspect` (both judged them against the hash the clip set
+    recorded, not the input's, and found nothing)."""
+    src = tmp_path / "shot.usda"
+    stage = good_stage(src)
+    stage.Save()
+    clips = tmp_path / "bake.usda"
+    painterly.bake(src, clips, chunk=4)
+    assert validate(clips) == []
+    prim(stage, "/World/Controls").GetAttribute("knob").Set(0.5, 1)
+    stage.Save()
+    found = by_validator(validate(clips))
+    assert list(found) == [f"{PLUGIN}:Chunks"]
+    messages = [e.GetMessage() for e in found[f"{PLUGIN}:Chunks"]]
+    assert f"{src} changed since this clip set was assembled" in messages[0]
+    assert sum("is stale (baked from a different input)" in m for m in messages) == 3, messages
+
+
 def test_unreadable(tmp_path):
     """A stage painterly cannot read is reported, not skipped: here its file
     went away after usd-core opened it (openusd reads every layer usd-core

@@ -569,11 +569,19 @@ fn view_time_notes(r: &StageReader, m: &ViewMesh) -> Result<Vec<String>> {
     Ok(notes)
 }
 
-/// The chunks of a clip-set bake; missing and stale chunks are problems.
+/// The chunks of a clip-set bake, judged against its current input; missing
+/// and stale chunks are problems, and so is an input that changed since the
+/// clip set was assembled or cannot be read.
 fn clip_set_report(path: &Path, problems: &mut Vec<Problem>) -> Result<Option<ClipSetReport>> {
-    let Some(status) = clip_set_status(path)? else {
+    let Some(status) = clip_set_status(path, None)? else {
         return Ok(None);
     };
+    problems.extend(status.problems.into_iter().map(|message| Problem {
+        prim: None,
+        attribute: None,
+        rule: Rule::Chunks,
+        message,
+    }));
     let stem = path.file_stem().unwrap_or_default().to_string_lossy();
     let dir = path.with_file_name(format!("{stem}.clips"));
     let chunks = status

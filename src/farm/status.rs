@@ -158,7 +158,7 @@ pub fn status(output: &Path) -> Result<FarmStatus> {
             && p.chunks.as_ref().is_some_and(|(size, names)| {
                 *size == plan.chunk_size && names.iter().eq(plan.chunks.iter().map(|c| &c.name))
             })
-    }) && clip_set_status(&output)?
+    }) && clip_set_status(&output, Some(&hash))?
         .is_some_and(|s| s.chunks.iter().all(|(_, st)| *st == ChunkState::Done));
     let all_done = counts.done == chunks.len();
     let asm = info(&plan.assemble_job);

@@ -196,7 +196,7 @@ impl ChunkedSink {
 /// The layout of one chunk: the bake's, with the chunk's provenance.
 pub fn chunk_layout(layout: &BakeLayout, plan: &ClipPlan, chunk: &Chunk, times: &[f64], step: f64) -> BakeLayout {
     let mut l = layout.clone();
-    l.provenance.frames = format!("{}:{}:{}", times[chunk.start], times[chunk.end - 1], step);
+    l.provenance.frames = chunk_frames(chunk, times, step);
     l.provenance.chunk = Some((chunk.index, plan.chunks.len()));
     l.provenance.chunks = None;
     l
@@ -590,29 +590,56 @@ pub enum ChunkState {
 }
 
 /// The state of every chunk of `plan`, for an input with `hash` baked with
-/// `options` ([`Provenance::options`]).
+/// `options` ([`Provenance::options`]) by this painterly.
 pub fn chunk_states(plan: &ClipPlan, hash: &str, options: Option<&str>, times: &[f64]) -> Result<Vec<ChunkState>> {
-    let step = frame_step(times);
+    let want = Expected {
+        hash: Some(hash),
+        version: env!("CARGO_PKG_VERSION"),
+        options,
+    };
+    Ok(judge_chunks(plan, &want, Some(times)))
+}
+
+/// What a chunk's stamp must say for the chunk to be done.
+struct Expected<'a> {
+    /// The input's hash (None: a clip set that recorded none).
+    hash: Option<&'a str>,
+    /// The painterly version.
+    version: &'a str,
+    /// The options ([`Provenance::options`]).
+    options: Option<&'a str>,
+}
+
+/// A chunk's frames as its stamp records them, `A:B:STEP`.
+fn chunk_frames(chunk: &Chunk, times: &[f64], step: f64) -> String {
+    format!("{}:{}:{}", times[chunk.start], times[chunk.end - 1], step)
+}
+
+/// The state of every chunk of `plan`: its stamp against `want` and, with
+/// `times`, the frames `plan` gives it (the one judge of chunks: assembly,
+/// farm status and inspect).
+fn judge_chunks(plan: &ClipPlan, want: &Expected, times: Option<&[f64]>) -> Vec<ChunkState> {
+    let step = times.map(frame_step);
     plan.chunks
         .iter()
         .map(|c| {
             let stamp = match read_stamp(&plan.chunk_path(c)) {
-                Stamp::Missing => return Ok(ChunkState::Missing),
-                Stamp::Unreadable(why) => return Ok(ChunkState::Stale(why)),
+                Stamp::Missing => return ChunkState::Missing,
+                Stamp::Unreadable(why) => return ChunkState::Stale(why),
                 Stamp::Read(p) => p,
             };
-            let frames = format!("{}:{}:{}", times[c.start], times[c.end - 1], step);
-            Ok(if stamp.input_hash.as_deref() != Some(hash) {
+            let frames = times.zip(step).map(|(t, step)| chunk_frames(c, t, step));
+            if stamp.input_hash.as_deref() != want.hash {
                 ChunkState::Stale("baked from a different input".into())
-            } else if stamp.version != env!("CARGO_PKG_VERSION") {
+            } else if stamp.version != want.version {
                 ChunkState::Stale(format!("baked by painterly {}", stamp.version))
-            } else if stamp.frames != frames {
+            } else if let Some(frames) = frames.filter(|f| stamp.frames != *f) {
                 ChunkState::Stale(format!("holds frames {}, expected {frames}", stamp.frames))
-            } else if stamp.options.as_deref() != options {
-                ChunkState::Stale(options_differ(stamp.options.as_deref(), options))
+            } else if stamp.options.as_deref() != want.options {
+                ChunkState::Stale(options_differ(stamp.options.as_deref(), want.options))
             } else {
                 ChunkState::Done
-            })
+            }
         })
         .collect()
 }
@@ -632,41 +659,99 @@ pub struct ClipSetStatus {
     pub chunk_size: usize,
     /// Chunk file names (in the clips folder) and their state.
     pub chunks: Vec<(String, ChunkState)>,
+    /// What is wrong with the clip set besides its chunks: its input changed
+    /// since it was assembled, cannot be read (its chunks are then judged
+    /// against the input hash the clip set recorded), or its frames do not
+    /// make its chunks (their frames are then not checked).
+    pub problems: Vec<String>,
 }
 
 /// When `path` is a clip-set layer written by `painterly bake --chunk`, the
-/// state of each of its chunks: on disk and stamped with the clip set's input
-/// hash and painterly version, missing, or stale.
-pub fn clip_set_status(path: &Path) -> Result<Option<ClipSetStatus>> {
+/// state of each of its chunks, judged as the assembly judges them: on disk
+/// and stamped with the current hash of the clip set's input (`input_hash`
+/// when the caller has it, else its recorded input is opened and hashed),
+/// the clip set's painterly version and options, and the chunk's frames;
+/// missing; or stale.
+pub fn clip_set_status(path: &Path, input_hash: Option<&str>) -> Result<Option<ClipSetStatus>> {
     let Ok(Some(clip_set)) = read_provenance(path) else {
         return Ok(None);
     };
     let Some((size, names)) = &clip_set.chunks else {
         return Ok(None);
     };
-    let stem = path.file_stem().unwrap_or_default().to_string_lossy();
-    let dir = path.with_file_name(format!("{stem}.clips"));
-    let mut chunks = Vec::with_capacity(names.len());
-    for name in names {
-        let state = match read_stamp(&dir.join(name)) {
-            Stamp::Missing => ChunkState::Missing,
-            Stamp::Unreadable(why) => ChunkState::Stale(why),
-            Stamp::Read(stamp) if stamp.input_hash != clip_set.input_hash => {
-                ChunkState::Stale("baked from a different input".into())
+    let mut problems = Vec::new();
+    let input = Path::new(&clip_set.input);
+    let unchecked = "so its chunks are checked against the input they were baked from, not against the current one";
+    let current = match input_hash {
+        Some(h) => Ok(h.to_string()),
+        None if clip_set.input.is_empty() => Err(format!("the clip set records no input, {unchecked}")),
+        None => StageReader::open_mapped(input)
+            .and_then(|r| self::input_hash(&r))
+            .map_err(|e| {
+                format!(
+                    "the clip set's input {} cannot be read, {unchecked}: {}",
+                    input.display(),
+                    e.message
+                )
+            }),
+    };
+    let hash = match current {
+        Ok(h) => {
+            if clip_set.input_hash.as_deref() != Some(h.as_str()) {
+                problems.push(format!(
+                    "{} changed since this clip set was assembled (its layers differ from the clip set's inputHash): \
+                     its chunks baked from the old input are stale; bake them again and assemble the clip set again",
+                    input.display()
+                ));
             }
-            Stamp::Read(stamp) if stamp.version != clip_set.version => {
-                ChunkState::Stale(format!("baked by painterly {}", stamp.version))
-            }
-            Stamp::Read(stamp) if stamp.options != clip_set.options => {
-                ChunkState::Stale(options_differ(stamp.options.as_deref(), clip_set.options.as_deref()))
-            }
-            Stamp::Read(_) => ChunkState::Done,
-        };
-        chunks.push((name.clone(), state));
+            Some(h)
+        }
+        Err(why) => {
+            problems.push(why);
+            clip_set.input_hash.clone()
+        }
+    };
+    // The clip set's frames, when they make exactly its chunks.
+    let times = clip_set
+        .frames
+        .parse::<crate::frames::FrameRange>()
+        .ok()
+        .map(|r| r.times())
+        .filter(|t| *size > 0 && t.len().div_ceil(*size) == names.len());
+    if times.is_none() {
+        problems.push(format!(
+            "the clip set's frames {:?} in chunks of {size} do not make its {} chunks: their frames are not checked",
+            clip_set.frames,
+            names.len()
+        ));
     }
+    let count = times.as_ref().map_or(0, Vec::len);
+    let (_, dir) = clips_dir(path)?;
+    let plan = ClipPlan {
+        output: path.to_path_buf(),
+        dir,
+        chunk_size: *size,
+        chunks: names
+            .iter()
+            .enumerate()
+            .map(|(index, name)| Chunk {
+                index,
+                start: index * size,
+                end: ((index + 1) * size).min(count),
+                name: name.clone(),
+            })
+            .collect(),
+    };
+    let want = Expected {
+        hash: hash.as_deref(),
+        version: &clip_set.version,
+        options: clip_set.options.as_deref(),
+    };
+    let states = judge_chunks(&plan, &want, times.as_deref());
     Ok(Some(ClipSetStatus {
         chunk_size: *size,
-        chunks,
+        chunks: names.iter().cloned().zip(states).collect(),
+        problems,
     }))
 }
 
