@@ -137,6 +137,20 @@ def test_internal_error_exits_3_with_a_bug_report(args):
     assert "this is a bug in painterly" in proc.stderr
 
 
+@pytest.mark.parametrize("value", ["abc", "0", "-1", "inf", ""])
+def test_a_compose_timeout_that_is_no_number_of_seconds_is_a_usage_error(tmp_path, value):
+    """README "Limits": PAINTERLY_COMPOSE_TIMEOUT=SECONDS. A value that is
+    no positive number would silently leave the 30 s default in force."""
+    env = dict(os.environ, PAINTERLY_COMPOSE_TIMEOUT=value)
+    proc = run(["bake", TUBE, "-o", tmp_path / "b.usdc", "--frames", "1:2"], env=env)
+    assert proc.returncode == 2, proc.stderr
+    assert proc.stderr == f"error: PAINTERLY_COMPOSE_TIMEOUT={value!r} is not a positive number of seconds\n".replace(
+        f"={value!r}", '="' + value + '"'), proc.stderr
+    assert not (tmp_path / "b.usdc").exists()
+    env["PAINTERLY_COMPOSE_TIMEOUT"] = " 2.5 "
+    assert run(["bake", TUBE, "-o", tmp_path / "b.usdc", "--frames", "1:2", "-q"], env=env).returncode == 0
+
+
 def test_frames_too_many_time_codes_is_usage_not_a_crash(tmp_path):
     proc = run(["bake", TUBE, "-o", tmp_path / "b.usdc", "--frames", "1:24:0.000000001"], timeout=60)
     assert proc.returncode == 2

@@ -505,6 +505,9 @@ fn finish(result: Result<EditSummary, Error>, edit: &EditArgs) -> i32 {
 /// Runs a parsed command; returns the process exit code.
 pub fn run(cli: Cli) -> i32 {
     crate::log::set_verbose(cli.verbose);
+    if let Err(e) = crate::usd_io::compose_watch::check_timeout_setting() {
+        return report(&e);
+    }
     match cli.command {
         Command::Bake {
             input,

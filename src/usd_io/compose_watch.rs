@@ -86,6 +86,22 @@ fn watch_loop() {
     }
 }
 
+/// Refuses a `PAINTERLY_COMPOSE_TIMEOUT` that is set but is no positive
+/// number of seconds (a usage error: the CLI checks it before any work),
+/// rather than waiting the default while the user believes otherwise.
+pub fn check_timeout_setting() -> Result<(), crate::error::Error> {
+    let Some(v) = std::env::var_os("PAINTERLY_COMPOSE_TIMEOUT") else {
+        return Ok(());
+    };
+    let text = v.to_string_lossy();
+    match text.trim().parse::<f64>() {
+        Ok(s) if s.is_finite() && s > 0.0 => Ok(()),
+        _ => Err(crate::error::Error::usage(format!(
+            "PAINTERLY_COMPOSE_TIMEOUT={text:?} is not a positive number of seconds"
+        ))),
+    }
+}
+
 /// The composition time limit: `PAINTERLY_COMPOSE_TIMEOUT` (seconds) or the default.
 pub fn timeout() -> Duration {
     let s = std::env::var("PAINTERLY_COMPOSE_TIMEOUT")
@@ -207,7 +223,7 @@ pub fn watched<T>(file: &Path, f: impl FnOnce() -> Result<T>) -> Result<T> {
     if HANDLERS.is_completed() {
         let w = watchdog();
         let text = format!(
-            "error: {}: composing this stage took longer than {:.0} s; openusd 0.8 composes some recursive \
+            "error: {}: composing this stage took longer than {} s; openusd 0.8 composes some recursive \
              inherits/specializes/references exponentially (set PAINTERLY_COMPOSE_TIMEOUT=SECONDS to wait longer)",
             file.display(),
             limit.as_secs_f64()
