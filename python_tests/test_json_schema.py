@@ -181,6 +181,10 @@ def test_inspect_json_matches_usd_core(painterly):
             assert sorted(k for vp in v["key_viewpoints"] for k in vp["keys"]) == sorted(str(k.GetPath()) for k in keys)
             for vp in v["key_viewpoints"]:
                 assert math.fsum(c * c for c in vp["direction"]) == pytest.approx(1.0, abs=1e-9)
+                # The schema: the authored direction, mesh-local (SPEC section 6), normalised;
+                # not turned by the mesh's transform (head.usda's face is rotated 15 degrees).
+                authored = np.array(stage.GetPrimAtPath(vp["keys"][0]).GetAttribute("direction").Get(), float)
+                assert np.allclose(vp["direction"], authored / np.linalg.norm(authored), atol=1e-6), vp
         assert doc["clip_set"] is None
         assert doc["unresolved_assets"] == []
         assert doc["problems"] == []
