@@ -437,3 +437,23 @@ def test_an_option_naming_a_prim_refuses_a_path_that_is_not_a_prim_path(painterl
     assert proc.returncode == 2, proc.stderr
     assert named in proc.stderr, proc.stderr
     assert list(out.iterdir()) == []
+
+
+def test_inspect_says_when_there_is_nothing_painterly(painterly, tmp_path, repo_root):
+    """A plain UsdSkel character has nothing wrong with it (exit 0), but bake
+    has nothing to bake: inspect says so rather than only "no problems
+    found", which reads as "bake will work" (README, inspect)."""
+    from pxr import Usd, UsdGeom
+
+    plain = tmp_path / "plain.usda"
+    stage = Usd.Stage.CreateNew(str(plain))
+    UsdGeom.Mesh.Define(stage, "/Thing")
+    stage.GetRootLayer().Save()
+    line = "nothing painterly: no rig (PainterlyRigAPI) and no view-dependent mesh, so bake has nothing to bake"
+    proc = painterly("inspect", plain)
+    assert proc.returncode == 0 and line in proc.stdout.splitlines(), proc.stdout
+    bake = painterly("bake", plain, "-o", tmp_path / "b.usdc", check=False)
+    assert bake.returncode == 1 and "nothing to bake" in bake.stderr
+    for fixture in ("blowfish.usda", "head.usda"):  # a rig; a view-dependent mesh alone
+        proc = painterly("inspect", repo_root / "fixtures" / fixture)
+        assert "nothing painterly" not in proc.stdout, proc.stdout

@@ -722,6 +722,13 @@ impl Report {
                 count("stale")
             );
         }
+        if self.rigs.is_empty() && self.view_dependent_meshes.is_empty() && self.clip_set.is_none() {
+            // Said, because "no problems found" alone reads as "bake will work".
+            let _ = writeln!(
+                s,
+                "nothing painterly: no rig (PainterlyRigAPI) and no view-dependent mesh, so bake has nothing to bake"
+            );
+        }
         if self.problems.is_empty() {
             let _ = writeln!(s, "no problems found");
         } else {
