@@ -310,6 +310,28 @@ def test_chunks_of_a_changed_input(tmp_path):
     assert sum("is stale (baked from a different input)" in m for m in messages) == 3, messages
 
 
+def test_a_clip_set_validated_again_after_its_input_changed(tmp_path):
+    """One Usd.Stage of a clip set, validated, then validated again after its
+    input (or a layer the input reads) changed: the second run judges the
+    input as it is now, not the first run's remembered answer."""
+    shot = tmp_path / "shot.usda"
+    stage = good_stage(shot)
+    stage.Save()
+    top = Sdf.Layer.CreateNew(str(tmp_path / "top.usda"))
+    top.subLayerPaths.append(shot.name)
+    top.startTimeCode, top.endTimeCode = stage.GetStartTimeCode(), stage.GetEndTimeCode()
+    top.Save()
+    clips = tmp_path / "bake.usda"
+    painterly.bake(tmp_path / "top.usda", clips, chunk=4)
+    opened = Usd.Stage.Open(str(clips))
+    assert validate(opened) == []
+    # A layer under the input, not the input's own file, changes.
+    prim(stage, "/World/Controls").GetAttribute("knob").Set(0.5, 1)
+    stage.Save()
+    found = by_validator(validate(opened))
+    assert list(found) == [f"{PLUGIN}:Chunks"], found
+
+
 def test_unreadable(tmp_path):
     """A stage painterly cannot read is reported, not skipped: here its file
     went away after usd-core opened it (openusd reads every layer usd-core

@@ -18,7 +18,7 @@ from __future__ import annotations
 import os
 import threading
 
-from pxr import Sdf, Usd, UsdValidation
+from pxr import Sdf, Usd, UsdUtils, UsdValidation
 
 import painterly
 
@@ -54,7 +54,26 @@ def _fingerprint(stage):
             for name in sorted(os.listdir(clips)):
                 st = os.stat(os.path.join(clips, name))
                 parts.append((name, st.st_size, st.st_mtime_ns))
+    parts.extend(_clip_set_input(stage.GetRootLayer()))
     return tuple(sorted(parts, key=lambda p: p[0]))
+
+
+def _clip_set_input(root):
+    """A clip set's chunks are judged against its input as it is now: the
+    files that input reads (its layers, and the clips and other assets they
+    name) are part of what the inspection depends on, though the stage does
+    not open them."""
+    data = root.customLayerData.get("painterly", {})
+    src = data.get("input") if "chunks" in data else None
+    if not isinstance(src, str) or not os.path.isfile(src):
+        return [("\0input", src)]
+    layers, assets, _ = UsdUtils.ComputeAllDependencies(Sdf.AssetPath(src))
+    files = {src, *(layer.realPath for layer in layers), *assets}
+    out = []
+    for f in sorted(p for p in files if p and os.path.isfile(p)):
+        st = os.stat(f)
+        out.append(("\0input " + f, st.st_size, st.st_mtime_ns))
+    return out
 
 
 def _source(stage):
