@@ -173,7 +173,12 @@ def conformed_view_projection(stage_path, size, time=1):
     """usd-core's frustum for /Cam, conformed as predict() does: the view
     matrix and the world-to-pixel function."""
     stage = Usd.Stage.Open(str(stage_path))
-    frustum = UsdGeom.Camera(stage.GetPrimAtPath("/Cam")).GetCamera(time).frustum
+    return conformed_view_projection_of(UsdGeom.Camera(stage.GetPrimAtPath("/Cam")).GetCamera(time).frustum, size)
+
+
+def conformed_view_projection_of(frustum, size):
+    """conformed_view_projection() of a Gf.Frustum."""
+    frustum = Gf.Frustum(frustum)
     win = frustum.window
     cy = 0.5 * (win.min[1] + win.max[1])
     half = 0.5 * (win.max[0] - win.min[0]) / (size[0] / size[1])
@@ -240,6 +245,45 @@ def test_a_receding_stroke_is_interpolated_perspective_correctly(painterly, tmp_
             checked["wall"] += 1
             assert z == pytest.approx(20.0, rel=1e-4), f"column {col}: Z {z}, the wall is 20 away"
     assert checked["stroke"] > 30 and checked["wall"] > 5, checked
+
+
+@pytest.mark.parametrize("target", [(0.3, 0.2, 0.0), (-1.0, -0.6, 1.0)])
+def test_a_camera_under_a_non_uniform_scale_projects_as_usd_core(painterly, tmp_path, target):
+    """A camera under a rig rotated and scaled (2, 0.5, 1.5): its matrix is
+    neither orthogonal nor a rotation times a uniform scale. usd-core's
+    GetCamera(t).frustum keeps the rotation GfMatrix4d::Orthonormalize gives
+    (not the closest rotation); a small dot drawn at the target lands where
+    that frustum projects it."""
+    path = tmp_path / "s.usda"
+    stage = Usd.Stage.CreateNew(str(path))
+    stage.SetStartTimeCode(1)
+    stage.SetEndTimeCode(1)
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y)
+    rig = UsdGeom.Xform.Define(stage, "/Rig")
+    rig.AddRotateXYZOp().Set(Gf.Vec3f(5, 10, 0))
+    rig.AddScaleOp().Set(Gf.Vec3f(2.0, 0.5, 1.5))
+    cam = UsdGeom.Camera.Define(stage, "/Rig/Cam")
+    cam.CreateClippingRangeAttr(Gf.Vec2f(0.1, 1000))
+    cam.AddTranslateOp().Set(Gf.Vec3d(0, 0, 8))
+    cam.AddRotateXYZOp().Set(Gf.Vec3f(3, -4, 7))
+    frustum = cam.GetCamera(1).frustum
+    view, pixel = conformed_view_projection_of(frustum, (W, H))
+    px, py = pixel(target)
+    assert 20 < px < W - 20 and 20 < py < H - 20, "the target must be well inside the frame"
+    depth = -view.Transform(Gf.Vec3d(*target))[2]
+    right = frustum.ComputeViewInverse().TransformDir(Gf.Vec3d(1, 0, 0)).GetNormalized()
+    d = 0.01 * depth  # a dot about 2 % of the depth across: a few pixels
+    c = UsdGeom.BasisCurves.Define(stage, "/Dot")
+    c.CreateTypeAttr("linear")
+    c.CreateCurveVertexCountsAttr([2])
+    c.CreatePointsAttr([Gf.Vec3f(*(Gf.Vec3d(*target) - right * d)), Gf.Vec3f(*(Gf.Vec3d(*target) + right * d))])
+    c.CreateWidthsAttr([2 * d])
+    c.SetWidthsInterpolation(UsdGeom.Tokens.constant)
+    stage.GetRootLayer().Save()
+    painterly("render", path, "--camera", "/Rig/Cam", "--frames", "1", "-o", tmp_path / "f.####.exr",
+              "--size", f"{W}x{H}")
+    cx, cy = centroid(read_exr(tmp_path / "f.0001.exr")["A"])
+    assert math.hypot(cx - px, cy - py) < 0.5, f"dot at {(cx, cy)}, usd-core's frustum puts it at {(px, py)}"
 
 
 @pytest.mark.parametrize("red_nearer", [True, False])

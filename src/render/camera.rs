@@ -13,7 +13,9 @@
 //!   `[(-h/2 + ho) / 10, (h/2 + ho) / 10] × ...`.
 //!
 //! The camera looks down its local −Z with +Y up; its local-to-world matrix is
-//! orthonormalised first (GfFrustum keeps only position and rotation).
+//! reduced to a position and a rotation as GfFrustum does it
+//! ([`frustum_rotation`]: Gf's iterative orthonormalisation, not the closest
+//! rotation, which differs for a sheared or non-uniformly scaled camera).
 //!
 //! **Conform policy.** When the image aspect (width / height) differs from the
 //! window's, the horizontal extent is kept and the vertical extent becomes
@@ -170,30 +172,99 @@ pub fn conform_match_horizontally(w: Window, aspect: f64) -> Window {
     }
 }
 
-/// The rotation closest to `m` (polar decomposition by Newton iteration),
-/// with handedness made right-handed by mirroring x, as GfFrustum does.
-fn orthonormalize(m: DMat3) -> DMat3 {
-    let mut r = m;
-    let det = r.determinant();
-    if det < 0.0 {
+/// The rotation GfFrustum keeps of a camera's local-to-world matrix
+/// (`SetPositionAndRotationFromMatrix`), in column form (`m`'s columns are
+/// Gf's rows, the camera's axes in world space):
+///
+/// 1. the axes orthonormalised as `GfMatrix4d::Orthonormalize` does
+///    ([`gf_orthonormalize`]);
+/// 2. a left-handed result mirrored back by negating its x axis;
+/// 3. that matrix, orthonormal only to about 1e-6, read as a `GfRotation`:
+///    a quaternion by the largest diagonal entry, its imaginary part giving
+///    the axis and its real part `r` the angle `2·acos(r)` (so the rotation
+///    is exact, and what Gf's view matrix is built from).
+///
+/// This is not the closest rotation (a polar decomposition): for a sheared
+/// or non-uniformly scaled camera the two differ by degrees.
+fn frustum_rotation(m: DMat3) -> DMat3 {
+    let mut r = gf_orthonormalize(m);
+    if r.determinant() < 0.0 {
         r.x_axis = -r.x_axis;
     }
-    // The polar factor of s·M is that of M (s > 0): dividing by ∛|det|
-    // starts Newton at unit scale, which it otherwise leaves only by
-    // halving (a camera scaled by 1e9 would need 30 steps for that alone).
-    let scale = det.abs().cbrt();
-    if scale.is_normal() {
-        r /= scale;
+    // g(i, j): Gf's entry [i][j] (row i = column i here).
+    let g = |i: usize, j: usize| r.col(i)[j];
+    let diagonal = [g(0, 0), g(1, 1), g(2, 2)];
+    let i = if diagonal[0] > diagonal[1] {
+        if diagonal[0] > diagonal[2] {
+            0
+        } else {
+            2
+        }
+    } else if diagonal[1] > diagonal[2] {
+        1
+    } else {
+        2
+    };
+    let trace = diagonal[0] + diagonal[1] + diagonal[2];
+    let (real, imaginary) = if trace > diagonal[i] {
+        let w = 0.5 * (trace + 1.0).sqrt();
+        let v = DVec3::new(g(1, 2) - g(2, 1), g(2, 0) - g(0, 2), g(0, 1) - g(1, 0)) / (4.0 * w);
+        (w, v)
+    } else {
+        let (j, k) = ((i + 1) % 3, (i + 2) % 3);
+        let q = 0.5 * (diagonal[i] - diagonal[j] - diagonal[k] + 1.0).sqrt();
+        let mut v = DVec3::ZERO;
+        v[i] = q;
+        v[j] = (g(i, j) + g(j, i)) / (4.0 * q);
+        v[k] = (g(k, i) + g(i, k)) / (4.0 * q);
+        ((g(j, k) - g(k, j)) / (4.0 * q), v)
+    };
+    let len = imaginary.length();
+    // GfRotation keeps the identity for an axis shorter than this.
+    if len.is_nan() || len <= 1e-10 {
+        return DMat3::IDENTITY;
     }
-    for _ in 0..30 {
-        let next = (r + r.inverse().transpose()) * 0.5;
-        let done = (next - r).to_cols_array().iter().all(|d| d.abs() < 1e-15);
-        r = next;
-        if done {
+    DMat3::from_axis_angle(imaginary / len, 2.0 * real.clamp(-1.0, 1.0).acos())
+}
+
+/// `GfMatrix4d::Orthonormalize` of the 3 × 3 part, in column form (Gf
+/// works on rows; they are the columns here). The three axes are
+/// normalised; if two of them are then within 1e-6 of each other they are
+/// returned so (Gf reports failure). Otherwise, up to 20 rounds: each axis
+/// `t_i` is replaced by the normalised mean of itself and `b_i`, which is
+/// `t_i` with its component along each other axis `t_j` removed in turn
+/// (from what is left, in axis order, using this round's axes); the rounds
+/// stop, keeping the axes from before the last one, once it moved them by
+/// less than 1e-12 in summed squared length. Behaviour matched to usd-core's
+/// `Gf.Matrix4d.Orthonormalize()` on random matrices (to 1e-14).
+fn gf_orthonormalize(m: DMat3) -> DMat3 {
+    let mut t = [
+        m.x_axis.normalize_or_zero(),
+        m.y_axis.normalize_or_zero(),
+        m.z_axis.normalize_or_zero(),
+    ];
+    let near = |a: DVec3, b: DVec3| (a - b).length_squared() <= 1e-12;
+    if near(t[0], t[1]) || near(t[0], t[2]) || near(t[1], t[2]) {
+        return DMat3::from_cols(t[0], t[1], t[2]);
+    }
+    for _ in 0..20 {
+        let mut next = t;
+        for (i, n) in next.iter_mut().enumerate() {
+            let mut b = t[i];
+            for (j, other) in t.iter().enumerate() {
+                if j != i {
+                    b -= other.dot(b) * *other;
+                }
+            }
+            *n = ((t[i] + b) * 0.5).normalize_or_zero();
+        }
+        let moved: f64 = (0..3).map(|i| (t[i] - next[i]).length_squared()).sum();
+        if moved < 1e-12 {
             break;
         }
+        t = next;
     }
-    r
+    DMat3::from_cols(t[0], t[1], t[2])
 }
 
 /// A camera set up for one image: world → pixels.
@@ -220,7 +291,7 @@ impl Projector {
         let aspect = width as f64 / height as f64;
         let window = conform_match_horizontally(cam.window(), aspect);
         let m = cam.camera_to_world;
-        let rot = orthonormalize(DMat3::from_mat4(m));
+        let rot = frustum_rotation(DMat3::from_mat4(m));
         let camera_to_world = DMat4::from_cols(
             rot.x_axis.extend(0.0),
             rot.y_axis.extend(0.0),
@@ -415,14 +486,14 @@ mod tests {
     }
 
     #[test]
-    fn orthonormalize_ignores_a_uniform_scale_of_any_size() {
+    fn frustum_rotation_ignores_a_uniform_scale_of_any_size() {
         // The rotation of s·R is R for every s > 0; mirrored, R with x flipped.
         let rot = DMat3::from_axis_angle(DVec3::new(1.0, 2.0, 3.0).normalize(), 0.7);
         for s in [1e-12, 1e-9, 1.0, 1e9, 1e12] {
-            let got = orthonormalize(rot * s);
+            let got = frustum_rotation(rot * s);
             assert!(got.abs_diff_eq(rot, 1e-12), "scale {s}: {got}");
             let mirror = DMat3::from_diagonal(DVec3::new(-1.0, 1.0, 1.0));
-            let got = orthonormalize(rot * mirror * s);
+            let got = frustum_rotation(rot * mirror * s);
             assert!(got.abs_diff_eq(rot, 1e-12), "mirrored, scale {s}: {got}");
         }
     }
@@ -504,5 +575,159 @@ mod tests {
             let forward = DVec3::new(-0.39473979817379956, 0.07139249941787584, -0.9160150668873174);
             assert!((p.forward() - forward).length() < 1e-12, "{:?}", p.forward());
         }
+    }
+
+    /// Gf's row-major 4 × 4 (row-vector convention) as a column-form matrix.
+    fn from_gf_rows(rows: [[f64; 4]; 4]) -> DMat4 {
+        DMat4::from_cols_array_2d(&rows)
+    }
+
+    #[test]
+    fn sheared_and_non_uniformly_scaled_cameras_project_as_gf_frustum() {
+        // Reference values computed with usd-core 26.11 in Python: for each
+        // matrix m,
+        // Gf.Camera(m, Perspective, 36, 24, 2, -1.5, 35, (0.5, 200)).frustum,
+        // its window conformed to 320×200 as test_render.py's predict() does;
+        // the pixel is (ndc + 1)/2·320, (1 − ndc.y)/2·200 of
+        // view·projection, the depth −z of view; the rotation rows are those
+        // of ComputeViewInverse(). The matrices:
+        // - "shear": rows (1, 0.4, 0), (0, 1, 0), (0.25, −0.3, 1), translation
+        //   (0.5, −0.3, 11);
+        // - "rotate then scale": Gf.Rotation((1, 2, 3) normalised, 0.7 rad),
+        //   then a scale (2, 0.5, 1.5) along the world axes (a parent's
+        //   scale), then translate (1.5, −2, 8): rows shown below;
+        // - the same with scale (−2, 0.5, 1.5): left-handed, mirrored back.
+        // The closest rotation (a polar decomposition, as painterly once
+        // used) puts these points 8 to 23 px from usd-core's.
+        type Case = ([[f64; 4]; 4], [[f64; 3]; 3], [(DVec3, DVec2, f64); 2]);
+        let cases: [(&str, Case); 3] = [
+            (
+                "shear",
+                (
+                    [
+                        [1.0, 0.4, 0.0, 0.0],
+                        [0.0, 1.0, 0.0, 0.0],
+                        [0.25, -0.3, 1.0, 0.0],
+                        [0.5, -0.3, 11.0, 1.0],
+                    ],
+                    [
+                        [0.9697216231383229, 0.2034243782712832, -0.13512400209777214],
+                        [-0.17883563939944477, 0.96831011028932, 0.1743368704321522],
+                        [0.16630630685144984, -0.1448932456549551, 0.9753707806085871],
+                    ],
+                    [
+                        (
+                            DVec3::ZERO,
+                            DVec2::new(172.67305090511883, 130.73798746813333),
+                            10.855699713816668,
+                        ),
+                        (
+                            DVec3::new(1.0, -1.0, 2.0),
+                            DVec2::new(198.64590191975066, 171.24415741217462),
+                            8.59375860009309,
+                        ),
+                    ],
+                ),
+            ),
+            (
+                "rotate then scale",
+                (
+                    [
+                        [1.56327834781405, 0.2750586153521792, -0.44093681765787085, 0.0],
+                        [-0.9658585684284244, 0.41601506688731726, 0.4094345083324715, 0.0],
+                        [0.7894795963475996, -0.03569624970893792, 1.374022600330976, 0.0],
+                        [1.5, -2.0, 8.0, 1.0],
+                    ],
+                    [
+                        [0.7288537466690498, 0.6368726750190771, -0.2513273001099043],
+                        [-0.568919279097272, 0.7675829194345095, 0.29520724188921255],
+                        [0.38092396857893995, -0.07217795789879856, 0.921784829857614],
+                    ],
+                    [
+                        (
+                            DVec3::ZERO,
+                            DVec2::new(226.48286244695163, 85.63270276216109),
+                            8.090020507526917,
+                        ),
+                        (
+                            DVec3::new(1.0, -1.0, 2.0),
+                            DVec2::new(237.83276064126613, 125.28878174553087),
+                            5.793348921333951,
+                        ),
+                    ],
+                ),
+            ),
+            (
+                "mirrored",
+                (
+                    [
+                        [-1.56327834781405, 0.2750586153521792, -0.44093681765787085, 0.0],
+                        [0.9658585684284244, 0.41601506688731726, 0.4094345083324715, 0.0],
+                        [-0.7894795963475996, -0.03569624970893792, 1.374022600330976, 0.0],
+                        [1.5, -2.0, 8.0, 1.0],
+                    ],
+                    [
+                        [0.7288537466690498, -0.6368726750190771, 0.2513273001099043],
+                        [0.568919279097272, 0.7675829194345095, 0.29520724188921255],
+                        [-0.38092396857893995, -0.07217795789879856, 0.921784829857614],
+                    ],
+                    [
+                        (
+                            DVec3::ZERO,
+                            DVec2::new(-53.81708518583455, 161.8945112311027),
+                            6.947248601790099,
+                        ),
+                        (
+                            DVec3::new(1.0, -1.0, 2.0),
+                            DVec2::new(-2.0125182861819013, 160.7089861967085),
+                            5.412424952755012,
+                        ),
+                    ],
+                ),
+            ),
+        ];
+        for (name, (rows, rotation, points)) in cases {
+            let cam = CameraParams {
+                focal_length: 35.0,
+                horizontal_aperture: 36.0,
+                vertical_aperture: 24.0,
+                horizontal_aperture_offset: 2.0,
+                vertical_aperture_offset: -1.5,
+                near: 0.5,
+                far: 200.0,
+                camera_to_world: from_gf_rows(rows),
+                ..Default::default()
+            };
+            let p = Projector::new(&cam, 320, 200);
+            for (k, row) in rotation.iter().enumerate() {
+                let axis = p.camera_to_world.col(k).truncate();
+                assert!(
+                    (axis - DVec3::from_array(*row)).length() < 1e-12,
+                    "{name}: axis {k} {axis:?} vs {row:?}"
+                );
+            }
+            for (world, pixel, depth) in points {
+                let (px, d) = p.project(world).unwrap();
+                assert!(
+                    (px - pixel).length() < 1e-9 && close(d, depth, 1e-12),
+                    "{name}: {world:?} at {px:?} depth {d}, usd-core {pixel:?} {depth}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn gf_orthonormalize_keeps_nearly_parallel_axes_normalised_only() {
+        // Two axes within 1e-6 of each other once normalised: Gf gives up
+        // and leaves them normalised (usd-core: Orthonormalize() returns
+        // False and the rows come back normalised).
+        let m = DMat3::from_cols(
+            DVec3::new(2.0, 0.0, 0.0),
+            DVec3::new(3.0, 1.5e-6, 0.0),
+            DVec3::new(0.0, 0.0, 0.5),
+        );
+        let got = gf_orthonormalize(m);
+        let want = DMat3::from_cols(DVec3::X, DVec3::new(3.0, 1.5e-6, 0.0).normalize(), DVec3::Z);
+        assert!(got.abs_diff_eq(want, 1e-15), "{got}");
     }
 }
