@@ -5,7 +5,9 @@ behind, never panics, and never modifies the input."""
 
 import math
 import os
+import pathlib
 import re
+import struct
 
 import numpy as np
 import pytest
@@ -296,6 +298,79 @@ def test_truncated_usdc(painterly, tmp_path, fraction):
     data = usdc.read_bytes()
     usdc.write_bytes(data[: max(16, int(len(data) * fraction))])
     expect_failure(painterly, tmp_path, usdc)
+
+
+def stored_package(path, entries):
+    """A .usdz as usd-core writes one: stored (uncompressed) files, in the
+    order given, each one's bytes 64-byte aligned by padding in its local
+    header's extra field."""
+    import zipfile
+
+    with zipfile.ZipFile(path, "w", zipfile.ZIP_STORED) as z:
+        for name, data in entries:
+            info = zipfile.ZipInfo(name, date_time=(2024, 1, 1, 0, 0, 0))
+            header = z.fp.tell() + 30 + len(name.encode()) + 4
+            info.extra = b"\x86\x19" + struct.pack("<H", -header % 64) + bytes(-header % 64)
+            z.writestr(info, data)
+    with zipfile.ZipFile(path) as z:
+        raw = path.read_bytes()
+        for info in z.infolist():
+            n, x = struct.unpack_from("<HH", raw, info.header_offset + 26)
+            assert (info.header_offset + 30 + n + x) % 64 == 0
+        assert [i.filename for i in z.infolist()] == [name for name, _ in entries]
+    return path
+
+
+def fish_text():
+    return (pathlib.Path(__file__).resolve().parent.parent / "fixtures" / "blowfish.usda").read_bytes()
+
+
+@pytest.mark.parametrize("first", ["blowfish.usda", "blowfish.usd", "Blowfish.USDA", "sub/blowfish.usda"])
+def test_a_package_whose_first_file_is_a_usd_layer_is_read(painterly, tmp_path, first):
+    pkg = stored_package(tmp_path / "fish.usdz", [(first, fish_text()), ("tex.png", b"\x89PNG\r\n\x1a\n")])
+    assert Usd.Stage.Open(str(pkg)).GetPrimAtPath("/Blowfish/Paint/Hair")
+    assert painterly("inspect", pkg).stdout.rstrip().endswith("no problems found")
+
+
+@pytest.mark.parametrize("first, why", [
+    ("tex.png", "the package's first file is tex.png, not a USD layer; usd-core opens the first file as "
+                "the package's root layer"),
+    ("notes/", "the package's first file is notes/, not a USD layer; usd-core opens the first file as "
+               "the package's root layer"),
+])
+def test_a_package_whose_first_file_is_not_a_usd_layer_is_refused(painterly, tmp_path, first, why):
+    """usd-core opens a package's first file as its root layer: with an
+    image (or a folder) first it opens nothing, where painterly read the
+    first USD layer inside. The same files with the layer first are read
+    (test above): only the order differs."""
+    pkg = stored_package(tmp_path / "fish.usdz", [(first, b"\x89PNG\r\n\x1a\n" if first.endswith("png") else b""),
+                                                  ("blowfish.usda", fish_text())])
+    assert Sdf.Layer.FindOrOpen(str(pkg)) is None
+    with pytest.raises(Exception):
+        Usd.Stage.Open(str(pkg))
+    proc = painterly("inspect", pkg, check=False)
+    assert (proc.returncode, proc.stdout, proc.stderr) == (1, "", f"error: {pkg}: {why}\n")
+    expect_failure(painterly, tmp_path, pkg, names=[why])
+    # Sublayered or referenced by its bare path, the package is refused too
+    # (usd-core composes nothing from it; openusd would read its first layer).
+    for arc in ("subLayers", "references"):
+        shot = tmp_path / f"shot_{arc}.usda"
+        shot.write_text('#usda 1.0\n(\n    subLayers = [@./fish.usdz@]\n)\n' if arc == "subLayers" else
+                        '#usda 1.0\ndef Xform "Fish" (\n    references = @./fish.usdz@</Blowfish>\n)\n{\n}\n')
+        expect_failure(painterly, tmp_path, shot, name_file=False, names=[f"fish.usdz: {why}"])
+
+
+def test_a_package_whose_first_file_is_a_package_is_refused(painterly, tmp_path):
+    """usd-core opens the first file of a package that is a package's first
+    file; openusd would read the outer package's first layer instead (here
+    /Other, where usd-core reads /Blowfish). Refused, naming the inner package."""
+    inner = stored_package(tmp_path / "inner.usdz", [("blowfish.usda", fish_text())])
+    other = b'#usda 1.0\ndef Xform "Other"\n{\n}\n'
+    pkg = stored_package(tmp_path / "outer.usdz", [("inner.usdz", inner.read_bytes()), ("other.usda", other)])
+    inner.unlink()
+    stage = Usd.Stage.Open(str(pkg))
+    assert stage.GetPrimAtPath("/Blowfish") and not stage.GetPrimAtPath("/Other")
+    expect_failure(painterly, tmp_path, pkg, names=["the package's first file is inner.usdz, another package"])
 
 
 def test_nonexistent_input(painterly, tmp_path):

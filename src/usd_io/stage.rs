@@ -297,6 +297,90 @@ pub fn check_prim_path(option: &str, path: &str) -> Result<()> {
     }
 }
 
+/// What keeps usd-core from opening a root layer in a package file.
+#[derive(Debug, PartialEq)]
+enum PackageFault {
+    /// No file header at the start (not a zip archive, or bytes before its
+    /// first file): usd-core reads a package's files from its start.
+    NoFirstFile,
+    /// The first file is no USD layer: why, in words.
+    FirstFile(String),
+}
+
+/// The name of the first file of the zip archive whose first bytes are
+/// `head`: the name in the local file header at offset 0, the file
+/// usd-core opens as a package's root layer (it reads a package from its
+/// start, not from the central directory at its end). `None` without a
+/// header there.
+fn first_file_name(head: &[u8]) -> Option<String> {
+    let header = head.get(..30).filter(|h| h.starts_with(b"PK\x03\x04"))?;
+    let len = usize::from(u16::from_le_bytes([header[26], header[27]]));
+    head.get(30..30 + len).map(|n| String::from_utf8_lossy(n).into_owned())
+}
+
+/// Whether `name`'s extension is `ext`, in any case (usd-core finds a file
+/// format by its extension without case).
+fn has_extension(name: &str, ext: &str) -> bool {
+    Path::new(name).extension().is_some_and(|e| e.eq_ignore_ascii_case(ext))
+}
+
+/// What keeps usd-core from opening the package `package` (a `.usdz` file),
+/// whose root layer is its first file (Sdf.Layer.FindOrOpen gives None and
+/// Usd.Stage.Open fails otherwise), where openusd would open the first USD
+/// layer it lists, wherever it is. A package whose first file is a
+/// package (usd-core then opens that one's first file) is refused too:
+/// openusd would read another layer, and reads the same package through a
+/// sublayer or a reference. `None` for a file that is not a `.usdz` or
+/// cannot be read (openusd says why).
+fn package_fault(package: &Path) -> Option<PackageFault> {
+    use std::io::Read;
+    if !has_extension(&package.to_string_lossy(), "usdz") {
+        return None;
+    }
+    // A local file header is 30 bytes and a name (at most 65535 bytes).
+    let mut head = Vec::new();
+    std::fs::File::open(package)
+        .ok()?
+        .take(30 + 65535)
+        .read_to_end(&mut head)
+        .ok()?;
+    let Some(first) = first_file_name(&head) else {
+        return Some(PackageFault::NoFirstFile);
+    };
+    let why = if ["usda", "usdc", "usd"].iter().any(|e| has_extension(&first, e)) {
+        return None;
+    } else if has_extension(&first, "usdz") {
+        format!(
+            "the package's first file is {first}, another package; usd-core would open that \
+             package's first file as the root layer, painterly reads only a package whose first file \
+             is a .usda, .usdc or .usd layer"
+        )
+    } else {
+        format!(
+            "the package's first file is {first}, not a USD layer; usd-core opens the first file as \
+             the package's root layer"
+        )
+    };
+    Some(PackageFault::FirstFile(why))
+}
+
+/// Refuses the package `package` when usd-core would open no root layer
+/// from it, or another one than openusd ([`package_fault`]). `opened`: the
+/// package was read already, so openusd took it for a zip archive (else
+/// one that is none is left to openusd to name).
+fn check_package(package: &Path, opened: bool) -> Result<()> {
+    match package_fault(package) {
+        None => Ok(()),
+        Some(PackageFault::NoFirstFile) if !opened => Ok(()),
+        Some(PackageFault::NoFirstFile) => Err(Error::msg(
+            "the package does not begin with a file; usd-core reads a package from its start \
+             and opens the first file as its root layer",
+        )
+        .in_file(package)),
+        Some(PackageFault::FirstFile(why)) => Err(Error::msg(why).in_file(package)),
+    }
+}
+
 /// Whether two paths name one existing file (through links and `..`):
 /// how every "would overwrite" check compares an output with what it must
 /// not replace.
@@ -337,6 +421,8 @@ impl StageReader {
     /// [`super::memory`]), with the checks of [`StageReader::open`]; errors
     /// name `path`.
     pub fn compose<R: openusd::ar::Resolver + 'static>(path: &Path, identifier: &str, resolver: R) -> Result<Self> {
+        // A package's root layer is its first file, for usd-core.
+        check_package(Path::new(identifier), false)?;
         // Every layer passes the composition guard (nesting, namespace depth,
         // inherit cycles) before openusd parses or composes it, and openusd
         // runs under watch (panics, crashes, time limit).
@@ -365,6 +451,15 @@ impl StageReader {
         })?;
         if let Some(e) = guard.problems().into_iter().next() {
             return Err(e.in_file(path));
+        }
+        // Every package the stage reads as a whole (the input, or one
+        // sublayered or referenced by its bare path): `pkg.usdz[inner.usda]`
+        // names a layer inside a package, which is no package's root.
+        for id in stage.layer_identifiers() {
+            if has_extension(&id, "usdz") && !id.contains('[') {
+                let id = Path::new(&id);
+                check_package(if same_file(id, path) { path } else { id }, true)?;
+            }
         }
         let unresolved = unresolved_assets(&stage);
         Ok(StageReader {
@@ -1323,6 +1418,52 @@ def BasisCurves "L" {
             "{e}"
         );
         assert!(r.user_prim("--layer", "/Cam").unwrap().is_some());
+    }
+
+    /// A package's root layer is its first file for usd-core: a .usda,
+    /// .usdc or .usd (in any case) there is read, anything else refused, a
+    /// package first too (usd-core would open its first file, openusd
+    /// another layer); only a file that is not a .usdz is not looked into.
+    #[test]
+    fn a_package_s_first_file_must_be_a_usd_layer() {
+        let dir = crate::test_dir::ScratchDir::new("stage-package");
+        // A local file header: signature, 22 bytes (flags, sizes...), name
+        // length, extra length, name; nothing after it is read.
+        let package = |file: &str, first: &str| {
+            let mut b = b"PK\x03\x04".to_vec();
+            b.extend([0; 22]);
+            b.extend((first.len() as u16).to_le_bytes());
+            b.extend([0, 0]);
+            b.extend(first.as_bytes());
+            let p = dir.join(file);
+            std::fs::write(&p, b).unwrap();
+            p
+        };
+        for first in ["a.usda", "sub/a.usdc", "A.USD", "a.Usda"] {
+            assert_eq!(package_fault(&package("ok.usdz", first)), None, "{first}");
+        }
+        assert_eq!(package_fault(&package("not_a_package.usda", "tex.png")), None);
+        let fault = |first: &str| match package_fault(&package("p.usdz", first)) {
+            Some(PackageFault::FirstFile(why)) => why,
+            other => panic!("{first}: {other:?}"),
+        };
+        assert_eq!(
+            fault("tex.png"),
+            "the package's first file is tex.png, not a USD layer; usd-core opens the first file as \
+             the package's root layer"
+        );
+        assert!(fault("sub/").starts_with("the package's first file is sub/, not a USD layer"));
+        assert!(fault("a.usda.png").starts_with("the package's first file is a.usda.png, not"));
+        assert!(fault("inner.USDZ").starts_with("the package's first file is inner.USDZ, another package"));
+        // Bytes before the first file header, or no zip at all.
+        let junk = dir.join("junk.usdz");
+        std::fs::write(&junk, b"JUNKPK\x03\x04").unwrap();
+        assert_eq!(package_fault(&junk), Some(PackageFault::NoFirstFile));
+        assert_eq!(check_package(&junk, false), Ok(()));
+        let e = check_package(&junk, true).unwrap_err();
+        assert_eq!(e.file.as_deref(), Some(junk.as_path()));
+        assert!(e.message.starts_with("the package does not begin with a file"), "{e}");
+        assert_eq!(package_fault(&dir.join("missing.usdz")), None);
     }
 
     /// `open_mapped` serves the layers from read-only memory mappings (as
