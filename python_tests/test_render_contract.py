@@ -10,7 +10,11 @@ copied from painterly's output.
 import json
 import pathlib
 import re
+import resource
 import shlex
+import struct
+import subprocess
+import zlib
 
 import numpy as np
 import OpenEXR
@@ -19,7 +23,7 @@ from PIL import Image
 from pxr import Gf, Sdf, Usd, UsdGeom, Vt
 from scipy.spatial import ConvexHull
 
-from conftest import run_on_pty
+from conftest import painterly_binary, run_on_pty
 
 W, H = 200, 160
 CAM_Z = 15.0
@@ -277,6 +281,53 @@ def test_frames_that_would_share_a_file_name_are_refused(painterly, tmp_path, sc
     proc = painterly("render", scene, "--camera", "/Cam", "--frames", "1:1.002:0.001", "-o",
                      out / "f.####.exr", "--size", "32x24", "--quiet")
     assert sorted(p.name for p in out.iterdir()) == ["f.0001.001.exr", "f.0001.002.exr", "f.0001.exr"]
+
+
+def png_claiming(path, width, height):
+    """A valid 1-bit grayscale PNG of `width` × `height`, all white. Its
+    rows compress to almost nothing, so the file stays small whatever size
+    its header says (PNG spec: signature, IHDR, IDAT, IEND; each chunk is
+    length, type, data, CRC-32 of type and data)."""
+    def chunk(kind, data):
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+
+    row = b"\x00" + b"\xff" * ((width + 7) // 8)  # filter type 0, then the row's bits
+    z = zlib.compressobj(9)
+    data = b"".join(z.compress(row) for _ in range(height)) + z.flush()
+    ihdr = struct.pack(">IIBBBBB", width, height, 1, 0, 0, 0, 0)  # 1 bit, grayscale
+    path.write_bytes(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", ihdr) + chunk(b"IDAT", data) + chunk(b"IEND", b""))
+    return path
+
+
+def limit_memory(nbytes):
+    """preexec_fn: caps the child's address space, so a regression that
+    decodes a huge brush fails to allocate instead of taking the machine."""
+    return lambda: resource.setrlimit(resource.RLIMIT_AS, (nbytes, nbytes))
+
+
+def test_a_brush_larger_than_the_limit_is_refused_before_decoding(tmp_path, scene):
+    """README, Limits: a brush PNG is at most 4096 x 4096. An 80 KB file
+    whose header says 20000 x 20000 (decoded, 1.6 GB as floats) is refused
+    from its header, exit 1, naming the file, its size and the limit; one
+    at the limit renders."""
+    out = tmp_path / "out"
+    out.mkdir()
+    huge = png_claiming(tmp_path / "huge.png", 20000, 20000)
+    assert huge.stat().st_size < 200_000
+    args = [str(painterly_binary()), "render", str(scene), "--camera", "/Cam", "--frames", "1", "-o",
+            str(out / "f.####.exr"), "--size", "32x24"]
+    proc = subprocess.run([*args, "--brush", str(huge)], capture_output=True, text=True, timeout=120,
+                          preexec_fn=limit_memory(1 << 30))
+    assert proc.returncode == 1, proc.stderr[-2000:]
+    assert proc.stderr == (f"error: {huge}: brush PNG is 20000 x 20000 pixels; painterly reads brushes of at most "
+                           "4096 x 4096 (scale the footprint down)\n")
+    assert proc.stdout == "" and not any(out.iterdir())
+    # At the limit (4096 on a side): read, and the frame is drawn.
+    edge = png_claiming(tmp_path / "edge.png", 4096, 16)
+    proc = subprocess.run([*args, "--brush", str(edge), "--quiet"], capture_output=True, text=True, timeout=120,
+                          preexec_fn=limit_memory(1 << 30))
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert sorted(p.name for p in out.iterdir()) == ["f.0001.exr"]
 
 
 def test_a_scene_at_48_time_codes_per_second_renders_its_own_times(painterly, tmp_path):

@@ -10,7 +10,7 @@
 //!
 //! Every file is written to a temporary sibling and renamed into place.
 
-use std::io::Cursor;
+use std::io::{Cursor, Read};
 use std::path::Path;
 
 use exr::prelude::{
@@ -178,13 +178,47 @@ pub fn write_png(path: &Path, frame: &Frame, background: Option<Vec3>) -> Result
     write_png8(path, frame.width, frame.height, channels, &data, false)
 }
 
+/// The largest brush PNG, on either side: a footprint is sampled across a
+/// ribbon a few hundred pixels wide at most, and a PNG's header can claim
+/// far more than its file holds (a 150 KB 1-bit PNG can say 30000 × 30000,
+/// 3.6 GB once read as floats).
+pub const MAX_BRUSH_SIDE: u32 = 4096;
+
+/// Width and height from a PNG's IHDR chunk (which must come first, right
+/// after the 8-byte signature), or None when the bytes do not start so.
+fn png_header_size(bytes: &[u8]) -> Option<(u32, u32)> {
+    const SIGNATURE: [u8; 8] = [0x89, b'P', b'N', b'G', b'\r', b'\n', 0x1a, b'\n'];
+    if bytes.len() < 24 || bytes[..8] != SIGNATURE || &bytes[12..16] != b"IHDR" {
+        return None;
+    }
+    let word = |at: usize| u32::from_be_bytes([bytes[at], bytes[at + 1], bytes[at + 2], bytes[at + 3]]);
+    Some((word(16), word(20)))
+}
+
 /// Reads a PNG as a grayscale footprint in [0, 1]: gray (times alpha when
 /// present), or for colour images their Rec. 709 luma times alpha. Values
-/// are used as stored (no sRGB decoding): a footprint is a mask.
+/// are used as stored (no sRGB decoding): a footprint is a mask. A PNG
+/// whose header says it is wider or taller than [`MAX_BRUSH_SIDE`] is
+/// refused before any pixel is decoded.
 pub fn read_brush(path: &Path) -> Result<Brush> {
     let err = |m: String| Error::msg(m).in_file(path);
-    let file = std::fs::File::open(path).map_err(|e| err(format!("cannot open brush: {e}")))?;
-    let mut dec = png::Decoder::new(std::io::BufReader::new(file));
+    let open = || std::fs::File::open(path).map_err(|e| err(format!("cannot open brush: {e}")));
+    // The size as the header claims it, checked before the decoder sees it
+    // (it refuses some huge sizes itself, with a message that names none).
+    let mut head = Vec::with_capacity(24);
+    open()?
+        .take(24)
+        .read_to_end(&mut head)
+        .map_err(|e| err(format!("cannot read brush: {e}")))?;
+    if let Some((w, h)) = png_header_size(&head) {
+        if w > MAX_BRUSH_SIDE || h > MAX_BRUSH_SIDE {
+            return Err(err(format!(
+                "brush PNG is {w} x {h} pixels; painterly reads brushes of at most \
+                 {MAX_BRUSH_SIDE} x {MAX_BRUSH_SIDE} (scale the footprint down)"
+            )));
+        }
+    }
+    let mut dec = png::Decoder::new(std::io::BufReader::new(open()?));
     dec.set_transformations(png::Transformations::EXPAND | png::Transformations::STRIP_16);
     let mut reader = dec
         .read_info()
@@ -368,6 +402,68 @@ mod tests {
             e.to_string().contains("bad.png") && e.to_string().contains("cannot read brush PNG"),
             "{e}"
         );
+    }
+
+    #[test]
+    fn brushes_larger_than_the_limit_are_refused_before_decoding() {
+        use png::{BitDepth as D, ColorType as C};
+        let dir = crate::test_dir::ScratchDir::new("brush-limit");
+        let write = |name: &str, bytes: Vec<u8>| {
+            let p = dir.join(name);
+            std::fs::write(&p, bytes).unwrap();
+            p
+        };
+        // At the limit on either side: read.
+        let b = read_brush(&write(
+            "wide.png",
+            png_bytes(4096, 1, C::Grayscale, D::Eight, &[7; 4096], None),
+        ))
+        .unwrap();
+        assert_eq!((b.width, b.height), (4096, 1));
+        let b = read_brush(&write(
+            "tall.png",
+            png_bytes(1, 4096, C::Grayscale, D::Eight, &[7; 4096], None),
+        ))
+        .unwrap();
+        assert_eq!((b.width, b.height), (1, 4096));
+        // One pixel more: refused from the header alone. The IHDR of a
+        // 1 × 1 PNG is rewritten; its image data holds one pixel, so
+        // decoding the claimed size would fail (or, huge, exhaust memory).
+        for (w, h) in [
+            (4097u32, 1u32),
+            (1, 4097),
+            (30000, 30000),
+            (u32::MAX >> 1, u32::MAX >> 1),
+        ] {
+            let full = png_bytes(1, 1, C::Grayscale, D::One, &[0], None);
+            let mut bytes = full.clone();
+            bytes[16..20].copy_from_slice(&w.to_be_bytes());
+            bytes[20..24].copy_from_slice(&h.to_be_bytes());
+            let crc = crc32(&bytes[12..29]);
+            bytes[29..33].copy_from_slice(&crc.to_be_bytes());
+            let p = write("huge.png", bytes);
+            let e = read_brush(&p).unwrap_err().to_string();
+            assert_eq!(
+                e,
+                format!(
+                    "{}: brush PNG is {w} x {h} pixels; painterly reads brushes of at most 4096 x 4096 \
+                     (scale the footprint down)",
+                    p.display()
+                )
+            );
+        }
+    }
+
+    /// CRC-32 (IEEE, as PNG chunks use), bit by bit.
+    fn crc32(bytes: &[u8]) -> u32 {
+        let mut c = 0xffff_ffffu32;
+        for &b in bytes {
+            c ^= b as u32;
+            for _ in 0..8 {
+                c = if c & 1 != 0 { 0xedb8_8320 ^ (c >> 1) } else { c >> 1 };
+            }
+        }
+        !c
     }
 
     #[test]
