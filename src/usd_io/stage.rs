@@ -164,7 +164,8 @@ pub struct StageReader {
 /// A sublayer, reference or payload whose asset (or target prim) is missing.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct UnresolvedAsset {
-    /// The asset path as authored.
+    /// The asset path, anchored at the layer that authors it (the file
+    /// that was looked for).
     pub asset: String,
     /// `sublayer`, `reference` or `payload`.
     pub arc: String,
