@@ -863,6 +863,109 @@ def test_brush_path_prim_and_cached_binding(painterly, tmp_path):
     assert np.array_equal(layer2["verts"], layer["verts"])
 
 
+FISH_HAIR = "/Blowfish/Paint/Hair"
+# README's brush path on the hair, continued round the head.
+HAIR_TOOL = np.array([[3.0, 6.0, -2.0], [6.0, 6.0, -1.5], [7.0, 5.0, 0.0]])
+
+
+def fish_with_only(repo_root, tmp_path, keep):
+    """fixtures/blowfish.usda with every stroke layer but `keep` removed (the
+    references bind every layer by brute force: 14 of them take 30 s)."""
+    fish = tmp_path / "blowfish.usda"
+    st = Usd.Stage.Open(str(repo_root / "fixtures" / "blowfish.usda"))
+    for p in list(st.GetPrimAtPath("/Blowfish/Paint").GetChildren()):
+        if "PainterlyStrokeLayerAPI" in Au.applied_schemas(p) and str(p.GetPath()) != keep:
+            st.RemovePrim(p.GetPath())
+    st.GetRootLayer().Export(str(fish))
+    return fish
+
+
+def closest_of_two(ours, a, b):
+    """Per point, whichever of two tie-breaking references is nearer `ours`."""
+    near_a = np.linalg.norm(ours - a, axis=1) <= np.linalg.norm(ours - b, axis=1)
+    return np.where(near_a[:, None], a, b)
+
+
+def test_brush_in_a_pose_stores_the_binding_it_converted_through(painterly, repo_root, tmp_path):
+    """A layer bound on the fly (no painterly:bindVertices) brushed in the pose
+    at --time: each world displacement is taken back to rest space through the
+    blend of the point's closest-point binding, so the edit stores that binding
+    (else the bake binds the moved rest points again, to other triangles, and
+    at --time shows another displacement: up to 0.12 off a requested 0.3 on
+    the hair). Expected: numpy closest point on the rest proxy, usd-core's
+    BakeSkinning pose, the eq. 1 blend, and the brush's world displacement."""
+    fish = fish_with_only(repo_root, tmp_path, FISH_HAIR)
+    t, radius, strength = 24.0, 1.5, 0.3
+    stage, rrig, layer = rig_of(fish, FISH_HAIR)
+    assert not layer["cached"], "test setup: the fixture's hair has a stored binding"
+    pw = Au.usdcore_world_points(fish, [rrig["mesh"]], [t])
+    for which in ("smudge", "expand"):
+        e = tmp_path / f"{which}.usda"
+        run_brush(painterly, fish, FISH_HAIR, which, HAIR_TOOL, radius, strength, e, t=t)
+        res, scale, before = brush_expected(fish, FISH_HAIR, which, HAIR_TOOL, radius, strength, t=t,
+                                            posed_world=pw)
+        es = open_stage(e)
+        rest = attr_np(es, FISH_HAIR, "painterly:restPoints")
+        check_brush(rest, res, scale, f"{which} --time {t:g} rest points")
+        moved = np.linalg.norm(res[0][0] - before, axis=1) > 1e-6 * scale
+        assert moved.sum() >= 50, f"test setup: only {moved.sum()} points within reach"
+        # Baked at --time, every point is where it was plus the brush's world displacement.
+        comp = bake_at(painterly, e, t, tmp_path, f"{which}_bake.usda")
+        baked = RA.transform_points(RA.l2w(comp, FISH_HAIR, t), Au.local_points(comp, FISH_HAIR, t))
+        want = []
+        for out, world, d in res:
+            if which == "smudge":
+                _, tangent = RA.closest_on_path(HAIR_TOOL, world)
+                disp = tangent * (strength * RA.falloff(d / radius, "cubic") * (d <= radius))[:, None]
+                want.append(world + disp)
+            else:
+                # The moved rest points skinned by the same blends (eq. 1).
+                posed = RA.Pose(stage, rrig, t, pw)
+                A, b = RA.blend(posed.R, posed.tr, layer["verts"], layer["weights"])
+                want.append(RA.transform_points(posed.proxy_l2w, RA.apply_blend(A, b, out)))
+        want = closest_of_two(baked, *want)
+        assert np.linalg.norm(want - res[0][1], axis=1).max() > 0.2, "test setup: the brush moved too little"
+        assert_close(baked, want, scale, f"{which} --time {t:g}: baked at {t:g} vs brushed")
+        # The binding stored is the closest point of the rest points before the edit.
+        assert_binding(attr_np(es, FISH_HAIR, "painterly:bindVertices", np.int64),
+                       attr_np(es, FISH_HAIR, "painterly:bindWeights"), layer["verts"], layer["weights"],
+                       f"{which}: the binding stored")
+
+
+def test_brushing_a_keyed_layers_rest_points_leaves_its_keys_bound_as_they_were(painterly, repo_root, tmp_path):
+    """The spikes' position keys are skinned with the layer's binding, which
+    a bake computes from the rest points when none is stored: a brush that
+    moves those rest points (in the rest pose or in a pose) stores the
+    binding it used, so the keyed spikes are baked as before (they moved by
+    up to 0.12 when the bake re-bound the moved rest points). Expected:
+    reference_keys' bake of the unedited fixture (numpy closest-point binding,
+    smooth Voronoi, SPEC 5 time keys, usd-core BakeSkinning)."""
+    spikes = "/Blowfish/Paint/Spikes"
+    fish = fish_with_only(repo_root, tmp_path, spikes)
+    stage, rrig, layer = rig_of(fish, spikes)
+    assert not layer["cached"], "test setup: the fixture's spikes have a stored binding"
+    frames = [5.0, 40.0]
+    import reference_keys as RK
+    expected, _ = RK.expected_bake(fish, frames)
+    scale = Au.bbox_diag(rrig["topo"].rest)
+    for name, extra in (("rest", ()), ("posed", ("--time", 5))):
+        e = tmp_path / f"{name}.usda"
+        edit(painterly, "smudge", fish, "--layer", spikes, "--path", "0,6,-2 8,6,-1.5", "--radius", 3,
+             "--strength", 0.3, *extra, layer=e)
+        es = open_stage(e)
+        rest = attr_np(es, spikes, "painterly:restPoints")
+        assert np.linalg.norm(rest - layer["rest"], axis=1).max() > 0.05, "test setup: nothing moved"
+        out = tmp_path / f"{name}_bake.usda"
+        painterly("bake", e, "-o", out, "--frames", "5:40:35", "--quiet")
+        comp = Au.compose(e, out)
+        for t in frames:
+            assert_close(Au.local_points(comp, spikes, t), expected[spikes]["points"][t], scale,
+                         f"{name} smudge of the rest points: keyed spikes at {t:g}")
+        assert_binding(attr_np(es, spikes, "painterly:bindVertices", np.int64),
+                       attr_np(es, spikes, "painterly:bindWeights"), layer["verts"], layer["weights"],
+                       f"{name} smudge: the binding stored")
+
+
 # ---------------------------------------------------------------------------
 # (d) edit layers
 

@@ -741,7 +741,10 @@ pub struct BrushOptions {
 
 /// Applies smudge or expand (Bassett §3.3) in the pose at `time`; the
 /// displacement is taken back to rest space through the inverse of each
-/// point's skinning blend. Returns the number of points moved.
+/// point's skinning blend. A layer bound on the fly gets the binding the
+/// edit used stored with its new rest points when the bake would otherwise
+/// bind them differently (`binding_to_store` says when). Returns the number of
+/// points moved.
 pub fn brush(session: &EditSession, brush: Brush, opts: &BrushOptions) -> Result<usize> {
     let r = &session.reader;
     check_brush_options(opts)?;
@@ -756,6 +759,9 @@ pub fn brush(session: &EditSession, brush: Brush, opts: &BrushOptions) -> Result
     // part's inverse takes world displacements and normals across.
     pose.world_to_proxy(&rig.proxy.path)?;
     let to_proxy = DMat3::from_mat4(pose.proxy_to_world).inverse();
+    // The binding every point is converted through: the stored one, else
+    // the one a bake computes from the rest points as they are now (key
+    // points share their layer's binding, SPEC §4).
     let binding = match &layer.cached_binding {
         Some(b) => b.clone(),
         None => ClosestPoint::new(
@@ -764,6 +770,7 @@ pub fn brush(session: &EditSession, brush: Brush, opts: &BrushOptions) -> Result
         )
         .bind(&layer.rest_points),
     };
+    let store_binding = binding_to_store(layer, opts);
     let selected = selected_points(layer, opts.strokes.as_deref())?;
     // Posed world positions of the target points.
     let blends: Vec<DAffine3> = (0..target.len())
@@ -799,8 +806,30 @@ pub fn brush(session: &EditSession, brush: Brush, opts: &BrushOptions) -> Result
             format!("point {i}: the brush moves it past the float range in the proxy's space"),
         ));
     }
-    session.set(&target_prim, target_attr, Authored::Points(&target))?;
+    if store_binding {
+        // target is the layer's rest points here.
+        session.set_binding(&layer.path, &target, &binding)?;
+    } else {
+        session.set(&target_prim, target_attr, Authored::Points(&target))?;
+    }
     Ok(moved)
+}
+
+/// Whether [`brush`] must store the binding it converted through: a layer
+/// without a stored binding is bound on the fly from its rest points, so
+/// moving them can bind them to other triangles, and the bake would skin
+/// each moved point (and every key point) by another blend than the one the
+/// edit was taken back through. Needed when the brush moves the rest points
+/// in a pose (`--time`: the bake at that time must show the displacement as
+/// brushed) or on a layer with position keys (the rest points then anchor
+/// the keys' binding, and re-binding would move key shapes the brush did
+/// not touch). A `--key` edit leaves the rest points, hence the on-the-fly
+/// binding, as they were; a rest-pose edit of an unkeyed layer is exact
+/// whatever the binding (every motion is the identity there), and its
+/// points are then bound where they now lie, as painted there.
+fn binding_to_store(layer: &StrokeLayer, opts: &BrushOptions) -> bool {
+    let keyed = layer.keys.pose_points.is_some() || layer.keys.time_points.is_some();
+    layer.cached_binding.is_none() && opts.key.is_none() && (opts.time.is_some() || keyed)
 }
 
 /// The tool path, radius and strength a brush needs, before any file work.
