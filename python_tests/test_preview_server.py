@@ -154,11 +154,50 @@ def test_pages_elsewhere_are_refused(fish):
         (b'{"time": 1, "overrides": {"/Blowfish/Paint/blink": 1e999}}', "application/json", 400),
         (b'{"time": 1}', "text/plain", 415),
         (b"x" * (3 << 20), "application/json", 413),
+        # A request is a JSON object, not the array of its fields in order.
+        (b"[7, 12]", "application/json", 400),
+        (b"12", "application/json", 400),
+        # Only application/json, not a type that begins the same.
+        (b'{"time": 1}', "application/jsonp", 415),
+        (b'{"time": 1}', "application/json-seq", 415),
     ],
 )
 def test_bad_frame_requests_get_4xx(fish, raw, ctype, status):
     got, _, body = fish.request("api/frame", raw=raw, headers={"Content-Type": ctype}, method="POST")
     assert got == status, body[:200]
+    assert fish.alive()
+
+
+def test_a_request_is_a_json_object_of_media_type_application_json_in_any_case(fish):
+    """docs/preview.md: a frame request is a JSON object, POSTed as
+    application/json. A media type compares without case (RFC 9110) and
+    takes parameters; an array of the fields in order ([id, time]) is 400
+    on the route and on the websocket, for a render's frame and camera too."""
+    for ctype in ["Application/JSON", "application/json; charset=utf-8", "APPLICATION/JSON;charset=UTF-8"]:
+        status, _, body = fish.request("api/frame", raw=b'{"id": 3, "time": 2}', headers={"Content-Type": ctype},
+                                       method="POST")
+        assert status == 200, (ctype, body[:200])
+        assert decode_frame(body)[0]["id"] == 3
+    status, _, body = fish.request("api/frame", raw=b"[7, 12]", headers={"Content-Type": "application/json"},
+                                   method="POST")
+    assert (status, json.loads(body)) == (400, {"error": "bad request: expected a JSON object, found an array"})
+    cam = {"position": [0, 0, 30], "target": [0, 0, 0], "up": [0, 1, 0], "fov_y": 40, "near": 0.1, "far": 1000}
+    good = {"frame": {"time": 1}, "camera": cam, "width": 8, "height": 8}
+    assert fish.request("api/render", body=good)[0] == 200
+    for bad in [{**good, "frame": [0, 1]}, {**good, "camera": list(cam.values())}]:
+        status, _, body = fish.request("api/render", body=bad)
+        assert status == 400 and b"expected a JSON object, found an array" in body, (status, body[:200])
+    ws = WebSocket(fish.url)
+    try:
+        ws.send("[7, 12]")
+        op, body = ws.recv()
+        assert (op, json.loads(body)) == (1, {"id": 0, "status": 400,
+                                              "error": "bad request: expected a JSON object, found an array"})
+        ws.send(json.dumps({"id": 7, "time": 12}))
+        op, body = ws.recv()
+        assert op == 2 and decode_frame(body)[0]["id"] == 7
+    finally:
+        ws.close()
     assert fish.alive()
 
 

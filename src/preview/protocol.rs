@@ -9,6 +9,7 @@
 
 use std::collections::BTreeMap;
 
+use serde::de::{DeserializeOwned, Deserializer, Error as _};
 use serde::{Deserialize, Serialize};
 
 use crate::character::Configuration;
@@ -64,7 +65,9 @@ pub struct ViewCamera {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RenderRequest {
+    #[serde(deserialize_with = "object")]
     pub frame: FrameRequest,
+    #[serde(deserialize_with = "object")]
     pub camera: ViewCamera,
     pub width: usize,
     pub height: usize,
@@ -73,6 +76,50 @@ pub struct RenderRequest {
 /// A request the server refuses (HTTP 400).
 #[derive(Debug, Clone, PartialEq)]
 pub struct BadRequest(pub String);
+
+/// What a JSON value is, in words.
+fn json_kind(v: &serde_json::Value) -> &'static str {
+    use serde_json::Value as V;
+    match v {
+        V::Null => "null",
+        V::Bool(_) => "a boolean",
+        V::Number(_) => "a number",
+        V::String(_) => "a string",
+        V::Array(_) => "an array",
+        V::Object(_) => "an object",
+    }
+}
+
+/// Reads a request (a [`FrameRequest`], a [`RenderRequest`]) from the JSON
+/// text of a body or a websocket message. A request is a JSON object (so
+/// are a render request's `frame` and `camera`, see [`object`]): serde also
+/// reads a struct from an array of its fields in order (`[7, 12]` as
+/// `{"id": 7, "time": 12}`), which the protocol does not speak.
+pub fn from_json<T: DeserializeOwned>(text: &[u8]) -> Result<T, BadRequest> {
+    let bad = |e: serde_json::Error| BadRequest(format!("bad request: {e}"));
+    // A JSON text that is an object starts with `{` after whitespace.
+    if text.iter().find(|b| !b" \t\r\n".contains(b)) != Some(&b'{') {
+        let v: serde_json::Value = serde_json::from_slice(text).map_err(bad)?;
+        return Err(BadRequest(format!(
+            "bad request: expected a JSON object, found {}",
+            json_kind(&v)
+        )));
+    }
+    serde_json::from_slice(text).map_err(bad)
+}
+
+/// Reads a request's field that is a struct from a JSON object only (see
+/// [`from_json`]).
+fn object<'de, D: Deserializer<'de>, T: DeserializeOwned>(d: D) -> Result<T, D::Error> {
+    let v = serde_json::Value::deserialize(d)?;
+    if !v.is_object() {
+        return Err(D::Error::custom(format!(
+            "expected a JSON object, found {}",
+            json_kind(&v)
+        )));
+    }
+    T::deserialize(v).map_err(D::Error::custom)
+}
 
 fn finite(what: &str, v: &[f64]) -> Result<(), BadRequest> {
     if v.iter().all(|x| x.is_finite()) {
@@ -325,6 +372,55 @@ mod tests {
         )
         .unwrap();
         assert!(r.check(&axes).unwrap_err().0.contains("width"));
+    }
+
+    /// Requests are JSON objects, and so are a render request's frame and
+    /// camera: serde's reading of a struct from an array of its fields in
+    /// order (`[7, 12]` as id 7, time 12) is refused.
+    #[test]
+    fn requests_are_json_objects_only() {
+        let frame = from_json::<FrameRequest>(b" \n{\"id\": 7, \"time\": 12}").unwrap();
+        assert_eq!((frame.id, frame.time), (7, 12.0));
+        assert!(
+            serde_json::from_str::<FrameRequest>("[7, 12]").is_ok(),
+            "what from_json refuses"
+        );
+        let err = |text: &str| from_json::<FrameRequest>(text.as_bytes()).unwrap_err().0;
+        for (text, found) in [
+            ("[7, 12]", "an array"),
+            (" [7, 12, {}, null, false, false]", "an array"),
+            ("12", "a number"),
+            ("\"time\"", "a string"),
+            ("null", "null"),
+            ("true", "a boolean"),
+        ] {
+            assert_eq!(
+                err(text),
+                format!("bad request: expected a JSON object, found {found}"),
+                "{text}"
+            );
+        }
+        assert!(
+            err("[7, 12").starts_with("bad request: EOF while parsing a list"),
+            "{}",
+            err("[7, 12")
+        );
+        assert!(err("").starts_with("bad request: EOF while parsing a value"));
+        let cam = r#"{"position": [0,0,5], "target": [0,0,0], "up": [0,1,0], "fov_y": 45, "near": 0.1, "far": 100}"#;
+        let render = |frame: &str, camera: &str| {
+            from_json::<RenderRequest>(
+                format!(r#"{{"frame": {frame}, "camera": {camera}, "width": 8, "height": 8}}"#).as_bytes(),
+            )
+            .map(|r| (r.frame.time, r.camera.far))
+        };
+        assert_eq!(render(r#"{"time": 2}"#, cam), Ok((2.0, 100.0)));
+        let refused = |r: Result<(f64, f64), BadRequest>| r.unwrap_err().0;
+        assert!(refused(render("[0, 2]", cam)).starts_with("bad request: expected a JSON object, found an array"));
+        assert!(
+            refused(render(r#"{"time": 2}"#, "[[0,0,5], [0,0,0], [0,1,0], 45, 0.1, 100]"))
+                .starts_with("bad request: expected a JSON object, found an array")
+        );
+        assert!(refused(render(r#"{"time": 2, "bogus": 1}"#, cam)).contains("unknown field `bogus`"));
     }
 
     fn render_request(camera: serde_json::Value, width: usize, height: usize) -> RenderRequest {

@@ -29,7 +29,7 @@ use axum::routing::{get, post};
 use axum::{Json, Router};
 
 use super::evaluator::{Evaluator, JobError};
-use super::protocol::{BadRequest, FrameRequest, RenderRequest};
+use super::protocol::{from_json, BadRequest, FrameRequest, RenderRequest};
 
 const INDEX: &str = include_str!("page/index.html");
 const APP: &str = include_str!("page/app.js");
@@ -162,19 +162,27 @@ async fn strokes(State(state): State<Arc<AppState>>) -> Response {
     binary(state.evaluator.strokes.clone(), "application/octet-stream")
 }
 
+/// Whether a `Content-Type` is JSON: the media type `application/json`, in
+/// any case (RFC 9110 §8.3.1), with parameters or none (`; charset=utf-8`);
+/// not another type that begins the same (`application/jsonp`).
+fn is_json(content_type: &str) -> bool {
+    let media_type = content_type.split(';').next().unwrap_or_default();
+    media_type.trim().eq_ignore_ascii_case("application/json")
+}
+
 /// Parses a JSON body by hand so every failure is a 400 with a message.
 fn parse<T: serde::de::DeserializeOwned>(headers: &HeaderMap, body: &Bytes) -> Result<T, ApiError> {
     let json = headers
         .get(header::CONTENT_TYPE)
         .and_then(|v| v.to_str().ok())
-        .is_some_and(|v| v.starts_with("application/json"));
+        .is_some_and(is_json);
     if !json {
         return Err(ApiError(
             StatusCode::UNSUPPORTED_MEDIA_TYPE,
             "expected Content-Type: application/json".into(),
         ));
     }
-    serde_json::from_slice(body).map_err(|e| ApiError(StatusCode::BAD_REQUEST, format!("bad request: {e}")))
+    Ok(from_json(body)?)
 }
 
 async fn frame(State(state): State<Arc<AppState>>, headers: HeaderMap, body: Bytes) -> Result<Response, ApiError> {
@@ -214,12 +222,8 @@ async fn stream(mut socket: WebSocket, state: Arc<AppState>) {
                 continue;
             }
         };
-        let reply = match serde_json::from_str::<FrameRequest>(text.as_str()) {
-            Err(e) => error_message(
-                readable_id(&text),
-                StatusCode::BAD_REQUEST,
-                &format!("bad request: {e}"),
-            ),
+        let reply = match from_json::<FrameRequest>(text.as_bytes()) {
+            Err(BadRequest(m)) => error_message(readable_id(&text), StatusCode::BAD_REQUEST, &m),
             Ok(req) => {
                 let id = req.id;
                 match req.check(&state.evaluator.axes) {
@@ -253,4 +257,33 @@ fn readable_id(text: &str) -> u64 {
 fn error_message(id: u64, status: StatusCode, message: &str) -> Message {
     let body = serde_json::json!({ "id": id, "status": status.as_u16(), "error": message });
     Message::Text(body.to_string().into())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn json_is_application_json_in_any_case_with_parameters() {
+        for yes in [
+            "application/json",
+            "Application/JSON",
+            "application/json; charset=utf-8",
+            "APPLICATION/JSON;charset=UTF-8",
+            "application/json ; charset=utf-8",
+        ] {
+            assert!(is_json(yes), "{yes}");
+        }
+        for no in [
+            "application/jsonp",
+            "application/json-seq",
+            "application/json+x; charset=utf-8",
+            "application/ld+json",
+            "text/json",
+            "text/plain",
+            "",
+        ] {
+            assert!(!is_json(no), "{no}");
+        }
+    }
 }
