@@ -457,3 +457,12 @@ def test_inspect_says_when_there_is_nothing_painterly(painterly, tmp_path, repo_
     for fixture in ("blowfish.usda", "head.usda"):  # a rig; a view-dependent mesh alone
         proc = painterly("inspect", repo_root / "fixtures" / fixture)
         assert "nothing painterly" not in proc.stdout, proc.stdout
+
+
+def test_inspect_refuses_a_camera_that_is_no_prim_path(painterly, repo_root):
+    """As bake does (exit 2): a property path is a bad option, not a
+    problem of the stage (inspect listed it as one, exit 1)."""
+    proc = painterly("inspect", repo_root / "fixtures" / "head.usda", "--camera", "/Head/Camera.focalLength", check=False)
+    assert proc.returncode == 2, proc.stdout + proc.stderr
+    assert "--camera /Head/Camera.focalLength is a property path, not a prim path" in proc.stderr
+    assert proc.stdout == ""

@@ -326,6 +326,11 @@ pub fn inspect_reader(
     frames: Option<FrameRange>,
     progress: Progress,
 ) -> Result<Report> {
+    // A camera that is no prim path is a bad option (exit 2), not a problem
+    // of the stage.
+    if let Some(c) = camera {
+        crate::usd_io::stage::check_prim_path("--camera", c)?;
+    }
     let mut report = inspect_stage_for(&reader, frames)?;
     check_every_frame(reader, camera, frames, &mut report, progress);
     Ok(report)
