@@ -330,6 +330,27 @@ def test_a_brush_larger_than_the_limit_is_refused_before_decoding(tmp_path, scen
     assert sorted(p.name for p in out.iterdir()) == ["f.0001.exr"]
 
 
+def test_a_frame_number_a_file_name_cannot_hold_exactly_is_refused(painterly, tmp_path, scene):
+    """A frame's whole number is written into its file name (and sheet
+    label) as a 64-bit integer: 1e19 was written as
+    f.9223372036854775807.exr, the largest such integer, with exit 0. It is
+    refused as a usage error, as the other --frames checks are; the largest
+    double below 2^63 is still named digit for digit."""
+    out = tmp_path / "out"
+    out.mkdir()
+    for frame, shown in [("1e19", "10000000000000000000"), ("-9223372036854775808", "-9223372036854775808")]:
+        proc = painterly("render", scene, "--camera", "/Cam", "--frames", frame, "-o", out / "f.####.exr",
+                         "--size", "32x24", check=False)
+        assert proc.returncode == 2, proc.stderr
+        assert proc.stderr == (f"error: frame {shown} cannot be written in a file name: painterly numbers frames "
+                               "from -9223372036854775807 to 9223372036854775807\n")
+        assert proc.stdout == "" and not any(out.iterdir())
+    top = 2**63 - 1024  # the largest double below 2^63, an integer
+    painterly("render", scene, "--camera", "/Cam", "--frames", str(top), "-o", out / "f.####.exr",
+              "--size", "32x24", "--quiet")
+    assert [p.name for p in out.iterdir()] == [f"f.{top}.exr"]
+
+
 def test_a_scene_at_48_time_codes_per_second_renders_its_own_times(painterly, tmp_path):
     """The render's root layer must keep the input's timeCodesPerSecond, or
     USD retimes the input (a sublayer's times scale by the rates' ratio)."""

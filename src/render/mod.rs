@@ -167,6 +167,28 @@ pub struct RenderArgs {
 /// Paper white (#f1ede4) for sheets without --background.
 const PAPER: [f32; 3] = [0.879, 0.846, 0.776];
 
+/// Frame names and sheet labels write a frame's whole number as an `i64`:
+/// below 2^63 either side of 0 ([`check_args`] refuses frames beyond).
+const NAMED_FRAME_BOUND: f64 = 9_223_372_036_854_775_808.0;
+
+/// The whole frames and thousandths a frame's name shows, rounded to
+/// thousandths first (12.9996 is frame 13, 0.0001 frame 0), of `|t|`.
+fn frame_digits(t: f64) -> (f64, f64) {
+    let mut whole = t.abs().trunc();
+    let mut thousandths = ((t.abs() - whole) * 1000.0).round();
+    if thousandths >= 1000.0 {
+        whole += 1.0;
+        thousandths = 0.0;
+    }
+    (whole, thousandths)
+}
+
+/// Whether frame `t`'s number is written exactly by [`frame_path`]: its
+/// whole part fits an `i64` (beyond, `as i64` saturates).
+fn frame_is_nameable(t: f64) -> bool {
+    frame_digits(t).0 < NAMED_FRAME_BOUND
+}
+
 /// The output path of frame `t`: the first run of `#` becomes the frame
 /// number, zero-padded to the run's length (fractional frames keep up to
 /// three decimals: `0012.5`).
@@ -179,14 +201,8 @@ pub fn frame_path(pattern: &Path, t: f64) -> PathBuf {
         return pattern.to_path_buf();
     };
     let len = name[start..].chars().take_while(|&c| c == '#').count();
-    // Round to thousandths first, so 12.9996 is frame 13 and 0.0001 frame 0;
-    // the sign is shown only when what is shown is not zero (−0.5: `-000.5`).
-    let mut whole = t.abs().trunc();
-    let mut thousandths = ((t.abs() - whole) * 1000.0).round();
-    if thousandths >= 1000.0 {
-        whole += 1.0;
-        thousandths = 0.0;
-    }
+    let (whole, thousandths) = frame_digits(t);
+    // The sign is shown only when what is shown is not zero (−0.5: `-000.5`).
     let mut num = if t < 0.0 && (whole > 0.0 || thousandths > 0.0) {
         format!("-{:0len$}", whole as i64, len = len.saturating_sub(1))
     } else {
@@ -252,6 +268,18 @@ fn check_args(args: &RenderArgs) -> Result<Vec<f64>> {
             times.len()
         ))
         .in_file(out));
+    }
+    // A frame's number goes into its file name and its sheet label: one
+    // beyond what they write exactly would be written as another number.
+    if has_hash || args.sheet {
+        if let Some(t) = times.iter().find(|&&t| !frame_is_nameable(t)) {
+            // Beyond 2^53 every double is whole: `.0` writes its exact digits.
+            return Err(Error::usage(format!(
+                "frame {t:.0} cannot be written in a file name: painterly numbers frames from \
+                 -{max} to {max}",
+                max = i64::MAX
+            )));
+        }
     }
     // Frame names keep three decimals: closer frames would overwrite each
     // other's file. Names grow with the time, so only neighbours can clash.
@@ -711,6 +739,21 @@ mod tests {
             "8193x8192".parse::<ImageSize>(),
             Err("\"8193x8192\" is 67117056 pixels; at most 67108864 (8192x8192) are rendered".into())
         );
+    }
+
+    #[test]
+    fn frame_numbers_are_named_exactly_up_to_the_i64_range() {
+        let name = |t: f64| frame_path(Path::new("f.####.exr"), t).to_string_lossy().into_owned();
+        // The largest f64 below 2^63 is 2^63 − 1024: written digit for digit.
+        let top = 9_223_372_036_854_774_784.0;
+        assert!(frame_is_nameable(top) && frame_is_nameable(-top));
+        assert_eq!(name(top), "f.9223372036854774784.exr");
+        assert_eq!(name(-top), "f.-9223372036854774784.exr");
+        // 2^63 and beyond would be written as i64::MAX: not nameable.
+        for t in [9_223_372_036_854_775_808.0, 1e19, -1e19, 1e300] {
+            assert!(!frame_is_nameable(t), "{t}");
+        }
+        assert!(frame_is_nameable(0.0) && frame_is_nameable(-12.5));
     }
 
     #[test]
