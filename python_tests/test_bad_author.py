@@ -285,6 +285,36 @@ def test_a_proxy_scaled_past_the_float_range_is_refused(painterly, case):
         refused(painterly, *brush_args(inp, which), names=[LAYER, "painterly:restPoints", "past the float range"])
 
 
+@pytest.mark.parametrize("kind", ["PainterlyPoseKey", "PainterlyTimeKey"])
+def test_bind_in_a_pose_refuses_a_layer_with_position_keys(painterly, case, tmp_path, kind):
+    """`bind --time T` promises that baking at T gives back the painted
+    points. On a layer with position keys the keys, not the rest points,
+    shape the bake (blowfish's Pupils, bound at 24 as baked there, came back
+    0.025 off and moved 0.009 at frame 40), and the new binding re-skins
+    every key: refused, naming the layer
+    and its position keys and what to do instead. An opacity key
+    (the rig's `nopts`) keys no position: that layer still binds."""
+    inp, refused = case
+    e = tmp_path / "ok.usda"
+    painterly("bind", inp, "--time", 6, "--edit-layer", e, "--quiet")
+    assert Usd.Stage.Open(str(e)).GetPrimAtPath(LAYER).GetAttribute("painterly:bindVertices").HasAuthoredValue()
+    os.remove(e)
+    st = Usd.Stage.Open(str(inp))
+    rest = st.GetPrimAtPath(LAYER).GetAttribute("painterly:restPoints").Get()
+    k = st.DefinePrim(f"{LAYER}/wide", kind)
+    where = ("coordinates", Sdf.ValueTypeNames.FloatArray, Vt.FloatArray([])) if kind == "PainterlyPoseKey" \
+        else ("time", Sdf.ValueTypeNames.Double, 8.0)
+    for name, ty, v in (where, ("points", Sdf.ValueTypeNames.Point3fArray, rest)):
+        k.CreateAttribute(name, ty, False, Sdf.VariabilityUniform).Set(v)
+    st.GetRootLayer().Save()
+    del st, k
+    for extra, kw in (((), {}), (("--layer", LAYER), {}), (("--in-place",), {"edit_layer": None})):
+        msg = refused(painterly, "bind", inp, "--time", 6, *extra,
+                      names=[f"{LAYER}: has position keys ({LAYER}/wide)", "bind --time 6",
+                             "would not give back the painted points", "smudge --key"], **kw)
+        assert f"{LAYER}/nopts" not in msg, msg
+
+
 # ---------------------------------------------------------------------------
 # command-line usage: exit 2
 

@@ -178,7 +178,9 @@ pub type BindReport = Vec<(String, usize)>;
 /// posed proxy; its rest position is the inverse of the skinning blend
 /// applied to it (SPEC §3). Authors `painterly:restPoints`,
 /// `painterly:bindVertices` and `painterly:bindWeights`. Baking at `time`
-/// then gives back the painted positions.
+/// then gives back the painted positions. A layer with position keys is
+/// refused with a `time`: its keys, not its rest points, are what a bake
+/// draws.
 pub fn bind(session: &EditSession, opts: &BindOptions) -> Result<BindReport> {
     let r = &session.reader;
     let (scene, start) = scene_at(session, opts.time)?;
@@ -190,6 +192,13 @@ pub fn bind(session: &EditSession, opts: &BindOptions) -> Result<BindReport> {
         return Err(Error::msg(
             "nothing to bind: no stroke layer (PainterlyStrokeLayerAPI under a prim with PainterlyRigAPI)",
         ));
+    }
+    if let Some(t) = opts.time {
+        for layer in scene.rigs.iter().flat_map(|rig| &rig.layers) {
+            if opts.layers.is_empty() || opts.layers.contains(&layer.path) {
+                refuse_keyed_bind(layer, t)?;
+            }
+        }
     }
     let mut report = Vec::new();
     for rig in &scene.rigs {
@@ -259,6 +268,33 @@ pub fn bind(session: &EditSession, opts: &BindOptions) -> Result<BindReport> {
         }
     }
     Ok(report)
+}
+
+/// Refuses `bind --time` on a layer with position keys: the keys, not the
+/// rest points, shape its bake, so baking at `time` would not give back the
+/// painted points, and the new binding would re-skin every key.
+fn refuse_keyed_bind(layer: &StrokeLayer, time: f64) -> Result<()> {
+    let k = &layer.keys;
+    let keys: Vec<&str> = k
+        .pose_points
+        .iter()
+        .flat_map(|c| &c.paths)
+        .chain(k.time_points.iter().flat_map(|c| &c.paths))
+        .map(String::as_str)
+        .collect();
+    if keys.is_empty() {
+        return Ok(());
+    }
+    Err(Error::prim(
+        &layer.path,
+        format!(
+            "has position keys ({}), which shape its bake instead of its rest points: bind --time {time} would not \
+             give back the painted points, and its new binding would re-skin every key. Bind the strokes before \
+             keying them, or edit a key in the pose with `smudge --key`/`expand --key` (--layer names the layers \
+             to bind)",
+            keys.join(", ")
+        ),
+    ))
 }
 
 /// Which kind of key [`key`] sets.
