@@ -40,6 +40,7 @@ pub mod error;
 pub mod extent;
 pub mod farm;
 pub mod frames;
+pub mod gf;
 pub mod inspect;
 pub mod interp;
 pub mod keys;

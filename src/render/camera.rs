@@ -177,7 +177,7 @@ pub fn conform_match_horizontally(w: Window, aspect: f64) -> Window {
 /// Gf's rows, the camera's axes in world space):
 ///
 /// 1. the axes orthonormalised as `GfMatrix4d::Orthonormalize` does
-///    ([`gf_orthonormalize`]);
+///    ([`crate::gf::orthonormalized`]);
 /// 2. a left-handed result mirrored back by negating its x axis;
 /// 3. that matrix, orthonormal only to about 1e-6, read as a `GfRotation`:
 ///    a quaternion by the largest diagonal entry, its imaginary part giving
@@ -187,84 +187,18 @@ pub fn conform_match_horizontally(w: Window, aspect: f64) -> Window {
 /// This is not the closest rotation (a polar decomposition): for a sheared
 /// or non-uniformly scaled camera the two differ by degrees.
 fn frustum_rotation(m: DMat3) -> DMat3 {
-    let mut r = gf_orthonormalize(m);
+    let mut r = crate::gf::orthonormalized(m);
     if r.determinant() < 0.0 {
         r.x_axis = -r.x_axis;
     }
-    // g(i, j): Gf's entry [i][j] (row i = column i here).
-    let g = |i: usize, j: usize| r.col(i)[j];
-    let diagonal = [g(0, 0), g(1, 1), g(2, 2)];
-    let i = if diagonal[0] > diagonal[1] {
-        if diagonal[0] > diagonal[2] {
-            0
-        } else {
-            2
-        }
-    } else if diagonal[1] > diagonal[2] {
-        1
-    } else {
-        2
-    };
-    let trace = diagonal[0] + diagonal[1] + diagonal[2];
-    let (real, imaginary) = if trace > diagonal[i] {
-        let w = 0.5 * (trace + 1.0).sqrt();
-        let v = DVec3::new(g(1, 2) - g(2, 1), g(2, 0) - g(0, 2), g(0, 1) - g(1, 0)) / (4.0 * w);
-        (w, v)
-    } else {
-        let (j, k) = ((i + 1) % 3, (i + 2) % 3);
-        let q = 0.5 * (diagonal[i] - diagonal[j] - diagonal[k] + 1.0).sqrt();
-        let mut v = DVec3::ZERO;
-        v[i] = q;
-        v[j] = (g(i, j) + g(j, i)) / (4.0 * q);
-        v[k] = (g(k, i) + g(i, k)) / (4.0 * q);
-        ((g(j, k) - g(k, j)) / (4.0 * q), v)
-    };
+    let q = crate::gf::rotation_quaternion(&r);
+    let imaginary = DVec3::new(q.x, q.y, q.z);
     let len = imaginary.length();
     // GfRotation keeps the identity for an axis shorter than this.
     if len.is_nan() || len <= 1e-10 {
         return DMat3::IDENTITY;
     }
-    DMat3::from_axis_angle(imaginary / len, 2.0 * real.clamp(-1.0, 1.0).acos())
-}
-
-/// `GfMatrix4d::Orthonormalize` of the 3 × 3 part, in column form (Gf
-/// works on rows; they are the columns here). The three axes are
-/// normalised; if two of them are then within 1e-6 of each other they are
-/// returned so (Gf reports failure). Otherwise, up to 20 rounds: each axis
-/// `t_i` is replaced by the normalised mean of itself and `b_i`, which is
-/// `t_i` with its component along each other axis `t_j` removed in turn
-/// (from what is left, in axis order, using this round's axes); the rounds
-/// stop, keeping the axes from before the last one, once it moved them by
-/// less than 1e-12 in summed squared length. Behaviour matched to usd-core's
-/// `Gf.Matrix4d.Orthonormalize()` on random matrices (to 1e-14).
-fn gf_orthonormalize(m: DMat3) -> DMat3 {
-    let mut t = [
-        m.x_axis.normalize_or_zero(),
-        m.y_axis.normalize_or_zero(),
-        m.z_axis.normalize_or_zero(),
-    ];
-    let near = |a: DVec3, b: DVec3| (a - b).length_squared() <= 1e-12;
-    if near(t[0], t[1]) || near(t[0], t[2]) || near(t[1], t[2]) {
-        return DMat3::from_cols(t[0], t[1], t[2]);
-    }
-    for _ in 0..20 {
-        let mut next = t;
-        for (i, n) in next.iter_mut().enumerate() {
-            let mut b = t[i];
-            for (j, other) in t.iter().enumerate() {
-                if j != i {
-                    b -= other.dot(b) * *other;
-                }
-            }
-            *n = ((t[i] + b) * 0.5).normalize_or_zero();
-        }
-        let moved: f64 = (0..3).map(|i| (t[i] - next[i]).length_squared()).sum();
-        if moved < 1e-12 {
-            break;
-        }
-        t = next;
-    }
-    DMat3::from_cols(t[0], t[1], t[2])
+    DMat3::from_axis_angle(imaginary / len, 2.0 * q.w.acos())
 }
 
 /// A camera set up for one image: world → pixels.
@@ -726,7 +660,7 @@ mod tests {
             DVec3::new(3.0, 1.5e-6, 0.0),
             DVec3::new(0.0, 0.0, 0.5),
         );
-        let got = gf_orthonormalize(m);
+        let got = crate::gf::orthonormalized(m);
         let want = DMat3::from_cols(DVec3::X, DVec3::new(3.0, 1.5e-6, 0.0).normalize(), DVec3::Z);
         assert!(got.abs_diff_eq(want, 1e-15), "{got}");
     }
