@@ -497,9 +497,11 @@ def test_key_at_the_configuration_the_bake_calls_one_point_is_refused(painterly,
     keys = sorted(c.GetName() for c in st.GetPrimAtPath(brows).GetChildren())
     assert "key1" not in keys, keys
     assert list(st.GetPrimAtPath(f"{brows}/front").GetAttribute("coordinates").Get()) == [0.0, 1.0]
-    # --replace rewrites what a pose key keys; a stray flag stays, named.
+    # --replace rewrites the key: it holds only what the command sets, so a
+    # stray flag goes too (blocked) and inspect finds nothing.
     problems = json.loads(painterly("inspect", inp, "--json", check=False).stdout)["problems"]
-    assert [(p["prim"], p["attribute"], p["rule"]) for p in problems] == want
+    assert problems == []
+    assert not st.GetPrimAtPath(f"{brows}/front").GetAttribute("sentinel").HasAuthoredValue()
     painterly("bake", inp, "-o", tmp_path / "bake.usdc", "--frames", "1:3", "--quiet")
 
 
@@ -635,6 +637,71 @@ def test_key_same_name_refused_then_replaced(painterly, keyed_rig, tmp_path):
     assert np.allclose(coords_of(st, f"{L0}/fade"), [v10[n] for n in ORDER0], rtol=1e-5, atol=1e-5)
     assert key_prim(st, f"{L0}/fade").GetAttribute("opacity").Get() == pytest.approx(0.5)
     assert len([c for c in st.GetPrimAtPath(L0).GetChildren()]) == 1
+
+
+def key_attrs(path, key):
+    """{name: value} of the key attributes with a value (usd-core: a blocked
+    attribute has none)."""
+    st = Usd.Stage.Open(str(path))
+    k = st.GetPrimAtPath(key)
+    out = {n: k.GetAttribute(n).Get() for n in ("coordinates", "time", "sentinel", "points", "opacity")
+           if k.GetAttribute(n).HasAuthoredValue()}
+    del st, k
+    return out
+
+
+@pytest.mark.parametrize("target", ["edit-layer", "in-place"])
+def test_a_replaced_key_holds_only_what_the_command_sets(painterly, repo_root, tmp_path, target):
+    """`key --name K --replace` kept K's other channel: `--name flat --opacity
+    0.5 --time 30` left flat's folded shape keyed at inflate 1, beside `out`
+    (inspect and bake refused two position keys there), and `--name shock
+    --sentinel` left shock's points on a sentinel (inspect: a sentinel
+    carries no points). The replaced key now holds only what the command
+    sets; the rest is blocked, whatever layer held it. Expected: usd-core's
+    reading of the key and reference_keys' bake of the edited stage."""
+    spikes = "/Blowfish/Paint/Spikes"
+    fish = fish_with_only(repo_root, tmp_path, spikes)
+    e = tmp_path / "e.usda"
+    where = ["--in-place"] if target == "in-place" else ["--edit-layer", e]
+    out = fish if target == "in-place" else e
+    assert set(key_attrs(fish, f"{spikes}/flat")) == {"coordinates", "points"}, "test setup"
+    assert set(key_attrs(fish, f"{spikes}/shock")) == {"time", "points"}, "test setup"
+    assert key_attrs(fish, f"{spikes}/shockStart")["sentinel"], "test setup"
+    st = Usd.Stage.Open(str(fish))
+    anim = UsdSkel.Animation(st.GetPrimAtPath("/Blowfish/Rig/Skel/Anim"))
+    inflate30 = anim.GetBlendShapeWeightsAttr().Get(30)[list(anim.GetBlendShapesAttr().Get()).index("inflate")]
+    rest = np.array(st.GetPrimAtPath(spikes).GetAttribute("painterly:restPoints").Get(), dtype=np.float64)
+    del st, anim
+
+    painterly("key", fish, "--layer", spikes, "--name", "flat", "--replace", "--time", 30, "--opacity", 0.5, *where,
+              "--quiet")
+    got = key_attrs(out, f"{spikes}/flat")
+    assert set(got) == {"coordinates", "opacity"}, f"flat after an opacity --replace: {sorted(got)}"
+    assert list(got["coordinates"]) == pytest.approx([inflate30]) and got["opacity"] == pytest.approx(0.5)
+
+    painterly("key", fish, "--layer", spikes, "--name", "shock", "--replace", "--time", 40, "--sentinel", *where,
+              "--quiet")
+    got = key_attrs(out, f"{spikes}/shock")
+    assert got == {"time": 40.0, "sentinel": True}, f"shock after a --sentinel --replace: {got}"
+
+    # A sentinel replaced by a time key: sentinel 0 and the layer's rest points.
+    painterly("key", fish, "--layer", spikes, "--name", "shockStart", "--replace", "--time", 36, "--time-key",
+              "--points", *where, "--quiet")
+    got = key_attrs(out, f"{spikes}/shockStart")
+    assert set(got) == {"time", "sentinel", "points"} and got["sentinel"] is False, sorted(got)
+    assert np.array_equal(np.array(got["points"], dtype=np.float64), rest)
+
+    p = painterly("inspect", out, check=False)
+    assert (p.returncode, p.stdout.strip().splitlines()[-1]) == (0, "no problems found"), p.stdout + p.stderr
+    import reference_keys as RK
+    frames = [16.0, 30.0, 38.0]
+    expected, _ = RK.expected_bake(out, frames)
+    baked = tmp_path / "bake.usda"
+    painterly("bake", out, "-o", baked, "--frames", "16:38:2", "--quiet")
+    comp = Au.compose(out, baked)
+    scale = Au.bbox_diag(rest)
+    for t in frames:
+        assert_close(Au.local_points(comp, spikes, t), expected[spikes]["points"][t], scale, f"spikes at {t:g}")
 
 
 def test_key_time_keys_and_sentinels(painterly, keyed_rig, tmp_path):
@@ -1193,7 +1260,9 @@ def test_in_place_bind_keeps_a_connection_usd_core_wrote_without_a_declaration(p
 def test_key_replace_keeps_the_key_prims_metadata_properties_and_children_in_usda(painterly, tmp_path):
     """`key --replace` of a key prim with prim metadata re-types its header and
     sets its attributes; the metadata, other properties and children stay, as
-    they do for the same file as .usdc (the .usda edit was refused)."""
+    they do for the same file as .usdc (the .usda edit was refused). The
+    key's points, which the replacing opacity key does not set, are blocked
+    (`= None`, as usd-core's Block() writes it)."""
     inp = tmp_path / "t.usda"
     tube_copy().Export(str(inp))
     painterly("key", inp, "--layer", RINGS, "--time", 12, "--name", "k", "--in-place", "--quiet")
@@ -1214,8 +1283,11 @@ def test_key_replace_keeps_the_key_prims_metadata_properties_and_children_in_usd
                       "--in-place", "--quiet", check=False)
         assert (p.returncode, p.stderr) == (0, ""), f"{f.suffix}: {p.stderr}"
         edited = contents(Sdf.Layer.OpenAsAnonymous(str(f)))
-        # Only the key's new opacity, which usd-core appends to its properties.
-        assert differences(original, edited) == [(f"{RINGS}/k", "<properties>"), (f"{RINGS}/k.opacity", "<spec>")]
+        # Only the key's new opacity, which usd-core appends to its properties,
+        # and its points blocked.
+        assert differences(original, edited) == [(f"{RINGS}/k", "<properties>"), (f"{RINGS}/k.opacity", "<spec>"),
+                                                 (f"{RINGS}/k.points", "default")]
+        assert edited[f"{RINGS}/k.points"][1]["default"] == Sdf.ValueBlock()
         assert edited[f"{RINGS}/k"][1]["<properties>"] == [*original[f"{RINGS}/k"][1]["<properties>"], "opacity"]
         assert edited[f"{RINGS}/k.opacity"][1]["default"] == 0.25
         spec = edited[f"{RINGS}/k"][1]

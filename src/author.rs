@@ -333,7 +333,8 @@ pub struct KeyOptions {
 /// capture `time`; both capture the layer's current rest
 /// positions (`points`) and/or an `opacity`. A key whose coordinates (or time)
 /// coincide with an existing key of the same channel is refused unless
-/// `replace`, which then rewrites that key.
+/// `replace`, which then rewrites that key: it holds only what this call
+/// sets, every other key attribute blocked.
 pub fn key(session: &EditSession, opts: &KeyOptions) -> Result<String> {
     if let Some(c) = &opts.camera {
         session.reader.require_camera(c, "--camera")?;
@@ -367,7 +368,33 @@ pub fn key(session: &EditSession, opts: &KeyOptions) -> Result<String> {
         opts,
         &scene.rigs[ri].layers[li].rest_points,
     )?;
+    if let Some(old) = existing.iter().find(|e| e.path == path) {
+        clear_unset(session, old, opts)?;
+    }
     Ok(path)
+}
+
+/// A replaced key holds only what the command that replaced it sets: every
+/// other key attribute it carried (the other channel's value, a time key's
+/// `time` or `sentinel` on a pose key, a pose key's `coordinates` on a time
+/// key, a sentinel's data) is blocked, as usd-core's `Block()` does, so the
+/// key neither keeps an old shape at its new place nor carries data a
+/// sentinel may not.
+fn clear_unset(session: &EditSession, old: &ExistingKey, opts: &KeyOptions) -> Result<()> {
+    let data = opts.kind != KeyKind::Sentinel;
+    let sets = |name: &str| match name {
+        "coordinates" => opts.kind == KeyKind::Pose,
+        "time" | "sentinel" => opts.kind != KeyKind::Pose,
+        "points" => data && opts.points,
+        "opacity" => data && opts.opacity.is_some(),
+        _ => false,
+    };
+    for (name, ty) in KEY_ATTRS {
+        if old.authored.contains(&name) && !sets(name) {
+            session.block(&old.path, name, ty)?;
+        }
+    }
+    Ok(())
 }
 
 /// A key already on the layer, as far as collisions need it.
@@ -379,7 +406,19 @@ struct ExistingKey {
     points: bool,
     opacity: bool,
     sentinel: bool,
+    /// The key attributes ([`KEY_ATTRS`]) with an authored value.
+    authored: Vec<&'static str>,
 }
+
+/// Every attribute a key prim may carry, with its type: what a replaced key
+/// loses when the command that replaces it does not set it.
+const KEY_ATTRS: [(&str, &str); 5] = [
+    ("coordinates", "float[]"),
+    ("time", "double"),
+    ("sentinel", "bool"),
+    ("points", "point3f[]"),
+    ("opacity", "float"),
+];
 
 /// A child a bake does not read (deactivated, an `over`, a `class`): its
 /// path and why. It holds its name but keys nothing.
@@ -414,10 +453,17 @@ fn existing_keys(r: &StageReader, layer_path: &str) -> Result<(Vec<ExistingKey>,
         // pose key that authors it as a pose key, and so must `key`.
         let sentinel =
             ty == "PainterlyTimeKey" && r.typed(&c, "sentinel", None, "bool", values::scalar)?.unwrap_or(0.0) != 0.0;
+        let mut authored = Vec::new();
+        for (name, _) in KEY_ATTRS {
+            if r.has_authored(&c, name)? {
+                authored.push(name);
+            }
+        }
         existing.push(ExistingKey {
-            points: r.has_authored(&c, "points")?,
-            opacity: r.has_authored(&c, "opacity")?,
+            points: authored.contains(&"points"),
+            opacity: authored.contains(&"opacity"),
             sentinel,
+            authored,
             path: c.path().as_str().to_string(),
             ty,
             coords,
@@ -633,7 +679,8 @@ fn time_keys_met(existing: &[ExistingKey], place: &KeyPlace, in_channel: impl Fn
 }
 
 /// A time channel as the bake reads it: its keys (indices into `existing`,
-/// leaving out the key at `without`), their times, and every sentinel's time.
+/// leaving out the key at `without`), their times, and the times of its
+/// sentinels (but the one at `without`).
 fn time_layout(
     existing: &[ExistingKey],
     in_channel: impl Fn(&ExistingKey) -> bool,
@@ -649,7 +696,7 @@ fn time_layout(
     let times = members.iter().map(|&i| existing[i].coords[0]).collect();
     let sentinels = existing
         .iter()
-        .filter(|e| is_time(e) && e.sentinel)
+        .filter(|e| is_time(e) && e.sentinel && Some(e.path.as_str()) != without)
         .map(|e| e.coords[0])
         .collect();
     (members, times, sentinels)
@@ -675,16 +722,18 @@ fn check_channels_stay_readable(
         let (members, old, new) = match opts.kind {
             KeyKind::Sentinel => return Ok(()),
             KeyKind::Time => {
-                let (members, times, sentinels) = time_layout(existing, in_channel, Some(path));
+                // A sentinel the new key replaces splits the runs before, not after.
+                let (members, times, after) = time_layout(existing, in_channel, Some(path));
+                let (_, _, before) = time_layout(existing, in_channel, None);
                 let mut with_new = times.clone();
                 with_new.push(place.coords[0]);
-                let pair = |t: &[f64]| match crate::keys::TimeChannel::new(t, &sentinels) {
+                let pair = |t: &[f64], sentinels: &[f64]| match crate::keys::TimeChannel::new(t, sentinels) {
                     Err(TimeKeyError::SameTime { first, second } | TimeKeyError::CloseTimes { first, second }) => {
                         Some((first, second))
                     }
                     _ => None,
                 };
-                (members, pair(&times), pair(&with_new))
+                (members, pair(&times, &before), pair(&with_new, &after))
             }
             KeyKind::Pose => {
                 let dim = place.coords.len();

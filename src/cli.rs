@@ -174,7 +174,9 @@ pub enum Command {
         /// Set a sentinel time key (bounds a time-keyed region; no data).
         #[arg(long)]
         sentinel: bool,
-        /// Overwrite a key of the same name or at the same coordinates/time.
+        /// Overwrite a key of the same name or at the same coordinates/time;
+        /// it then holds only what this command sets (its other attributes
+        /// are blocked).
         #[arg(long)]
         replace: bool,
         /// Camera for viewDirection axes without a source.

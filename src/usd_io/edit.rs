@@ -287,6 +287,13 @@ impl EditSession {
         self.set_value(prim, name, value.type_name(), true, value.into_value())
     }
 
+    /// Blocks a painterly attribute's default value (`= None`, usd-core's
+    /// `Block()`): the attribute then has no value, whatever weaker layers
+    /// hold.
+    pub fn block(&self, prim: &str, name: &str, type_name: &str) -> Result<()> {
+        self.set_value(prim, name, type_name, true, Value::ValueBlock)
+    }
+
     /// Caches a stroke layer's binding (SPEC §3): its rest points, each
     /// point's triangle vertices and barycentric weights.
     pub fn set_binding(&self, layer: &str, rest: &[glam::Vec3], binding: &crate::bind::Binding) -> Result<()> {

@@ -403,6 +403,8 @@ pub fn format_value(v: &Value) -> Option<String> {
         Value::Vec3fVec(a) => list(a, v3f),
         Value::Vec3dVec(a) => list(a, v3d),
         Value::Vec3iVec(a) => list(a, v3i),
+        // A blocked default (`key --replace` clears what it does not set).
+        Value::ValueBlock => "None".into(),
         _ => return None,
     })
 }
@@ -907,6 +909,7 @@ def Xform "A" (
                 Value::Vec3iVec(vec![Vec3i { x: 1, y: -2, z: 3 }]),
                 "[(1, -2, 3)]",
             ),
+            ("point3f[]", Value::ValueBlock, "None"),
         ];
         for (ty, value, want) in &cases {
             assert_eq!(format_value(value).as_deref(), Some(*want), "{ty}");
