@@ -620,6 +620,23 @@ def test_time_key_that_would_make_two_keys_meet_is_refused(painterly, repo_root,
     painterly("bake", inp, "-o", tmp_path / "bake.usdc", "--frames", "36:48", "--quiet")
 
 
+def test_a_time_key_replacing_a_sentinel_that_would_merge_meeting_keys_is_refused(painterly, repo_root, tmp_path):
+    # Keys at 30 and 30 + 5e-12 alone before the sentinel shockStart (36): a
+    # run 5e-12 across, so two times. A time key replacing shockStart joins
+    # them to shock and settle (run 14 across, tolerance 1.4e-11): one time.
+    inp = tmp_path / "blowfish.usda"
+    shutil.copy(repo_root / "fixtures" / "blowfish.usda", inp)
+    for t in ("30", "30.000000000005"):
+        painterly("key", inp, "--in-place", "--layer", SPIKES, "--time", t, "--time-key", "--points", "--quiet")
+    assert painterly("inspect", inp, check=False).returncode == 0
+    before = Au.file_hash(inp)
+    p = painterly("key", inp, "--in-place", "--layer", SPIKES, "--name", "shockStart", "--replace", "--time", 36,
+                  "--time-key", "--points", check=False)
+    assert p.returncode == 1, f"exit {p.returncode}: {p.stderr}"
+    assert f"{SPIKES}/time1 and {SPIKES}/time2 count as one" in p.stderr, p.stderr
+    assert Au.file_hash(inp) == before, "a refused key changed its input"
+
+
 def test_key_same_name_refused_then_replaced(painterly, keyed_rig, tmp_path):
     rig = keyed_rig
     L0 = rig.layers[0]
