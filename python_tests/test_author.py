@@ -867,6 +867,44 @@ def test_negative_strength_as_its_own_argument(painterly, tmp_path):
     assert p.returncode == 0, p.stderr
 
 
+def test_expand_moves_out_of_a_left_handed_proxy(painterly, repo_root, tmp_path):
+    """The static proxy written with every face's winding reversed and
+    `orientation = "leftHanded"` is the same surface, facing the same way
+    (usd-core's normals are the same), so expand moves the same way: it used
+    the right-hand winding alone and pushed the dabs inwards. Expected: the
+    numpy reference on the leftHanded file (its own binding: the fan order of
+    a reversed face differs, and with it the lowest tied triangle) with its
+    counter-clockwise normals turned round, which moves the dabs as the
+    reference moves them on the rightHanded original."""
+    fix = repo_root / "fixtures" / "static.usda"
+    lp, proxy = "/Static/Paint/Dabs", "/Static/Rig/Proxy"
+    st = Usd.Stage.Open(str(fix))
+    mesh = UsdGeom.Mesh(st.GetPrimAtPath(proxy))
+    assert mesh.GetOrientationAttr().Get() == UsdGeom.Tokens.rightHanded, "test setup"
+    counts, idx = list(mesh.GetFaceVertexCountsAttr().Get()), list(mesh.GetFaceVertexIndicesAttr().Get())
+    reversed_idx, o = [], 0
+    for n in counts:
+        face = idx[o:o + n]
+        reversed_idx += [face[0]] + face[1:][::-1]
+        o += n
+    mesh.GetFaceVertexIndicesAttr().Set(Vt.IntArray(reversed_idx))
+    mesh.GetOrientationAttr().Set(UsdGeom.Tokens.leftHanded)
+    lh = tmp_path / "left.usda"
+    st.GetRootLayer().Export(str(lh))
+    del st, mesh
+    tool = np.array([[-3.0, 1.0, 0.0], [3.0, 1.0, 0.0]])
+    e = tmp_path / "e.usda"
+    run_brush(painterly, lh, lp, "expand", tool, 3.0, 0.2, e)
+    ccw, scale, before = brush_expected(lh, lp, "expand", tool, 3.0, 0.2)
+    # Turning the normals round turns each displacement round (x += A^-1 L^-1 d).
+    res = [(2 * before - out, w, d) for out, w, d in ccw]
+    right, _, _ = brush_expected(fix, lp, "expand", tool, 3.0, 0.2)
+    moved = np.linalg.norm(res[0][0] - before, axis=1) > 1e-3
+    assert moved.sum() >= 50, "test setup: the tool reaches too few dabs"
+    assert np.abs(res[0][0] - right[0][0]).max() < 1e-3 * scale, "reference: not the rightHanded result"
+    check_brush(attr_np(open_stage(e), lp, "painterly:restPoints"), res, scale, "expand on the leftHanded proxy")
+
+
 def test_brush_key_points(painterly, tmp_path):
     """--key edits that key's points (in the pose at --time); restPoints stay."""
     rig = skel_rig(tmp_path, n_strokes=8)

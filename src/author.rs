@@ -869,7 +869,8 @@ pub fn brush(session: &EditSession, brush: Brush, opts: &BrushOptions) -> Result
     let disp = match brush {
         Brush::Smudge => tools::smudge(&world, &opts.path, opts.radius, opts.strength, opts.falloff),
         Brush::Expand => {
-            let normals = world_normals(&pose, &binding, to_proxy);
+            let left_handed = left_handed(r, &rig.proxy.path)?;
+            let normals = world_normals(&pose, &binding, to_proxy, left_handed);
             tools::expand(&world, &normals, &opts.path, opts.radius, opts.strength, opts.falloff)
         }
     };
@@ -992,11 +993,22 @@ fn selected_points(layer: &StrokeLayer, strokes: Option<&[usize]>) -> Result<Vec
     Ok(selected)
 }
 
+/// Whether the mesh at `path` is authored `orientation = "leftHanded"`
+/// (its clockwise faces face outwards; the fallback is `rightHanded`), read
+/// as the renderer reads it.
+fn left_handed(r: &StageReader, path: &str) -> Result<bool> {
+    let prim = r.require_prim(path)?;
+    let orientation = r.typed(&prim, "orientation", None, "token", values::token)?;
+    Ok(orientation.as_deref() == Some("leftHanded"))
+}
+
 /// World-space unit normals at the bound points: the posed proxy's vertex
-/// normals blended by the binding's weights. `to_proxy` is the inverse of
-/// the proxy's linear part, whose transpose carries normals to world space.
-fn world_normals(pose: &PosedRig, binding: &Binding, to_proxy: DMat3) -> Vec<DVec3> {
-    let vn = tools::vertex_normals(&pose.posed, &pose.triangles);
+/// normals (on the side its `orientation` faces) blended by the binding's
+/// weights. `to_proxy` is the inverse of the proxy's linear part, whose
+/// transpose carries normals to world space (a mirroring transform keeps
+/// them on the side they face in the proxy's space).
+fn world_normals(pose: &PosedRig, binding: &Binding, to_proxy: DMat3, left_handed: bool) -> Vec<DVec3> {
+    let vn = tools::vertex_normals(&pose.posed, &pose.triangles, left_handed);
     let normal_m = to_proxy.transpose();
     binding
         .vertices

@@ -84,8 +84,10 @@ pub fn expand(
 }
 
 /// Area-weighted vertex normals of a triangle mesh (unit length; zero for
-/// vertices on no non-degenerate triangle).
-pub fn vertex_normals(points: &[DVec3], triangles: &[[u32; 3]]) -> Vec<DVec3> {
+/// vertices on no non-degenerate triangle), on the side the mesh faces: a
+/// `rightHanded` mesh faces where its counter-clockwise triangles do, a
+/// `leftHanded` one (`left_handed`, USD's `orientation`) the other way.
+pub fn vertex_normals(points: &[DVec3], triangles: &[[u32; 3]], left_handed: bool) -> Vec<DVec3> {
     let mut n = vec![DVec3::ZERO; points.len()];
     for t in triangles {
         let [a, b, c] = t.map(|i| points[i as usize]);
@@ -95,7 +97,8 @@ pub fn vertex_normals(points: &[DVec3], triangles: &[[u32; 3]]) -> Vec<DVec3> {
             n[i as usize] += f;
         }
     }
-    n.iter().map(|v| v.normalize_or_zero()).collect()
+    let side = if left_handed { -1.0 } else { 1.0 };
+    n.iter().map(|v| v.normalize_or_zero() * side).collect()
 }
 
 /// Parses a stroke selection like `3,7-12` into sorted, unique indices.
@@ -221,7 +224,7 @@ mod tests {
             DVec3::new(0.0, 0.0, 3.0),
         ]
         .map(|p| p + o);
-        let n = vertex_normals(&pts, &[[0, 1, 2], [0, 1, 3]]);
+        let n = vertex_normals(&pts, &[[0, 1, 2], [0, 1, 3]], false);
         let shared = DVec3::new(0.0, -3.0, 1.0) / 10f64.sqrt();
         for (got, want) in n.iter().zip([shared, shared, DVec3::Z, -DVec3::Y]) {
             assert!((*got - want).length() < 1e-12, "{got} vs {want}");
@@ -231,8 +234,25 @@ mod tests {
     #[test]
     fn normals_of_a_flat_square_point_up() {
         let pts = [DVec3::ZERO, DVec3::X, DVec3::new(1.0, 1.0, 0.0), DVec3::Y];
-        let n = vertex_normals(&pts, &[[0, 1, 2], [0, 2, 3]]);
+        let n = vertex_normals(&pts, &[[0, 1, 2], [0, 2, 3]], false);
         assert!(n.iter().all(|v| (*v - DVec3::Z).length() < 1e-12));
+    }
+
+    #[test]
+    fn a_left_handed_mesh_faces_the_other_side_of_its_winding() {
+        // The square wound clockwise seen from +z: rightHanded it faces −z,
+        // leftHanded +z, as the counter-clockwise square does rightHanded.
+        let pts = [DVec3::ZERO, DVec3::X, DVec3::new(1.0, 1.0, 0.0), DVec3::Y];
+        let cw = [[0, 2, 1], [0, 3, 2]];
+        for (left, want) in [(false, -DVec3::Z), (true, DVec3::Z)] {
+            let n = vertex_normals(&pts, &cw, left);
+            assert!(
+                n.iter().all(|v| (*v - want).length() < 1e-12),
+                "left_handed {left}: {n:?}"
+            );
+        }
+        // A vertex on no triangle stays zero either way.
+        assert_eq!(vertex_normals(&[DVec3::ZERO], &[], true), vec![DVec3::ZERO]);
     }
 
     #[test]
