@@ -257,29 +257,65 @@ def test_bind_real_asset(painterly, tmp_path, real_assets):
 
 
 def test_bind_rest_pose(painterly, tmp_path):
-    """No --time: the rest pose, transforms at startTimeCode (3 here; the
-    proxy's transform moves between its samples at 1 and 10)."""
+    """No --time: the rest positions as the bake reads them are bound where
+    they are. A layer without painterly:restPoints has its default `points`
+    read as proxy-local rest positions (SPEC 3): bind used to read them as
+    stroke-local and take them through the transforms at startTimeCode, which
+    moved the strokes (static.usda: 1.81) wherever the proxy's and the layer's
+    spaces differ (here both are animated between 1 and 10, start 3).
+    Expected: restPoints = points, the numpy closest point on the rest proxy,
+    and reference_skinning's bake of the input (bound on the fly)."""
     rig = points_rig(tmp_path, rest_time=None, frames=(3, 10))
+    lp = rig.layers[0]
     st = Usd.Stage.Open(str(rig.path))
     t0 = st.GetStartTimeCode()
     _, rigs = RS.describe(rig.path)
-    rest = rigs[0]["topo"].rest
+    rest, tris = rigs[0]["topo"].rest, rigs[0]["topo"].tris
     rng = np.random.default_rng(4)
     mesh = UsdGeom.Mesh(st.GetPrimAtPath(rig.mesh))
     sc, sp = Au.make_strokes(rest, mesh.GetFaceVertexCountsAttr().Get(), mesh.GetFaceVertexIndicesAttr().Get(),
                              rng, 6, offsets=(0.0, 0.05))
-    to_stroke = np.linalg.inv(RA.l2w(st, rig.layers[0], t0)) @ RA.l2w(st, rig.mesh, t0)
-    repaint(st, rig.layers[0], sc, RA.transform_points(to_stroke, sp))
+    repaint(st, lp, sc, sp)  # proxy-local, no restPoints
     st.GetRootLayer().Save()
+    to_stroke = np.linalg.inv(RA.l2w(st, lp, t0)) @ RA.l2w(st, rig.mesh, t0)
+    assert np.abs(RA.transform_points(to_stroke, sp) - sp).max() > 0.1, "test setup: the spaces coincide"
+    del st, mesh
+    painted = np.array(Au.v3f(sp), dtype=np.float64)
+    frames = [3.0, 7.0]
+    expected = RS.expected_strokes(rig.path, frames)[lp]
+
     e = tmp_path / "e.usda"
     edit(painterly, "bind", rig.path, layer=e)
-    es = Usd.Stage.Open(str(e))
-    _, rigs = RS.describe(e)
-    exp_rest, exp_v, exp_w, _ = RA.bind_layer(es, rigs[0], rig.layers[0], None, start=t0)
-    assert_close(attr_np(es, rig.layers[0], "painterly:restPoints"), exp_rest, Au.bbox_diag(rest), "rest bind")
-    assert_close(exp_rest, sp, Au.bbox_diag(rest), "reference sanity: rest bind = painted in proxy space")
-    assert_binding(attr_np(es, rig.layers[0], "painterly:bindVertices", np.int64),
-                   attr_np(es, rig.layers[0], "painterly:bindWeights"), exp_v, exp_w, "rest binding")
+    out = tmp_path / "bake.usda"
+    painterly("bake", e, "-o", out, "--frames", "3:7:4", "--quiet")
+    comp = Au.compose(e, out)
+    for t in frames:
+        assert_close(Au.local_points(comp, lp, t), expected[t], Au.bbox_diag(rest), f"baked at {t:g} after bind")
+    es = open_stage(e)
+    assert np.array_equal(attr_np(es, lp, "painterly:restPoints"), painted), "bind moved the rest positions"
+    exp_v, exp_w = RS.bind(rest, tris, painted)
+    assert_binding(attr_np(es, lp, "painterly:bindVertices", np.int64), attr_np(es, lp, "painterly:bindWeights"),
+                   exp_v, exp_w, "rest binding")
+
+
+def test_bind_rest_pose_keeps_the_rest_points_a_brush_moved(painterly, tmp_path):
+    """A layer with painterly:restPoints keeps them: a rest-pose bind after a
+    smudge used to take the layer's `points` (as painted, not smudged) back
+    to rest and threw the smudge away."""
+    rig = skel_rig(tmp_path, n_strokes=8)
+    lp = rig.layers[0]
+    e = tmp_path / "e.usda"
+    w = world_rest(rig.path, lp)
+    run_brush(painterly, rig.path, lp, "smudge", tool_through(w, (1, 0.3, 0.2)), 0.3 * Au.bbox_diag(w), 0.2, e)
+    smudged = attr_np(open_stage(e), lp, "painterly:restPoints")
+    _, rrig, layer = rig_of(rig.path, lp)
+    assert np.linalg.norm(smudged - layer["rest"], axis=1).max() > 1e-2, "test setup: the smudge moved nothing"
+    edit(painterly, "bind", rig.path, layer=e)
+    es = open_stage(e)
+    assert np.array_equal(attr_np(es, lp, "painterly:restPoints"), smudged), "bind undid the smudge"
+    exp_v, exp_w = RS.bind(rrig["topo"].rest, rrig["topo"].tris, smudged)
+    assert_binding(attr_np(es, lp, "painterly:bindVertices", np.int64), attr_np(es, lp, "painterly:bindWeights"),
+                   exp_v, exp_w, "rest binding of the smudged points")
 
 
 # ---------------------------------------------------------------------------

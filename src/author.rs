@@ -166,7 +166,8 @@ fn find_layer(r: &StageReader, scene: &Scene, path: &str) -> Result<(usize, usiz
 pub struct BindOptions {
     /// Stroke layer prim paths; empty = every layer.
     pub layers: Vec<String>,
-    /// The pose the strokes were painted in; None = the rest pose.
+    /// The pose the strokes were painted in; None = the rest pose (the rest
+    /// positions are bound where they are, see [`bind`]).
     pub time: Option<f64>,
 }
 
@@ -174,13 +175,19 @@ pub struct BindOptions {
 pub type BindReport = Vec<(String, usize)>;
 
 /// Binds layers painted in the pose at `time`: each point of the layer's
-/// `points` (stroke-local, as painted) is bound to the closest point of the
-/// posed proxy; its rest position is the inverse of the skinning blend
-/// applied to it (SPEC §3). Authors `painterly:restPoints`,
-/// `painterly:bindVertices` and `painterly:bindWeights`. Baking at `time`
-/// then gives back the painted positions. A layer with position keys is
-/// refused with a `time`: its keys, not its rest points, are what a bake
-/// draws.
+/// `points` (stroke-local, as painted: what is drawn at `time`) is bound to
+/// the closest point of the posed proxy; its rest position is the inverse
+/// of the skinning blend applied to it (SPEC §3). Authors
+/// `painterly:restPoints`, `painterly:bindVertices` and
+/// `painterly:bindWeights`. Baking at `time` then gives back the painted
+/// positions. A layer with position keys is refused with a `time`: its keys,
+/// not its rest points, are what a bake draws.
+///
+/// Without a `time` the rest positions are bound as a bake reads them
+/// (`painterly:restPoints`, else the default `points` as proxy-local
+/// coordinates, SPEC §3) to the closest point of the rest proxy, and stay
+/// where they are: the binding a bake would compute, stored (and any stored
+/// one replaced). No transform is read.
 pub fn bind(session: &EditSession, opts: &BindOptions) -> Result<BindReport> {
     let r = &session.reader;
     let (scene, start) = scene_at(session, opts.time)?;
@@ -208,6 +215,10 @@ pub fn bind(session: &EditSession, opts: &BindOptions) -> Result<BindReport> {
             .filter(|l| opts.layers.is_empty() || opts.layers.contains(&l.path))
             .collect();
         if chosen.is_empty() {
+            continue;
+        }
+        if opts.time.is_none() {
+            report.extend(bind_rest(session, rig, &chosen)?);
             continue;
         }
         let pose = pose_rig(r, rig, opts.time, start)?;
@@ -266,6 +277,28 @@ pub fn bind(session: &EditSession, opts: &BindOptions) -> Result<BindReport> {
             report.push((layer.path.clone(), rest.len()));
             start = end;
         }
+    }
+    Ok(report)
+}
+
+/// `bind` in the rest pose: each chosen layer's rest points, as a bake reads
+/// them, bound to the closest point of the rest proxy in one call (as a bake
+/// binds), and stored with the binding, unchanged.
+fn bind_rest(session: &EditSession, rig: &Rig, chosen: &[&StrokeLayer]) -> Result<BindReport> {
+    let triangles = fan_triangulate(&rig.proxy.face_counts, &rig.proxy.face_indices);
+    let all: Vec<Vec3> = chosen.iter().flat_map(|l| l.rest_points.iter().copied()).collect();
+    let all = ClosestPoint::new(&rig.proxy.rest, &triangles).bind(&all);
+    let mut report = Vec::with_capacity(chosen.len());
+    let mut start = 0;
+    for layer in chosen {
+        let end = start + layer.rest_points.len();
+        let binding = Binding {
+            vertices: all.vertices[start..end].to_vec(),
+            weights: all.weights[start..end].to_vec(),
+        };
+        session.set_binding(&layer.path, &layer.rest_points, &binding)?;
+        report.push((layer.path.clone(), layer.rest_points.len()));
+        start = end;
     }
     Ok(report)
 }

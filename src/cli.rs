@@ -124,7 +124,11 @@ pub enum Command {
     /// is bound to the closest point of the posed proxy and taken back to the
     /// rest pose by the inverse of its skinning blend. Writes
     /// painterly:restPoints, painterly:bindVertices and painterly:bindWeights.
-    /// Baking at --time then gives back the painted positions.
+    /// Baking at --time then gives back the painted positions (a layer with
+    /// position keys, which shape its bake, is refused). Without --time the
+    /// rest positions a bake reads (painterly:restPoints, else `points` as
+    /// proxy-local) are bound to the closest point of the rest proxy, where
+    /// they are.
     ///
     /// Example: painterly bind fixtures/blowfish.usda --layer /Blowfish/Paint/Hair --time 24 --edit-layer fish_edits.usda
     Bind {
@@ -133,7 +137,8 @@ pub enum Command {
         /// Stroke layer prim path (repeatable; default: every layer).
         #[arg(long, value_name = "PRIM")]
         layer: Vec<String>,
-        /// The pose the strokes were painted in (default: the rest pose).
+        /// The pose the strokes were painted in (default: the rest pose,
+        /// binding the rest positions where they are).
         #[arg(long, value_name = "T", allow_negative_numbers = true)]
         time: Option<f64>,
     },
