@@ -328,6 +328,9 @@ USAGE = [
     ["key", "{inp}", "--time", "3", "--edit-layer", "{e}"],                # no --layer
     ["key", "{inp}", "--layer", LAYER, "--time", "3", "--time-key", "--sentinel", "--edit-layer", "{e}"],
     ["key", "{inp}", "--layer", LAYER, "--time", "x", "--edit-layer", "{e}"],
+    # A sentinel holds no data: its data options were silently dropped.
+    ["key", "{inp}", "--layer", LAYER, "--time", "3", "--sentinel", "--points", "--edit-layer", "{e}"],
+    ["key", "{inp}", "--layer", LAYER, "--time", "3", "--sentinel", "--opacity", "0.3", "--edit-layer", "{e}"],
     ["smudge", "{inp}", "--layer", LAYER, "--radius", "1", "--strength", "1", "--edit-layer", "{e}"],  # no path
     ["smudge", "{inp}", "--layer", LAYER, "--path", GOOD_PATH, "--path-prim", "/World/OnePoint",
      "--radius", "1", "--strength", "1", "--edit-layer", "{e}"],
@@ -344,6 +347,23 @@ def test_usage_errors(painterly, case, tmp_path, argv):
     inp, refused = case
     args = [str(a).format(inp=inp, e=tmp_path / "e.usda") for a in argv]
     refused(painterly, *args, code=2, edit_layer=None)
+
+
+@pytest.mark.parametrize("value", ["1.7", "-0.5", "1.0000001", "-0.000001", "inf", "nan"])
+def test_a_key_opacity_is_in_0_1(painterly, case, tmp_path, value):
+    """An opacity is a value between 0 and 1 (Bassett 3.3): `--opacity 1.7`
+    was keyed and baked as displayOpacity 1.52. Refused as a usage error;
+    0 and 1 themselves are opacities."""
+    inp, refused = case
+    for kind in ([], ["--time-key"]):
+        msg = refused(painterly, "key", inp, "--layer", LAYER, "--time", 3, *kind, "--opacity", value, code=2,
+                      names=["--opacity"])
+        assert "panicked" not in msg
+    e = tmp_path / "ok.usda"
+    for t, v in ((4, "0"), (5, "1")):
+        painterly("key", inp, "--layer", LAYER, "--time", t, "--time-key", "--opacity", v, "--edit-layer", e, "--quiet")
+    st = Usd.Stage.Open(str(e))
+    assert [st.GetPrimAtPath(f"{LAYER}/time{i}").GetAttribute("opacity").Get() for i in (1, 2)] == [0.0, 1.0]
 
 
 @pytest.mark.parametrize("name", ["a/b", "../up", "bad name", "1st", "", "k.x"])

@@ -375,6 +375,7 @@ pub fn key(session: &EditSession, opts: &KeyOptions) -> Result<String> {
     if let Some(name) = &opts.name {
         check_prim_name(name)?;
     }
+    check_key_data(opts)?;
     let r = &session.reader;
     let (mut scene, _) = scene_at(session, Some(opts.time))?;
     let (ri, li) = find_layer(r, &scene, &opts.layer)?;
@@ -383,11 +384,6 @@ pub fn key(session: &EditSession, opts: &KeyOptions) -> Result<String> {
             &opts.layer,
             "nothing to key: pass --points and/or --opacity VALUE",
         ));
-    }
-    if let Some(o) = opts.opacity {
-        if !o.is_finite() {
-            return Err(Error::usage(format!("--opacity {o} is not finite")));
-        }
     }
     let (existing, unread) = existing_keys(r, &opts.layer)?;
     let place = key_place(r, &mut scene.rigs[ri], li, opts)?;
@@ -547,6 +543,29 @@ fn key_place(r: &StageReader, rig: &mut Rig, li: usize, opts: &KeyOptions) -> Re
             scales: Vec::new(),
         }),
     }
+}
+
+/// What a key holds, before any file is read: an opacity is a value in
+/// [0, 1] (Bassett §3.3; the bake multiplies it into `displayOpacity`), and
+/// a sentinel holds no data (SPEC §5), so points or an opacity asked of one
+/// would be dropped.
+fn check_key_data(opts: &KeyOptions) -> Result<()> {
+    if let Some(o) = opts.opacity {
+        if !o.is_finite() {
+            return Err(Error::usage(format!("--opacity {o} is not finite")));
+        }
+        if !(0.0..=1.0).contains(&o) {
+            return Err(Error::usage(format!(
+                "--opacity {o} is outside [0, 1] (0 transparent, 1 opaque)"
+            )));
+        }
+    }
+    if opts.kind == KeyKind::Sentinel && (opts.points || opts.opacity.is_some()) {
+        return Err(Error::usage(
+            "a sentinel holds no data: --sentinel takes neither --points nor --opacity",
+        ));
+    }
+    Ok(())
 }
 
 /// A key's name is one prim name: `a/b` would define a prim outside the

@@ -170,14 +170,14 @@ pub enum Command {
         /// only --opacity is given).
         #[arg(long)]
         points: bool,
-        /// Key this opacity.
+        /// Key this opacity, in [0, 1].
         #[arg(long, value_name = "V", allow_negative_numbers = true)]
         opacity: Option<f32>,
         /// Set a time key instead of a pose key.
         #[arg(long, conflicts_with = "sentinel")]
         time_key: bool,
         /// Set a sentinel time key (bounds a time-keyed region; no data).
-        #[arg(long)]
+        #[arg(long, conflicts_with_all = ["points", "opacity"])]
         sentinel: bool,
         /// Overwrite a key of the same name or at the same coordinates/time;
         /// it then holds only what this command sets (its other attributes
