@@ -317,6 +317,41 @@ def test_bind_in_a_pose_refuses_a_layer_with_position_keys(painterly, case, tmp_
         assert f"{LAYER}/nopts" not in msg, msg
 
 
+def test_brush_key_must_be_a_key_of_the_layer(painterly, case):
+    """`smudge --key` edited any prim with as many points: `--key` naming the
+    layer itself moved its stroke-local `points` as if they were rest-space
+    key points (exit 0, and no bake changed). Only a PainterlyPoseKey or
+    PainterlyTimeKey child of the layer that a bake reads for its points is
+    a key to edit."""
+    inp, refused = case
+    st = Usd.Stage.Open(str(inp))
+    rest = st.GetPrimAtPath(LAYER).GetAttribute("painterly:restPoints").Get()
+
+    def key_like(path, ty, active=True, **attrs):
+        k = st.DefinePrim(path, ty)
+        for name, (vt, v) in {"points": (Sdf.ValueTypeNames.Point3fArray, rest), **attrs}.items():
+            k.CreateAttribute(name, vt, False, Sdf.VariabilityUniform).Set(v)
+        k.SetActive(active)
+
+    key_like("/World/Paint/Stray", "PainterlyPoseKey", coordinates=(Sdf.ValueTypeNames.FloatArray, Vt.FloatArray()))
+    key_like(f"{LAYER}/Copy", "BasisCurves")
+    key_like(f"{LAYER}/stop", "PainterlyTimeKey", time=(Sdf.ValueTypeNames.Double, 5.0),
+             sentinel=(Sdf.ValueTypeNames.Bool, True))
+    key_like(f"{LAYER}/off", "PainterlyTimeKey", active=False, time=(Sdf.ValueTypeNames.Double, 6.0))
+    st.GetRootLayer().Save()
+    del st
+    cases = [
+        (LAYER, [f"{LAYER}: is the stroke layer itself (a BasisCurves prim), not a key of {LAYER}"]),
+        ("/World/Paint/Stray", ["/World/Paint/Stray: is a PainterlyPoseKey prim, not a key of"]),
+        ("Copy", [f"{LAYER}/Copy: is a BasisCurves prim, not a key of {LAYER}"]),
+        ("stop", [f"{LAYER}/stop: is a sentinel"]),
+        ("off", [f"{LAYER}/off: is deactivated"]),
+    ]
+    for key, names in cases:
+        for which in ("smudge", "expand"):
+            refused(painterly, *brush_args(inp, which, extra=("--key", key)), names=names)
+
+
 # ---------------------------------------------------------------------------
 # command-line usage: exit 2
 

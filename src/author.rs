@@ -1007,6 +1007,7 @@ fn brush_target(r: &StageReader, layer: &StrokeLayer, key: Option<&str>) -> Resu
     let prim = r
         .user_prim("--key", &kp)?
         .ok_or_else(|| Error::prim(&kp, format!("no such key under {}", layer.path)))?;
+    check_key_prim(r, &prim, &kp, &layer.path)?;
     let pts = r
         .typed(&prim, "points", None, "point3f[]", values::vec3_array)?
         .ok_or_else(|| Error::attr(&kp, "points", "this key has no points to edit"))?;
@@ -1014,6 +1015,40 @@ fn brush_target(r: &StageReader, layer: &StrokeLayer, key: Option<&str>) -> Resu
         return Err(Error::attr(&kp, "points", "point count differs from the layer's"));
     }
     Ok((kp, "points", pts))
+}
+
+/// `--key` names a key of the layer whose points a bake reads: a
+/// PainterlyPoseKey or PainterlyTimeKey child of it, not a sentinel, not
+/// one a bake skips. Any other prim with as many points (the layer itself,
+/// whose `points` are stroke-local) would be edited as rest-space key
+/// points that no bake reads as such.
+fn check_key_prim(r: &StageReader, prim: &crate::usd_io::stage::Prim, kp: &str, layer: &str) -> Result<()> {
+    let ty = r.type_name(prim)?;
+    let what = if kp == layer {
+        format!("the stroke layer itself ({})", crate::words::prim_of_type(&ty))
+    } else {
+        crate::words::prim_of_type(&ty)
+    };
+    let is_key = ty == "PainterlyPoseKey" || ty == "PainterlyTimeKey";
+    let child = kp.rsplit_once('/').is_some_and(|(parent, _)| parent == layer);
+    if !(is_key && child) {
+        return Err(Error::prim(
+            kp,
+            format!(
+                "is {what}, not a key of {layer}: --key names a PainterlyPoseKey or PainterlyTimeKey child of the layer"
+            ),
+        ));
+    }
+    if let Some(why) = r.unread_reason(prim)? {
+        return Err(Error::prim(kp, format!("is {why}: a bake does not read this key")));
+    }
+    if ty == "PainterlyTimeKey" && r.typed(prim, "sentinel", None, "bool", values::scalar)?.unwrap_or(0.0) != 0.0 {
+        return Err(Error::prim(
+            kp,
+            "is a sentinel: it carries no points (a bake ignores any authored there)",
+        ));
+    }
+    Ok(())
 }
 
 /// Per point of the layer, whether `--strokes` selects it (all without it).

@@ -358,7 +358,9 @@ pub struct BrushArgs {
     /// Apply in the pose at this time (default: the rest pose).
     #[arg(long, value_name = "T", allow_negative_numbers = true)]
     pub time: Option<f64>,
-    /// Edit this key's points instead of the layer's rest points.
+    /// Edit this key's points instead of the layer's rest points: a
+    /// PainterlyPoseKey or PainterlyTimeKey child of the layer (its name,
+    /// or its path).
     #[arg(long, value_name = "NAME")]
     pub key: Option<String>,
     /// Only these strokes (curve indices), e.g. 3,7-12.
