@@ -136,6 +136,8 @@ def test_radius_not_positive(painterly, case, radius):
 @pytest.mark.parametrize("extra, why", [
     ({"path": "3,6,-2"}, "--path has 1 point(s); a tool path needs at least two"),
     ({"path": "3,6,-2 3,6,-2"}, "--path has no segment of non-zero length"),
+    ({"path": "inf,0,0 1,0,0"}, '--path point "inf,0,0" is not finite'),
+    ({"path": "1,nan,0 1,0,0"}, '--path point "1,nan,0" is not finite'),
     ({"strength": "nan"}, "--strength NaN is not finite"),
     ({"extra": ("--strokes", "12-7")}, '--strokes: range "12-7" ends before it starts'),
     ({"extra": ("--strokes", "x")}, '--strokes: "x" is not a stroke index'),

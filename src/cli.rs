@@ -384,7 +384,8 @@ fn parse_point(s: &str) -> Result<glam::DVec3, Error> {
         .collect::<Result<_, _>>()
         .map_err(|_| Error::usage(format!("--path point {s:?} is not X,Y,Z")))?;
     match v.as_slice() {
-        [x, y, z] => Ok(glam::DVec3::new(*x, *y, *z)),
+        [x, y, z] if [x, y, z].iter().all(|c| c.is_finite()) => Ok(glam::DVec3::new(*x, *y, *z)),
+        [_, _, _] => Err(Error::usage(format!("--path point {s:?} is not finite"))),
         _ => Err(Error::usage(format!("--path point {s:?} is not X,Y,Z"))),
     }
 }
@@ -403,7 +404,7 @@ fn parse_path(s: &str) -> Result<Vec<glam::DVec3>, Error> {
             path.len()
         )));
     }
-    if path.iter().all(|p| p.is_finite()) && crate::tools::closest_on_path(&path, glam::DVec3::ZERO).is_none() {
+    if crate::tools::closest_on_path(&path, glam::DVec3::ZERO).is_none() {
         return Err(Error::usage("--path has no segment of non-zero length"));
     }
     Ok(path)
