@@ -673,6 +673,34 @@ def test_a_time_key_replacing_a_sentinel_that_would_merge_meeting_keys_is_refuse
     assert Au.file_hash(inp) == before, "a refused key changed its input"
 
 
+@pytest.mark.parametrize("new", ["sentinel", "opacity-time-key"])
+def test_replacing_a_sentinel_that_would_merge_meeting_keys_of_either_channel_is_refused(painterly, repo_root,
+                                                                                        tmp_path, new):
+    """Moving a sentinel takes away the split where it was, for the points
+    and the opacity keys alike: with position keys at 30 and 30 + 5e-12 (a
+    run of their own before shockStart at 36), shockStart replaced by a
+    sentinel at 20, or by a time key at 36 that keys only an opacity, joins
+    them to shock and settle (a run 14 across, tolerance 1.4e-11): the bake
+    counts them as one time. Both were written (exit 0) and inspect then
+    failed; both are refused, the file untouched, and inspect stays clean."""
+    inp = tmp_path / "blowfish.usda"
+    shutil.copy(repo_root / "fixtures" / "blowfish.usda", inp)
+    assert spikes_times(inp)["shockStart"] == 36.0, "test setup"
+    for t in ("30", "30.000000000005"):
+        painterly("key", inp, "--in-place", "--layer", SPIKES, "--time", t, "--time-key", "--points", "--quiet")
+    assert painterly("inspect", inp, check=False).returncode == 0, "test setup"
+    before = inp.read_bytes()
+    how = ["--time", 20, "--sentinel"] if new == "sentinel" else ["--time", 36, "--time-key", "--opacity", 0.5]
+    p = painterly("key", inp, "--in-place", "--layer", SPIKES, "--name", "shockStart", "--replace", *how,
+                  check=False)
+    assert p.returncode == 1, f"exit {p.returncode}: {p.stderr}"
+    assert f"{SPIKES}/time1 and {SPIKES}/time2 count as one" in p.stderr, p.stderr
+    assert "position keys" in p.stderr and "panicked" not in p.stderr, p.stderr
+    assert inp.read_bytes() == before, "a refused key changed its input"
+    p = painterly("inspect", inp, check=False)
+    assert (p.returncode, p.stdout.strip().splitlines()[-1]) == (0, "no problems found"), p.stdout + p.stderr
+
+
 def test_key_same_name_refused_then_replaced(painterly, keyed_rig, tmp_path):
     rig = keyed_rig
     L0 = rig.layers[0]

@@ -754,22 +754,29 @@ fn time_layout(
     (members, times, sentinels)
 }
 
+/// The two channels of a layer's keys: name, whether the command sets it,
+/// and which keys are in it.
+type KeyChannels = [(&'static str, bool, fn(&ExistingKey) -> bool); 2];
+
 /// Refuses a key that would leave a channel it sets unreadable by the bake
 /// although the channel was readable before: the duplicate tolerance is
 /// relative to the layout's extent, so a key far from the others can make
-/// two existing keys count as one point. (A sentinel only splits runs of
-/// time keys, which never brings two keys within tolerance.)
+/// two existing keys count as one point. (A new sentinel only splits runs
+/// of time keys, which never brings two keys within tolerance; replacing a
+/// sentinel, which joins runs, is [`check_sentinel_move`]'s.)
 fn check_channels_stay_readable(
     opts: &KeyOptions,
     existing: &[ExistingKey],
     place: &KeyPlace,
     path: &str,
 ) -> Result<()> {
-    type InChannel = fn(&ExistingKey) -> bool;
-    let channels: [(&str, bool, InChannel); 2] = [
+    let channels: KeyChannels = [
         ("position", opts.points, |e| e.points),
         ("opacity", opts.opacity.is_some(), |e| e.opacity),
     ];
+    if existing.iter().any(|e| e.path == path && e.sentinel) {
+        return check_sentinel_move(opts, existing, place, path, channels);
+    }
     for (channel, _, in_channel) in channels.into_iter().filter(|c| c.1) {
         let (members, old, new) = match opts.kind {
             KeyKind::Sentinel => return Ok(()),
@@ -809,6 +816,65 @@ fn check_channels_stay_readable(
                 format!(
                     "the new key {path} would widen the layer's {channel} keys so far that {} and {} count as one \
                      (within 1e-12 of the keys' extent), and the bake would refuse the layer",
+                    name(a),
+                    name(b)
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Two keys of a time channel the bake counts as one time, if any.
+fn time_clash(times: &[f64], sentinels: &[f64]) -> Option<(usize, usize)> {
+    match crate::keys::TimeChannel::new(times, sentinels) {
+        Err(TimeKeyError::SameTime { first, second } | TimeKeyError::CloseTimes { first, second }) => {
+            Some((first, second))
+        }
+        _ => None,
+    }
+}
+
+/// Refuses replacing the sentinel at `path` when a channel, either one,
+/// would become unreadable by the bake: moving a sentinel takes away the
+/// split where it was, so runs of time keys on both sides join (and
+/// sentinels split the points and the opacity keys alike), and a wider run
+/// widens the tolerance until two keys meet. Compares each channel's
+/// layout with every current sentinel against the one without the replaced
+/// sentinel, plus the new key (a sentinel at its time, or a time key in the
+/// channels it sets).
+fn check_sentinel_move(
+    opts: &KeyOptions,
+    existing: &[ExistingKey],
+    place: &KeyPlace,
+    path: &str,
+    channels: KeyChannels,
+) -> Result<()> {
+    let new_time = place.coords[0];
+    for (channel, sets, in_channel) in channels {
+        let (all, times_all, sentinels_all) = time_layout(existing, in_channel, None);
+        let old = time_clash(&times_all, &sentinels_all);
+        let (members, mut times, mut sentinels) = time_layout(existing, in_channel, Some(path));
+        match opts.kind {
+            KeyKind::Sentinel => sentinels.push(new_time),
+            KeyKind::Time if sets => times.push(new_time),
+            _ => {}
+        }
+        debug_assert_eq!(all, members, "a sentinel is no member of a channel");
+        if let (None, Some((a, b))) = (old, time_clash(&times, &sentinels)) {
+            let name = |k: usize| members.get(k).map_or(path, |&i| existing[i].path.as_str());
+            let what = if opts.kind == KeyKind::Sentinel {
+                "a sentinel"
+            } else {
+                "a time key"
+            };
+            return Err(Error::prim(
+                &opts.layer,
+                format!(
+                    "replacing the sentinel {path} with {what} at time {new_time} would take away the split it \
+                     makes and join runs of the layer's {channel} keys so that {} and {} count as one (within \
+                     1e-12 of the span of the time keys between their sentinels), and the bake would refuse the \
+                     layer",
                     name(a),
                     name(b)
                 ),
