@@ -785,6 +785,53 @@ def test_a_replaced_key_holds_only_what_the_command_sets(painterly, repo_root, t
         assert_close(Au.local_points(comp, spikes, t), expected[spikes]["points"][t], scale, f"spikes at {t:g}")
 
 
+def test_replacing_a_keys_opacity_where_it_is_keeps_its_points(painterly, repo_root, tmp_path):
+    """`key --name flat --replace --opacity 0.5` at flat's own coordinates
+    (inflate 0, frame 5) blocked flat's points, so a shape sculpted into the
+    key (as `smudge --key` does) was lost for an opacity change. A key
+    rewritten where it is keeps the channel the command does not set: its
+    points read back unchanged (usd-core), its opacity is 0.5, and the bake
+    at frame 5 is the sculpted shape. Expected: reference_keys' bake of the
+    stage with only flat's opacity set by usd-core."""
+    spikes = SPIKES
+    fish = fish_with_only(repo_root, tmp_path, spikes)
+    st = Usd.Stage.Open(str(fish))
+    anim = UsdSkel.Animation(st.GetPrimAtPath("/Blowfish/Rig/Skel/Anim"))
+    assert anim.GetBlendShapeWeightsAttr().Get(5) == Vt.FloatArray([0.0]), "test setup"
+    flat = st.GetPrimAtPath(f"{spikes}/flat")
+    assert list(flat.GetAttribute("coordinates").Get()) == [0.0], "test setup"
+    # A sculpted shape: flat's points moved, as a brush on the key would.
+    pts = np.array(flat.GetAttribute("points").Get(), dtype=np.float64)
+    pts[:, 1] += 0.3 * np.sin(np.arange(len(pts)))
+    flat.GetAttribute("points").Set(Vt.Vec3fArray.FromNumpy(pts.astype(np.float32)))
+    st.GetRootLayer().Save()
+    sculpted = np.array(flat.GetAttribute("points").Get(), dtype=np.float64)
+    del st, anim, flat
+    want = tmp_path / "want.usda"
+    shutil.copy(fish, want)
+    st = Usd.Stage.Open(str(want))
+    st.GetPrimAtPath(f"{spikes}/flat").CreateAttribute("opacity", Sdf.ValueTypeNames.Float).Set(0.5)
+    st.GetRootLayer().Save()
+    del st
+
+    painterly("key", fish, "--layer", spikes, "--name", "flat", "--replace", "--time", 5, "--opacity", 0.5,
+              "--in-place", "--quiet")
+    got = key_attrs(fish, f"{spikes}/flat")
+    assert set(got) == {"coordinates", "points", "opacity"}, f"flat after an opacity --replace: {sorted(got)}"
+    assert list(got["coordinates"]) == [0.0] and got["opacity"] == pytest.approx(0.5)
+    assert np.array_equal(np.array(got["points"], dtype=np.float64), sculpted), "flat's points changed"
+    p = painterly("inspect", fish, check=False)
+    assert (p.returncode, p.stdout.strip().splitlines()[-1]) == (0, "no problems found"), p.stdout + p.stderr
+
+    import reference_keys as RK
+    expected, _ = RK.expected_bake(want, [5.0])
+    baked = tmp_path / "bake.usda"
+    painterly("bake", fish, "-o", baked, "--frames", "5:5", "--quiet")
+    comp = Au.compose(fish, baked)
+    assert_close(Au.local_points(comp, spikes, 5.0), expected[spikes]["points"][5.0], Au.bbox_diag(sculpted),
+                 "spikes at 5 (flat's sculpted shape)")
+
+
 def test_key_time_keys_and_sentinels(painterly, keyed_rig, tmp_path):
     rig = keyed_rig
     L0 = rig.layers[0]
@@ -1380,8 +1427,8 @@ def test_key_replace_keeps_the_key_prims_metadata_properties_and_children_in_usd
     """`key --replace` of a key prim with prim metadata re-types its header and
     sets its attributes; the metadata, other properties and children stay, as
     they do for the same file as .usdc (the .usda edit was refused). The
-    key's points, which the replacing opacity key does not set, are blocked
-    (`= None`, as usd-core's Block() writes it)."""
+    key's points, which the replacing opacity key does not set, stay: the
+    key is rewritten where it is (the same coordinates)."""
     inp = tmp_path / "t.usda"
     tube_copy().Export(str(inp))
     painterly("key", inp, "--layer", RINGS, "--time", 12, "--name", "k", "--in-place", "--quiet")
@@ -1402,11 +1449,9 @@ def test_key_replace_keeps_the_key_prims_metadata_properties_and_children_in_usd
                       "--in-place", "--quiet", check=False)
         assert (p.returncode, p.stderr) == (0, ""), f"{f.suffix}: {p.stderr}"
         edited = contents(Sdf.Layer.OpenAsAnonymous(str(f)))
-        # Only the key's new opacity, which usd-core appends to its properties,
-        # and its points blocked.
-        assert differences(original, edited) == [(f"{RINGS}/k", "<properties>"), (f"{RINGS}/k.opacity", "<spec>"),
-                                                 (f"{RINGS}/k.points", "default")]
-        assert edited[f"{RINGS}/k.points"][1]["default"] == Sdf.ValueBlock()
+        # Only the key's new opacity, which usd-core appends to its properties
+        # (its points stay: the key does not move).
+        assert differences(original, edited) == [(f"{RINGS}/k", "<properties>"), (f"{RINGS}/k.opacity", "<spec>")]
         assert edited[f"{RINGS}/k"][1]["<properties>"] == [*original[f"{RINGS}/k"][1]["<properties>"], "opacity"]
         assert edited[f"{RINGS}/k.opacity"][1]["default"] == 0.25
         spec = edited[f"{RINGS}/k"][1]

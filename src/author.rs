@@ -398,24 +398,28 @@ pub fn key(session: &EditSession, opts: &KeyOptions) -> Result<String> {
         &scene.rigs[ri].layers[li].rest_points,
     )?;
     if let Some(old) = existing.iter().find(|e| e.path == path) {
-        clear_unset(session, old, opts)?;
+        clear_unset(session, old, opts, &place)?;
     }
     Ok(path)
 }
 
 /// A replaced key holds only what the command that replaced it sets: every
-/// other key attribute it carried (the other channel's value, a time key's
-/// `time` or `sentinel` on a pose key, a pose key's `coordinates` on a time
-/// key, a sentinel's data) is blocked, as usd-core's `Block()` does, so the
-/// key neither keeps an old shape at its new place nor carries data a
-/// sentinel may not.
-fn clear_unset(session: &EditSession, old: &ExistingKey, opts: &KeyOptions) -> Result<()> {
+/// other key attribute it carried (a time key's `time` or `sentinel` on a
+/// pose key, a pose key's `coordinates` on a time key, a sentinel's data,
+/// and the other channel's value when the key moves) is blocked, as
+/// usd-core's `Block()` does, so the key neither keeps an old shape at its
+/// new place nor carries data a sentinel may not. A key rewritten where it
+/// is (the same coordinates or time, kind and sentinel flag) keeps the
+/// channel the command does not set: `--opacity V` there changes its
+/// opacity and keeps its (perhaps sculpted) points.
+fn clear_unset(session: &EditSession, old: &ExistingKey, opts: &KeyOptions, place: &KeyPlace) -> Result<()> {
     let data = opts.kind != KeyKind::Sentinel;
+    let stays = data && old.ty == place.ty && !old.sentinel && old.coords == place.coords;
     let sets = |name: &str| match name {
         "coordinates" => opts.kind == KeyKind::Pose,
         "time" | "sentinel" => opts.kind != KeyKind::Pose,
-        "points" => data && opts.points,
-        "opacity" => data && opts.opacity.is_some(),
+        "points" => data && (opts.points || stays),
+        "opacity" => data && (opts.opacity.is_some() || stays),
         _ => false,
     };
     for (name, ty) in KEY_ATTRS {
