@@ -790,13 +790,7 @@ fn check_channels_stay_readable(
                 let (_, _, before) = time_layout(existing, in_channel, None);
                 let mut with_new = times.clone();
                 with_new.push(place.coords[0]);
-                let pair = |t: &[f64], sentinels: &[f64]| match crate::keys::TimeChannel::new(t, sentinels) {
-                    Err(TimeKeyError::SameTime { first, second } | TimeKeyError::CloseTimes { first, second }) => {
-                        Some((first, second))
-                    }
-                    _ => None,
-                };
-                (members, pair(&times, &before), pair(&with_new, &after))
+                (members, time_clash(&times, &before), time_clash(&with_new, &after))
             }
             KeyKind::Pose => {
                 let dim = place.coords.len();
