@@ -90,25 +90,29 @@ fn watch_loop() {
 /// number of seconds (a usage error: the CLI checks it before any work),
 /// rather than waiting the default while the user believes otherwise.
 pub fn check_timeout_setting() -> Result<(), crate::error::Error> {
+    timeout_setting().map(|_| ())
+}
+
+/// `PAINTERLY_COMPOSE_TIMEOUT` in seconds when set (None when not); the one
+/// reading of it, for the CLI's check and for [`timeout`].
+fn timeout_setting() -> Result<Option<f64>, crate::error::Error> {
     let Some(v) = std::env::var_os("PAINTERLY_COMPOSE_TIMEOUT") else {
-        return Ok(());
+        return Ok(None);
     };
     let text = v.to_string_lossy();
     match text.trim().parse::<f64>() {
-        Ok(s) if s.is_finite() && s > 0.0 => Ok(()),
+        Ok(s) if s.is_finite() && s > 0.0 => Ok(Some(s)),
         _ => Err(crate::error::Error::usage(format!(
             "PAINTERLY_COMPOSE_TIMEOUT={text:?} is not a positive number of seconds"
         ))),
     }
 }
 
-/// The composition time limit: `PAINTERLY_COMPOSE_TIMEOUT` (seconds) or the default.
+/// The composition time limit: `PAINTERLY_COMPOSE_TIMEOUT` (seconds) or the
+/// default (also for a value that is no positive number: the library runs
+/// on, the CLI refuses it first with [`check_timeout_setting`]).
 pub fn timeout() -> Duration {
-    let s = std::env::var("PAINTERLY_COMPOSE_TIMEOUT")
-        .ok()
-        .and_then(|v| v.trim().parse::<f64>().ok())
-        .filter(|s| s.is_finite() && *s > 0.0)
-        .unwrap_or(DEFAULT_TIMEOUT_S as f64);
+    let s = timeout_setting().ok().flatten().unwrap_or(DEFAULT_TIMEOUT_S as f64);
     Duration::from_secs_f64(s.min(1e9))
 }
 
