@@ -985,7 +985,7 @@ pub fn brush(session: &EditSession, brush: Brush, opts: &BrushOptions) -> Result
     let disp = match brush {
         Brush::Smudge => tools::smudge(&world, &opts.path, opts.radius, opts.strength, opts.falloff),
         Brush::Expand => {
-            let left_handed = left_handed(r, &rig.proxy.path)?;
+            let left_handed = r.left_handed(&r.require_prim(&rig.proxy.path)?)?;
             let normals = world_normals(&pose, &binding, to_proxy, left_handed);
             tools::expand(&world, &normals, &opts.path, opts.radius, opts.strength, opts.falloff)
         }
@@ -1036,17 +1036,8 @@ fn binding_to_store(layer: &StrokeLayer, opts: &BrushOptions) -> bool {
 
 /// The tool path, radius and strength a brush needs, before any file work.
 fn check_brush_options(opts: &BrushOptions) -> Result<()> {
-    if opts.path.len() < 2 {
-        return Err(Error::msg(format!(
-            "the tool path has {} point(s); it needs at least two",
-            opts.path.len()
-        )));
-    }
-    if opts.path.iter().any(|p| !p.is_finite()) {
-        return Err(Error::msg("the tool path has a non-finite point"));
-    }
-    if tools::closest_on_path(&opts.path, DVec3::ZERO).is_none() {
-        return Err(Error::msg("the tool path has no segment of non-zero length"));
+    if let Some(problem) = tools::tool_path_problem(&opts.path) {
+        return Err(Error::msg(format!("the tool path {problem}")));
     }
     if !(opts.radius.is_finite() && opts.radius > 0.0) {
         return Err(Error::usage(format!("--radius {} must be positive", opts.radius)));
@@ -1142,15 +1133,6 @@ fn selected_points(layer: &StrokeLayer, strokes: Option<&[usize]>) -> Result<Vec
         selected[starts[s]..starts[s + 1]].iter_mut().for_each(|x| *x = true);
     }
     Ok(selected)
-}
-
-/// Whether the mesh at `path` is authored `orientation = "leftHanded"`
-/// (its clockwise faces face outwards; the fallback is `rightHanded`), read
-/// as the renderer reads it.
-fn left_handed(r: &StageReader, path: &str) -> Result<bool> {
-    let prim = r.require_prim(path)?;
-    let orientation = r.typed(&prim, "orientation", None, "token", values::token)?;
-    Ok(orientation.as_deref() == Some("leftHanded"))
 }
 
 /// World-space unit normals at the bound points: the posed proxy's vertex

@@ -398,14 +398,8 @@ fn parse_path(s: &str) -> Result<Vec<glam::DVec3>, Error> {
         .filter(|p| !p.trim().is_empty())
         .map(parse_point)
         .collect::<Result<_, _>>()?;
-    if path.len() < 2 {
-        return Err(Error::usage(format!(
-            "--path has {} point(s); a tool path needs at least two",
-            path.len()
-        )));
-    }
-    if crate::tools::closest_on_path(&path, glam::DVec3::ZERO).is_none() {
-        return Err(Error::usage("--path has no segment of non-zero length"));
+    if let Some(problem) = crate::tools::tool_path_problem(&path) {
+        return Err(Error::usage(format!("--path {problem}")));
     }
     Ok(path)
 }

@@ -52,6 +52,21 @@ pub fn closest_on_path(path: &[DVec3], p: DVec3) -> Option<(f64, DVec3)> {
     best
 }
 
+/// Why `path` cannot steer a brush (fewer than two points, a non-finite
+/// point, or no segment of non-zero length), as the end of a sentence whose
+/// subject each caller names; `None` when it can.
+pub fn tool_path_problem(path: &[DVec3]) -> Option<String> {
+    if path.len() < 2 {
+        Some(format!("has {} point(s); a tool path needs at least two", path.len()))
+    } else if path.iter().any(|p| !p.is_finite()) {
+        Some("has a non-finite point".into())
+    } else if closest_on_path(path, DVec3::ZERO).is_none() {
+        Some("has no segment of non-zero length".into())
+    } else {
+        None
+    }
+}
+
 /// Smudge displacements: along the path tangent, `strength · falloff(d / radius)`.
 pub fn smudge(points: &[DVec3], path: &[DVec3], radius: f64, strength: f64, falloff: Falloff) -> Vec<DVec3> {
     points
@@ -132,6 +147,24 @@ pub fn parse_strokes(s: &str) -> Result<Vec<usize>, String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_tool_path_needs_two_finite_points_a_segment_apart() {
+        let (a, b) = (DVec3::ZERO, DVec3::X);
+        assert_eq!(
+            tool_path_problem(&[a]).as_deref(),
+            Some("has 1 point(s); a tool path needs at least two")
+        );
+        assert_eq!(
+            tool_path_problem(&[a, DVec3::new(f64::NAN, 0.0, 0.0)]).as_deref(),
+            Some("has a non-finite point")
+        );
+        assert_eq!(
+            tool_path_problem(&[b, b, b]).as_deref(),
+            Some("has no segment of non-zero length")
+        );
+        assert_eq!(tool_path_problem(&[a, a, b]), None);
+    }
 
     #[test]
     fn cubic_falloff_is_the_papers_step() {

@@ -368,7 +368,6 @@ impl RenderScene {
         } else {
             None
         };
-        let orientation = token_attr(r, &prim, "orientation", "rightHanded")?;
         let double_sided = r
             .typed(&prim, "doubleSided", None, "bool", values::scalar)?
             .is_some_and(|v| v != 0.0);
@@ -380,7 +379,7 @@ impl RenderScene {
             points: HeldQuery::new(&prim, "points")?,
             skinned,
             colors: PrimvarSource::open(r, &prim, "primvars:displayColor", "constant")?,
-            left_handed: orientation == "leftHanded",
+            left_handed: r.left_handed(&prim)?,
             double_sided,
             prim,
             path,

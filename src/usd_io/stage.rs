@@ -534,6 +534,13 @@ impl StageReader {
         self.prim(path)?.ok_or_else(|| Error::prim(path, "prim does not exist"))
     }
 
+    /// Whether `prim` (a mesh) is authored `orientation = "leftHanded"`: its
+    /// clockwise polygons face outwards. Brushes and render both ask.
+    pub fn left_handed(&self, prim: &usd::Prim) -> Result<bool> {
+        let orientation = self.typed(prim, "orientation", None, "token", super::values::token)?;
+        Ok(orientation.as_deref() == Some("leftHanded"))
+    }
+
     /// Checks that `path` names a `Camera` prim (the `--camera` of bake,
     /// render and key): a Mesh or an Xform there is a mistake, not a camera.
     pub fn require_camera(&self, path: &str, origin: &str) -> Result<()> {
