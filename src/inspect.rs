@@ -435,6 +435,15 @@ fn rig_report(r: &StageReader, rig: &Rig, problems: &mut Vec<Problem>) -> RigRep
         Ok(note) => notes.extend(note),
         Err(e) => problems.push(Problem::new(e, Rule::Unreadable)),
     }
+    if !matches!(rig.proxy.motion, ProxyMotion::Skel(_)) {
+        let note = r
+            .require_prim(&rig.proxy.path)
+            .and_then(|prim| crate::usd_io::skel::unscoped_binding_note(r, &prim));
+        match note {
+            Ok(note) => notes.extend(note),
+            Err(e) => problems.push(Problem::new(e, Rule::Unreadable)),
+        }
+    }
     let mut layers = Vec::new();
     for l in &rig.layers {
         if let Err(e) = check_point_samples(r, l, problems) {

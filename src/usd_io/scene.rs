@@ -538,7 +538,8 @@ pub fn read_mesh(r: &StageReader, prim: usd::Prim, rest_time: Option<f64>) -> Re
     let points_samples = r.crate_samples(&prim, "points");
     let has_samples = points_samples.is_some() || !r.sample_times(&prim, "points")?.is_empty();
     let rest_pts = if skeleton.is_some() {
-        r.typed(&prim, "points", None, "point3f[]", values::vec3_array)?
+        // usd-core skins the points it reads at each time; one value serves.
+        r.typed_over_time(&prim, "points", "point3f[]", values::vec3_array)?
     } else if let Some(t) = rest_time {
         match &points_samples {
             Some(s) => points_read(&proxy_path, t, s.value_at(t))?,
@@ -551,7 +552,7 @@ pub fn read_mesh(r: &StageReader, prim: usd::Prim, rest_time: Option<f64>) -> Re
         Some(p) if !p.is_empty() => p,
         _ => {
             let why = if skeleton.is_some() {
-                "skinned proxy has no default `points` (its bind pose)"
+                "skinned proxy has no `points` (its bind pose)"
             } else if has_samples {
                 "proxy has only time-sampled points: author a default value or `double painterly:restTime` on the rig"
             } else {

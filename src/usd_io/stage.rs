@@ -90,6 +90,24 @@ fn local_transform_held(prim: &usd::Prim, time: f64) -> std::result::Result<(gf:
     Ok((m, resets))
 }
 
+/// `v` converted by `convert`, or an error naming the type `expected`.
+fn convert_typed<T>(
+    prim: &usd::Prim,
+    name: &str,
+    expected: &str,
+    v: &Value,
+    convert: impl Fn(&Value) -> Option<T>,
+) -> Result<T> {
+    convert(v).ok_or_else(|| {
+        Error::attr(
+            prim.path(),
+            name,
+            format!("expected {expected}, found {}", values::kind_name(v)),
+        )
+        .rule(crate::rule::Rule::AttributeType)
+    })
+}
+
 /// An attribute read at many times (per frame): openusd's query, reading
 /// as usd-core reads a sample held up to a block ([`held_before_block`]).
 /// The sample times are read only when openusd gives no value (asking for
@@ -723,6 +741,45 @@ impl StageReader {
         self.stage.layer_identifiers().len()
     }
 
+    /// The one value of an attribute usd-core reads anew at every time (a
+    /// skinning input: joint influences, geomBindTransform, a skinned
+    /// mesh's points): its time samples when it has any (they are stronger
+    /// than a default, and exporters often write every value as one), else
+    /// its default. Samples that differ are refused: painterly poses a mesh
+    /// with one value of each.
+    pub fn value_over_time(&self, prim: &usd::Prim, name: &str) -> Result<Option<Value>> {
+        let times = self.sample_times(prim, name)?;
+        let Some((&first, rest)) = times.split_first() else {
+            return self.value(prim, name, None);
+        };
+        let v = self.value(prim, name, Some(first))?;
+        for &t in rest {
+            if self.value(prim, name, Some(t))? != v {
+                return Err(Error::attr(
+                    prim.path(),
+                    name,
+                    format!(
+                        "changes over time (its samples at {first} and {t} differ): painterly poses the mesh with one value of it (usd-core would read it anew at every frame); author a single value"
+                    ),
+                ));
+            }
+        }
+        Ok(v)
+    }
+
+    /// [`Self::value_over_time`], typed as [`Self::typed`] types a value.
+    pub fn typed_over_time<T>(
+        &self,
+        prim: &usd::Prim,
+        name: &str,
+        expected: &str,
+        convert: impl Fn(&Value) -> Option<T>,
+    ) -> Result<Option<T>> {
+        self.value_over_time(prim, name)?
+            .map(|v| convert_typed(prim, name, expected, &v, &convert))
+            .transpose()
+    }
+
     /// Reads a typed value, failing with a message naming the expected type.
     pub fn typed<T>(
         &self,
@@ -739,14 +796,7 @@ impl StageReader {
                 }
                 Ok(None)
             }
-            Some(v) => convert(&v).map(Some).ok_or_else(|| {
-                Error::attr(
-                    prim.path(),
-                    name,
-                    format!("expected {expected}, found {}", values::kind_name(&v)),
-                )
-                .rule(crate::rule::Rule::AttributeType)
-            }),
+            Some(v) => convert_typed(prim, name, expected, &v, &convert).map(Some),
         }
     }
 

@@ -58,43 +58,81 @@ pub struct SkelProxy {
     shapes: Option<ShapeWeights>,
 }
 
-/// Nearest authored opinion of a relationship on `prim` or its ancestors.
-fn inherited_targets(r: &StageReader, prim: &usd::Prim, name: &str) -> Result<Option<(String, Vec<String>)>> {
+/// `prim` and its ancestors, nearest first, up to (not including) `/`.
+fn lineage(prim: &usd::Prim) -> Vec<usd::Prim> {
+    let mut chain = Vec::new();
     let mut cur = Some(prim.clone());
     while let Some(p) = cur {
         if p.path().as_str() == "/" {
             break;
         }
+        cur = p.parent();
+        chain.push(p);
+    }
+    chain
+}
+
+/// `prim` and its ancestors up to the outermost SkelRoot above it: usd-core
+/// skins a mesh only under a SkelRoot and inherits binding properties from
+/// that root down (a SkelRoot nested in another is part of the outer one's
+/// scope). Empty when no SkelRoot is above `prim`.
+fn skel_scope(r: &StageReader, prim: &usd::Prim) -> Result<Vec<usd::Prim>> {
+    let mut chain = lineage(prim);
+    let mut root = None;
+    for (i, p) in chain.iter().enumerate() {
+        if r.type_name(p)? == "SkelRoot" {
+            root = Some(i);
+        }
+    }
+    chain.truncate(root.map_or(0, |i| i + 1));
+    Ok(chain)
+}
+
+/// Nearest authored opinion of a relationship along `chain` (a prim, then
+/// its ancestors).
+fn inherited_targets(r: &StageReader, chain: &[usd::Prim], name: &str) -> Result<Option<(String, Vec<String>)>> {
+    for p in chain {
         let rel = p.relationship(name);
         let authored = rel
             .has_authored_targets()
             .map_err(|e| Error::attr(p.path(), name, format!("cannot read: {e}")))?;
         if authored {
-            return Ok(Some((p.path().as_str().to_string(), r.targets(&p, name)?)));
+            return Ok(Some((p.path().as_str().to_string(), r.targets(p, name)?)));
         }
-        cur = p.parent();
     }
     Ok(None)
 }
 
-/// Nearest prim (self or ancestor) with an authored attribute.
+/// Nearest prim (`prim` or an ancestor within its SkelRoot's scope) with an
+/// authored attribute.
 pub(super) fn inherited_attr(r: &StageReader, prim: &usd::Prim, name: &str) -> Result<Option<usd::Prim>> {
-    let mut cur = Some(prim.clone());
-    while let Some(p) = cur {
-        if p.path().as_str() == "/" {
-            break;
-        }
+    for p in skel_scope(r, prim)? {
         if r.has_authored(&p, name)? {
             return Ok(Some(p));
         }
-        cur = p.parent();
     }
     Ok(None)
 }
 
-/// Whether `mesh` is bound to a skeleton (its own or an inherited `skel:skeleton`).
+/// Whether `mesh` is bound to a skeleton (its own or an inherited
+/// `skel:skeleton`, within a SkelRoot's scope).
 pub fn skeleton_binding(r: &StageReader, mesh: &usd::Prim) -> Result<Option<String>> {
-    Ok(inherited_targets(r, mesh, "skel:skeleton")?.and_then(|(_, t)| t.into_iter().next()))
+    Ok(inherited_targets(r, &skel_scope(r, mesh)?, "skel:skeleton")?.and_then(|(_, t)| t.into_iter().next()))
+}
+
+/// A note for a mesh that names a skeleton usd-core does not skin it with:
+/// its `skel:skeleton` (its own or an ancestor's) lies outside any SkelRoot's
+/// scope.
+pub fn unscoped_binding_note(r: &StageReader, mesh: &usd::Prim) -> Result<Option<String>> {
+    if skeleton_binding(r, mesh)?.is_some() {
+        return Ok(None);
+    }
+    Ok(inherited_targets(r, &lineage(mesh), "skel:skeleton")?.map(|(on, _)| {
+        format!(
+            "skel:skeleton on {on} binds {} outside any SkelRoot's scope: usd-core does not skin it",
+            mesh.path().as_str()
+        )
+    }))
 }
 
 /// A primvar's flat value (indices applied), interpolation and elementSize.
@@ -107,7 +145,7 @@ struct Primvar {
 
 /// Reads an (optionally indexed) primvar's flat value with its interpolation and elementSize.
 fn read_primvar(r: &StageReader, prim: &usd::Prim, name: &str) -> Result<Option<Primvar>> {
-    let Some(v) = r.value(prim, name, None)? else {
+    let Some(v) = r.value_over_time(prim, name)? else {
         return Ok(None);
     };
     let interp = r.primvar_interpolation(prim, name, "constant")?;
@@ -123,7 +161,7 @@ fn read_primvar(r: &StageReader, prim: &usd::Prim, name: &str) -> Result<Option<
         ));
     }
     let indices_name = format!("{name}:indices");
-    let indices = r.typed(prim, &indices_name, None, "int[]", values::int_array)?;
+    let indices = r.typed_over_time(prim, &indices_name, "int[]", values::int_array)?;
     // Each index picks a whole tuple of elementSize values.
     let v = match indices {
         None => v,
@@ -276,18 +314,22 @@ fn skeleton_prim(r: &StageReader, mesh_path: &str, skeleton: &str) -> Result<usd
     Ok(skel_prim)
 }
 
+/// The path `skel:animationSource` names for the Skeleton `skel_prim`, on it
+/// or on its nearest ancestor that authors one (usd-core's
+/// `GetInheritedAnimationSource`, which is not bounded by a SkelRoot).
+pub fn animation_source_path(r: &StageReader, skel_prim: &usd::Prim) -> Result<Option<String>> {
+    Ok(inherited_targets(r, &lineage(skel_prim), "skel:animationSource")?.and_then(|(_, t)| t.into_iter().next()))
+}
+
 /// The SkelAnimation that drives the skeleton: `skel:animationSource` on the
-/// Skeleton first, then inherited from the mesh.
+/// Skeleton or inherited from any of its ancestors, as usd-core's
+/// `GetInheritedAnimationSource` finds it (one on the mesh plays no part).
 fn animation_source(
     r: &StageReader,
     skel_prim: &usd::Prim,
-    mesh: &usd::Prim,
     skeleton: &str,
 ) -> Result<(Option<String>, Option<usd::Prim>)> {
-    let anim_path = match inherited_targets(r, skel_prim, "skel:animationSource")? {
-        Some((_, t)) if !t.is_empty() => Some(t[0].clone()),
-        _ => inherited_targets(r, mesh, "skel:animationSource")?.and_then(|(_, t)| t.into_iter().next()),
-    };
+    let anim_path = animation_source_path(r, skel_prim)?;
     let anim_prim = match &anim_path {
         None => None,
         Some(p) => {
@@ -306,24 +348,30 @@ fn animation_source(
     Ok((anim_path, anim_prim))
 }
 
-/// The mesh's skinning method. UsdSkel names it
-/// primvars:skel:skinningMethod; the bare skel:skinningMethod some exporters
-/// write is accepted too.
-fn skinning_method(r: &StageReader, mesh: &usd::Prim) -> Result<SkinningMethod> {
-    for name in ["primvars:skel:skinningMethod", "skel:skinningMethod"] {
-        if let Some(p) = inherited_attr(r, mesh, name)? {
-            return match r.typed(&p, name, None, "token", values::token)?.as_deref() {
-                None | Some("classicLinear") => Ok(SkinningMethod::ClassicLinear),
-                Some("dualQuaternion") => Ok(SkinningMethod::DualQuaternion),
-                Some(other) => Err(Error::attr(
-                    p.path(),
-                    name,
-                    format!("unknown skinning method {other:?} (expected classicLinear or dualQuaternion)"),
-                )),
-            };
-        }
+/// The mesh's skinning method, `primvars:skel:skinningMethod` (inherited
+/// within the SkelRoot's scope). A bare `skel:skinningMethod`, which some
+/// exporters write, is not UsdSkel's name: usd-core ignores it, so it is
+/// ignored here too and a note says so.
+fn skinning_method(r: &StageReader, mesh: &usd::Prim, notes: &mut Vec<String>) -> Result<SkinningMethod> {
+    const NAME: &str = "primvars:skel:skinningMethod";
+    if let Some(p) = inherited_attr(r, mesh, "skel:skinningMethod")? {
+        notes.push(format!(
+            "{} authors skel:skinningMethod, which is not UsdSkel's name ({NAME}): usd-core ignores it",
+            p.path().as_str()
+        ));
     }
-    Ok(SkinningMethod::ClassicLinear)
+    let Some(p) = inherited_attr(r, mesh, NAME)? else {
+        return Ok(SkinningMethod::ClassicLinear);
+    };
+    match r.typed(&p, NAME, None, "token", values::token)?.as_deref() {
+        None | Some("classicLinear") => Ok(SkinningMethod::ClassicLinear),
+        Some("dualQuaternion") => Ok(SkinningMethod::DualQuaternion),
+        Some(other) => Err(Error::attr(
+            p.path(),
+            NAME,
+            format!("unknown skinning method {other:?} (expected classicLinear or dualQuaternion)"),
+        )),
+    }
 }
 
 impl SkelProxy {
@@ -348,15 +396,15 @@ impl SkelProxy {
             ));
         }
 
-        let (anim_path, anim_prim) = animation_source(r, &skel_prim, mesh, skeleton)?;
+        let (anim_path, anim_prim) = animation_source(r, &skel_prim, skeleton)?;
         let npts = rest_points.len();
         let geom_bind = match inherited_attr(r, mesh, "primvars:skel:geomBindTransform")? {
             Some(p) => r
-                .typed(&p, "primvars:skel:geomBindTransform", None, "matrix4d", values::matrix4)?
+                .typed_over_time(&p, "primvars:skel:geomBindTransform", "matrix4d", values::matrix4)?
                 .unwrap_or(DMat4::IDENTITY),
             None => DMat4::IDENTITY,
         };
-        let method = skinning_method(r, mesh)?;
+        let method = skinning_method(r, mesh, &mut notes)?;
 
         // Joint skinning: influences, and a pose at every time.
         let influences = read_influences(r, mesh, npts)?;

@@ -66,7 +66,12 @@ impl AnimJoints {
         let kinds = [values::kind_name(&tr), values::kind_name(&rot), values::kind_name(&sc)];
         let cast = (
             tr.cast::<Vec<gf::Vec3f>>().ok(),
-            rot.cast::<Vec<gf::Quatf>>().ok(),
+            // Only quatf[]: usd-core's ComputeJointLocalTransforms reads
+            // no half or double quaternions, and the skeleton rests.
+            match rot {
+                Value::QuatfVec(q) => Some(q),
+                _ => None,
+            },
             sc.cast::<Vec<gf::Vec3f>>().ok(),
         );
         let (Some(tr), Some(rot), Some(sc)) = cast else {
