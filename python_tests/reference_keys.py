@@ -230,9 +230,10 @@ def raw_axis_value(stage, axis_prim, frame):
         j = joints.index(name)
         q_rest = row_matrix_to_quat(_m(skel.GetRestTransformsAttr().Get()[j]))
         q = q_rest
-        src = UsdSkel.BindingAPI(skel_prim).GetAnimationSourceRel().GetTargets()
+        # usd-core's rule: on the Skeleton or inherited from any ancestor
+        src = UsdSkel.BindingAPI(skel_prim).GetInheritedAnimationSource()
         if src:
-            anim = UsdSkel.Animation(stage.GetPrimAtPath(src[0]))
+            anim = UsdSkel.Animation(src)
             anim_joints = list(anim.GetJointsAttr().Get() or [])
             if name in anim_joints:
                 q = quat_np(anim.GetRotationsAttr().Get(t)[anim_joints.index(name)])

@@ -176,6 +176,9 @@ _pc_path, _pc = _new_axis("posC", "position", source="/World/LocParent/Locator",
 _vc_path, _vc = _new_axis("viewC", "viewDirection", source="/World/Orbit/Cam", component=-1)
 _ac_path, _ac = _new_axis("vecC", "attribute", source="/World/Controls.ctl:vec", component=3)
 _qc_path, _qc = _new_axis("quatC", "attribute", source="/World/Controls.ctl:quat", component=4)
+# a pick on a scalar means the axis names the wrong attribute
+_sc_path, _sc = _new_axis("scalarC", "attribute", source="/World/Controls.ctl:scalar", component=2)
+_se_path, _se = _new_axis("scalarE", "attribute", source="/World/Controls.ctl:scalar", element=1)
 _vn_path, _vn = _new_axis("viewNoCam", "viewDirection", component=0)
 _vghost_path, _vghost = _new_axis("viewGhost", "viewDirection", source="/World/NoCam", component=0)
 
@@ -221,6 +224,8 @@ CASES = {
     "view_component_negative": (_vc, [f"{_vc_path}.component"], ()),
     "vector_component_3": (_ac, [f"{_ac_path}.component"], ()),
     "quaternion_component_4": (_qc, [f"{_qc_path}.component"], ()),
+    "scalar_component_2": (_sc, [f"{_sc_path}.component", "picks from a scalar"], ()),
+    "scalar_element_1": (_se, [f"{_se_path}.element", "picks from a scalar"], ()),
     # a viewDirection axis with neither a source nor --camera
     "view_without_source_or_camera": (_vn, [_vn_path], ()),
     # uniform attributes authored only as time samples
@@ -489,3 +494,34 @@ def test_inspect_lists_the_layers_of_a_broken_axis_and_names_it_once(painterly, 
     proc = painterly("bake", shot, "-o", out, check=False)
     assert proc.returncode == 1 and f": {BLOWFISH_AXIS}" in proc.stderr, proc.stderr
     assert not out.exists()
+
+
+def test_a_view_axis_refuses_a_camera_at_the_proxys_centre_up_to_rounding(painterly, tmp_path):
+    """The camera is put at the centre of the proxy's box through the proxy's
+    transforms, where usd-core leaves a residue of about 1e-17: a direction
+    made of that noise would give the keys arbitrary weights, so the bake
+    refuses it as it refuses an exact zero."""
+    from pxr import Gf, UsdGeom
+
+    rig = Au.build_points_rig(tmp_path / "rig.usda", mode="static", n_strokes=3,
+                              proxy_xform=Au.xf_static((0.3, -1.7, 2.9), (31, -47, 12), (1.3, 0.7, 2.1)))
+    stage = Usd.Stage.Open(str(rig.path))
+    mesh = UsdGeom.Mesh(stage.GetPrimAtPath(rig.mesh))
+    pts = np.array(mesh.GetPointsAttr().Get(), dtype=np.float64)
+    centre = (pts.min(axis=0) + pts.max(axis=0)) / 2
+    world = mesh.ComputeLocalToWorldTransform(1.0).Transform(Gf.Vec3d(*centre))
+    cam = UsdGeom.Camera.Define(stage, "/World/CentreCam")
+    cam.AddTranslateOp().Set(world)
+    back = np.array(mesh.ComputeLocalToWorldTransform(1.0).GetInverse().Transform(world))
+    assert np.linalg.norm(back - centre) < 1e-12
+    axis = f"{rig.rig}/view"
+    AK.add_axis(stage, axis, "viewDirection", source="/World/CentreCam", component=0)
+    rng = np.random.default_rng(2)
+    lp = f"{rig.rig}/L_view"
+    AK.add_layer(stage, rig, lp, rng, n_strokes=3)
+    AK.set_layer_axes(stage, lp, [axis])
+    AK.add_pose_key(stage, lp, "left", [-1.0], opacity=0.0)
+    AK.add_pose_key(stage, lp, "right", [1.0], opacity=1.0)
+    stage.GetRootLayer().Save()
+    err = expect_failure(painterly, tmp_path, rig.path, names=["/World/CentreCam"])
+    assert "camera is at the proxy's centre at time 1" in err, err

@@ -256,6 +256,33 @@ def test_int_attribute_axis_holds_between_samples(tmp_path):
     _check(case, [lp])
 
 
+def test_joint_axis_reads_an_animation_inherited_from_the_skel_root(tmp_path):
+    """`skel:animationSource` on the SkelRoot, not on the Skeleton: usd-core
+    (GetInheritedAnimationSource) animates the joints, and so must the axis."""
+    from pxr import UsdSkel
+
+    rig = Au.build_skel_rig(tmp_path / "inherited.usda", n_strokes=3)
+    stage = Usd.Stage.Open(str(rig.path))
+    skel = stage.GetPrimAtPath(SKEL)
+    anim = UsdSkel.BindingAPI(skel).GetAnimationSourceRel().GetTargets()
+    skel.RemoveProperty("skel:animationSource")
+    UsdSkel.BindingAPI.Apply(skel.GetParent()).CreateAnimationSourceRel().SetTargets(anim)
+    ap = str(AK.add_axis(stage, f"{rig.rig}/tip", "jointRotation", source=SKEL, name="root/mid/tip",
+                         component=2).GetPath())
+    stage.GetRootLayer().Save()
+    values = RK.axis_values_over(rig.path, [ap], FRAMES)
+    assert np.ptp(values[ap]) > 0.05, "the joint does not turn: the test would be weak"
+    rng = np.random.default_rng(5)
+    stage = Usd.Stage.Open(str(rig.path))
+    lp = f"{rig.rig}/L_tip"
+    rest, _ = AK.add_layer(stage, rig, lp, rng, n_strokes=3)
+    AK.set_layer_axes(stage, lp, [ap])
+    _pose_keys_on_axis(stage, lp, rest, values[ap], rng)
+    stage.GetRootLayer().Save()
+    rig.layers = list(rig.layers) + [lp]
+    _check(bake_and_expect(rig, tmp_path), [lp])
+
+
 def test_points_proxy_position_and_view_axes(tmp_path):
     """A proxy with time-sampled points under an animated transform (not
     skinned): position and viewDirection measured in its local space, bbox

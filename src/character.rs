@@ -306,6 +306,7 @@ impl Character {
                 time: t,
                 proxy_to_world: proxy_l2w,
                 proxy_centre: DVec3::ZERO,
+                proxy_extent: 0.0,
                 camera: self.camera.as_deref(),
                 eye,
             };
@@ -569,6 +570,7 @@ pub fn eval_axes(
         time: t,
         proxy_to_world,
         proxy_centre: DVec3::ZERO,
+        proxy_extent: 0.0,
         camera,
         eye: None,
     };
@@ -591,6 +593,7 @@ pub fn measure_axes(
     let [lo, hi] = bounds_f64(posed).unwrap_or([DVec3::ZERO; 2]);
     let frame = AxisFrame {
         proxy_centre: (lo + hi) * 0.5,
+        proxy_extent: (hi - lo).length(),
         ..frame
     };
     let mut reads = crate::usd_io::axes::FrameReads::default();

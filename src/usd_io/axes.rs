@@ -62,6 +62,10 @@ pub struct AxisFrame<'a> {
     pub proxy_to_world: DMat4,
     /// Centre of the posed proxy's bounding box, proxy-local.
     pub proxy_centre: DVec3,
+    /// Length of that box's diagonal: a camera within 1e-6 of it (and of
+    /// the centre's distance from the origin) is at the centre, its
+    /// direction rounding noise.
+    pub proxy_extent: f64,
     /// The bake's `--camera`, if any.
     pub camera: Option<&'a str>,
     /// A world-space eye position that replaces the camera of every
@@ -129,7 +133,7 @@ fn joint_rotation_source(
         Some(Value::Matrix4dVec(m)) if m.len() == joints.len() => rotation_of(&values::usd_matrix(&m[j])),
         _ => DQuat::IDENTITY,
     };
-    let anim_path = r.targets(skel, "skel:animationSource")?.into_iter().next();
+    let anim_path = super::skel::animation_source_path(r, skel)?;
     let (anim, index) = match anim_path {
         Some(a) => match anim_query(r, path, &a)? {
             Some(q) => {
@@ -325,7 +329,7 @@ impl Axis {
                 };
                 let local = f.proxy_to_world.inverse().transform_point3(world);
                 let d = local - f.proxy_centre;
-                if d.length() <= f64::MIN_POSITIVE {
+                if d.length() <= 1e-6 * (f.proxy_extent + f.proxy_centre.length()) || d.length() <= f64::MIN_POSITIVE {
                     return Err(Error::prim(cam, format!("camera is at the proxy's centre at time {t}")));
                 }
                 d.normalize()[self.component as usize]
@@ -399,7 +403,15 @@ type PickError = (&'static str, String);
 
 fn pick(v: &Value, element: i64, component: i64) -> std::result::Result<f64, PickError> {
     if let Some(x) = values::scalar(v) {
-        return Ok(x);
+        // A pick on a scalar means the axis names the wrong attribute.
+        return match (element, component) {
+            (0, 0) => Ok(x),
+            (0, c) => Err((
+                "component",
+                format!("component {c} picks from a scalar, which has none"),
+            )),
+            (e, _) => Err(("element", format!("element {e} picks from a scalar, which is no array"))),
+        };
     }
     let comp = |c: &[f64]| -> std::result::Result<f64, PickError> {
         usize::try_from(component)
@@ -498,7 +510,10 @@ mod tests {
     #[test]
     fn pick_reads_scalars_elements_and_components() {
         use openusd::gf;
-        assert_eq!(pick(&Value::Float(0.5), 3, 3).unwrap(), 0.5);
+        assert_eq!(pick(&Value::Float(0.5), 0, 0).unwrap(), 0.5);
+        assert_eq!(pick(&Value::Float(0.5), 0, 2).unwrap_err().0, "component");
+        assert_eq!(pick(&Value::Double(0.5), -1, 0).unwrap_err().0, "element");
+        assert_eq!(pick(&Value::Bool(true), 5, 3).unwrap_err().0, "element");
         assert_eq!(pick(&Value::DoubleVec(vec![1.0, 2.0]), 1, 0).unwrap(), 2.0);
         let q = Value::Quatf(gf::Quatf {
             w: 0.1,
