@@ -602,3 +602,28 @@ def test_host_name_in_temporaries_keeps_letters_digits_and_dots(tmp_path):
     )
     assert proc.returncode == 0, proc.stderr
     assert not stale.exists()
+
+
+@pytest.mark.parametrize("derived, command", [
+    ("shot.clips/shot.0000.1-2.usdc", ("bake", "fish.usda", "-o", "shot.usda", "--frames", "1:4", "--chunk", "2")),
+    ("shot.clips/shot.manifest.usda", ("bake", "fish.usda", "-o", "shot.usda", "--frames", "1:4", "--chunk", "2")),
+    ("shot.clips/shot.0001.3-4.usdc", ("bake", "fish.usda", "-o", "shot.usda", "--frames", "1:4", "--chunk", "2",
+                                       "--chunk-index", "1")),
+    ("fr/f.0001.exr", ("render", "fish.usda", "--camera", "/Blowfish/Camera", "--frames", "1:1",
+                       "-o", "fr/f.####.exr", "--size", "32x20")),
+], ids=["chunk", "manifest", "chunk-task", "render-frame"])
+def test_a_file_painterly_names_itself_never_overwrites_the_input_through_a_link(tmp_path, derived, command):
+    """A chunk, the manifest or a rendered frame whose name is a link to the
+    input was written through the link: the input became a crate file,
+    exit 0 (found by a files-and-signals review, 2026-12-06). Such a write
+    is refused now, naming the file it would overwrite."""
+    src = tmp_path / "fish.usda"
+    shutil.copy(BLOWFISH, src)
+    link = tmp_path / derived
+    link.parent.mkdir()
+    link.symlink_to(os.path.relpath(src, link.parent))
+    proc = subprocess.run([str(painterly_binary()), *command, "-q"], capture_output=True, text=True,
+                          timeout=HANG, cwd=tmp_path)
+    expect_error(proc, 1, f"would overwrite {src.resolve()}, a file the input reads")
+    assert src.read_bytes() == BLOWFISH.read_bytes()
+    assert leftovers(tmp_path) == [] and leftovers(link.parent) == []

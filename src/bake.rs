@@ -275,6 +275,9 @@ fn bake_character(
     progress: Progress,
     started: Instant,
 ) -> Result<BakeSummary> {
+    // No file this bake writes (a chunk, the manifest, the binding cache)
+    // may be one its input reads, even through a link of that name.
+    let _inputs = crate::usd_io::atomic::InputGuard::new(clips::input_files(&ch.reader));
     let model = &ch.model;
     let times = resolve_frames(&ch.reader, opts.frames)?;
     let mut layout = BakeLayout {

@@ -534,6 +534,8 @@ struct RenderStage {
     input: PathBuf,
     /// The `--bake` layer, canonical; None when the render baked its own.
     bake: Option<PathBuf>,
+    /// Keeps every frame written off the files the scene reads.
+    _inputs: crate::usd_io::atomic::InputGuard,
 }
 
 impl RenderStage {
@@ -561,6 +563,7 @@ impl RenderStage {
             .map_err(|e| name_source(e, &reader, bake.as_deref(), None))
             .map_err(named)?;
         Ok(RenderStage {
+            _inputs: crate::usd_io::atomic::InputGuard::new(crate::usd_io::clips::input_files(&reader)),
             reader,
             scene,
             root,

@@ -342,6 +342,61 @@ fn through_links(target: &Path) -> PathBuf {
     }
 }
 
+/// The files the inputs of running work read, with how many pieces of work
+/// read each: a write that would land on one (a chunk, the manifest or a
+/// rendered frame whose name is a link to the input) is refused.
+fn protected() -> MutexGuard<'static, std::collections::BTreeMap<PathBuf, usize>> {
+    static FILES: Mutex<std::collections::BTreeMap<PathBuf, usize>> = Mutex::new(std::collections::BTreeMap::new());
+    FILES.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
+}
+
+/// While alive, no write of this process replaces one of the files given
+/// (canonical paths: the files an input reads). Bakes and renders hold one
+/// for the files they read; an in-place edit, which must write its input,
+/// holds none.
+pub struct InputGuard(Vec<PathBuf>);
+
+impl InputGuard {
+    pub fn new<'a>(files: impl IntoIterator<Item = &'a PathBuf>) -> InputGuard {
+        let files: Vec<PathBuf> = files.into_iter().cloned().collect();
+        let mut set = protected();
+        for f in &files {
+            *set.entry(f.clone()).or_default() += 1;
+        }
+        InputGuard(files)
+    }
+}
+
+impl Drop for InputGuard {
+    fn drop(&mut self) {
+        let mut set = protected();
+        for f in &self.0 {
+            if let Some(n) = set.get_mut(f) {
+                *n -= 1;
+                if *n == 0 {
+                    set.remove(f);
+                }
+            }
+        }
+    }
+}
+
+/// Refuses a write that would replace a file an input reads (see
+/// [`InputGuard`]); `target` is the file itself, links already followed.
+fn check_not_protected(target: &Path) -> Result<()> {
+    let Ok(file) = target.canonicalize() else {
+        return Ok(()); // nothing there yet
+    };
+    if protected().contains_key(&file) {
+        return Err(Error::msg(format!(
+            "would overwrite {}, a file the input reads (through a link of that name?); inputs are never modified: remove the link or write elsewhere",
+            file.display()
+        ))
+        .in_file(target));
+    }
+    Ok(())
+}
+
 /// Refuses to replace a file this user may not write. The rename would
 /// succeed in a writable folder and drop the file's protection; usd-core's
 /// `Save` refuses such a file too. Returns the file it would replace, if
@@ -349,6 +404,7 @@ fn through_links(target: &Path) -> PathBuf {
 fn check_replaceable(target: &Path) -> Result<Option<std::fs::Metadata>> {
     use std::os::unix::ffi::OsStrExt;
     use std::os::unix::fs::PermissionsExt;
+    check_not_protected(target)?;
     let Ok(meta) = std::fs::metadata(target) else {
         return Ok(None); // nothing there yet (or nothing we can see: the write says why)
     };
