@@ -742,3 +742,34 @@ def test_quiet_submit_and_status_print_nothing_and_keep_their_exit_codes(painter
     assert (st.returncode, st.stdout, st.stderr) == (1, "", "")
     both = painterly("farm", "status", shot, "--quiet", "--json", check=False)
     assert both.returncode == 2 and "cannot be used with" in both.stderr
+
+
+def test_slurm_scripts_and_log_patterns_hold_any_output_folder(painterly, tmp_path):
+    """An output folder with a newline put a live shell line into the
+    comment of bake.sh and assemble.sh, and a `%` in it was taken by sbatch
+    as a replacement symbol in --output (found by a files-and-signals
+    review, 2026-12-06). The comment now quotes the path with escapes, and
+    `%` is passed as `%%`. The scripts run here with a stand-in painterly
+    that records its arguments."""
+    bin_dir = tmp_path / "bin"
+    env = stand_ins(bin_dir, {"sbatch": f"for a in \"$@\"; do printf '%s\\n' \"$a\"; done >> {bin_dir}/argv\necho 4242\n"})
+    folder = tmp_path / "shots\ntouch INJECTED\n#%j"
+    folder.mkdir()
+    shutil.copy(BLOWFISH, folder / "fish.usda")
+    painterly("farm", "submit", folder / "fish.usda", "-o", folder / "shot.usda", "--chunk", "24", "--frames", "1:48",
+              "--scheduler", "slurm", env=env, cwd=tmp_path)
+    argv = (bin_dir / "argv").read_text()
+    logs = str(folder / "shot.clips" / "farm" / "logs").replace("%", "%%")
+    assert f"--output={logs}/bake.%A_%a.log\n" in argv and f"--output={logs}/assemble.%j.log\n" in argv
+    fake = tmp_path / "fake-painterly"
+    fake.write_text("#!/bin/sh\nexit 0\n")
+    fake.chmod(0o755)
+    for name in ("bake.sh", "assemble.sh"):
+        script = folder / "shot.clips" / "farm" / name
+        text = script.read_text()
+        # Run the script's lines with painterly replaced by the stand-in.
+        text = text.replace(str(painterly_binary().resolve()), str(fake)).replace(str(painterly_binary()), str(fake))
+        proc = subprocess.run(["bash", "-c", text], cwd=tmp_path, capture_output=True, text=True, timeout=60,
+                              env=dict(os.environ, SLURM_ARRAY_TASK_ID="0", SLURM_ARRAY_JOB_ID="1"))
+        assert proc.returncode == 0, (name, proc.stderr)
+        assert not (tmp_path / "INJECTED").exists(), f"{name} ran a line from the folder's name:\n{text}"

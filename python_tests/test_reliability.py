@@ -627,3 +627,85 @@ def test_a_file_painterly_names_itself_never_overwrites_the_input_through_a_link
     expect_error(proc, 1, f"would overwrite {src.resolve()}, a file the input reads")
     assert src.read_bytes() == BLOWFISH.read_bytes()
     assert leftovers(tmp_path) == [] and leftovers(link.parent) == []
+
+
+def test_a_signal_while_a_chunked_rebake_publishes_leaves_no_mix_of_old_and_new_chunks(tmp_path):
+    """SIGTERM as soon as the first new chunk is renamed into place: the
+    renames went on one by one until the signal thread exited between two,
+    leaving 22 to 44 of 471 chunks new under the old clip set (found by a
+    files-and-signals review, 2026-12-06). Now every target is checked
+    before the first rename and the signal waits for the last one and the
+    clip set: all chunks are new, and the clip set is the new one."""
+    src = tmp_path / "fish.usda"
+    shutil.copy(BLOWFISH, src)
+    args = [str(painterly_binary()), "bake", str(src), "-o", str(tmp_path / "shot.usda"), "--frames", "1:48:0.1",
+            "--chunk", "1", "-q"]
+    assert subprocess.run(args, timeout=HANG).returncode == 0
+    clips = tmp_path / "shot.clips"
+
+    def chunks():
+        return {e.name: e.inode() for e in os.scandir(clips) if re.match(r"shot\.\d{4}\..*\.usdc$", e.name)}
+
+    layer = Sdf.Layer.FindOrOpen(str(src))
+    layer.customLayerData = {"rev": 1}  # the input changes: every chunk is re-baked
+    layer.Save()
+    old = chunks()
+    proc = subprocess.Popen(args, stderr=subprocess.PIPE, text=True)
+    signalled = False
+    deadline = time.monotonic() + HANG
+    while proc.poll() is None and time.monotonic() < deadline:
+        if any(e.inode() != old.get(e.name) for e in os.scandir(clips) if e.name in old):
+            proc.send_signal(signal.SIGTERM)
+            signalled = True
+            break
+    err = proc.communicate(timeout=HANG)[1]
+    now = chunks()
+    replaced = sum(now[k] != v for k, v in old.items())
+    assert replaced in (0, len(old)), f"{replaced} of {len(old)} chunks new (exit {proc.returncode}): {err}"
+    if signalled:
+        assert proc.returncode in (0, 143), err
+        assert replaced == len(old)
+        clip_set = Sdf.Layer.OpenAsAnonymous(str(tmp_path / "shot.usda")).customLayerData["painterly"]
+        first = Sdf.Layer.OpenAsAnonymous(str(clips / sorted(now)[0])).customLayerData["painterly"]
+        assert clip_set["inputHash"] == first["inputHash"]
+    assert leftovers(tmp_path) == [] and leftovers(clips) == []
+
+
+@pytest.mark.parametrize("name", ["tab\tshot", "nl\nshot", "at@shot"])
+def test_a_path_usd_cannot_hold_as_an_asset_path_is_refused(tmp_path, name):
+    """A tab or newline in a file's name went verbatim into the edit
+    layer's subLayers, the view layer's subLayers and the clip set's
+    assetPaths: exit 0, and usd-core could not open any of them (found by a
+    files-and-signals review, 2026-12-06). '@' was refused by the edit and
+    view layers only. All three writers refuse all three now; a plain bake,
+    which writes no asset path, still works with such names."""
+    src = tmp_path / f"{name}.usda"
+    shutil.copy(BLOWFISH, src)
+    bake = tmp_path / f"{name}.usdc"
+    assert run("bake", src, "-o", bake, "--frames", "1:2", "-q").returncode == 0
+    for args, out in [
+        (("key", src, "--layer", "/Blowfish/Paint/Hair", "--time", "2", "--sentinel", "--edit-layer",
+          tmp_path / "e.usda"), tmp_path / "e.usda"),
+        (("view", src, "--bake", bake, "-o", tmp_path / "v.usda"), tmp_path / "v.usda"),
+        (("bake", tmp_path / "ok.usda", "-o", tmp_path / f"{name}_shot.usda", "--frames", "1:4", "--chunk", "2"),
+         tmp_path / f"{name}_shot.usda"),
+    ]:
+        shutil.copy(BLOWFISH, tmp_path / "ok.usda")
+        proc = run(*args, "-q")
+        expect_error(proc, 1, "which a USD asset path cannot hold")
+        assert not out.exists()
+    assert src.read_bytes() == BLOWFISH.read_bytes()
+    assert leftovers(tmp_path) == []
+
+
+def test_an_edit_layer_that_is_a_fifo_is_refused_not_waited_on(tmp_path):
+    """`key --edit-layer FIFO` read the FIFO before looking at what it was
+    and hung for ever (found by a files-and-signals review, 2026-12-06);
+    the same FIFO as the input was refused at once."""
+    src = tmp_path / "fish.usda"
+    shutil.copy(BLOWFISH, src)
+    fifo = tmp_path / "e.usda"
+    os.mkfifo(fifo)
+    proc = run("key", src, "--layer", "/Blowfish/Paint/Hair", "--time", "2", "--sentinel", "--edit-layer", fifo, "-q")
+    expect_error(proc, 1, "cannot open the layer: not a regular file", "e.usda")
+    assert src.read_bytes() == BLOWFISH.read_bytes()

@@ -107,6 +107,12 @@ fn script(lines: &[String]) -> String {
     s
 }
 
+/// The logs folder as part of an sbatch `--output` pattern, where `%`
+/// starts a replacement symbol and `%%` stands for itself.
+fn log_pattern_dir(logs: &std::path::Path) -> String {
+    logs.display().to_string().replace('%', "%%")
+}
+
 impl Scheduler for Slurm {
     fn submit(&self, job: &FarmJob, todo: &[usize]) -> Result<Submission> {
         let dir = job.farm_dir();
@@ -124,8 +130,8 @@ impl Scheduler for Slurm {
             let body = script(&[
                 "#!/bin/bash".into(),
                 format!(
-                    "# painterly farm: a Slurm array task bakes one chunk of {} (written by `painterly farm submit`).",
-                    job.output.display()
+                    "# painterly farm: a Slurm array task bakes one chunk of {:?} (written by `painterly farm submit`).",
+                    job.output
                 ),
                 "# Array index i bakes chunk CHUNKS[i]: only chunks not already done were submitted.".into(),
                 "set -euo pipefail".into(),
@@ -141,7 +147,7 @@ impl Scheduler for Slurm {
             argv.extend([
                 format!("--job-name=painterly-bake:{stem}"),
                 format!("--array=0-{}", todo.len() - 1),
-                format!("--output={}", logs.join("bake.%A_%a.log").display()),
+                format!("--output={}/bake.%A_%a.log", log_pattern_dir(&logs)),
             ]);
             let (id, argv) = self.sbatch(argv, &path, "chunk tasks")?;
             sub.tasks = todo
@@ -156,8 +162,8 @@ impl Scheduler for Slurm {
         let body = script(&[
             "#!/bin/bash".into(),
             format!(
-                "# painterly farm: checks every chunk of {} and writes the clip set (written by `painterly farm submit`).",
-                job.output.display()
+                "# painterly farm: checks every chunk of {:?} and writes the clip set (written by `painterly farm submit`).",
+                job.output
             ),
             "set -euo pipefail".into(),
             THREADS.into(),
@@ -168,7 +174,7 @@ impl Scheduler for Slurm {
         let mut argv = self.common(job);
         argv.extend([
             format!("--job-name=painterly-assemble:{stem}"),
-            format!("--output={}", logs.join("assemble.%j.log").display()),
+            format!("--output={}/assemble.%j.log", log_pattern_dir(&logs)),
         ]);
         if let Some(id) = &sub.job {
             argv.extend([format!("--dependency=afterok:{id}"), "--kill-on-invalid-dep=yes".into()]);

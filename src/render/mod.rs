@@ -315,9 +315,7 @@ pub(crate) fn write_root(dir: &Path, input: &Path, bake_layer: Option<&Path>) ->
             .canonicalize()
             .map_err(|e| Error::msg(format!("cannot resolve path: {e}")).in_file(p))?;
         let s = a.to_string_lossy().into_owned();
-        if s.contains('@') {
-            return Err(Error::msg("paths containing '@' cannot be sublayered").in_file(p));
-        }
+        crate::usd_io::layer::check_asset_path(&s, p)?;
         Ok(s)
     };
     let (tcps, fps, start, end) = layer_timing(input)?;

@@ -128,8 +128,6 @@ fn asset_path(file: &Path, dir: &Path) -> Result<String> {
         }
         parts.join("/")
     };
-    if s.contains('@') {
-        return Err(Error::msg("paths containing '@' cannot be sublayered").in_file(file));
-    }
+    super::layer::check_asset_path(&s, file)?;
     Ok(s)
 }

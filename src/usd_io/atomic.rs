@@ -94,6 +94,13 @@ pub fn install_signal_cleanup() {
             .name("painterly-signals".into())
             .spawn(move || {
                 if let Some(sig) = signals.forever().next() {
+                    // Let a publication under way finish (see
+                    // [`hold_signals`]), and hold off any other until exit.
+                    let (holds, done) = signal_holds();
+                    let mut n = holds.lock().unwrap_or_else(|e| e.into_inner());
+                    while *n > 0 {
+                        n = done.wait(n).unwrap_or_else(|e| e.into_inner());
+                    }
                     // Holding the lock until exit: no temporary can be created
                     // or renamed after the sweep.
                     let mut reg = registry();
@@ -105,6 +112,45 @@ pub fn install_signal_cleanup() {
                 }
             });
     });
+}
+
+/// The count of [`SignalHold`]s alive, and the signal it went to zero.
+fn signal_holds() -> &'static (Mutex<usize>, std::sync::Condvar) {
+    static HOLDS: (Mutex<usize>, std::sync::Condvar) = (Mutex::new(0), std::sync::Condvar::new());
+    &HOLDS
+}
+
+/// While alive, a SIGTERM/SIGINT/SIGHUP waits before it cleans up and
+/// exits: for renames that publish several files as one (a chunked bake's
+/// chunks and clip set), which a signal between two of them would leave
+/// half old, half new.
+pub struct SignalHold(());
+
+/// Starts a [`SignalHold`]; blocks if a signal is already being handled
+/// (the process is about to exit).
+pub fn hold_signals() -> SignalHold {
+    let (holds, _) = signal_holds();
+    *holds.lock().unwrap_or_else(|e| e.into_inner()) += 1;
+    SignalHold(())
+}
+
+impl Drop for SignalHold {
+    fn drop(&mut self) {
+        let (holds, done) = signal_holds();
+        let mut n = holds.lock().unwrap_or_else(|e| e.into_inner());
+        *n -= 1;
+        done.notify_all();
+    }
+}
+
+/// Checks that a write could replace `target` (not a folder, and see
+/// [`check_replaceable`]), for writes that must all succeed or none start.
+pub fn check_target(target: &Path) -> Result<()> {
+    let target = &through_links(target);
+    if target.is_dir() {
+        return Err(Error::msg("is a folder, not a file").in_file(target));
+    }
+    check_replaceable(target).map(drop)
 }
 
 /// Removes every registered temporary (before an exit that skips destructors).

@@ -392,6 +392,11 @@ pub struct Staged {
 }
 
 impl Staged {
+    /// Whether [`Self::commit`] could replace its target.
+    pub fn check(&self) -> Result<()> {
+        super::atomic::check_target(&self.path)
+    }
+
     pub fn commit(self) -> Result<()> {
         self.tmp.persist(&self.path)
     }

@@ -59,6 +59,8 @@ fn clips_dir(output: &Path) -> Result<(String, PathBuf)> {
         .file_stem()
         .map(|s| s.to_string_lossy().into_owned())
         .ok_or_else(|| Error::msg("output path has no file name").in_file(output))?;
+    // The clip set names its chunks `@./<stem>.clips/...@`.
+    super::layer::check_asset_path(&stem, output)?;
     let dir = output.with_file_name(format!("{stem}.clips"));
     Ok((stem, dir))
 }
@@ -226,6 +228,12 @@ impl FrameSink for ChunkedSink {
         if let Some(done) = self.current.take() {
             self.staged.push(done.finish_staged()?);
         }
+        // The chunks and the clip set are published as one: every target is
+        // checked before the first rename, and a signal waits for the last.
+        for chunk in &self.staged {
+            chunk.check()?;
+        }
+        let _publishing = super::atomic::hold_signals();
         for chunk in std::mem::take(&mut self.staged) {
             chunk.commit()?;
         }

@@ -109,6 +109,8 @@ fn sublayer_path(input: &Path, edit_dir: &Path) -> Result<String> {
 /// The file's text when it is usda (by content, whatever the extension),
 /// None for crate files.
 fn read_text(path: &Path) -> Result<Option<String>> {
+    // A FIFO or device would block the read, or never end it.
+    super::stage::require_file(path, "the layer")?;
     let bytes = std::fs::read(path).map_err(|e| Error::msg(format!("cannot read: {e}")).in_file(path))?;
     if !bytes.starts_with(b"#usda") {
         return Ok(None);
@@ -230,9 +232,7 @@ impl EditSession {
                 // cannot open a layer holding a nan or inf there.
                 input_meta.validate().map_err(|e| e.in_file(input))?;
                 let sub = sublayer_path(input, &dir)?;
-                if sub.contains('@') {
-                    return Err(Error::msg("paths containing '@' cannot be sublayered").in_file(input));
-                }
+                super::layer::check_asset_path(&sub, input)?;
                 // Stage metadata comes from the root layer: copy the input's, or
                 // opening the edit layer would retime and re-orient the input.
                 let mut header = format!(

@@ -341,6 +341,24 @@ impl OverLayer {
     }
 }
 
+/// Checks that `path`, about to be written between `@`s as an asset path
+/// (a sublayer, a clip), reads back in usd-core: it allows no `@` there and
+/// no control character (a tab or newline in a folder's name). `file` is
+/// the file the path names, for the message.
+pub fn check_asset_path(path: &str, file: &Path) -> Result<()> {
+    let bad = if path.contains('@') {
+        "'@'".to_string()
+    } else if let Some(c) = path.chars().find(|c| c.is_control()) {
+        format!("a control character ({c:?})")
+    } else {
+        return Ok(());
+    };
+    Err(Error::msg(format!(
+        "its path contains {bad}, which a USD asset path cannot hold: rename the file or folder"
+    ))
+    .in_file(file))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
