@@ -274,3 +274,60 @@ def test_ctrl_c_stops_a_bake_and_keeps_the_previous_output(tmp_path):
     assert at - sent < 2.0  # prompt: within a few frames, not at the bake's end
     assert out.read_bytes() == previous
     assert sorted(os.listdir(out_dir)) == ["bake.usdc"]
+
+
+# ---------------------------------------------------------------------------
+# an edited crate layer, and edits behind a layer not open (a review, 2026-12-06)
+
+
+def test_an_edited_crate_layer_is_never_baked_over_its_own_file(tmp_path):
+    """An edited `.usdc` layer is read from its text, served as
+    `tube.usdc.usda`; the output check compared the output with that made-up
+    name, so `bake(layer, "tube.usdc")` replaced the input with the bake.
+    The CLI refuses the same command."""
+    crate = tmp_path / "tube.usdc"
+    Sdf.Layer.FindOrOpen(str(TUBE)).Export(str(crate))
+    before = crate.read_bytes()
+    layer = Sdf.Layer.FindOrOpen(str(crate))
+    layer.customLayerData = {"note": "an unsaved edit"}
+    with pytest.raises(painterly.Error, match="output would overwrite the input; inputs are never modified"):
+        painterly.bake(layer, str(crate), frames="1:2")
+    assert crate.read_bytes() == before
+
+
+def test_a_bake_of_an_edited_crate_layer_records_its_file(tmp_path):
+    """It recorded the made-up `tube.usdc.usda` as its input, so `view`
+    refused the bake as made from another file; it records `tube.usdc` now,
+    and view warns that it was baked from unsaved edits, as for a `.usda`."""
+    crate = tmp_path / "tube.usdc"
+    Sdf.Layer.FindOrOpen(str(TUBE)).Export(str(crate))
+    layer = Sdf.Layer.FindOrOpen(str(crate))
+    layer.customLayerData = {"note": "an unsaved edit"}
+    bake = tmp_path / "bake.usdc"
+    painterly.bake(layer, str(bake), frames="1:2")
+    recorded = Sdf.Layer.FindOrOpen(str(bake)).customLayerData["painterly"]["input"]
+    assert recorded == str(crate.resolve())
+    assert any("baked from unsaved edits" in w for w in view_warnings(crate, bake, tmp_path))
+
+
+def test_unsaved_edits_behind_a_layer_not_open_are_refused(tmp_path):
+    """root (passed, saved) → mid (not open in the session) → leaf (open,
+    edited): the walk over open layers stopped at mid and the edit was
+    silently left out (Rings baked at opacity 1, usd-core composes 0.25)."""
+    leaf_path = tmp_path / "leaf.usda"
+    Sdf.Layer.FindOrOpen(str(TUBE)).Export(str(leaf_path))
+    mid = Sdf.Layer.CreateNew(str(tmp_path / "mid.usda"))
+    mid.subLayerPaths.append("leaf.usda")
+    mid.Save()
+    root = Sdf.Layer.CreateNew(str(tmp_path / "root.usda"))
+    root.subLayerPaths.append("mid.usda")
+    root.Save()
+    del mid
+    leaf = Sdf.Layer.FindOrOpen(str(leaf_path))
+    Sdf.AttributeSpec(leaf.GetPrimAtPath(RINGS), "painterly:opacity", Sdf.ValueTypeNames.Float).default = 0.25
+    assert Sdf.Layer.Find(str(tmp_path / "mid.usda")) is None
+    with pytest.raises(painterly.Error, match="a layer with unsaved edits that .*root.usda composes") as e:
+        painterly.bake(root, frames="1")
+    assert e.value.file == str(leaf_path)
+    leaf.Save()
+    assert painterly.bake(root, frames="1")["frames"] == 1

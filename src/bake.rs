@@ -115,7 +115,7 @@ pub fn bake_with(
 ) -> Result<BakeSummary> {
     let started = Instant::now();
     let character = open_for_bake_with(input, output, opts, open)?;
-    bake_character(&character, output, opts, progress, started).map_err(|e| e.in_file(input))
+    bake_character(&character, input, output, opts, progress, started).map_err(|e| e.in_file(input))
 }
 
 /// Every check [`bake`] makes before it bakes a frame (options, output
@@ -257,7 +257,7 @@ pub fn bake_if_any(input: &Path, output: &Path, opts: &BakeOptions) -> Result<Op
     if is_empty(&character.model, opts) {
         return Ok(None);
     }
-    bake_character(&character, output, opts, &|_, _| {}, started)
+    bake_character(&character, input, output, opts, &|_, _| {}, started)
         .map(Some)
         .map_err(|e| e.in_file(input))
 }
@@ -268,8 +268,12 @@ fn is_empty(model: &Model, opts: &BakeOptions) -> bool {
     !proxies && model.views.is_empty() && model.rigs.iter().all(|r| r.layers.is_empty())
 }
 
+/// Bakes `ch` into `output`; `input` is the file it stands for (recorded in
+/// the bake; the reader's own path differs for a layer's text served
+/// elsewhere).
 fn bake_character(
     ch: &Character,
+    input: &Path,
     output: &Path,
     opts: &BakeOptions,
     progress: Progress,
@@ -286,8 +290,8 @@ fn bake_character(
         blocked_skeletons: blocked_skeletons(model, opts.bake_proxy),
         blocked_attrs: blocked_attrs(model),
         provenance: Provenance {
-            input: std::fs::canonicalize(&ch.reader.file)
-                .unwrap_or_else(|_| ch.reader.file.clone())
+            input: std::fs::canonicalize(input)
+                .unwrap_or_else(|_| input.to_path_buf())
                 .to_string_lossy()
                 .into_owned(),
             frames: frames_text(&times, opts.frames),

@@ -56,6 +56,10 @@ struct Source {
     text: Option<Vec<u8>>,
     /// How errors name it: the path, or the layer's identifier.
     name: String,
+    /// The file it stands for: the path, or the file of a layer whose text
+    /// is served elsewhere (an edited `x.usdc` is read as `x.usdc.usda`).
+    /// A bake records it and refuses to write over it.
+    stands_for: PathBuf,
 }
 
 impl Source {
@@ -63,6 +67,7 @@ impl Source {
         if let Ok(p) = obj.extract::<PathBuf>() {
             let name = p.display().to_string();
             return Ok(Source {
+                stands_for: p.clone(),
                 path: p,
                 text: None,
                 name,
@@ -89,8 +94,10 @@ impl Source {
             // a farm reads, with the file's stamp), not the layer's text,
             // which may predate the file on disk.
             if !anonymous && !dirty && !format_args && !real.is_empty() && Path::new(&real).is_file() {
+                refuse_unsaved_inputs(obj.py(), &identifier, || StageReader::open(Path::new(&real)))?;
                 return Ok(Source {
                     path: PathBuf::from(&real),
+                    stands_for: PathBuf::from(&real),
                     text: None,
                     name: real,
                 });
@@ -105,8 +112,15 @@ impl Source {
             } else {
                 PathBuf::from(format!("{real}.usda"))
             };
+            refuse_unsaved_inputs(obj.py(), &identifier, || Source::open_text(text.as_bytes(), &path))?;
+            let stands_for = if real.is_empty() {
+                path.clone()
+            } else {
+                PathBuf::from(&real)
+            };
             return Ok(Source {
                 path,
+                stands_for,
                 text: Some(text.into_bytes()),
                 name: identifier,
             });
@@ -166,7 +180,9 @@ impl Source {
 
     /// Errors name the layer's identifier, not where its text was served.
     fn name_in(&self, mut e: painterly::Error) -> painterly::Error {
-        if self.text.is_some() && e.file.as_deref() == Some(self.path.as_path()) {
+        if self.text.is_some()
+            && (e.file.as_deref() == Some(self.path.as_path()) || e.file.as_deref() == Some(self.stands_for.as_path()))
+        {
             e.file = Some(PathBuf::from(&self.name));
         }
         e.message = self.rename(&e.message);
@@ -225,6 +241,53 @@ fn refuse_unsaved_dependencies(layer: &Bound<'_, PyAny>, identifier: &str) -> Py
         }
     }
     Ok(())
+}
+
+/// Fails when a layer open in this session with unsaved edits is one of the
+/// files the input reads (other than the input's own layer, whose text is
+/// read): painterly reads it from its file, so the edits would be ignored.
+/// [`refuse_unsaved_dependencies`] walks only layers open in the session;
+/// this finds one composed through a layer that is not. The input is read
+/// (its files listed) only when some layer is dirty.
+fn refuse_unsaved_inputs(
+    py: Python<'_>,
+    identifier: &str,
+    open: impl FnOnce() -> painterly::Result<StageReader>,
+) -> PyResult<()> {
+    let sdf = py.import("pxr.Sdf")?;
+    let mut dirty = Vec::new();
+    for layer in sdf.getattr("Layer")?.call_method0("GetLoadedLayers")?.try_iter()? {
+        let layer = layer?;
+        let anonymous = layer.getattr("anonymous")?.extract::<bool>().unwrap_or(true);
+        if anonymous || !layer.getattr("dirty")?.extract::<bool>().unwrap_or(false) {
+            continue;
+        }
+        let id: String = layer.getattr("identifier")?.extract()?;
+        let file: String = layer.getattr("realPath")?.extract().unwrap_or_default();
+        if id == identifier || file.is_empty() {
+            continue;
+        }
+        if let Ok(canonical) = Path::new(&file).canonicalize() {
+            dirty.push((canonical, id));
+        }
+    }
+    if dirty.is_empty() {
+        return Ok(());
+    }
+    let reader = open().map_err(|e| to_py(py, e))?;
+    let files = painterly::usd_io::clips::input_files(&reader);
+    match dirty.into_iter().find(|(f, _)| files.contains(f)) {
+        None => Ok(()),
+        Some((_, dep)) => Err(to_py(
+            py,
+            painterly::Error::msg(format!(
+                "a layer with unsaved edits that {identifier} composes (through layers not open here): painterly \
+                 reads composed layers from their files, so the edits would be ignored; save it, or pass \
+                 stage.Flatten() instead"
+            ))
+            .in_file(Path::new(&dep)),
+        )),
+    }
 }
 
 /// How the library's messages name a CLI option, and how Python names it
@@ -365,7 +428,7 @@ fn bake(
         }
     };
     let run = || {
-        let summary = bake_with(&src.path, &out_path, &opts, &report, || src.open_mapped())?;
+        let summary = bake_with(&src.stands_for, &out_path, &opts, &report, || src.open_mapped())?;
         let text = match &temp {
             Some(_) => Some(
                 std::fs::read_to_string(&out_path)
