@@ -63,6 +63,10 @@ impl AnimJoints {
         if let Some(h) = self.half_scales_between_samples(t)? {
             sc = Value::Vec3hVec(h);
         }
+        let rot = match self.rotations_between_samples(t)? {
+            Some(q) => Value::QuatfVec(q),
+            None => rot,
+        };
         let kinds = [values::kind_name(&tr), values::kind_name(&rot), values::kind_name(&sc)];
         let cast = (
             tr.cast::<Vec<gf::Vec3f>>().ok(),
@@ -100,6 +104,36 @@ impl AnimJoints {
 }
 
 impl AnimJoints {
+    /// `quatf[]` rotations between two samples as usd-core interpolates them
+    /// (GfSlerp in float: the shorter way round, a plain lerp when
+    /// 1 − cos θ ≤ 1e-5, never normalised). openusd normalises a nearly
+    /// parallel pair, which moves a quaternion not of unit length (as
+    /// exporters write them) by up to its excess length. None where that
+    /// does not apply.
+    fn rotations_between_samples(&self, t: f64) -> Result<Option<Vec<gf::Quatf>>> {
+        let times = self
+            .rotations
+            .times()
+            .map_err(|e| Error::attr(&self.path, "rotations", format!("cannot read time samples: {e}")))?;
+        let Some(i) = times.windows(2).position(|w| w[0] < t && t < w[1]) else {
+            return Ok(None);
+        };
+        let (t0, t1) = (times[i], times[i + 1]);
+        let sample = |at: f64| {
+            self.rotations
+                .get_at(at)
+                .map_err(|e| Error::attr(&self.path, "rotations", format!("cannot read at time {at}: {e}")))
+        };
+        let (Some(Value::QuatfVec(a)), Some(Value::QuatfVec(b))) = (sample(t0)?, sample(t1)?) else {
+            return Ok(None);
+        };
+        if a.len() != b.len() {
+            return Ok(None);
+        }
+        let alpha = (t - t0) / (t1 - t0);
+        Ok(Some(a.iter().zip(&b).map(|(a, b)| gf_slerp(alpha, a, b)).collect()))
+    }
+
     /// `half3[]` scales between two samples as usd-core interpolates them:
     /// `(1 − α)·a + α·b` in GfVec3h arithmetic, each product and the sum
     /// rounded to half (openusd rounds once; they differ by up to ~1e-4 of
@@ -140,6 +174,33 @@ impl AnimJoints {
                 })
                 .collect(),
         ))
+    }
+}
+
+/// GfSlerp of two `GfQuatf`s as usd-core computes it (see
+/// [`AnimJoints::rotations_between_samples`]).
+fn gf_slerp(alpha: f64, a: &gf::Quatf, b: &gf::Quatf) -> gf::Quatf {
+    let mut cos = (a.w * b.w + a.x * b.x + a.y * b.y + a.z * b.z) as f64;
+    let flip = cos < 0.0;
+    if flip {
+        cos = -cos;
+    }
+    let (s0, mut s1) = if 1.0 - cos > 1e-5 {
+        let theta = cos.acos();
+        let sin = theta.sin();
+        (((1.0 - alpha) * theta).sin() / sin, (alpha * theta).sin() / sin)
+    } else {
+        (1.0 - alpha, alpha)
+    };
+    if flip {
+        s1 = -s1;
+    }
+    let (s0, s1) = (s0 as f32, s1 as f32);
+    gf::Quatf {
+        w: s0 * a.w + s1 * b.w,
+        x: s0 * a.x + s1 * b.x,
+        y: s0 * a.y + s1 * b.y,
+        z: s0 * a.z + s1 * b.z,
     }
 }
 
