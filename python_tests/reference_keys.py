@@ -228,7 +228,9 @@ def raw_axis_value(stage, axis_prim, frame):
         name = authored(axis_prim, "name")
         joints = list(skel.GetJointsAttr().Get())
         j = joints.index(name)
-        q_rest = row_matrix_to_quat(_m(skel.GetRestTransformsAttr().Get()[j]))
+        # usd-core's split of the rest transform (a mirroring one included)
+        rest_rot = UsdSkel.DecomposeTransform(skel.GetRestTransformsAttr().Get()[j])[1]
+        q_rest = np.array([rest_rot.GetReal(), *rest_rot.GetImaginary()])
         q = q_rest
         # usd-core's rule: on the Skeleton or inherited from any ancestor
         src = UsdSkel.BindingAPI(skel_prim).GetInheritedAnimationSource()

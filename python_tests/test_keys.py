@@ -283,6 +283,54 @@ def test_joint_axis_reads_an_animation_inherited_from_the_skel_root(tmp_path):
     _check(bake_and_expect(rig, tmp_path), [lp])
 
 
+def test_joint_axis_reads_zero_for_a_mirrored_joint_held_at_rest(tmp_path):
+    """A mirrored rest transform (scale -1 on x, as mirrored limbs export)
+    whose animation holds UsdSkel.DecomposeTransform of it: usd-core poses
+    the joint exactly at rest, so the axis reads 0 (SPEC §4). glam split the
+    rest as scale (-1, 1, 1) and no rotation, the animation as a half turn
+    with scale (-1, -1, -1), and the axis read pi (a keys review, 2026-12-06)."""
+    from pxr import Gf, UsdSkel, Vt
+
+    rig = Au.build_skel_rig(tmp_path / "mirror.usda", n_strokes=3)
+    stage = Usd.Stage.Open(str(rig.path))
+    skel = UsdSkel.Skeleton(stage.GetPrimAtPath(SKEL))
+    joints = list(skel.GetJointsAttr().Get())
+    joint = "root/mid/tip"
+    rest = list(skel.GetRestTransformsAttr().Get())
+    mirrored = Gf.Matrix4d().SetScale(Gf.Vec3d(-1, 1, 1)) * rest[joints.index(joint)]
+    rest[joints.index(joint)] = mirrored
+    skel.GetRestTransformsAttr().Set(rest)
+    tr, rot, sc = UsdSkel.DecomposeTransform(mirrored)
+    anim = UsdSkel.Animation(stage.GetPrimAtPath(ANIM))
+    k = list(anim.GetJointsAttr().Get()).index(joint)
+    for name, value in (("translations", Gf.Vec3f(tr)), ("rotations", Gf.Quatf(rot)), ("scales", Gf.Vec3h(sc))):
+        attr = anim.GetPrim().GetAttribute(name)
+        for t in attr.GetTimeSamples() or [Usd.TimeCode.Default()]:
+            v = list(attr.Get(t))
+            v[k] = value
+            attr.Set(type(attr.Get(t))(v), t)
+    ap = str(AK.add_axis(stage, f"{rig.rig}/tip", "jointRotation", source=SKEL, name=joint, component=0).GetPath())
+    rng = np.random.default_rng(6)
+    lp = f"{rig.rig}/L_tip"
+    AK.add_layer(stage, rig, lp, rng, n_strokes=3)
+    AK.set_layer_axes(stage, lp, [ap])
+    AK.add_pose_key(stage, lp, "atRest", [0.0], opacity=1.0)
+    AK.add_pose_key(stage, lp, "halfTurn", [math.pi], opacity=0.0)
+    stage.GetRootLayer().Save()
+    cache = UsdSkel.Cache()
+    stage = Usd.Stage.Open(str(rig.path))
+    cache.Populate(UsdSkel.Root(stage.GetPrimAtPath("/World/Character")), Usd.PrimDefaultPredicate)
+    query = cache.GetSkelQuery(UsdSkel.Skeleton(stage.GetPrimAtPath(SKEL)))
+    assert Gf.IsClose(Gf.Matrix4d(query.ComputeJointLocalTransforms(5.0)[joints.index(joint)]), mirrored, 1e-5)
+    assert np.allclose(RK.axis_values_over(rig.path, [ap], [1.0, 5.0, 12.0])[ap], 0.0, atol=1e-6)
+    out = tmp_path / "bake.usdc"
+    run_painterly("bake", rig.path, "-o", out, "--frames", "1:12", "--quiet")
+    comp = Au.compose(rig.path, out)
+    for t in (1.0, 5.0, 12.0):
+        op = UsdGeom.PrimvarsAPI(comp.GetPrimAtPath(lp)).GetPrimvar("displayOpacity").Get(t)
+        assert np.allclose(np.asarray(op), 1.0, atol=1e-6), (t, op)
+
+
 def test_points_proxy_position_and_view_axes(tmp_path):
     """A proxy with time-sampled points under an animated transform (not
     skinned): position and viewDirection measured in its local space, bbox

@@ -380,7 +380,12 @@ fn anim_query(r: &StageReader, axis: &str, path: &str) -> Result<Option<SkelAnim
 
 /// Rotation of a (possibly scaled) joint-local matrix.
 fn rotation_of(m: &DMat4) -> DQuat {
-    let (_, r, _) = m.to_scale_rotation_translation();
+    // A mirroring matrix splits as UsdSkelDecomposeTransform (GfMatrix4d's
+    // Factor) splits it, the split an animation holding the joint at rest
+    // stores: all three scales negative, so the rotation is that of -M.
+    let m3 = glam::DMat3::from_mat4(*m);
+    let m3 = if m3.determinant() < 0.0 { -m3 } else { m3 };
+    let (_, r, _) = DMat4::from_mat3(m3).to_scale_rotation_translation();
     r.normalize()
 }
 
