@@ -88,9 +88,60 @@ pub struct EditSession {
     crate_source: Option<super::usdc::CrateSource>,
     /// The header a new edit layer is opened from; removed on drop.
     _scratch: Option<ScratchFile>,
+    /// The existing file the edit replaces, locked and as it was read.
+    guard: Option<TargetGuard>,
     /// Prim specs defined, and attribute specs set, in order.
     prims: RefCell<Vec<String>>,
     attrs: RefCell<Vec<(String, String)>>,
+}
+
+/// What tells one version of a file from another: device, inode (a save
+/// through a rename makes a new one), size and modification time.
+type FileId = (u64, u64, u64, Option<std::time::SystemTime>);
+
+fn file_id(path: &Path) -> Option<FileId> {
+    use std::os::unix::fs::MetadataExt;
+    let m = std::fs::metadata(path).ok()?;
+    Some((m.dev(), m.ino(), m.len(), m.modified().ok()))
+}
+
+/// An existing file an edit replaces: locked (`flock`) against other
+/// painterly edits of it while the edit runs, and its [`FileId`] taken
+/// before it is read and checked again just before the write, so that an
+/// edit never replaces a version of the file it did not read (two edits at
+/// once each kept only its own change).
+struct TargetGuard {
+    _lock: std::fs::File,
+    read: FileId,
+}
+
+impl TargetGuard {
+    fn take(path: &Path) -> Result<TargetGuard> {
+        use std::os::fd::AsRawFd;
+        let read = file_id(path);
+        let lock = std::fs::File::open(path).map_err(|e| Error::msg(format!("cannot open: {e}")).in_file(path))?;
+        // SAFETY: flock on a file descriptor this function owns.
+        if unsafe { libc::flock(lock.as_raw_fd(), libc::LOCK_EX | libc::LOCK_NB) } != 0 {
+            return Err(Error::msg(
+                "another painterly edit of this file is running: run this one when it has finished",
+            )
+            .in_file(path));
+        }
+        match read {
+            Some(read) if file_id(path) == Some(read) => Ok(TargetGuard { _lock: lock, read }),
+            _ => Err(Error::msg("the file changed while it was read; run the edit again").in_file(path)),
+        }
+    }
+
+    fn check_unchanged(&self, path: &Path) -> Result<()> {
+        if file_id(path) == Some(self.read) {
+            return Ok(());
+        }
+        Err(Error::msg(
+            "the file changed since this edit read it (saved by another program?); nothing was written: run the edit again",
+        )
+        .in_file(path))
+    }
 }
 
 /// The path to write in `subLayers` for `input`, seen from `edit_dir`:
@@ -175,6 +226,14 @@ fn require_over(reader: &StageReader, input: &Path, edit: &Path) -> Result<()> {
 impl EditSession {
     /// Opens `input` for editing into `target`.
     pub fn open(input: &Path, target: &EditTarget) -> Result<EditSession> {
+        // The file to replace is locked and identified before anything reads it.
+        let guard = match target {
+            EditTarget::InPlace if input.is_file() => Some(TargetGuard::take(input)?),
+            EditTarget::Layer(edit) if edit.is_file() && !super::stage::same_file(input, edit) => {
+                Some(TargetGuard::take(edit)?)
+            }
+            _ => None,
+        };
         let input_stamp = stamp(input);
         // Reading the input first gives its own errors (missing, unreadable).
         let input_reader = StageReader::open(input)?;
@@ -183,6 +242,7 @@ impl EditSession {
         input_reader.require_resolved().map_err(|e| e.in_file(input))?;
         let input_meta = input_reader.metadata();
         let session = |reader, target: &Path, original_text, crate_source, scratch| EditSession {
+            guard,
             reader,
             input_meta: input_meta.clone(),
             target: target.to_path_buf(),
@@ -362,6 +422,9 @@ impl EditSession {
     /// docs); an edit that cannot be written without changing anything else
     /// is refused and the file is left untouched.
     pub fn save(self) -> Result<()> {
+        if let Some(guard) = &self.guard {
+            guard.check_unchanged(&self.target)?;
+        }
         let root = self.reader.stage.root_layer();
         let Some(text) = &self.original_text else {
             // Not a usda target: a crate file, from painterly's crate writer.
