@@ -197,9 +197,21 @@ def test_high_dimensional_layout():
         ({"method": "shepard", "keys": [[0.0], [1.0]], "points": [[0.0, 1.0]]}, "point 0"),
         ({"method": "rbf", "radius": 0.0, "keys": [[0.0], [1.0]], "points": []}, "radius"),
         ({"method": "shepard", "keys": [], "points": []}, "no keys"),
+        # Found by an interpolation review (2026-12-06), each exit 0 before:
+        # a radius 100 times the spacing gave weights summing to 0.48 at a key,
+        ({"method": "rbf", "radius": 100.0, "keys": [[0.0], [0.25], [0.5], [0.75], [1.0]], "points": [[0.25]]},
+         "RBF weights cannot be solved accurately: the kernel radius is too wide"),
+        # a point 1e160 away printed null weights (the schema wants numbers),
+        ({"method": "smoothVoronoi", "keys": [[0.0], [1.0], [3.0]], "points": [[1e160]]},
+         "point 0 is too far from the keys to weigh"),
+        # keys without coordinates were "no keys",
+        ({"method": "shepard", "keys": [[], []], "points": []}, "the keys have no coordinates"),
+        # and 1,000 keys would take minutes to set up, without a word.
+        ({"method": "shepard", "keys": [[float(i)] for i in range(301)], "points": []},
+         "301 keys; painterly interpolates at most 300"),
     ],
 )
 def test_errors_name_the_problem(payload, needle):
     proc = interpolate(payload, check=False)
-    assert proc.returncode != 0
+    assert proc.returncode == 1
     assert needle in proc.stderr

@@ -546,6 +546,9 @@ fn _interpolate<'py>(
     if dq != d {
         return Err(msg_err(py, format!("queries have {dq} coordinates, the keys have {d}")));
     }
+    if n > 0 && d == 0 {
+        return Err(msg_err(py, "the keys have no coordinates"));
+    }
     let keys = keys.as_slice()?.to_vec();
     let values = values.as_slice()?.to_vec();
     let queries = queries.as_slice()?.to_vec();
@@ -554,7 +557,11 @@ fn _interpolate<'py>(
         let mut w = vec![0.0; n];
         let mut out = vec![0.0; m * k];
         for q in 0..m {
-            interp.weights(&queries[q * d..(q + 1) * d], &mut w);
+            let x = &queries[q * d..(q + 1) * d];
+            interp.weights(x, &mut w);
+            if let Some(problem) = painterly::interp::query_problem(x, &w) {
+                return Err(format!("query {q} {problem}"));
+            }
             let row = &mut out[q * k..(q + 1) * k];
             for (i, &wi) in w.iter().enumerate() {
                 for (o, &v) in row.iter_mut().zip(&values[i * k..(i + 1) * k]) {

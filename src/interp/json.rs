@@ -39,6 +39,9 @@ pub fn run_json(input: &str) -> Result<String, String> {
         )
     })?;
     let dim = req.keys.first().map_or(0, Vec::len);
+    if !req.keys.is_empty() && dim == 0 {
+        return Err("the keys have no coordinates".into());
+    }
     if let Some((k, key)) = req.keys.iter().enumerate().find(|(_, k)| k.len() != dim) {
         return Err(format!("key {k} has {} coordinates, key 0 has {dim}", key.len()));
     }
@@ -52,7 +55,11 @@ pub fn run_json(input: &str) -> Result<String, String> {
                 point.len()
             ));
         }
-        weights.push(interp.weights_vec(point));
+        let w = interp.weights_vec(point);
+        if let Some(problem) = super::query_problem(point, &w) {
+            return Err(format!("point {p} {problem}"));
+        }
+        weights.push(w);
     }
     serde_json::to_string(&Output { weights }).map_err(|e| format!("cannot write output: {e}"))
 }

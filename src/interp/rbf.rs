@@ -47,6 +47,10 @@ fn normalized_gaussians(r: &[f64], inv_r2: f64, psi: &mut [f64]) {
     psi.iter_mut().for_each(|p| *p /= sum);
 }
 
+/// Largest entry of N·N⁻¹ − I accepted: weights then match δ_ij at the
+/// keys, and sum to 1, to about this much.
+const SOLVE_TOLERANCE: f64 = 1e-9;
+
 impl Rbf {
     /// Builds N from the squared key distances `sq` (n×n) and inverts it.
     pub(crate) fn new(n: usize, sq: &[f64], radius: f64) -> Result<Self, InterpError> {
@@ -60,8 +64,15 @@ impl Rbf {
                 nmat[(j, i)] = psi[i];
             }
         }
-        let inv = nmat.try_inverse().ok_or(InterpError::SingularSystem)?;
+        let inv = nmat.clone().try_inverse().ok_or(InterpError::SingularSystem)?;
         if inv.iter().any(|v| !v.is_finite()) {
+            return Err(InterpError::SingularSystem);
+        }
+        // An inverse found but wrong (a wide radius makes N nearly singular,
+        // cond 1e16 at 100× the spacing) gives weights that neither sum to 1
+        // nor equal δ_ij at the keys: refuse it rather than bake with it.
+        let residual = (&nmat * &inv - DMatrix::<f64>::identity(n, n)).amax();
+        if residual.is_nan() || residual > SOLVE_TOLERANCE {
             return Err(InterpError::SingularSystem);
         }
         let mut ninv = vec![0.0; n * n];
@@ -146,6 +157,24 @@ mod tests {
             }
             Err(e) => assert_eq!(e, super::InterpError::SingularSystem),
         }
+    }
+
+    #[test]
+    fn a_radius_too_wide_to_solve_accurately_is_refused() {
+        // Five keys a quarter apart, radius 100: N's condition number is
+        // about 4e16, and the inverse nalgebra finds gave weights at key 1
+        // summing to 0.48 (a review, 2026-12-06).
+        let keys = [0.0, 0.25, 0.5, 0.75, 1.0];
+        assert_eq!(
+            Interpolator::new(Method::Rbf { radius: 100.0 }, 1, &keys).err(),
+            Some(super::super::InterpError::SingularSystem)
+        );
+        let ok = Interpolator::new(Method::Rbf { radius: 0.25 }, 1, &keys).unwrap();
+        let w = ok.weights_vec(&[0.25]);
+        assert!(
+            (w[1] - 1.0).abs() < 1e-9 && (w.iter().sum::<f64>() - 1.0).abs() < 1e-9,
+            "{w:?}"
+        );
     }
 
     #[test]
