@@ -16,7 +16,7 @@ import pytest
 from PIL import Image
 from pxr import Gf, Sdf, Usd, UsdGeom, Vt
 
-from conftest import REPO, painterly_binary
+from conftest import REPO, painterly_binary, run_painterly
 from preview_helpers import PreviewServer, WebSocket, WebSocketRefused, decode_frame
 
 FISH = REPO / "fixtures" / "blowfish.usda"
@@ -277,10 +277,11 @@ def assert_strokes_come_from_the_stage(server, stage, never_drawn=()):
         prim = stage.GetPrimAtPath(info["path"])
         curves = UsdGeom.BasisCurves(prim)
         widths = np.array(curves.GetWidthsAttr().Get(), dtype=np.float32)
-        scale = np.cbrt(abs(np.linalg.det(np.array(UsdGeom.Xformable(prim).ComputeLocalToWorldTransform(scene["start"]))[:3, :3])))
+        # In the layer's own space: the page scales them by each frame's
+        # transform (docs/preview.md).
         got = arrays[f"layer/{i}/widths"]
         if len(widths) == len(got):
-            np.testing.assert_allclose(got, widths * scale, rtol=1e-5, err_msg=info["path"])
+            np.testing.assert_allclose(got, widths, rtol=1e-6, err_msg=info["path"])
         colours = np.array(UsdGeom.PrimvarsAPI(prim).GetPrimvar("displayColor").Get(), dtype=np.float32)
         per_point = np.repeat(colours, info["curve_counts"], axis=0)
         np.testing.assert_allclose(arrays[f"layer/{i}/colors"].reshape(-1, 3), per_point, rtol=1e-6, err_msg=info["path"])
@@ -323,7 +324,8 @@ def test_scene_and_frame_headers_hold_exactly_the_documented_keys(tmp_path):
         }
         assert set(scene["view"]) == {"position", "target", "up", "fov_y", "aspect", "camera"}
         live, _ = s.frame(id=5, time=1)
-        assert set(live) == {"id", "time", "eye", "configuration", "weights", "hidden", "timing", "arrays"}
+        assert set(live) == {"id", "time", "eye", "configuration", "weights", "hidden", "stale", "timing", "arrays"}
+        assert live["stale"] is None
         assert set(live["timing"]) == {"read_ms", "evaluate_ms", "encode_ms", "total_ms"}
         baked, _ = s.frame(id=6, time=1, bake=True)
         assert set(baked) == {"id", "time", "source", "hidden", "timing", "arrays"}
@@ -938,3 +940,139 @@ def test_host_takes_localhost_and_every_address_prints_an_openable_url(host, sho
         assert s.scene()["file"] == str(FISH)
     r = subprocess.run([str(painterly_binary()), "preview", str(FISH), "--host", "example.com"], capture_output=True, text=True, timeout=60)
     assert r.returncode == 2 and "\"example.com\" is not an IP address (or localhost)" in r.stderr
+
+
+def test_stroke_widths_follow_an_animated_scale(tmp_path):
+    """Widths were sent in world units at the start frame and drawn so at
+    every frame: with /Blowfish scaled 1 → 3 over the shot, a Spots stroke
+    drew 0.105 wide at frame 48 where render draws 0.315 (a preview review,
+    2026-12-06). They are sent in the layer's own space now, and the page
+    scales them by each frame's layer transform, as render does: the two
+    together give usd-core's widths times the world scale at that frame."""
+    src = tmp_path / "fish.usda"
+    shutil.copy(FISH, src)
+    stage = Usd.Stage.Open(str(src))
+    op = UsdGeom.Xformable(stage.GetPrimAtPath("/Blowfish")).AddScaleOp(opSuffix="grow")
+    op.Set(Gf.Vec3f(1, 1, 1), 1)
+    op.Set(Gf.Vec3f(3, 3, 3), 48)
+    stage.GetRootLayer().Save()
+    with PreviewServer(src) as server:
+        scene = server.scene()
+        _, statics = decode_frame(server.request("api/strokes")[2])
+        _, arrays = server.frame(time=48)
+        for i, info in enumerate(scene["layers"]):
+            prim = stage.GetPrimAtPath(info["path"])
+            widths = np.array(UsdGeom.BasisCurves(prim).GetWidthsAttr().Get(), dtype=np.float64)
+            world = np.array(UsdGeom.Xformable(prim).ComputeLocalToWorldTransform(48))[:3, :3]
+            want = widths * np.cbrt(abs(np.linalg.det(world)))
+            xform = np.asarray(arrays[f"layer/{i}/xform"], dtype=np.float64).reshape(4, 4)[:3, :3]
+            drawn = np.asarray(statics[f"layer/{i}/widths"]) * np.cbrt(abs(np.linalg.det(xform)))
+            if len(widths) == len(drawn):
+                np.testing.assert_allclose(drawn, want, rtol=1e-5, err_msg=info["path"])
+
+
+# ---------------------------------------------------------------------------
+# found by a preview review (2026-12-06)
+
+
+def test_a_guide_proxy_with_only_time_sampled_points_and_a_rest_time_is_served(tmp_path):
+    """bake and inspect accept it (SPEC §2: the rest pose is read at
+    painterly:restTime); preview refused to start, asking for the restTime
+    that is there, because it read the guide proxy's points for its faces."""
+    src = tmp_path / "wave.usda"
+    shutil.copy(REPO / "fixtures" / "wave.usda", src)
+    stage = Usd.Stage.Open(str(src))
+    proxy = stage.GetPrimAtPath("/Wave/Rig/Proxy")
+    assert proxy.GetAttribute("purpose").Get() == "guide"
+    proxy.GetAttribute("points").ClearDefault()
+    stage.GetRootLayer().Save()
+    with PreviewServer(src) as server:
+        scene = server.scene()
+        counts = UsdGeom.Mesh(proxy).GetFaceVertexCountsAttr().Get()
+        assert [p["face_counts"] for p in scene["proxies"]] == [list(counts)]
+
+
+def test_the_start_view_looks_where_the_camera_looks(tmp_path):
+    """docs/preview.md: the orbit starts at --camera, its pose and field of
+    view. It kept the position but aimed at the scene's centre, 12.7° off a
+    camera aimed past the fish."""
+    src = tmp_path / "fish.usda"
+    shutil.copy(FISH, src)
+    stage = Usd.Stage.Open(str(src))
+    cam = UsdGeom.Camera.Define(stage, "/Cam")
+    cam.AddTranslateOp().Set(Gf.Vec3d(4, 6, 22))
+    cam.AddRotateXYZOp().Set(Gf.Vec3f(-8, 25, 0))
+    stage.GetRootLayer().Save()
+    forward = np.array(UsdGeom.Xformable(stage.GetPrimAtPath("/Cam")).ComputeLocalToWorldTransform(1)
+                       .TransformDir(Gf.Vec3d(0, 0, -1)))
+    with PreviewServer(src, "--camera", "/Cam") as server:
+        view = server.scene()["view"]
+    aim = np.array(view["target"]) - np.array(view["position"])
+    np.testing.assert_allclose(view["position"], [4, 6, 22], atol=1e-9)
+    np.testing.assert_allclose(aim / np.linalg.norm(aim), forward / np.linalg.norm(forward), atol=1e-9)
+
+
+@pytest.mark.parametrize("method, path, body, status, needle", [
+    ("GET", "api/frame", None, 405, "this address does not take that method"),
+    ("POST", "api/scene", {}, 405, "this address does not take that method"),
+    ("POST", "api/frame", {"time": 1, "pad": "x" * 3_000_000}, 413, "the request body is over the 2 MB limit"),
+])
+def test_errors_axum_answers_itself_are_json_too(fish, method, path, body, status, needle):
+    """They were plain text (413) or empty (405), unlike every other error."""
+    got, headers, data = fish.request(path, body=body, method=method)
+    assert got == status
+    assert json.loads(data) == {"error": needle} or needle in json.loads(data)["error"]
+
+
+def test_a_character_preview_cannot_open_names_its_file(tmp_path):
+    """An error after the character opened (an axis needing a camera) named
+    no file."""
+    src = tmp_path / "head.usda"
+    shutil.copy(REPO / "fixtures" / "head.usda", src)
+    stage = Usd.Stage.Open(str(src))
+    stage.GetPrimAtPath("/Head/Paint/viewX").GetRelationship("source").SetTargets([])
+    stage.GetRootLayer().Save()
+    proc = subprocess.run([str(painterly_binary()), "preview", str(src), "--port", "0"], capture_output=True,
+                          text=True, timeout=60)
+    assert proc.returncode == 1
+    assert proc.stderr.startswith(f"error: {src}: /Head/Paint/viewX.source:"), proc.stderr
+
+
+def test_a_closed_stdout_leaves_no_temporary_folder(tmp_path):
+    """With --bake, preview makes a folder in TMPDIR before it prints its
+    URL; a stdout whose reader had gone ended the run at that print (exit
+    141) and left the folder."""
+    bake = tmp_path / "bake.usdc"
+    run_painterly("bake", FISH, "-o", bake, "--quiet")
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    r, w = os.pipe()
+    os.close(r)
+    proc = subprocess.Popen([str(painterly_binary()), "preview", str(FISH), "--port", "0", "--bake", str(bake)],
+                            stdout=w, stderr=subprocess.PIPE, env=dict(os.environ, TMPDIR=str(tmp)))
+    os.close(w)
+    try:
+        code = proc.wait(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert code == 141, proc.stderr.read()
+    assert list(tmp.iterdir()) == []
+
+
+def test_a_frame_says_when_the_input_changed_on_disk(tmp_path):
+    """The server reads the input once: an edit saved while it runs was not
+    shown, and nothing said so (a preview review, 2026-12-06). Every live
+    frame now carries `stale`, a message once a file the input reads has
+    changed."""
+    src = tmp_path / "fish.usda"
+    shutil.copy(FISH, src)
+    with PreviewServer(src) as server:
+        header, _ = server.frame(time=24)
+        assert header["stale"] is None
+        layer = Sdf.Layer.FindOrOpen(str(src))
+        layer.customLayerData = {"edited": True}
+        layer.Save()
+        header, _ = server.frame(time=24)
+        assert header["stale"] == ("the input changed on disk since this preview opened it: "
+                                   "restart `painterly preview` to see the edits")

@@ -22,6 +22,8 @@ fn main() {
         // run quietly, as SIGPIPE ends Unix tools: exit 128 + 13. Any other
         // such failure (a full disk) is a failed write, not a bug: exit 1.
         if msg.starts_with("failed printing to") {
+            // exit() runs no destructors: the temporaries go first.
+            painterly::usd_io::atomic::remove_all_temporaries();
             if msg.contains("Broken pipe") {
                 std::process::exit(141);
             }

@@ -25,7 +25,7 @@ use crate::render::curves::Primvar;
 use crate::render::prepare::MeshData;
 use crate::render::{check_bake, render_png, write_root, ImageSize, TempDir};
 use crate::usd_io::render_scene::{RenderScene, DEFAULT_COLOR, DEFAULT_WIDTH};
-use crate::usd_io::scene::read_mesh;
+use crate::usd_io::scene::check_face_counts;
 use crate::usd_io::stage::StageReader;
 use crate::usd_io::values;
 
@@ -73,7 +73,7 @@ impl Evaluator {
                         state
                     }
                     Err(e) => {
-                        let _ = ready_tx.send(Err(e));
+                        let _ = ready_tx.send(Err(e.in_file(&input)));
                         return;
                     }
                 };
@@ -127,6 +127,10 @@ struct State {
     proxies: Vec<String>,
     /// The `--bake` layer composed over the input.
     bake: Option<Bake>,
+    /// The input's files as opened ([`crate::usd_io::clips::input_stamp`]):
+    /// the server reads them once, so an edit saved later is not shown, and
+    /// every frame says so.
+    opened: String,
 }
 
 /// Server-side timings of one frame, milliseconds.
@@ -259,7 +263,8 @@ fn axis_info(
     })
 }
 
-/// The strokes' widths and colours, read once (world-space widths, linear
+/// The strokes' widths and colours, read once (widths in each layer's own
+/// space, which the page scales by the frame's `layer/{i}/xform`; linear
 /// colours), as one binary buffer; read from layers hidden at `start` too,
 /// which may show later (each frame says which are hidden).
 fn stroke_buffer(r: &StageReader, drawables: &RenderScene, start: f64, layer_infos: &[LayerInfo]) -> Result<Vec<u8>> {
@@ -287,6 +292,7 @@ impl State {
     fn open(input: &Path, camera: Option<&str>, bake: Option<&Path>) -> Result<(State, SceneInfo, Vec<u8>)> {
         let ch = Character::open(input, camera)?;
         let r = &ch.reader;
+        let opened = crate::usd_io::clips::input_stamp(r)?;
         let meta = r.metadata();
         let start = meta.start_time_code.unwrap_or(0.0);
         let end = meta.end_time_code.unwrap_or(start).max(start);
@@ -379,6 +385,7 @@ impl State {
             drawables,
             ch,
             bake,
+            opened,
         };
         let out = state.evaluate(&FrameRequest {
             id: 0,
@@ -410,7 +417,10 @@ impl State {
     }
 
     fn run(&self, job: Job) {
+        // A job whose client has gone (its reply dropped) is skipped: the
+        // frames queued behind it are the ones still wanted.
         match job {
+            Job::Frame(_, reply) | Job::Render(_, reply) if reply.is_closed() => {}
             Job::Frame(req, reply) => {
                 let _ = reply.send(guarded(|| self.frame(&req)));
             }
@@ -508,8 +518,19 @@ impl State {
             "configuration": configuration,
             "weights": weights,
             "hidden": self.hidden(t)?,
+            "stale": self.stale(),
             "timing": timing,
         })))
+    }
+
+    /// Why the frame may not show the input as it is on disk now: a file it
+    /// reads changed since the preview opened it. `None` when none did.
+    fn stale(&self) -> Option<String> {
+        let now = crate::usd_io::clips::input_stamp(&self.ch.reader).ok()?;
+        (now != self.opened).then(|| {
+            "the input changed on disk since this preview opened it: restart `painterly preview` to see the edits"
+                .into()
+        })
     }
 
     /// The `--bake` layer's frame at `req.time`, read through the input
@@ -697,12 +718,23 @@ fn mesh_info(r: &StageReader, path: &str, drawn: &[MeshData], camera: Option<Str
             camera,
         });
     }
-    // Not drawn by a renderer (a guide proxy): topology only.
-    let mesh = read_mesh(r, r.require_prim(path)?, None)?;
+    // Not drawn by a renderer (a guide proxy): topology only, which needs
+    // no points (a proxy may have only time samples and a restTime).
+    let prim = r.require_prim(path)?;
+    let counts = r
+        .typed(&prim, "faceVertexCounts", None, "int[]", values::int_array)?
+        .unwrap_or_default();
+    let indices = r
+        .typed(&prim, "faceVertexIndices", None, "int[]", values::int_array)?
+        .unwrap_or_default();
+    check_face_counts(path, &counts, &indices)?;
+    if let Some(bad) = counts.iter().chain(&indices).find(|&&i| i < 0) {
+        return Err(Error::prim(path, format!("negative face count or index {bad}")));
+    }
     Ok(MeshInfo {
         path: path.to_string(),
-        face_counts: mesh.face_counts,
-        face_indices: mesh.face_indices,
+        face_counts: counts.iter().map(|&c| c as u32).collect(),
+        face_indices: indices.iter().map(|&i| i as u32).collect(),
         smooth: true,
         color: DEFAULT_COLOR.to_array(),
         camera,
@@ -719,9 +751,17 @@ fn start_view(cam: Option<&CameraParams>, camera: Option<String>, bounds: &[DVec
         let position = c.camera_to_world.transform_point3(DVec3::ZERO);
         let cam_up = c.camera_to_world.transform_vector3(DVec3::Y).normalize_or_zero();
         let fov_y = 2.0 * (0.5 * c.vertical_aperture / c.focal_length).atan().to_degrees();
+        // Aimed where the camera looks (its -Z), at the scene centre's
+        // distance, so the page starts on the camera's own view.
+        let forward = c.camera_to_world.transform_vector3(DVec3::NEG_Z).normalize_or_zero();
+        let target = if forward == DVec3::ZERO {
+            centre
+        } else {
+            position + forward * (centre - position).length().max(1e-3)
+        };
         return StartView {
             position: position.to_array(),
-            target: centre.to_array(),
+            target: target.to_array(),
             up: if cam_up == DVec3::ZERO { up } else { cam_up }.to_array(),
             fov_y,
             aspect: c.horizontal_aperture / c.vertical_aperture,

@@ -87,8 +87,31 @@ pub fn router(state: Arc<AppState>) -> Router {
         .route("/api/render", post(render))
         .route("/api/ws", get(ws))
         .fallback(|| async { ApiError(StatusCode::NOT_FOUND, "no such page".into()) })
+        .layer(middleware::map_response(json_errors))
         .layer(middleware::from_fn_with_state(state.clone(), check_host))
         .with_state(state)
+}
+
+/// Errors axum answers itself (a method an address does not take, a body
+/// over its 2 MB limit) come as plain text or empty: every error of this
+/// API is JSON `{"error": ...}`, so they are rewritten as such.
+async fn json_errors(resp: Response) -> Response {
+    let status = resp.status();
+    let is_json = resp
+        .headers()
+        .get(header::CONTENT_TYPE)
+        .is_some_and(|v| v.as_bytes().starts_with(b"application/json"));
+    if !(status.is_client_error() || status.is_server_error()) || is_json {
+        return resp;
+    }
+    let message = match status {
+        StatusCode::METHOD_NOT_ALLOWED => {
+            "this address does not take that method (GET /api/scene, GET /api/strokes, POST /api/frame, POST /api/render)".to_string()
+        }
+        StatusCode::PAYLOAD_TOO_LARGE => "the request body is over the 2 MB limit".to_string(),
+        other => other.canonical_reason().unwrap_or("request failed").to_string(),
+    };
+    ApiError(status, message).into_response()
 }
 
 fn page(body: &'static str, content_type: &'static str) -> Response {

@@ -455,13 +455,15 @@ impl RenderScene {
 
     /// Every visible curves prim at `t`, in world space.
     pub fn curves_at(&self, r: &StageReader, t: f64) -> Result<Vec<CurvesData>> {
-        self.read_curves(r, t, true)
+        self.read_curves(r, t, true, true)
     }
 
-    /// Every selected curves prim at `t`, invisible ones too: the preview
-    /// reads widths and colours once, for layers hidden only at that time.
+    /// Every selected curves prim at `t`, invisible ones too, with widths in
+    /// each prim's own space: the preview reads widths and colours once, for
+    /// layers hidden only at that time, and scales the widths by each
+    /// frame's transform (an animated scale changes them).
     pub fn curves_at_any_visibility(&self, r: &StageReader, t: f64) -> Result<Vec<CurvesData>> {
-        self.read_curves(r, t, false)
+        self.read_curves(r, t, false, false)
     }
 
     /// Whether `render` draws the curves or mesh prim at `path` at `t`:
@@ -480,7 +482,7 @@ impl RenderScene {
         }
     }
 
-    fn read_curves(&self, r: &StageReader, t: f64, visible_only: bool) -> Result<Vec<CurvesData>> {
+    fn read_curves(&self, r: &StageReader, t: f64, visible_only: bool, world_widths: bool) -> Result<Vec<CurvesData>> {
         self.same_stage(r)?;
         let mut out = Vec::with_capacity(self.curves.len());
         for c in &self.curves {
@@ -521,7 +523,7 @@ impl RenderScene {
                 ));
             }
             let m = r.local_to_world(&c.prim, t)?;
-            let ws = width_scale(&m);
+            let ws = if world_widths { width_scale(&m) } else { 1.0 };
             let points: Vec<DVec3> = local.iter().map(|p| m.transform_point3(p.as_dvec3())).collect();
             if let Some(i) = points.iter().position(|p| !p.is_finite()) {
                 return Err(Error::attr(

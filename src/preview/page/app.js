@@ -124,7 +124,9 @@
       vec3 s = cross(d, p);
       float sl = length(s);
       s = sl > 1e-12 ? s / sl : vec3(0.0);
-      float w = end ? w1 : w0;
+      // Widths come in the layer's own space: scaled as render scales them,
+      // by the cube root of the frame's transform's volume change.
+      float w = (end ? w1 : w0) * pow(abs(determinant(mat3(model))), 1.0 / 3.0);
       gl_Position = proj * vec4(p + s * 0.5 * w * side, 1.0);
       vColor = vec4(end ? c1 : c0, end ? o1 : o0);
       vSide = side;
@@ -404,7 +406,7 @@
     if (h.weights) showWeights(h.weights);
     const t = h.timing || {};
     const server = h.source === 'bake' ? `bake read ${fmt(t.total_ms)} ms` : `server ${fmt(t.total_ms)} ms (read ${fmt(t.read_ms)}, evaluate ${fmt(t.evaluate_ms)})`;
-    setStatus(`t=${h.time} · ${server} · round trip ${fmt(rt)} ms`);
+    setStatus(h.stale ? h.stale : `t=${h.time} · ${server} · round trip ${fmt(rt)} ms`, !!h.stale);
     draw();
     api.framesDrawn++;
   }
