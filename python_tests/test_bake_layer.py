@@ -59,6 +59,26 @@ def test_metadata_copied(painterly, tmp_path):
     assert src.timeCodesPerSecond == layer.timeCodesPerSecond
 
 
+def test_units_and_up_axis_the_input_leaves_unauthored_are_not_written(painterly, tmp_path):
+    """openusd answers its fallbacks (metersPerUnit 0.01, upAxis Y) for an
+    input that authors neither, and the bake and the edit layer wrote them
+    as if authored (a TD workflow review, 2026-12-06). They copy only what
+    the input's root layer authors now, as for timeCodesPerSecond."""
+    rig = Au.build_skel_rig(tmp_path / "rig.usda")
+    src = Sdf.Layer.FindOrOpen(str(rig.path))
+    for key in ("metersPerUnit", "upAxis"):
+        src.pseudoRoot.ClearInfo(key)
+    src.Save()
+    bake(painterly, rig.path, tmp_path / "bake.usdc", "--quiet", "--frames", "1:2")
+    painterly("key", rig.path, "--layer", rig.layers[0], "--time", "2", "--sentinel", "--edit-layer",
+              tmp_path / "edit.usda", "-q")
+    for name in ("bake.usdc", "edit.usda"):
+        layer = Sdf.Layer.FindOrOpen(str(tmp_path / name))
+        keys = layer.pseudoRoot.ListInfoKeys()
+        assert "metersPerUnit" not in keys and "upAxis" not in keys, (name, keys)
+    assert json.loads(painterly("inspect", rig.path, "--json").stdout)["up_axis"] is None
+
+
 @pytest.mark.parametrize("frames_arg,frames", [(None, Au.frame_list(1, 12)), ("3:9:2", [3.0, 5.0, 7.0, 9.0])])
 def test_samples_exactly_at_baked_frames_and_extent(painterly, tmp_path, frames_arg, frames):
     rig = Au.build_skel_rig(tmp_path / "rig.usda", frames=(1, 12))

@@ -875,6 +875,10 @@ impl StageReader {
     /// Stage metadata that bakes copy.
     pub fn metadata(&self) -> StageMetadata {
         let get = |k: &str| self.stage.stage_metadata(k).ok().flatten();
+        // openusd answers the schema's fallback (0.01, "Y") for units and up
+        // axis the root layer leaves unauthored: copied into a bake or an
+        // edit layer, it would outlive a later value authored on the shot.
+        let authored = |k: &str| self.stage.root_layer().data().has_field(&sdf::Path::abs_root(), k);
         let mut malformed = Vec::new();
         let mut num = |k: &str| {
             let v = get(k)?;
@@ -889,8 +893,12 @@ impl StageReader {
             end_time_code: num("endTimeCode"),
             time_codes_per_second: num("timeCodesPerSecond"),
             frames_per_second: num("framesPerSecond"),
-            meters_per_unit: num("metersPerUnit"),
-            up_axis: get("upAxis").as_ref().and_then(values::token),
+            meters_per_unit: authored("metersPerUnit").then(|| num("metersPerUnit")).flatten(),
+            up_axis: authored("upAxis")
+                .then(|| get("upAxis"))
+                .flatten()
+                .as_ref()
+                .and_then(values::token),
             malformed,
         }
     }
