@@ -525,3 +525,20 @@ def test_a_view_axis_refuses_a_camera_at_the_proxys_centre_up_to_rounding(painte
     stage.GetRootLayer().Save()
     err = expect_failure(painterly, tmp_path, rig.path, names=["/World/CentreCam"])
     assert "camera is at the proxy's centre at time 1" in err, err
+
+
+def test_inspect_checks_an_axis_no_keyed_layer_reads_yet(painterly, tmp_path):
+    """An axis was read only by layers with pose keys: a wrong joint name
+    passed inspect (exit 0) and surfaced at the first `painterly key` (a TD
+    workflow review on CesiumMan, 2026-12-06). inspect checks every axis
+    now; a name that ends exactly one joint's path is offered as the fix.
+    The bake, which reads no such axis, still succeeds."""
+    rig, _ = good_stage(tmp_path)
+    edit(rig.path, lambda st: AK.add_axis(st, f"{RIG}/spare", "jointRotation", source=SKEL, name="tip", component=0))
+    proc = painterly("inspect", rig.path, "--json", check=False)
+    assert proc.returncode == 1, proc.stdout
+    problems = json.loads(proc.stdout)["problems"]
+    assert [(p["prim"], p["attribute"], p["rule"]) for p in problems] == [(f"{RIG}/spare", "name", "axis")]
+    assert problems[0]["message"] == (
+        f'joint "tip" is not in {SKEL}.joints (joints are named by their path: "root/mid/tip"?)')
+    painterly("bake", rig.path, "-o", tmp_path / "bake.usdc", "--quiet")

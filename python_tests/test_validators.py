@@ -86,6 +86,8 @@ def _curves(stage, path, parent_api=True):
 
 
 def _skinning(stage):
+    # usd-core reads a binding only within a SkelRoot's scope.
+    stage.GetPrimAtPath("/World").SetTypeName("SkelRoot")
     p = prim(stage, "/World/Proxy")
     p.AddAppliedSchema("SkelBindingAPI")
     p.CreateRelationship("skel:skeleton").SetTargets([Sdf.Path("/World/Controls")])

@@ -376,6 +376,17 @@ pub fn inspect_stage_for(r: &StageReader, frames: Option<FrameRange>) -> Result<
     problems.extend(stage_problems(r, &meta, frames));
     let mut rigs: Vec<RigReport> = scene.rigs.iter().map(|rig| rig_report(r, rig, &mut problems)).collect();
     let axes = axis_reports(r)?;
+    // Every axis is checked, not only those keyed layers read: a wrong joint
+    // name should show before the first key is made, not at it.
+    for a in &axes {
+        if let Err(e) = crate::usd_io::axes::Axis::read(r, &a.path) {
+            let p = Problem::new(e, Rule::Axis);
+            let known = |q: &Problem| (&q.prim, &q.attribute, &q.message) == (&p.prim, &p.attribute, &p.message);
+            if !problems.iter().any(known) {
+                problems.push(p);
+            }
+        }
+    }
     note_unanimated_blend_shapes(r, &axes, &mut rigs)?;
     let (meshes, view_problems) = read_view_meshes_lenient(r, &r.prim_paths()?).map_err(|e| e.in_file(path))?;
     problems.extend(view_problems.into_iter().map(|e| Problem::new(e, Rule::Unreadable)));

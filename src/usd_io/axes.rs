@@ -125,10 +125,16 @@ fn joint_rotation_source(
     let joints = r
         .typed(skel, "joints", None, "token[]", values::token_array)?
         .unwrap_or_default();
-    let j = joints
-        .iter()
-        .position(|n| n == joint)
-        .ok_or_else(|| Error::attr(path, "name", format!("joint {joint:?} is not in {target}.joints")))?;
+    let j = joints.iter().position(|n| n == joint).ok_or_else(|| {
+        // Joints are named by their whole path; a short name that ends
+        // exactly one of them is most likely that one.
+        let ends: Vec<&String> = joints.iter().filter(|n| n.rsplit('/').next() == Some(joint)).collect();
+        let hint = match ends.as_slice() {
+            [one] => format!(" (joints are named by their path: {one:?}?)"),
+            _ => String::new(),
+        };
+        Error::attr(path, "name", format!("joint {joint:?} is not in {target}.joints{hint}"))
+    })?;
     let rest = match r.value(skel, "restTransforms", None)? {
         Some(Value::Matrix4dVec(m)) if m.len() == joints.len() => rotation_of(&values::usd_matrix(&m[j])),
         _ => DQuat::IDENTITY,
