@@ -546,3 +546,22 @@ def test_the_readme_example_runs():
     proc = subprocess.run([sys.executable, "-c", code], cwd=REPO, env=env, capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stderr
     assert "24 frames, 17940 points" in proc.stdout
+
+
+def test_a_progress_that_cannot_be_called_is_refused_before_the_bake(tmp_path):
+    """`progress=5` baked the whole output, then raised TypeError when the
+    first report came (a Python API review, 2026-12-06)."""
+    out = tmp_path / "bake.usdc"
+    with pytest.raises(TypeError, match="progress must be callable"):
+        painterly.bake(FIXTURES / "blowfish.usda", out, frames="1:2", progress=5)
+    assert not out.exists()
+
+
+def test_a_character_names_its_file_in_evaluation_errors():
+    """Errors from an override or an evaluation had `.file = None`, though
+    the character knows its file."""
+    fish = FIXTURES / "blowfish.usda"
+    ch = painterly.Character(str(fish))
+    with pytest.raises(painterly.Error) as e:
+        ch.evaluate(1, configuration={"/Nope": 1.0})
+    assert e.value.file == str(fish)

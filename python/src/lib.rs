@@ -389,6 +389,14 @@ fn bake(
     bake_proxy: bool,
     progress: Option<Py<PyAny>>,
 ) -> PyResult<Py<PyAny>> {
+    if let Some(cb) = &progress {
+        if !cb.bind(py).is_callable() {
+            return Err(PyTypeError::new_err(format!(
+                "progress must be callable (done, total), got {}",
+                cb.bind(py).get_type().name()?
+            )));
+        }
+    }
     let src = Source::from_py(input)?;
     // Set when Ctrl-C reaches the waiting thread: the bake stops before its
     // next frame and before replacing the output, and writes nothing.
@@ -620,10 +628,16 @@ impl Character {
         let input = self
             .inner
             .read_frame_with(t, &Self::overrides(configuration))
-            .map_err(|e| to_py(py, self.source.name_in(e)))?;
+            .map_err(|e| self.error(py, e))?;
         let model = &self.inner.model;
         py.detach(|| model.evaluate(input, false))
-            .map_err(|e| to_py(py, self.source.name_in(e)))
+            .map_err(|e| self.error(py, e))
+    }
+
+    /// A library error as `painterly.Error`, naming this character's file
+    /// when the error names none (an override, a frame that fails).
+    fn error(&self, py: Python<'_>, e: painterly::Error) -> PyErr {
+        to_py(py, self.source.name_in(e.in_file(&self.source.path)))
     }
 
     fn layer_paths(&self) -> Vec<String> {
@@ -675,9 +689,7 @@ impl Character {
     /// Every axis's value at `t` (axis path → value, in axis units).
     fn configuration(&self, py: Python<'_>, t: f64) -> PyResult<BTreeMap<String, f64>> {
         finite_time(py, t)?;
-        self.inner
-            .configuration(t)
-            .map_err(|e| to_py(py, self.source.name_in(e)))
+        self.inner.configuration(t).map_err(|e| self.error(py, e))
     }
 
     /// Points at `t` (prim path → float32 (N, 3)): every stroke layer in its
