@@ -14,6 +14,7 @@ import pytest
 from pxr import Sdf, Usd, UsdGeom, Vt
 
 import authoring as Au
+from conftest import REPO
 
 LAYER = "/World/Paint/Strokes"
 GOOD_PATH = "0,0,0 1,2,0"
@@ -438,3 +439,21 @@ def test_in_place_usdz_with_an_upper_case_extension(painterly, case, tmp_path):
     before = Au.file_hash(z)
     refused(painterly, "bind", z, "--in-place", edit_layer=None, file=z)
     assert Au.file_hash(z) == before
+
+
+def test_a_second_pose_key_on_a_layer_without_axes_names_the_empty_axes(painterly, tmp_path):
+    """With `painterly:axes = []` every pose key sits at the one empty
+    configuration: the second was refused as "already keys this layer at
+    the same coordinates: pass --replace", which hid the cause and offered
+    an overwrite (a TD workflow review, 2026-12-06)."""
+    src = tmp_path / "fish.usda"
+    shutil.copy(REPO / "fixtures" / "blowfish.usda", src)
+    stage = Usd.Stage.Open(str(src))
+    stage.GetPrimAtPath("/Blowfish/Paint/Hair").CreateRelationship("painterly:axes").SetTargets([])
+    stage.GetRootLayer().Save()
+    painterly("key", src, "--layer", "/Blowfish/Paint/Hair", "--time", "5", "--in-place", "-q")
+    proc = painterly("key", src, "--layer", "/Blowfish/Paint/Hair", "--time", "25", "--in-place", check=False)
+    assert proc.returncode == 1
+    assert proc.stderr == (
+        f"error: {src}: /Blowfish/Paint/Hair.painterly:axes: the layer has no axes, so a pose key at any time "
+        "meets /Blowfish/Paint/Hair/key1: give the layer axes, or key the timeline with --time-key\n")

@@ -630,6 +630,17 @@ fn key_path(opts: &KeyOptions, existing: &[ExistingKey], unread: &[UnreadChild],
             }
         };
         if clash {
+            if !opts.replace && ty == "PainterlyPoseKey" && coords.is_empty() {
+                // Without axes every pose key sits at the one empty configuration.
+                return Err(Error::attr(
+                    layer_path,
+                    "painterly:axes",
+                    format!(
+                        "the layer has no axes, so a pose key at any time meets {}: give the layer axes, or key the timeline with --time-key",
+                        e.path
+                    ),
+                ));
+            }
             if !opts.replace {
                 let place = match (ty == "PainterlyPoseKey", e.coords == *coords) {
                     (false, true) => "time",
