@@ -929,7 +929,9 @@ mod tests {
         };
         let v = start_view(Some(&cam), Some("/C".into()), &BOUNDS, "Y");
         assert!(close(v.position, DVec3::new(5.0, 6.0, 7.0)));
-        assert!(close(v.target, DVec3::new(1.0, 0.0, -1.0)));
+        // Along the camera's -Z, as far off as the scene's centre (1, 0, -1).
+        let reach = (DVec3::new(1.0, 0.0, -1.0) - DVec3::new(5.0, 6.0, 7.0)).length();
+        assert!(close(v.target, DVec3::new(5.0, 6.0, 7.0 - reach)), "{:?}", v.target);
         assert!(close(v.up, DVec3::new(-1.0, 0.0, 0.0)), "{:?}", v.up);
         assert!((v.fov_y - 90.0).abs() < 1e-9, "{}", v.fov_y);
         assert_eq!(v.aspect, 1.5);
