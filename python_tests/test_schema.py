@@ -149,8 +149,8 @@ def Xform "Fish" (
 
         def PainterlyAxis "open"
         {
-            token kind = "blendShape"
-            rel source = </Fish/Rig/Proxy>
+            token kind = "attribute"
+            rel source = </Fish/Rig/Proxy.extent>
             token name = "open"
             int element = 1
         }

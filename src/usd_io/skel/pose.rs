@@ -105,8 +105,8 @@ impl AnimJoints {
 
 impl AnimJoints {
     /// `quatf[]` rotations between two samples as usd-core interpolates them
-    /// (GfSlerp in float: the shorter way round, a plain lerp when
-    /// 1 − cos θ ≤ 1e-5, never normalised). openusd normalises a nearly
+    /// (GfSlerp: the shorter way round, a plain lerp when 1 − cos θ ≤ 1e-5,
+    /// never normalised). openusd normalises a nearly
     /// parallel pair, which moves a quaternion not of unit length (as
     /// exporters write them) by up to its excess length. None where that
     /// does not apply.
@@ -177,30 +177,32 @@ impl AnimJoints {
     }
 }
 
-/// GfSlerp of two `GfQuatf`s as usd-core computes it (see
+/// GfSlerp of two `GfQuatf`s: the shorter way round, and a plain lerp,
+/// never normalised, once 1 − cos θ ≤ 1e-5 (usd-core's rule). The
+/// arithmetic is openusd's (f64, rounded to f32 at the end), which matched
+/// usd-core on unit quaternions, where dual-quaternion skinning's sign
+/// choice can turn on the last bit; only its normalised lerp above
+/// cos θ = 0.9995 departed from usd-core (see
 /// [`AnimJoints::rotations_between_samples`]).
 fn gf_slerp(alpha: f64, a: &gf::Quatf, b: &gf::Quatf) -> gf::Quatf {
-    let mut cos = (a.w * b.w + a.x * b.x + a.y * b.y + a.z * b.z) as f64;
-    let flip = cos < 0.0;
-    if flip {
-        cos = -cos;
-    }
-    let (s0, mut s1) = if 1.0 - cos > 1e-5 {
+    let a = [a.w as f64, a.x as f64, a.y as f64, a.z as f64];
+    let b = [b.w as f64, b.x as f64, b.y as f64, b.z as f64];
+    let dot = a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3];
+    let sign = if dot < 0.0 { -1.0 } else { 1.0 };
+    let cos = dot.abs();
+    let (s_a, s_b) = if 1.0 - cos > 1e-5 {
         let theta = cos.acos();
         let sin = theta.sin();
-        (((1.0 - alpha) * theta).sin() / sin, (alpha * theta).sin() / sin)
+        (((1.0 - alpha) * theta).sin() / sin, (alpha * theta).sin() / sin * sign)
     } else {
-        (1.0 - alpha, alpha)
+        (1.0 - alpha, alpha * sign)
     };
-    if flip {
-        s1 = -s1;
-    }
-    let (s0, s1) = (s0 as f32, s1 as f32);
+    let q = |i: usize| (a[i] * s_a + b[i] * s_b) as f32;
     gf::Quatf {
-        w: s0 * a.w + s1 * b.w,
-        x: s0 * a.x + s1 * b.x,
-        y: s0 * a.y + s1 * b.y,
-        z: s0 * a.z + s1 * b.z,
+        w: q(0),
+        x: q(1),
+        y: q(2),
+        z: q(3),
     }
 }
 
