@@ -225,3 +225,24 @@ def test_rotations_not_of_unit_length_interpolate_as_gf_slerp(painterly, tmp_pat
     comp = Au.compose(rig.path, out)
     worst = max(np.abs(Au.world_points(comp, rig.mesh, t) - ref[t]).max() for t in rig.frames) / diag
     assert worst < 1e-5, worst
+
+
+def test_rotations_whose_samples_flip_sign_take_the_shorter_way(painterly, tmp_path):
+    """q and -q are one rotation; exporters flip signs between samples.
+    GfSlerp goes the shorter way (it negates the second quaternion when
+    their dot is negative), as the bake must between samples."""
+    def edit(stage):
+        a = UsdSkel.Animation(stage.GetPrimAtPath(ANIM)).GetRotationsAttr()
+        for i, t in enumerate(a.GetTimeSamples()):
+            if i % 2:
+                a.Set(Vt.QuatfArray([-q for q in a.Get(t)]), t)
+
+    rig = _rig(tmp_path, edit)
+    rig.frames = [1 + 0.25 * i for i in range(45)]
+    out = rig.path.parent / "bake.usdc"
+    painterly("bake", rig.path, "-o", out, "--bake-proxy", "--frames", "1:12:0.25", "--quiet")
+    ref = Au.usdcore_world_points(rig.path, [rig.mesh], rig.frames)[rig.mesh]
+    diag = max(Au.bbox_diag(p) for p in ref.values())
+    comp = Au.compose(rig.path, out)
+    worst = max(np.abs(Au.world_points(comp, rig.mesh, t) - ref[t]).max() for t in rig.frames) / diag
+    assert worst < 1e-5, worst
