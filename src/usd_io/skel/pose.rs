@@ -50,11 +50,13 @@ impl AnimJoints {
             q.get_at(t)
                 .map_err(|e| Error::attr(&self.path, name, format!("cannot read at time {t}: {e}")))
         };
-        let raw = [
-            get(&self.translations, TRS[0])?,
-            get(&self.rotations, TRS[1])?,
-            get(&self.scales, TRS[2])?,
-        ];
+        // Between two quatf[] samples the rotations are GfSlerp's, read
+        // from the samples; openusd's interpolation is not asked for too.
+        let rotations = match self.rotations_between_samples(t)? {
+            Some(q) => Some(Value::QuatfVec(q)),
+            None => get(&self.rotations, TRS[1])?,
+        };
+        let raw = [get(&self.translations, TRS[0])?, rotations, get(&self.scales, TRS[2])?];
         let n = self.joints;
         let [Some(tr), Some(rot), Some(mut sc)] = raw else {
             let i = raw.iter().position(|v| v.is_none()).unwrap_or(0);
@@ -63,10 +65,6 @@ impl AnimJoints {
         if let Some(h) = self.half_scales_between_samples(t)? {
             sc = Value::Vec3hVec(h);
         }
-        let rot = match self.rotations_between_samples(t)? {
-            Some(q) => Value::QuatfVec(q),
-            None => rot,
-        };
         let kinds = [values::kind_name(&tr), values::kind_name(&rot), values::kind_name(&sc)];
         let cast = (
             tr.cast::<Vec<gf::Vec3f>>().ok(),
