@@ -205,6 +205,19 @@ def test_skinning_inputs_that_change_over_time_are_refused(painterly, tmp_path):
 # ---- rotations between samples --------------------------------------------
 
 
+def _assert_quarter_frames_match_usd_core(painterly, rig):
+    """The proxy baked at quarter frames (most of them between samples)
+    against usd-core's evaluation there."""
+    frames = [1 + 0.25 * i for i in range(45)]
+    out = rig.path.parent / "bake.usdc"
+    painterly("bake", rig.path, "-o", out, "--bake-proxy", "--frames", "1:12:0.25", "--quiet")
+    ref = Au.usdcore_world_points(rig.path, [rig.mesh], frames)[rig.mesh]
+    diag = max(Au.bbox_diag(p) for p in ref.values())
+    comp = Au.compose(rig.path, out)
+    worst = max(np.abs(Au.world_points(comp, rig.mesh, t) - ref[t]).max() for t in frames) / diag
+    assert worst < 1e-5, worst
+
+
 def test_rotations_not_of_unit_length_interpolate_as_gf_slerp(painterly, tmp_path):
     """Exporters write quaternions a little off unit length. usd-core
     interpolates them with GfSlerp, which never normalises; openusd
@@ -216,15 +229,7 @@ def test_rotations_not_of_unit_length_interpolate_as_gf_slerp(painterly, tmp_pat
         for t in a.GetTimeSamples():
             a.Set(Vt.QuatfArray([q * 1.05 for q in a.Get(t)]), t)
 
-    rig = _rig(tmp_path, edit)
-    rig.frames = [1 + 0.25 * i for i in range(45)]
-    out = rig.path.parent / "bake.usdc"
-    painterly("bake", rig.path, "-o", out, "--bake-proxy", "--frames", "1:12:0.25", "--quiet")
-    ref = Au.usdcore_world_points(rig.path, [rig.mesh], rig.frames)[rig.mesh]
-    diag = max(Au.bbox_diag(p) for p in ref.values())
-    comp = Au.compose(rig.path, out)
-    worst = max(np.abs(Au.world_points(comp, rig.mesh, t) - ref[t]).max() for t in rig.frames) / diag
-    assert worst < 1e-5, worst
+    _assert_quarter_frames_match_usd_core(painterly, _rig(tmp_path, edit))
 
 
 def test_rotations_whose_samples_flip_sign_take_the_shorter_way(painterly, tmp_path):
@@ -237,12 +242,4 @@ def test_rotations_whose_samples_flip_sign_take_the_shorter_way(painterly, tmp_p
             if i % 2:
                 a.Set(Vt.QuatfArray([-q for q in a.Get(t)]), t)
 
-    rig = _rig(tmp_path, edit)
-    rig.frames = [1 + 0.25 * i for i in range(45)]
-    out = rig.path.parent / "bake.usdc"
-    painterly("bake", rig.path, "-o", out, "--bake-proxy", "--frames", "1:12:0.25", "--quiet")
-    ref = Au.usdcore_world_points(rig.path, [rig.mesh], rig.frames)[rig.mesh]
-    diag = max(Au.bbox_diag(p) for p in ref.values())
-    comp = Au.compose(rig.path, out)
-    worst = max(np.abs(Au.world_points(comp, rig.mesh, t) - ref[t]).max() for t in rig.frames) / diag
-    assert worst < 1e-5, worst
+    _assert_quarter_frames_match_usd_core(painterly, _rig(tmp_path, edit))

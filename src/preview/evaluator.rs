@@ -25,7 +25,7 @@ use crate::render::curves::Primvar;
 use crate::render::prepare::MeshData;
 use crate::render::{check_bake, render_png, write_root, ImageSize, TempDir};
 use crate::usd_io::render_scene::{RenderScene, DEFAULT_COLOR, DEFAULT_WIDTH};
-use crate::usd_io::scene::check_face_counts;
+use crate::usd_io::scene::read_face_topology;
 use crate::usd_io::stage::StageReader;
 use crate::usd_io::values;
 
@@ -720,21 +720,11 @@ fn mesh_info(r: &StageReader, path: &str, drawn: &[MeshData], camera: Option<Str
     }
     // Not drawn by a renderer (a guide proxy): topology only, which needs
     // no points (a proxy may have only time samples and a restTime).
-    let prim = r.require_prim(path)?;
-    let counts = r
-        .typed(&prim, "faceVertexCounts", None, "int[]", values::int_array)?
-        .unwrap_or_default();
-    let indices = r
-        .typed(&prim, "faceVertexIndices", None, "int[]", values::int_array)?
-        .unwrap_or_default();
-    check_face_counts(path, &counts, &indices)?;
-    if let Some(bad) = counts.iter().chain(&indices).find(|&&i| i < 0) {
-        return Err(Error::prim(path, format!("negative face count or index {bad}")));
-    }
+    let (face_counts, face_indices) = read_face_topology(r, &r.require_prim(path)?, path)?;
     Ok(MeshInfo {
         path: path.to_string(),
-        face_counts: counts.iter().map(|&c| c as u32).collect(),
-        face_indices: indices.iter().map(|&i| i as u32).collect(),
+        face_counts,
+        face_indices,
         smooth: true,
         color: DEFAULT_COLOR.to_array(),
         camera,

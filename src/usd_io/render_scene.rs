@@ -19,7 +19,7 @@ use glam::{DMat4, DVec3, Vec3};
 use openusd::sdf::Value;
 use openusd::usd;
 
-use super::scene::{check_face_counts, read_mesh, Proxy};
+use super::scene::{read_face_topology, read_mesh, Proxy};
 use super::skel::skeleton_binding;
 use super::stage::{HeldQuery, StageReader};
 use super::values;
@@ -353,16 +353,7 @@ impl RenderScene {
     }
 
     fn mesh_source(r: &StageReader, prim: usd::Prim, path: String, visibility: Vec<usd::Prim>) -> Result<MeshSource> {
-        let counts = r
-            .typed(&prim, "faceVertexCounts", None, "int[]", values::int_array)?
-            .unwrap_or_default();
-        let indices = r
-            .typed(&prim, "faceVertexIndices", None, "int[]", values::int_array)?
-            .unwrap_or_default();
-        check_face_counts(&path, &counts, &indices)?;
-        if let Some(bad) = indices.iter().find(|&&i| i < 0) {
-            return Err(Error::attr(&path, "faceVertexIndices", format!("negative index {bad}")));
-        }
+        let (face_counts, face_indices) = read_face_topology(r, &prim, &path)?;
         let skinned = if skeleton_binding(r, &prim)?.is_some() {
             Some(read_mesh(r, prim.clone(), None)?)
         } else {
@@ -374,8 +365,8 @@ impl RenderScene {
         let smooth = token_attr(r, &prim, "subdivisionScheme", "catmullClark")? != "none";
         Ok(MeshSource {
             smooth,
-            face_counts: counts.iter().map(|&c| c as u32).collect(),
-            face_indices: indices.iter().map(|&i| i as u32).collect(),
+            face_counts,
+            face_indices,
             points: HeldQuery::new(&prim, "points")?,
             skinned,
             colors: PrimvarSource::open(r, &prim, "primvars:displayColor", "constant")?,

@@ -510,6 +510,26 @@ pub(crate) fn check_face_counts(path: &str, counts: &[i64], indices: &[i64]) -> 
     Ok(())
 }
 
+/// A mesh's faces as drawn (render's meshes, the preview's proxies): counts
+/// and indices checked against each other, no negative index; unauthored
+/// topology is empty, USD's fallback.
+pub(crate) fn read_face_topology(r: &StageReader, prim: &usd::Prim, path: &str) -> Result<(Vec<u32>, Vec<u32>)> {
+    let counts = r
+        .typed(prim, "faceVertexCounts", None, "int[]", values::int_array)?
+        .unwrap_or_default();
+    let indices = r
+        .typed(prim, "faceVertexIndices", None, "int[]", values::int_array)?
+        .unwrap_or_default();
+    check_face_counts(path, &counts, &indices)?;
+    if let Some(bad) = indices.iter().find(|&&i| i < 0) {
+        return Err(Error::attr(path, "faceVertexIndices", format!("negative index {bad}")));
+    }
+    Ok((
+        counts.iter().map(|&c| c as u32).collect(),
+        indices.iter().map(|&i| i as u32).collect(),
+    ))
+}
+
 /// Reads a Mesh's topology, rest pose and motion kind (SPEC §2).
 ///
 /// `rest_time`: where a non-skinned mesh's rest pose is read (`painterly:restTime`),
