@@ -102,6 +102,28 @@ impl AnimJoints {
 }
 
 impl AnimJoints {
+    /// The samples of `q` (the animation's `name`) on either side of `t`,
+    /// strictly between them, and `t`'s fraction of the way: what usd-core
+    /// interpolates there. None at or outside the sample times, or where a
+    /// side has no value.
+    fn samples_around(&self, q: &HeldQuery, name: &str, t: f64) -> Result<Option<(Value, Value, f64)>> {
+        let times = q
+            .times()
+            .map_err(|e| Error::attr(&self.path, name, format!("cannot read time samples: {e}")))?;
+        let Some(i) = times.windows(2).position(|w| w[0] < t && t < w[1]) else {
+            return Ok(None);
+        };
+        let (t0, t1) = (times[i], times[i + 1]);
+        let sample = |at: f64| {
+            q.get_at(at)
+                .map_err(|e| Error::attr(&self.path, name, format!("cannot read at time {at}: {e}")))
+        };
+        Ok(match (sample(t0)?, sample(t1)?) {
+            (Some(a), Some(b)) => Some((a, b, (t - t0) / (t1 - t0))),
+            _ => None,
+        })
+    }
+
     /// `quatf[]` rotations between two samples as usd-core interpolates them
     /// (GfSlerp: the shorter way round, a plain lerp when 1 − cos θ ≤ 1e-5,
     /// never normalised). openusd normalises a nearly
@@ -109,26 +131,13 @@ impl AnimJoints {
     /// exporters write them) by up to its excess length. None where that
     /// does not apply.
     fn rotations_between_samples(&self, t: f64) -> Result<Option<Vec<gf::Quatf>>> {
-        let times = self
-            .rotations
-            .times()
-            .map_err(|e| Error::attr(&self.path, "rotations", format!("cannot read time samples: {e}")))?;
-        let Some(i) = times.windows(2).position(|w| w[0] < t && t < w[1]) else {
-            return Ok(None);
-        };
-        let (t0, t1) = (times[i], times[i + 1]);
-        let sample = |at: f64| {
-            self.rotations
-                .get_at(at)
-                .map_err(|e| Error::attr(&self.path, "rotations", format!("cannot read at time {at}: {e}")))
-        };
-        let (Some(Value::QuatfVec(a)), Some(Value::QuatfVec(b))) = (sample(t0)?, sample(t1)?) else {
+        let Some((Value::QuatfVec(a), Value::QuatfVec(b), alpha)) = self.samples_around(&self.rotations, TRS[1], t)?
+        else {
             return Ok(None);
         };
         if a.len() != b.len() {
             return Ok(None);
         }
-        let alpha = (t - t0) / (t1 - t0);
         Ok(Some(a.iter().zip(&b).map(|(a, b)| gf_slerp(alpha, a, b)).collect()))
     }
 
@@ -137,26 +146,13 @@ impl AnimJoints {
     /// rounded to half (openusd rounds once; they differ by up to ~1e-4 of
     /// the character). None where that does not apply.
     fn half_scales_between_samples(&self, t: f64) -> Result<Option<Vec<gf::Vec3h>>> {
-        let times = self
-            .scales
-            .times()
-            .map_err(|e| Error::attr(&self.path, "scales", format!("cannot read time samples: {e}")))?;
-        let Some(i) = times.windows(2).position(|w| w[0] < t && t < w[1]) else {
-            return Ok(None);
-        };
-        let (t0, t1) = (times[i], times[i + 1]);
-        let sample = |at: f64| {
-            self.scales
-                .get_at(at)
-                .map_err(|e| Error::attr(&self.path, "scales", format!("cannot read at time {at}: {e}")))
-        };
-        let (Some(Value::Vec3hVec(a)), Some(Value::Vec3hVec(b))) = (sample(t0)?, sample(t1)?) else {
+        let Some((Value::Vec3hVec(a), Value::Vec3hVec(b), alpha)) = self.samples_around(&self.scales, TRS[2], t)?
+        else {
             return Ok(None);
         };
         if a.len() != b.len() {
             return Ok(None);
         }
-        let alpha = (t - t0) / (t1 - t0);
         let half = |x: f64| gf::f16::from_f32(x as f32);
         let lerp = |a: gf::f16, b: gf::f16| {
             let (pa, pb) = (half(a.to_f64() * (1.0 - alpha)), half(b.to_f64() * alpha));
