@@ -96,13 +96,14 @@ pub struct EditSession {
 }
 
 /// What tells one version of a file from another: device, inode (a save
-/// through a rename makes a new one), size and modification time.
-type FileId = (u64, u64, u64, Option<std::time::SystemTime>);
+/// through a rename makes a new one), size and modification time. The edit
+/// lock and the crate reader's check of a file replaced while read both use it.
+type FileId = (u64, u64, u64, std::time::SystemTime);
 
 fn file_id(path: &Path) -> Option<FileId> {
     use std::os::unix::fs::MetadataExt;
     let m = std::fs::metadata(path).ok()?;
-    Some((m.dev(), m.ino(), m.len(), m.modified().ok()))
+    Some((m.dev(), m.ino(), m.len(), m.modified().ok()?))
 }
 
 /// An existing file an edit replaces: locked (`flock`) against other
@@ -171,19 +172,13 @@ fn read_text(path: &Path) -> Result<Option<String>> {
         .map_err(|_| Error::msg("the usda text is not valid UTF-8; cannot edit it").in_file(path))
 }
 
-/// What identifies a file's version for [`crate_source`]: size and time.
-fn stamp(path: &Path) -> Option<(u64, std::time::SystemTime)> {
-    let m = std::fs::metadata(path).ok()?;
-    Some((m.len(), m.modified().ok()?))
-}
-
 /// The crate file at `path` (None for usda text), mapped, for the values
-/// openusd cannot read; `before` is its [`stamp`] from before the stage
+/// openusd cannot read; `before` is its [`file_id`] from before the stage
 /// read it, so a file replaced in between is refused rather than mixed in.
 fn crate_source(
     path: &Path,
     text: &Option<String>,
-    before: Option<(u64, std::time::SystemTime)>,
+    before: Option<FileId>,
 ) -> Result<Option<super::usdc::CrateSource>> {
     use openusd::ar::{Asset, Resolver};
     if text.is_some() {
@@ -194,7 +189,7 @@ fn crate_source(
         .open_asset(&openusd::ar::ResolvedPath::new(path))
         .and_then(|a: Box<dyn Asset>| a.into_buffer())
         .map_err(|e| cannot(e.to_string()))?;
-    if before.is_none() || stamp(path) != before {
+    if before.is_none() || file_id(path) != before {
         return Err(Error::msg("the file changed while it was read; run the edit again").in_file(path));
     }
     super::usdc::CrateSource::open(buffer).map(Some).map_err(cannot)
@@ -234,7 +229,7 @@ impl EditSession {
             }
             _ => None,
         };
-        let input_stamp = stamp(input);
+        let input_stamp = file_id(input);
         // Reading the input first gives its own errors (missing, unreadable).
         let input_reader = StageReader::open(input)?;
         // Edits are computed from the composed character: a missing asset
@@ -272,7 +267,7 @@ impl EditSession {
                     );
                 }
                 if edit.exists() {
-                    let edit_stamp = stamp(edit);
+                    let edit_stamp = file_id(edit);
                     let text = read_text(edit)?;
                     let reader = StageReader::open(edit)?;
                     require_over(&reader, input, edit)?;
