@@ -596,6 +596,28 @@ mod tests {
     }
 
     #[test]
+    fn crate_source_maps_a_crate_file_only_when_it_is_the_version_read() {
+        let dir = crate::test_dir::ScratchDir::new("edit-crate-source");
+        let path = dir.join("layer.usdc");
+        super::super::usdc::write_layer_file(&path, &parse(BASE)).unwrap();
+        let read = file_id(&path);
+        assert!(read.is_some());
+        // The version read: mapped.
+        assert!(crate_source(&path, &None, read).unwrap().is_some());
+        // usda text needs no crate reader.
+        assert!(crate_source(&path, &Some(BASE.to_string()), read).unwrap().is_none());
+        // Replaced after it was read (here: another size), or never identified.
+        let (dev, ino, len, time) = read.unwrap();
+        for before in [Some((dev, ino, len + 1, time)), None] {
+            let Err(e) = crate_source(&path, &None, before) else {
+                panic!("a changed file was mapped ({before:?})");
+            };
+            let e = e.to_string();
+            assert!(e.contains("the file changed while it was read"), "{e}");
+        }
+    }
+
+    #[test]
     fn round_trip_check_names_the_first_spec_or_field_that_would_change() {
         let base = parse(BASE);
         // The same text (with its NaN default) holds exactly the layer.
