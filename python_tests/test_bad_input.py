@@ -216,6 +216,74 @@ def test_cached_binding_weights_count_mismatch(painterly, tmp_path):
     expect_failure(painterly, tmp_path, rig.path, names=[rig.layers[0], "painterly:bindWeights"])
 
 
+@pytest.mark.parametrize("weights", [(0.5, 0.5, 0.5), (1.5, -0.25, -0.25)], ids=["sum_1.5", "negative"])
+def test_cached_binding_weights_that_are_not_barycentric(painterly, tmp_path, weights):
+    """SPEC §3: bindWeights are the barycentric weights of the closest point
+    (each in [0, 1], summing to 1). On a static proxy every binding leaves
+    a stroke at rest, but (0.5, 0.5, 0.5) scales it by 1.5: refused."""
+    rig = good_static(tmp_path)
+
+    def f(st):
+        prim = st.GetPrimAtPath(rig.layers[0])
+        n = len(prim.GetAttribute("painterly:restPoints").Get())
+        prim.CreateAttribute("painterly:bindVertices", Sdf.ValueTypeNames.Int3Array, custom=False).Set(
+            Vt.Vec3iArray([Gf.Vec3i(0, 1, 2)] * n))
+        w = [Gf.Vec3f(0.2, 0.3, 0.5)] * n
+        w[n // 2] = Gf.Vec3f(*weights)
+        prim.CreateAttribute("painterly:bindWeights", Sdf.ValueTypeNames.Float3Array, custom=False).Set(
+            Vt.Vec3fArray(w))
+    edit(rig.path, f)
+    err = expect_failure(painterly, tmp_path, rig.path, names=[rig.layers[0], "painterly:bindWeights"])
+    assert "barycentric" in err
+
+
+@pytest.mark.parametrize("bad", [math.nan, math.inf])
+def test_non_finite_rest_time(painterly, tmp_path, bad):
+    """usd-core reads no points at a NaN time (Get(nan) is None): no rest pose."""
+    rig = Au.build_points_rig(tmp_path / "rig.usda", mode="sampled", default_points=False, rest_time=2.0)
+    edit(rig.path, lambda st: st.GetPrimAtPath(rig.rig).GetAttribute("painterly:restTime").Set(bad))
+    expect_failure(painterly, tmp_path, rig.path, names=[f"{rig.rig}.painterly:restTime", "not finite"])
+
+
+@pytest.mark.parametrize("values", [[1.5], [0.5, -0.1]], ids=["constant", "vertex"])
+def test_display_opacity_outside_unit_range(painterly, tmp_path, values):
+    rig = good_static(tmp_path)
+
+    def f(st):
+        prim = st.GetPrimAtPath(rig.layers[0])
+        curves = UsdGeom.BasisCurves(prim)
+        if len(values) > 1:
+            n = len(prim.GetAttribute("painterly:restPoints").Get())
+            vals = [values[0]] * n
+            vals[n - 1] = values[1]  # one point's value; the curve's mean stays in range
+            interp = UsdGeom.Tokens.vertex
+        else:
+            vals, interp = values, UsdGeom.Tokens.constant
+        pv = UsdGeom.PrimvarsAPI(curves).CreatePrimvar("displayOpacity", Sdf.ValueTypeNames.FloatArray, interp)
+        pv.Set(Vt.FloatArray(vals))
+    edit(rig.path, f)
+    expect_failure(painterly, tmp_path, rig.path,
+                   names=[f"{rig.layers[0]}.primvars:displayOpacity", "outside [0, 1]"])
+
+
+def test_animated_layer_opacity_outside_unit_range(painterly, tmp_path):
+    """Read per frame, linearly between samples as usd-core does: the first
+    frame whose value passes 1 (0.5 + 0.75·s > 1, s = (t − t0)/(t1 − t0) >
+    2/3) is refused, and named."""
+    rig = good_static(tmp_path)
+    t0, t1 = rig.frames[0], rig.frames[-1]
+
+    def f(st):
+        a = st.GetPrimAtPath(rig.layers[0]).CreateAttribute("painterly:opacity", Sdf.ValueTypeNames.Float)
+        a.Set(0.5, t0)
+        a.Set(1.25, t1)
+    edit(rig.path, f)
+    first = next(t for t in rig.frames if 0.5 + 0.75 * (t - t0) / (t1 - t0) > 1.0)
+    assert t0 < first < t1
+    expect_failure(painterly, tmp_path, rig.path,
+                   names=[f"{rig.layers[0]}.painterly:opacity", "outside [0, 1]", f"at time {first:g} "])
+
+
 def test_proxy_face_index_out_of_range(painterly, tmp_path):
     rig = good_static(tmp_path)
 

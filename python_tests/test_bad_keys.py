@@ -228,6 +228,19 @@ CASES = {
     "scalar_element_1": (_se, [f"{_se_path}.element", "picks from a scalar"], ()),
     # a viewDirection axis with neither a source nor --camera
     "view_without_source_or_camera": (_vn, [_vn_path], ()),
+    # authored opacities lie in [0, 1], as `key --opacity` takes them
+    "pose_key_opacity_above_1": (_set(f"{LAYER}/dim", "opacity", Sdf.ValueTypeNames.Float, 1.7),
+                                 [f"{LAYER}/dim.opacity", "outside [0, 1]"], ()),
+    "time_key_opacity_negative": (_set(f"{LAYER}/shock", "opacity", Sdf.ValueTypeNames.Float, -0.5),
+                                  [f"{LAYER}/shock.opacity", "outside [0, 1]"], ()),
+    "layer_opacity_negative": (_set(LAYER, "painterly:opacity", Sdf.ValueTypeNames.Float, -0.5),
+                               [f"{LAYER}.painterly:opacity", "outside [0, 1]"], ()),
+    # the time-key limit and overflow, per run between sentinels (crashed before)
+    "time_keys_over_the_limit": (lambda st, rig, rest: [AK.add_time_key(st, LAYER, f"many{i}", 1000 + i, opacity=0.5)
+                                                         for i in range(300)],
+                                 ["301 keys", "at most 300"], ()),
+    "time_keys_too_far_apart": (lambda st, rig, rest: AK.add_time_key(st, LAYER, "far", 1e160, opacity=0.5),
+                                [f"{LAYER}/far", f"{LAYER}/shock.time", "too far"], ()),
     # uniform attributes authored only as time samples
     **{f"samples_only_{n.split(':')[-1]}_{p.rsplit('/', 1)[1]}": (_samples_only(p, n), [f"{p}.{n}", "only as time samples"], ())
        for p, n in [(f"{LAYER}/flat", "points"), (f"{LAYER}/puffed", "coordinates"), (f"{LAYER}/dim", "opacity"),

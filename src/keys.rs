@@ -77,6 +77,11 @@ pub enum TimeKeyError {
     CloseTimes { first: usize, second: usize },
     /// A time that is not finite.
     NonFinite { key: usize },
+    /// Two normal keys of one group so far apart in time that the squared
+    /// distance between them overflows ([`InterpError::TooFarApart`]).
+    FarApart { first: usize, second: usize },
+    /// More normal keys in one group than [`crate::interp::MAX_KEYS`].
+    TooMany { count: usize },
 }
 
 /// The temporal keys of one channel: its normal keys plus every sentinel.
@@ -165,6 +170,14 @@ impl TimeChannel {
                         second: a.max(b),
                     });
                 }
+                Some(Err(InterpError::TooFarApart { first, second })) => {
+                    let (a, b) = (members[first], members[second]);
+                    return Err(TimeKeyError::FarApart {
+                        first: a.min(b),
+                        second: a.max(b),
+                    });
+                }
+                Some(Err(InterpError::TooManyKeys { count })) => return Err(TimeKeyError::TooMany { count }),
                 Some(Err(e)) => unreachable!("finite, distinct 1-D times: {e:?}"),
             };
             for &k in &members {
@@ -314,6 +327,25 @@ mod tests {
             let b = value(&c.weights(boundary + 1e-7), cfg, &keys);
             assert!((a - b).abs() < 1e-5, "jump at {boundary}: {a} vs {b}");
         }
+    }
+
+    #[test]
+    fn too_many_or_too_far_apart_time_keys_are_refused_not_a_panic() {
+        let many: Vec<f64> = (0..=crate::interp::MAX_KEYS).map(|t| t as f64).collect();
+        assert_eq!(
+            TimeChannel::new(&many, &[]).unwrap_err(),
+            TimeKeyError::TooMany {
+                count: crate::interp::MAX_KEYS + 1
+            }
+        );
+        // A sentinel splits them into two groups within the limit.
+        assert!(TimeChannel::new(&many, &[100.5]).is_ok());
+        // (1e160)² overflows: the pair is named by the channel's indices.
+        assert_eq!(
+            TimeChannel::new(&[5.0, 1e160, 0.0], &[]).unwrap_err(),
+            TimeKeyError::FarApart { first: 1, second: 2 }
+        );
+        assert!(TimeChannel::new(&[5.0, 1e160, 0.0], &[10.0]).is_ok());
     }
 
     #[test]

@@ -129,12 +129,12 @@ impl Rule {
             Rule::Binding => (
                 "binding",
                 "Binding",
-                "A cached binding (painterly:bindVertices, painterly:bindWeights) has one in-range entry per point.",
+                "A cached binding (painterly:bindVertices, painterly:bindWeights) has one in-range entry per point, with barycentric weights (each in [0, 1], summing to 1).",
             ),
             Rule::DisplayOpacity => (
                 "display-opacity",
                 "DisplayOpacity",
-                "primvars:displayOpacity has 1, one-per-curve or one-per-point values and valid indices.",
+                "primvars:displayOpacity has 1, one-per-curve or one-per-point values and valid indices; it, painterly:opacity and key opacities lie in [0, 1].",
             ),
             Rule::Axis => (
                 "axis",

@@ -54,6 +54,11 @@ pub const DUPLICATE_TOLERANCE: f64 = 1e-12;
 /// set-up costs about n⁴ operations, 4.4 s for 300 keys on this machine.
 pub const MAX_KEYS: usize = 300;
 
+/// The RBF radii accepted: within them radius² and 1/radius² are normal f64.
+pub const MIN_RADIUS: f64 = 1e-150;
+/// See [`MIN_RADIUS`].
+pub const MAX_RADIUS: f64 = 1e150;
+
 /// Why the weights at query `x` cannot be given (`w` as computed there): a
 /// non-finite coordinate, or a point so far from the keys that its squared
 /// distances overflow. `None` when they can.
@@ -93,7 +98,16 @@ pub enum InterpError {
         /// Index of the second key of the pair (`second > first`).
         second: usize,
     },
-    /// The RBF kernel radius is not a finite positive number.
+    /// Two keys so far apart that their squared distance overflows f64:
+    /// no weight can be computed between them.
+    TooFarApart {
+        /// Index of the first key of the pair.
+        first: usize,
+        /// Index of the second key of the pair (`second > first`).
+        second: usize,
+    },
+    /// The RBF kernel radius is not a finite positive number whose square
+    /// is a normal f64 (1/radius² must be finite).
     InvalidRadius {
         /// The radius given.
         radius: f64,
@@ -123,9 +137,17 @@ impl fmt::Display for InterpError {
             InterpError::DuplicateKeys { first, second } => {
                 write!(f, "keys {first} and {second} are at the same coordinates")
             }
-            InterpError::InvalidRadius { radius } => {
-                write!(f, "RBF radius must be finite and positive, got {radius}")
-            }
+            InterpError::TooFarApart { first, second } => write!(
+                f,
+                "keys {first} and {second} are too far apart to interpolate (their squared distance overflows): \
+                 bring the key coordinates nearer, or give the axes a smaller scale"
+            ),
+            InterpError::InvalidRadius { radius } => write!(
+                f,
+                "RBF radius must be a finite positive number between {MIN_RADIUS:e} and {MAX_RADIUS:e} \
+                 (its square must be a normal number), got {}",
+                readable(*radius)
+            ),
             InterpError::TooManyKeys { count } => write!(
                 f,
                 "{count} keys; painterly interpolates at most {MAX_KEYS} (setting them up grows as the fourth power of their number: {MAX_KEYS} take about 5 s): split them over layers or sentinels"
@@ -140,6 +162,15 @@ impl fmt::Display for InterpError {
 }
 
 impl std::error::Error for InterpError {}
+
+/// `x` as a person writes it: exponent notation for the very small and large.
+fn readable(x: f64) -> String {
+    if x != 0.0 && x.is_finite() && !(1e-4..1e6).contains(&x.abs()) {
+        format!("{x:e}")
+    } else {
+        format!("{x}")
+    }
+}
 
 /// Which interpolation scheme to use (USD `painterly:interpolation`).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -309,7 +340,24 @@ pub(crate) fn validate_keys(dim: usize, keys: &[f64]) -> Result<(usize, Vec<f64>
         return Err(InterpError::NonFinite { key: pos / dim });
     }
     let sq = pairwise_sq_dists(keys, n, dim);
+    // An overflowed distance would read as "the same point" below.
+    if let Some(at) = sq.iter().position(|v| !v.is_finite()) {
+        let (i, j) = (at / n, at % n);
+        return Err(InterpError::TooFarApart {
+            first: i.min(j),
+            second: i.max(j),
+        });
+    }
     let threshold = duplicate_threshold(dim, n, keys);
+    if !threshold.is_finite() {
+        // The bounding box overflows though no pair does (within a factor of dim).
+        let at = (0..n * n).fold(0, |b, k| if sq[k] > sq[b] { k } else { b });
+        let (i, j) = (at / n, at % n);
+        return Err(InterpError::TooFarApart {
+            first: i.min(j),
+            second: i.max(j),
+        });
+    }
     for i in 0..n {
         for j in i + 1..n {
             if sq[i * n + j] <= threshold {
@@ -346,8 +394,9 @@ pub fn same_point_as(dim: usize, keys: &[f64], k: usize) -> Vec<usize> {
     let n = keys.len() / dim;
     let threshold = duplicate_threshold(dim, n, keys);
     let at = |i: usize| &keys[i * dim..(i + 1) * dim];
+    // An overflowed distance or extent is no meeting: the keys are too far apart.
     (0..n)
-        .filter(|&i| i != k && sq_dist(at(i), at(k)) <= threshold)
+        .filter(|&i| i != k && threshold.is_finite() && sq_dist(at(i), at(k)) <= threshold)
         .collect()
 }
 
@@ -425,6 +474,51 @@ mod tests {
         }
         let msg = InterpError::DuplicateKeys { first: 1, second: 3 }.to_string();
         assert!(msg.contains('1') && msg.contains('3'));
+    }
+
+    #[test]
+    fn keys_whose_squared_distance_overflows_are_too_far_apart_not_the_same() {
+        // (1e160)² overflows f64; the pair is named, never "the same point".
+        let m = Method::SmoothVoronoi;
+        assert_eq!(
+            Interpolator::new(m, 1, &[0.0, 1.0, 1e160]).unwrap_err(),
+            InterpError::TooFarApart { first: 0, second: 2 }
+        );
+        assert_eq!(same_point_as(1, &[0.0, 1.0, 1e160], 2), Vec::<usize>::new());
+        // No pair overflows (at most 2 × (8.5e153)² = 1.45e308 < f64::MAX), but
+        // the box diagonal does (3 × 7.2e307): the widest pair is named.
+        let a = 8.5e153;
+        let wide = [0.0, 0.0, 0.0, a, 0.0, 0.0, 0.0, a, 0.0, 0.0, 0.0, a];
+        assert!(pairwise_sq_dists(&wide, 4, 3).iter().all(|d| d.is_finite()));
+        assert_eq!(
+            Interpolator::new(m, 3, &wide).unwrap_err(),
+            InterpError::TooFarApart { first: 1, second: 2 }
+        );
+        assert_eq!(same_point_as(3, &wide, 1), Vec::<usize>::new());
+        // 1e150 apart is fine.
+        assert!(Interpolator::new(m, 1, &[0.0, 1e150]).is_ok());
+        let msg = InterpError::TooFarApart { first: 0, second: 2 }.to_string();
+        assert!(msg.starts_with("keys 0 and 2 are too far apart"), "{msg}");
+    }
+
+    #[test]
+    fn rbf_radius_must_keep_its_square_normal() {
+        let keys = [0.0, 1.0];
+        for ok in [MIN_RADIUS, 1.0, MAX_RADIUS] {
+            // Keys spaced like the radius, so the system is well conditioned.
+            assert!(
+                Interpolator::new(Method::Rbf { radius: ok }, 1, &[0.0, ok]).is_ok(),
+                "{ok}"
+            );
+        }
+        for bad in [MIN_RADIUS / 2.0, 1e-160, MAX_RADIUS * 2.0] {
+            let err = Interpolator::new(Method::Rbf { radius: bad }, 1, &keys).unwrap_err();
+            assert_eq!(err, InterpError::InvalidRadius { radius: bad });
+        }
+        let msg = InterpError::InvalidRadius { radius: 1e-160 }.to_string();
+        assert!(msg.ends_with("got 1e-160"), "{msg}");
+        let msg = InterpError::InvalidRadius { radius: -1.0 }.to_string();
+        assert!(msg.ends_with("got -1"), "{msg}");
     }
 
     #[test]

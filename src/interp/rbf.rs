@@ -16,9 +16,10 @@
 use super::{sq_dists_to, InterpError};
 use nalgebra::DMatrix;
 
-/// Rejects radii that are not finite and positive.
+/// Rejects radii outside [`super::MIN_RADIUS`, `super::MAX_RADIUS`] (NaN
+/// included): beyond them 1/radius² overflows or loses its precision.
 pub(crate) fn check_radius(radius: f64) -> Result<(), InterpError> {
-    if radius.is_finite() && radius > 0.0 {
+    if (super::MIN_RADIUS..=super::MAX_RADIUS).contains(&radius) {
         Ok(())
     } else {
         Err(InterpError::InvalidRadius { radius })

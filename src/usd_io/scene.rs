@@ -441,6 +441,19 @@ fn is_descendant(path: &str, ancestor: &str) -> bool {
         && (ancestor == "/" || path.as_bytes()[ancestor.len()] == b'/')
 }
 
+/// An authored opacity must be a number in [0, 1] (UsdGeom's displayOpacity
+/// range, and what `painterly key --opacity` takes): outside it a bake would
+/// write a meaningless opacity. `when` is "" or " at time t".
+fn check_opacity(o: f32, prim: &str, attr: &str, when: &str) -> Result<()> {
+    if !o.is_finite() {
+        return Err(Error::attr(prim, attr, format!("opacity is not finite{when}")).rule(Rule::NonFinite));
+    }
+    if !(0.0..=1.0).contains(&o) {
+        return Err(Error::attr(prim, attr, format!("opacity {o}{when} is outside [0, 1]")).rule(Rule::DisplayOpacity));
+    }
+    Ok(())
+}
+
 fn check_finite(points: &[Vec3], prim: &str, attr: &str) -> Result<()> {
     match points.iter().position(|p| !p.is_finite()) {
         None => Ok(()),
@@ -489,8 +502,21 @@ fn read_proxy(r: &StageReader, rig: &usd::Prim) -> Result<Proxy> {
         )
         .rule(Rule::MissingProxy));
     }
-    let rest_time = r.typed(rig, "painterly:restTime", None, "double", values::scalar)?;
-    read_mesh(r, prim, rest_time)
+    read_mesh(r, prim, read_rest_time(r, rig)?)
+}
+
+/// `painterly:restTime` on a rig or view-dependent mesh: a finite time.
+pub fn read_rest_time(r: &StageReader, prim: &usd::Prim) -> Result<Option<f64>> {
+    let t = r.typed(prim, "painterly:restTime", None, "double", values::scalar)?;
+    match t {
+        Some(t) if !t.is_finite() => Err(Error::attr(
+            prim.path().as_str(),
+            "painterly:restTime",
+            format!("rest time {t} is not finite"),
+        )
+        .rule(Rule::NonFinite)),
+        t => Ok(t),
+    }
 }
 
 /// UsdGeom.Mesh.ValidateTopology's first two rules for faceVertexCounts:
@@ -825,9 +851,7 @@ fn read_layer(r: &StageReader, path: &str, proxy_points: usize) -> Result<Stroke
     let opacity = r
         .typed(&prim, "painterly:opacity", None, "float", values::scalar)?
         .unwrap_or(1.0) as f32;
-    if !opacity.is_finite() {
-        return Err(Error::attr(path, "painterly:opacity", "opacity is not finite").rule(Rule::NonFinite));
-    }
+    check_opacity(opacity, path, "painterly:opacity", "")?;
     let opacity_varies = prim
         .attribute("painterly:opacity")
         .value_might_be_time_varying()
@@ -903,6 +927,16 @@ fn duplicate_error(paths: &[String], e: InterpError, channel: &str) -> Error {
         InterpError::NonFinite { key } => {
             Error::attr(&paths[key], "coordinates", "coordinates are not finite").rule(Rule::NonFinite)
         }
+        InterpError::TooFarApart { first, second } => Error::attr(
+            &paths[first],
+            "coordinates",
+            format!(
+                "{} is too far from this key to interpolate {channel} keys between them \
+                 (their squared distance overflows)",
+                paths[second]
+            ),
+        )
+        .rule(Rule::Interpolation),
         other => {
             Error::prim(&paths[0], format!("cannot interpolate {channel} keys: {other}")).rule(Rule::Interpolation)
         }
@@ -987,6 +1021,21 @@ fn time_channel<V>(keys: Vec<(String, f64, V)>, sentinels: &[f64]) -> Result<Opt
         )
         .rule(Rule::CoincidentKeys),
         TimeKeyError::NonFinite { key } => Error::attr(&paths[key], "time", "time is not finite").rule(Rule::NonFinite),
+        TimeKeyError::FarApart { first, second } => Error::attr(
+            &paths[first],
+            "time",
+            format!(
+                "{} is too far from this key in time to interpolate between them \
+                 (their squared distance overflows)",
+                paths[second]
+            ),
+        )
+        .rule(Rule::Interpolation),
+        TimeKeyError::TooMany { count } => Error::prim(
+            &paths[0],
+            format!("cannot interpolate time keys: {}", InterpError::TooManyKeys { count }),
+        )
+        .rule(Rule::Interpolation),
     })?;
     Ok(Some(Channel {
         interp,
@@ -1136,12 +1185,11 @@ fn read_key_prims(r: &StageReader, layer: &StrokeLayer) -> Result<KeyPrims> {
     };
     let read_opacity = |c: &usd::Prim, cp: &str| -> Result<Option<f32>> {
         let o = r.typed(c, "opacity", None, "float", values::scalar)?;
+        let o = o.map(|o| o as f32);
         if let Some(o) = o {
-            if !o.is_finite() {
-                return Err(Error::attr(cp, "opacity", "opacity is not finite").rule(Rule::NonFinite));
-            }
+            check_opacity(o, cp, "opacity", "")?;
         }
-        Ok(o.map(|o| o as f32))
+        Ok(o)
     };
     let mut keys = KeyPrims::default();
     for c in &children {
@@ -1281,6 +1329,24 @@ pub fn check_binding(
         }
     }
     check_finite(weights, path, "painterly:bindWeights")?;
+    // Barycentric weights of a closest point (SPEC §3): each in [0, 1], summing
+    // to 1. Anything else scales or shears the stroke; the tolerance admits
+    // float rounding by any writer.
+    const TOLERANCE: f32 = 1e-4;
+    for (i, w) in weights.iter().enumerate() {
+        let sum = w.x + w.y + w.z;
+        if w.min_element() < -TOLERANCE || (sum - 1.0).abs() > TOLERANCE {
+            return Err(Error::attr(
+                path,
+                "painterly:bindWeights",
+                format!(
+                    "point {i} has weights ({}, {}, {}) summing to {sum}: a binding's weights are barycentric, \
+                     each in [0, 1] and summing to 1 (re-bind with `painterly bind`)",
+                    w.x, w.y, w.z
+                ),
+            ));
+        }
+    }
     Ok(Binding {
         vertices: verts.iter().map(|v| v.map(|x| x as u32)).collect(),
         weights: weights.iter().map(|w| [w.x, w.y, w.z]).collect(),
@@ -1317,6 +1383,10 @@ fn read_display_opacity(
             .collect::<Option<Vec<_>>>()
             .ok_or_else(|| Error::attr(path, "primvars:displayOpacity:indices", "index out of range"))?,
     };
+    // Each authored value, before any mean over a curve hides it.
+    for &o in &v {
+        check_opacity(o, path, NAME, "")?;
+    }
     let npoints: i64 = counts.iter().sum();
     let out = if v.len() == 1 {
         vec![v[0]; ncurves]
@@ -1347,9 +1417,6 @@ fn read_display_opacity(
             ),
         ));
     };
-    if out.iter().any(|x| !x.is_finite()) {
-        return Err(Error::attr(path, NAME, "opacity is not finite").rule(Rule::NonFinite));
-    }
     Ok(out)
 }
 
@@ -1386,13 +1453,7 @@ impl StrokeLayer {
         let o = r
             .typed(&self.prim, "painterly:opacity", Some(t), "float", values::scalar)?
             .unwrap_or(1.0) as f32;
-        if !o.is_finite() {
-            return Err(Error::attr(
-                &self.path,
-                "painterly:opacity",
-                format!("opacity is not finite at time {t}"),
-            ));
-        }
+        check_opacity(o, &self.path, "painterly:opacity", &format!(" at time {t}"))?;
         if let Some(f) = &self.fixed_opacity {
             let _ = f.set(o);
         }

@@ -6,7 +6,7 @@
 use glam::Vec3;
 use openusd::usd;
 
-use super::scene::{read_mesh, Proxy, VIEW_DEPENDENT_API};
+use super::scene::{read_mesh, read_rest_time, Proxy, VIEW_DEPENDENT_API};
 use super::stage::StageReader;
 use super::values;
 use crate::error::{Error, Result};
@@ -147,7 +147,7 @@ fn read_view_mesh(r: &StageReader, prim: usd::Prim) -> Result<ViewMesh> {
         .rule(Rule::ViewMesh)
     })?;
     let camera = r.targets(&prim, "painterly:camera")?.into_iter().next();
-    let rest_time = r.typed(&prim, "painterly:restTime", None, "double", values::scalar)?;
+    let rest_time = read_rest_time(r, &prim)?;
     let cache_time = point_cache_time(r, &prim, rest_time)?;
     // A point cache has no rest pose; its first sample only gives the
     // topology's point count (and keys must all have a time, below).
