@@ -116,6 +116,16 @@ impl fmt::Display for Error {
 
 impl std::error::Error for Error {}
 
+/// `x` as a message should show it: in exponent notation when very small or
+/// large (Rust's `{}` writes 1e-300 with 300 digits), else as `{}` does.
+pub fn readable(x: f64) -> String {
+    if x != 0.0 && x.is_finite() && !(1e-4..1e15).contains(&x.abs()) {
+        format!("{x:e}")
+    } else {
+        format!("{x}")
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

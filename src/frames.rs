@@ -6,7 +6,7 @@
 //! `endTimeCode` of 1e19 fail at once with a message instead of exhausting
 //! memory.
 
-use crate::error::{Error, Result};
+use crate::error::{readable, Error, Result};
 use crate::usd_io::stage::StageMetadata;
 
 /// Most time codes one bake or render covers: a two-hour feature at 24 fps
@@ -59,19 +59,24 @@ impl FrameRange {
     pub fn count(&self) -> std::result::Result<usize, String> {
         let FrameRange { start, end, step } = *self;
         if !(start.is_finite() && end.is_finite() && step.is_finite()) {
-            return Err(format!("{start}:{end}:{step} is not a finite range"));
+            return Err(format!("{}:{}:{} is not a finite range", readable(start), readable(end), readable(step)));
         }
         if step <= 0.0 {
-            return Err(format!("step {step} must be positive"));
+            return Err(format!("step {} must be positive", readable(step)));
         }
         if end < start {
-            return Err(format!("end {end} is before start {start}"));
+            return Err(format!("end {} is before start {}", readable(end), readable(start)));
         }
         let n = ((end - start) / step + 1e-9).floor() + 1.0;
         if !(n.is_finite() && n <= MAX_FRAMES as f64) {
+            // Exact below 2^53, where every count is an integer f64.
+            let count = if n < 9e15 { format!("{n}") } else { readable(n) };
             return Err(format!(
-                "{start}:{end} with step {step} is {n:.3e} time codes; painterly covers at most \
-                 {MAX_FRAMES} per run (bake the range in parts, each with its own --frames A:B)"
+                "{}:{} with step {} is {count} time codes; painterly covers at most \
+                 {MAX_FRAMES} per run (bake the range in parts, each with its own --frames A:B)",
+                readable(start),
+                readable(end),
+                readable(step)
             ));
         }
         // Every time code `times` makes must differ from the previous one in
@@ -83,7 +88,11 @@ impl FrameRange {
         for k in 1..n {
             let t = self.time_at(k);
             if t <= previous {
-                return Err(format!("step {step} is too small to separate time codes near {t}"));
+                return Err(format!(
+                    "step {} is too small to separate time codes near {}",
+                    readable(step),
+                    readable(t)
+                ));
             }
             previous = t;
         }
@@ -115,7 +124,10 @@ impl FrameRange {
         if self.start < stage_start - 1e-9 || self.end > stage_end + 1e-9 {
             return Err(Error::msg(format!(
                 "--frames {}:{} is outside the stage's time range {}:{} (startTimeCode:endTimeCode)",
-                self.start, self.end, stage_start, stage_end
+                readable(self.start),
+                readable(self.end),
+                readable(stage_start),
+                readable(stage_end)
             )));
         }
         Ok(())
@@ -252,15 +264,20 @@ mod tests {
         assert_eq!(why("5:1"), "end 1 is before start 5");
         assert_eq!(
             why("1e17:100000000000000016:1"),
-            "step 1 is too small to separate time codes near 100000000000000000"
+            "step 1 is too small to separate time codes near 1e17"
         );
+        // The count is exact (500001 is over the limit, as 5.000e5 did not
+        // show), and far bounds are short.
+        assert!(why("1:500001").starts_with("1:500001 with step 1 is 500001 time codes;"));
+        assert!(why("-1e308:1e308").starts_with("-1e308:1e308 with step 1 is inf time codes;"));
+        assert_eq!(why("1e-300:1e-301"), "end 1e-301 is before start 1e-300");
         // Just below 2^57 f64 is spaced 16 apart: a step of 10 moves `end`
         // (10 > 16/2) yet rounds 2^57 − 64 + 10 and + 20 both to 2^57 − 48.
         let (start, end) = (2f64.powi(57) - 64.0, 2f64.powi(57) - 16.0);
         let e = FrameRange { start, end, step: 10.0 }.count().unwrap_err();
         assert_eq!(
             e,
-            format!("step 10 is too small to separate time codes near {}", start + 16.0)
+            format!("step 10 is too small to separate time codes near {:e}", start + 16.0)
         );
         let r = FrameRange { start, end, step: 16.0 };
         assert_eq!(r.count(), Ok(4));

@@ -146,7 +146,7 @@ impl fmt::Display for InterpError {
                 f,
                 "RBF radius must be a finite positive number between {MIN_RADIUS:e} and {MAX_RADIUS:e} \
                  (its square must be a normal number), got {}",
-                readable(*radius)
+                crate::error::readable(*radius)
             ),
             InterpError::TooManyKeys { count } => write!(
                 f,
@@ -163,14 +163,6 @@ impl fmt::Display for InterpError {
 
 impl std::error::Error for InterpError {}
 
-/// `x` as a person writes it: exponent notation for the very small and large.
-fn readable(x: f64) -> String {
-    if x != 0.0 && x.is_finite() && !(1e-4..1e6).contains(&x.abs()) {
-        format!("{x:e}")
-    } else {
-        format!("{x}")
-    }
-}
 
 /// Which interpolation scheme to use (USD `painterly:interpolation`).
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -184,11 +184,22 @@ fn temp_path(path: &Path, suffix: &str) -> Result<PathBuf> {
         .to_string_lossy();
     let tail = format!("{MARK}{}-{}{suffix}", host(), std::process::id());
     // Keep within the usual 255-byte name limit.
-    let mut keep = name.len().min(255usize.saturating_sub(tail.len() + 1));
+    let room = 255usize.saturating_sub(tail.len() + 1);
+    if name.len() <= room {
+        return Ok(dir_of(path).join(format!(".{name}{tail}")));
+    }
+    // A cut name loses its end, which is what tells chunks (`shot.0000.1-5`,
+    // `shot.0001.6-10`) apart: a digest of the whole name keeps them distinct.
+    let digest = {
+        use sha2::{Digest, Sha256};
+        let d = Sha256::digest(path.file_name().unwrap_or_default().as_encoded_bytes());
+        d[..8].iter().map(|b| format!("{b:02x}")).collect::<String>()
+    };
+    let mut keep = room.saturating_sub(digest.len() + 1);
     while !name.is_char_boundary(keep) {
         keep -= 1;
     }
-    Ok(dir_of(path).join(format!(".{}{tail}", &name[..keep])))
+    Ok(dir_of(path).join(format!(".{}~{digest}{tail}", &name[..keep])))
 }
 
 /// `(host, pid)` of a temporary's file name, if it is one of ours.
@@ -663,6 +674,23 @@ mod tests {
         let long = "n".repeat(300) + ".usdc";
         let t = temp_path(Path::new(&long), TMP_SUFFIX).unwrap();
         assert!(t.file_name().unwrap().len() <= 255);
+    }
+
+    #[test]
+    fn long_names_that_differ_only_at_their_end_get_distinct_temporaries() {
+        // Chunks of a long stem differ after the cut: `<stem>.0000.1-5.usdc`.
+        let stem = "s".repeat(240);
+        let a = temp_path(Path::new(&format!("/x/{stem}.0000.1-5.usdc")), TMP_SUFFIX).unwrap();
+        let b = temp_path(Path::new(&format!("/x/{stem}.0001.6-10.usdc")), TMP_SUFFIX).unwrap();
+        assert_ne!(a, b);
+        for t in [&a, &b] {
+            let name = t.file_name().unwrap().to_str().unwrap();
+            assert!(name.len() <= 255 && name.starts_with(".sss"), "{name}");
+            assert_eq!(parse_temp_name(name).map(|(_, pid)| pid), Some(std::process::id()), "{name}");
+        }
+        // A name that fits keeps its plain form.
+        let short = temp_path(Path::new("/x/out.usdc"), TMP_SUFFIX).unwrap();
+        assert!(!short.to_str().unwrap().contains('~'));
     }
 
     #[test]

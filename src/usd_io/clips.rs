@@ -72,6 +72,9 @@ pub fn binding_cache_path(output: &Path) -> Result<PathBuf> {
     Ok(dir.join(format!("{stem}.binding.usdc")))
 }
 
+/// The longest file name (bytes) the usual file systems take (ext4, xfs, tmpfs).
+const NAME_MAX: usize = 255;
+
 impl ClipPlan {
     /// Splits `times` into chunks of `chunk_size` frames for `output`.
     pub fn new(output: &Path, times: &[f64], chunk_size: usize) -> Result<ClipPlan> {
@@ -96,7 +99,17 @@ impl ClipPlan {
                     ),
                 }
             })
-            .collect();
+            .collect::<Vec<Chunk>>();
+        // A name the file system refuses would fail at the last rename, with
+        // earlier chunks already published: refused before anything is written.
+        if let Some(long) = chunks.iter().map(|c| &c.name).max_by_key(|n| n.len()).filter(|n| n.len() > NAME_MAX) {
+            return Err(Error::msg(format!(
+                "its chunks' file names would be up to {} bytes ({long}), over the {NAME_MAX} a file name may have: \
+                 shorten the output's name (or give --frames simpler times)",
+                long.len()
+            ))
+            .in_file(output));
+        }
         Ok(ClipPlan {
             output: output.to_path_buf(),
             dir,
@@ -108,6 +121,13 @@ impl ClipPlan {
     /// A chunk's layer path.
     pub fn chunk_path(&self, chunk: &Chunk) -> PathBuf {
         self.dir.join(&chunk.name)
+    }
+
+    /// Refuses a clip set that could not be written (its manifest or layer
+    /// a folder, protected, or read-only).
+    pub fn check_clip_set_targets(&self) -> Result<()> {
+        super::atomic::check_target(&self.manifest_path())?;
+        super::atomic::check_target(&self.output)
     }
 
     /// The manifest layer's path.
@@ -184,6 +204,8 @@ pub struct ChunkedSink {
 impl ChunkedSink {
     pub fn new(plan: ClipPlan, layout: BakeLayout, times: &[f64]) -> Result<ChunkedSink> {
         plan.create_dir()?;
+        // Before baking: a clip set that cannot be written is known now.
+        plan.check_clip_set_targets()?;
         Ok(ChunkedSink {
             plan,
             layout,
@@ -233,6 +255,9 @@ impl FrameSink for ChunkedSink {
         for chunk in &self.staged {
             chunk.check()?;
         }
+        // The clip set is written after the chunks: had it become unwritable,
+        // new chunks would be published under the old set.
+        self.plan.check_clip_set_targets()?;
         let _publishing = super::atomic::hold_signals();
         for chunk in std::mem::take(&mut self.staged) {
             chunk.commit()?;
