@@ -9,6 +9,7 @@ last (`--assemble`), which refuses missing or stale chunks.
 """
 
 import json
+import os
 import pathlib
 import re
 import shutil
@@ -16,6 +17,7 @@ import shutil
 import numpy as np
 import pytest
 from clip_compare import compare
+from conftest import painterly_binary
 from pxr import Sdf, Usd, Vt
 
 FIXTURES = ["blowfish.usda", "tube.usda", "wave.usda", "static.usda", "apple.usda", "head.usda", "walk.usda", "building.usda"]
@@ -258,6 +260,59 @@ def test_a_failed_rebake_leaves_the_published_clip_set_whole(painterly, tmp_path
     assert sorted(after) == sorted(published)
     # Only the binding cache is new: it is stamped with the input it binds.
     assert [p.name for p in published if after[p] != published[p]] == ["shot.binding.usdc"]
+
+
+def _files(root):
+    return {p: p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
+
+
+def test_chunk_names_too_long_for_the_file_system_are_refused_before_any_write(painterly, tmp_path, repo_root):
+    """A 241-byte stem: chunk 0 (`<stem>.0000.1-5.usdc`, 255 bytes) fits,
+    chunk 1 (`<stem>.0001.6-10.usdc`, 256) does not. The re-bake once wrote
+    every chunk through one cut temporary name and replaced the published
+    chunk 0 with frames 6-10 before failing (a shot-scale review,
+    2026-12-07); now nothing is written and the cause is named."""
+    src = repo_root / "fixtures" / "tube.usda"
+    shot = tmp_path / ("s" * 241 + ".usda")
+    painterly("bake", src, "-o", shot, "--chunk", "5", "--frames", "1:5", "--quiet")
+    published = _files(tmp_path)
+    proc = painterly("bake", src, "-o", shot, "--chunk", "5", "--frames", "1:10", check=False)
+    long = "s" * 241 + ".0001.6-10.usdc"
+    assert (proc.returncode, proc.stderr) == (1, (
+        f"error: {shot}: its chunks' file names would be up to 256 bytes ({long}), over the 255 a file name "
+        "may have: shorten the output's name (or give --frames simpler times)\n"))
+    assert _files(tmp_path) == published
+
+
+@pytest.mark.skipif(os.geteuid() != 0 or not shutil.which("setpriv"), reason="needs root to run as another user")
+def test_a_rebake_whose_clip_set_is_read_only_publishes_no_chunk(request, painterly, repo_root):
+    """The pipeline locked the published clip-set layer (mode 444); a
+    re-bake by another user must fail before it replaces a chunk, or the
+    old set would show new chunks for some frames and old for others."""
+    import subprocess
+    import tempfile
+
+    shared = pathlib.Path(tempfile.mkdtemp(prefix="painterly-shared-"))
+    request.addfinalizer(lambda: shutil.rmtree(shared, ignore_errors=True))
+    shared.chmod(0o777)
+    src = shared / "tube.usda"
+    text = (repo_root / "fixtures" / "tube.usda").read_text()
+    src.write_text(text)
+    shot = shared / "shot.usda"
+    nobody = ["setpriv", "--reuid=65534", "--regid=65534", "--clear-groups"]
+    first = subprocess.run([*nobody, str(painterly_binary()), "bake", str(src), "-o", str(shot), "--chunk", "5",
+                            "--frames", "1:10", "--quiet"], capture_output=True, text=True, timeout=120)
+    assert first.returncode == 0, first.stderr
+    shot.chmod(0o444)
+    published = _files(shared)
+    src.write_text(text.replace("float painterly:opacity = 0.8", "float painterly:opacity = 0.6", 1))
+    proc = subprocess.run([*nobody, str(painterly_binary()), "bake", str(src), "-o", str(shot), "--chunk", "5",
+                           "--frames", "1:7"], capture_output=True, text=True, timeout=120)
+    assert (proc.returncode, proc.stderr) == (1, (
+        f"error: {shot}: cannot replace a file this user may not write (mode 444): change its permissions first\n"))
+    after = _files(shared)
+    assert {p for p in after if p != src} == {p for p in published if p != src}
+    assert [p.name for p in published if p != src and after[p] != published[p]] == []
 
 
 def test_one_process_at_a_time_writes_a_shot_and_tasks_share_it(painterly, tmp_path, repo_root):
