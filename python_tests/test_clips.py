@@ -315,6 +315,24 @@ def test_a_rebake_whose_clip_set_is_read_only_publishes_no_chunk(request, painte
     assert [p.name for p in published if p != src and after[p] != published[p]] == []
 
 
+def test_a_chunked_bake_of_an_input_holding_a_painterly_clip_set_is_refused(painterly, tmp_path, repo_root):
+    """`clips` merges key by key: a second set named "painterly" on the root prim
+    replaced every entry of the first, and the proxy the first set animated
+    froze at rest (a shot-scale review, 2026-12-07). A single-file bake over
+    the same input keeps the old set, as usd-core composes it."""
+    src = repo_root / "fixtures" / "tube.usda"
+    first, view = tmp_path / "first.usda", tmp_path / "layered.usda"
+    painterly("bake", src, "-o", first, "--chunk", "6", "--bake-proxy", "--quiet")
+    painterly("view", src, "--bake", first, "-o", view)
+    out = tmp_path / "again.usda"
+    proc = painterly("bake", view, "-o", out, "--chunk", "6", check=False)
+    assert proc.returncode == 1
+    assert proc.stderr.startswith(f"error: {view}: /Tube.clips: the input already holds a value-clip set named "
+                                  '"painterly" here'), proc.stderr
+    assert not out.exists() and not (tmp_path / "again.clips").exists()
+    painterly("bake", view, "-o", tmp_path / "single.usdc", "--quiet")
+
+
 def test_one_process_at_a_time_writes_a_shot_and_tasks_share_it(painterly, tmp_path, repo_root):
     """A whole chunked bake and an assembly take the clips folder's lock
     alone, chunk tasks together (flock on shot.clips/shot.lock): two local

@@ -317,6 +317,7 @@ fn bake_character(
         Some(size) => {
             layout.provenance.input_hash = Some(clips::input_hash(&ch.reader)?);
             let plan = ClipPlan::new(output, &times, size)?;
+            clips::refuse_input_clip_set(&ch.reader, &layout)?;
             match (opts.chunk_index, opts.assemble) {
                 (Some(k), _) => {
                     let chunk = plan.chunks.get(k).ok_or_else(|| {

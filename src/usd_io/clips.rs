@@ -274,6 +274,43 @@ pub fn frame_step(times: &[f64]) -> f64 {
     }
 }
 
+/// The root prims (names) the clip set is authored on: those above every
+/// prim the bake writes.
+fn clip_set_roots(layout: &BakeLayout) -> BTreeSet<&str> {
+    layout
+        .attrs
+        .iter()
+        .map(|a| a.prim.as_str())
+        .chain(layout.blocked_skeletons.iter().map(String::as_str))
+        .chain(layout.blocked_attrs.iter().map(|b| b.prim.as_str()))
+        .filter_map(|p| p.split('/').nth(1))
+        .collect()
+}
+
+/// Refuses a chunked bake of an input that already holds a clip set named
+/// [`CLIP_SET`] on a root prim the new set goes on (an earlier chunked bake
+/// in its layer stack, e.g. through `painterly view`): `clips` merges key by
+/// key, so the new set would silently replace the old one's every entry,
+/// and what the old set animated (a baked proxy) would freeze.
+pub fn refuse_input_clip_set(r: &StageReader, layout: &BakeLayout) -> Result<()> {
+    for root in clip_set_roots(layout) {
+        let path = format!("/{root}");
+        let Some(prim) = r.prim(&path)? else { continue };
+        if r.prim_clip_set_names(&prim)?.iter().any(|n| n == CLIP_SET) {
+            return Err(Error::attr(
+                &path,
+                "clips",
+                format!(
+                    "the input already holds a value-clip set named \"{CLIP_SET}\" here (an earlier chunked bake \
+                     in its layers, e.g. through `painterly view`); a chunked bake would replace it: bake the \
+                     input without the earlier bake, or bake to a single file"
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// Writes the manifest and the clip-set layer for `plan`.
 pub fn write_clip_set(plan: &ClipPlan, layout: &BakeLayout, times: &[f64]) -> Result<()> {
     let manifest = plan.manifest_path();
@@ -288,14 +325,7 @@ pub fn write_clip_set(plan: &ClipPlan, layout: &BakeLayout, times: &[f64]) -> Re
     let mut provenance: Provenance = layout.provenance.clone();
     provenance.chunks = Some((plan.chunk_size, plan.chunks.iter().map(|c| c.name.clone()).collect()));
     let head = usda_header(&layout.meta, &provenance, bake_layer::DOC);
-    let roots: BTreeSet<&str> = layout
-        .attrs
-        .iter()
-        .map(|a| a.prim.as_str())
-        .chain(layout.blocked_skeletons.iter().map(String::as_str))
-        .chain(layout.blocked_attrs.iter().map(|b| b.prim.as_str()))
-        .filter_map(|p| p.split('/').nth(1))
-        .collect();
+    let roots = clip_set_roots(layout);
     let full = PrimTree::new(
         layout
             .attrs

@@ -686,6 +686,22 @@ impl StageReader {
             .map_err(|e| Error::attr(prim.path(), name, format!("cannot read time samples: {e}")))
     }
 
+    /// The names of the value-clip sets in a prim's composed `clips`, in
+    /// every layer of the stage that authors them on it.
+    pub fn prim_clip_set_names(&self, prim: &usd::Prim) -> Result<Vec<String>> {
+        let path = prim.path();
+        let mut names = Vec::new();
+        for id in self.stage.layer_stack() {
+            let Some(layer) = self.stage.layer(&id) else { continue };
+            if let Ok(Some(clips)) = layer.data().try_field(path, "clips") {
+                if let Value::Dictionary(sets) = clips.as_ref() {
+                    names.extend(sets.keys().cloned());
+                }
+            }
+        }
+        Ok(names)
+    }
+
     /// An attribute's metadata field (e.g. a primvar's `interpolation` or
     /// `elementSize`), undecoded; None when not authored.
     pub fn attr_metadata(&self, prim: &usd::Prim, name: &str, key: &str) -> Result<Option<Value>> {
