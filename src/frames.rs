@@ -59,7 +59,12 @@ impl FrameRange {
     pub fn count(&self) -> std::result::Result<usize, String> {
         let FrameRange { start, end, step } = *self;
         if !(start.is_finite() && end.is_finite() && step.is_finite()) {
-            return Err(format!("{}:{}:{} is not a finite range", readable(start), readable(end), readable(step)));
+            return Err(format!(
+                "{}:{}:{} is not a finite range",
+                readable(start),
+                readable(end),
+                readable(step)
+            ));
         }
         if step <= 0.0 {
             return Err(format!("step {} must be positive", readable(step)));

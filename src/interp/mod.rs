@@ -163,7 +163,6 @@ impl fmt::Display for InterpError {
 
 impl std::error::Error for InterpError {}
 
-
 /// Which interpolation scheme to use (USD `painterly:interpolation`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Method {

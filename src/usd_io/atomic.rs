@@ -686,7 +686,11 @@ mod tests {
         for t in [&a, &b] {
             let name = t.file_name().unwrap().to_str().unwrap();
             assert!(name.len() <= 255 && name.starts_with(".sss"), "{name}");
-            assert_eq!(parse_temp_name(name).map(|(_, pid)| pid), Some(std::process::id()), "{name}");
+            assert_eq!(
+                parse_temp_name(name).map(|(_, pid)| pid),
+                Some(std::process::id()),
+                "{name}"
+            );
         }
         // A name that fits keeps its plain form.
         let short = temp_path(Path::new("/x/out.usdc"), TMP_SUFFIX).unwrap();

@@ -102,7 +102,12 @@ impl ClipPlan {
             .collect::<Vec<Chunk>>();
         // A name the file system refuses would fail at the last rename, with
         // earlier chunks already published: refused before anything is written.
-        if let Some(long) = chunks.iter().map(|c| &c.name).max_by_key(|n| n.len()).filter(|n| n.len() > NAME_MAX) {
+        if let Some(long) = chunks
+            .iter()
+            .map(|c| &c.name)
+            .max_by_key(|n| n.len())
+            .filter(|n| n.len() > NAME_MAX)
+        {
             return Err(Error::msg(format!(
                 "its chunks' file names would be up to {} bytes ({long}), over the {NAME_MAX} a file name may have: \
                  shorten the output's name (or give --frames simpler times)",
