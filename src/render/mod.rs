@@ -193,14 +193,13 @@ fn frame_is_nameable(t: f64) -> bool {
 /// number, zero-padded to the run's length (fractional frames keep up to
 /// three decimals: `0012.5`).
 pub fn frame_path(pattern: &Path, t: f64) -> PathBuf {
-    let name = pattern
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    let Some(start) = name.find('#') else {
+    use std::os::unix::ffi::{OsStrExt, OsStringExt};
+    // Bytes, not text: a name that is not UTF-8 keeps its bytes ('#' is ASCII).
+    let name = pattern.file_name().map(OsStrExt::as_bytes).unwrap_or_default();
+    let Some(start) = name.iter().position(|&b| b == b'#') else {
         return pattern.to_path_buf();
     };
-    let len = name[start..].chars().take_while(|&c| c == '#').count();
+    let len = name[start..].iter().take_while(|&&b| b == b'#').count();
     let (whole, thousandths) = frame_digits(t);
     // The sign is shown only when what is shown is not zero (−0.5: `-000.5`).
     let mut num = if t < 0.0 && (whole > 0.0 || thousandths > 0.0) {
@@ -211,8 +210,8 @@ pub fn frame_path(pattern: &Path, t: f64) -> PathBuf {
     if thousandths > 0.0 {
         num.push_str(format!(".{:03}", thousandths as u32).trim_end_matches('0'));
     }
-    let out = format!("{}{}{}", &name[..start], num, &name[start + len..]);
-    pattern.with_file_name(out)
+    let out = [&name[..start], num.as_bytes(), &name[start + len..]].concat();
+    pattern.with_file_name(std::ffi::OsString::from_vec(out))
 }
 
 /// The contact sheet's path: the pattern's stem without its first `#` run
@@ -221,26 +220,27 @@ pub fn frame_path(pattern: &Path, t: f64) -> PathBuf {
 /// the name takes the separator after it instead (`####.a.exr` gives
 /// `a.sheet.png`, not the hidden `.a.sheet.png`); nothing left gives `frames`.
 pub fn sheet_path(pattern: &Path) -> PathBuf {
-    let stem = pattern
-        .file_stem()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    let is_sep = |c: char| matches!(c, '.' | '_' | '-');
-    let base = match stem.find('#') {
-        None => stem,
+    use std::os::unix::ffi::{OsStrExt, OsStringExt};
+    let stem = pattern.file_stem().map(OsStrExt::as_bytes).unwrap_or_default();
+    let is_sep = |b: u8| matches!(b, b'.' | b'_' | b'-');
+    let base = match stem.iter().position(|&b| b == b'#') {
+        None => stem.to_vec(),
         Some(start) => {
-            let end = stem[start..].find(|c| c != '#').map_or(stem.len(), |n| start + n);
+            let end = stem[start..]
+                .iter()
+                .position(|&b| b != b'#')
+                .map_or(stem.len(), |n| start + n);
             let (mut lo, mut hi) = (start, end);
-            if stem[..start].ends_with(is_sep) {
+            if start > 0 && is_sep(stem[start - 1]) {
                 lo -= 1;
-            } else if start == 0 && stem[end..].starts_with(is_sep) {
+            } else if start == 0 && end < stem.len() && is_sep(stem[end]) {
                 hi += 1;
             }
-            format!("{}{}", &stem[..lo], &stem[hi..])
+            [&stem[..lo], &stem[hi..]].concat()
         }
     };
-    let base = if base.is_empty() { "frames" } else { &base };
-    pattern.with_file_name(format!("{base}.sheet.png"))
+    let base = if base.is_empty() { b"frames".to_vec() } else { base };
+    pattern.with_file_name(std::ffi::OsString::from_vec([&base[..], b".sheet.png"].concat()))
 }
 
 fn check_args(args: &RenderArgs) -> Result<Vec<f64>> {
@@ -656,6 +656,14 @@ mod tests {
         assert_eq!(frame_list(&[1.0, 2.5, 4.0, 5.0, 6.0]), "frames 1, 2.5, 4, 5, 6");
         let many: Vec<f64> = (1..=12).map(f64::from).collect();
         assert_eq!(frame_list(&many), "frames 1, 2, 3, 4, 5 and 7 more");
+    }
+
+    #[test]
+    fn frame_and_sheet_paths_keep_bytes_that_are_not_utf8() {
+        use std::os::unix::ffi::{OsStrExt, OsStringExt};
+        let pattern = PathBuf::from(std::ffi::OsString::from_vec(b"/o/f\xfd.####.exr".to_vec()));
+        assert_eq!(frame_path(&pattern, 1.0).as_os_str().as_bytes(), b"/o/f\xfd.0001.exr");
+        assert_eq!(sheet_path(&pattern).as_os_str().as_bytes(), b"/o/f\xfd.sheet.png");
     }
 
     #[test]
