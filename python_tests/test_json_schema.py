@@ -359,3 +359,29 @@ def test_author_json(painterly, tmp_path):
         moved = np.abs(rest_points(out, hair) - rest_points(fish, hair)).max(axis=1) > 0
         assert (doc["command"], doc["layers"], doc["written"]) == (command, [hair], str(out))
         assert doc["points"] == int(moved.sum()) > 0
+
+
+@pytest.mark.parametrize("kind", ["int", "bogus"])
+def test_an_axis_kind_that_cannot_be_read_is_a_problem_in_a_whole_report(painterly, tmp_path, kind):
+    """An axis `kind` authored as an int made `inspect --json` print nothing
+    (exit 1, the error naming no file); an unknown token broke the schema's
+    enum. Both are now one problem in a report that validates, with the
+    axis's kind null (an inspect review, 2026-12-07)."""
+    src = tmp_path / "fish.usda"
+    stage = Usd.Stage.Open(str(FIXTURES / "blowfish.usda"))
+    stage.Export(str(src))
+    stage = Usd.Stage.Open(str(src))
+    axis = stage.DefinePrim("/Blowfish/Loose", "PainterlyAxis")
+    if kind == "int":
+        # At the Sdf level: the schema plugin makes usd-core refuse it through Usd.
+        spec = Sdf.AttributeSpec(stage.GetRootLayer().GetPrimAtPath("/Blowfish/Loose"), "kind",
+                                 Sdf.ValueTypeNames.Int)
+        spec.default = 3
+    else:
+        axis.GetAttribute("kind").Set("bogus")
+    stage.GetRootLayer().Save()
+    proc = painterly("inspect", src, "--json", check=False)
+    assert proc.returncode == 1, proc.stderr
+    doc = validate("inspect", json.loads(proc.stdout))
+    assert {"path": "/Blowfish/Loose", "kind": None, "source": None} in doc["axes"]
+    assert [(p["prim"], p["attribute"]) for p in doc["problems"]] == [("/Blowfish/Loose", "kind")]

@@ -89,7 +89,8 @@ pub struct LayerReport {
 #[derive(Debug, Serialize)]
 pub struct AxisReport {
     pub path: String,
-    pub kind: String,
+    /// None when `kind` cannot be read or is none of the five (a problem says why).
+    pub kind: Option<String>,
     pub source: Option<String>,
 }
 
@@ -375,7 +376,7 @@ pub fn inspect_stage_for(r: &StageReader, frames: Option<FrameRange>) -> Result<
     let meta = r.metadata();
     problems.extend(stage_problems(r, &meta, frames));
     let mut rigs: Vec<RigReport> = scene.rigs.iter().map(|rig| rig_report(r, rig, &mut problems)).collect();
-    let axes = axis_reports(r)?;
+    let axes = axis_reports(r).map_err(|e| e.in_file(path))?;
     // Every axis is checked, not only those keyed layers read: a wrong joint
     // name should show before the first key is made, not at it.
     for a in &axes {
@@ -497,14 +498,20 @@ fn rig_report(r: &StageReader, rig: &Rig, problems: &mut Vec<Problem>) -> RigRep
 }
 
 /// Every `PainterlyAxis` prim: its kind (`attribute` when unauthored) and source.
+/// The `kind` tokens of a PainterlyAxis (SPEC §4).
+const AXIS_KINDS: [&str; 5] = ["attribute", "blendShape", "jointRotation", "position", "viewDirection"];
+
 fn axis_reports(r: &StageReader) -> Result<Vec<AxisReport>> {
     let mut axes = Vec::new();
     for p in r.prim_paths()? {
         let prim = r.require_prim(&p)?;
         if r.type_name(&prim)? == "PainterlyAxis" {
-            let kind = r
-                .typed(&prim, "kind", None, "token", crate::usd_io::values::token)?
-                .unwrap_or_else(|| "attribute".into());
+            // A bad kind is the axis check's problem, not the end of the report.
+            let kind = match r.typed(&prim, "kind", None, "token", crate::usd_io::values::token) {
+                Ok(None) => Some("attribute".to_string()),
+                Ok(Some(k)) => AXIS_KINDS.contains(&k.as_str()).then_some(k),
+                Err(_) => None,
+            };
             let source = r.targets(&prim, "source")?.into_iter().next();
             axes.push(AxisReport {
                 path: p.clone(),
@@ -521,7 +528,7 @@ fn axis_reports(r: &StageReader) -> Result<Vec<AxisReport>> {
 /// also what a misspelt name gives: the rig holding the axis gets a note
 /// naming the shapes the animation does animate.
 fn note_unanimated_blend_shapes(r: &StageReader, axes: &[AxisReport], rigs: &mut [RigReport]) -> Result<()> {
-    for axis in axes.iter().filter(|a| a.kind == "blendShape") {
+    for axis in axes.iter().filter(|a| a.kind.as_deref() == Some("blendShape")) {
         let (p, Some(anim)) = (&axis.path, &axis.source) else {
             continue;
         };
@@ -705,7 +712,7 @@ impl Report {
                 s,
                 "axis {} ({}) <- {}",
                 a.path,
-                a.kind,
+                a.kind.as_deref().unwrap_or("kind unreadable"),
                 a.source.as_deref().unwrap_or("-")
             );
         }

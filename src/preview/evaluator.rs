@@ -318,7 +318,12 @@ impl State {
             .unwrap_or_default();
         let axis_kinds: Vec<(String, String)> = report
             .as_ref()
-            .map(|rep| rep.axes.iter().map(|a| (a.path.clone(), a.kind.clone())).collect())
+            .map(|rep| {
+                rep.axes
+                    .iter()
+                    .filter_map(|a| Some((a.path.clone(), a.kind.clone()?)))
+                    .collect()
+            })
             .unwrap_or_default();
 
         // The start view: the --camera, else a view-dependent mesh's camera.
