@@ -459,6 +459,42 @@ def test_inspect_says_when_there_is_nothing_painterly(painterly, tmp_path, repo_
         assert "nothing painterly" not in proc.stdout, proc.stdout
 
 
+def test_inspect_says_when_a_rig_has_nothing_to_bake_or_could_not_be_read(painterly, tmp_path, repo_root):
+    """A rig whose stroke layers are all deactivated passed as "no problems
+    found" while bake said "nothing to bake"; a rig inspect could not read
+    was reported as "no rig" though its problem named it (two reviews,
+    2026-12-07)."""
+    from pxr import Usd
+
+    idle = tmp_path / "idle.usda"
+    stage = Usd.Stage.Open(str(repo_root / "fixtures" / "tube.usda"))
+    stage.Export(str(idle))
+    stage = Usd.Stage.Open(str(idle))
+    for p in stage.Traverse():
+        if "PainterlyStrokeLayerAPI" in p.GetAppliedSchemas():
+            p.SetActive(False)
+    stage.GetRootLayer().Save()
+    proc = painterly("inspect", idle)
+    assert proc.returncode == 0
+    assert ("nothing to bake: no rig has an active stroke layer (PainterlyStrokeLayerAPI) and there is no "
+            "view-dependent mesh") in proc.stdout.splitlines(), proc.stdout
+    bake = painterly("bake", idle, "-o", tmp_path / "b.usdc", check=False)
+    assert bake.returncode == 1 and "nothing to bake" in bake.stderr
+
+    broken = tmp_path / "broken.usda"
+    stage = Usd.Stage.Open(str(repo_root / "fixtures" / "tube.usda"))
+    stage.Export(str(broken))
+    stage = Usd.Stage.Open(str(broken))
+    rig = next(p for p in stage.Traverse() if "PainterlyRigAPI" in p.GetAppliedSchemas())
+    rig.GetRelationship("painterly:proxy").SetTargets(["/Nowhere"])
+    stage.GetRootLayer().Save()
+    proc = painterly("inspect", broken, check=False)
+    assert proc.returncode == 1
+    lines = proc.stdout.splitlines()
+    assert "nothing painterly could be listed (the problems below say why), so bake has nothing to bake" in lines
+    assert not any(line.startswith("nothing painterly: no rig") for line in lines), proc.stdout
+
+
 def test_inspect_refuses_a_camera_that_is_no_prim_path(painterly, repo_root):
     """As bake does (exit 2): a property path is a bad option, not a
     problem of the stage (inspect listed it as one, exit 1)."""

@@ -27,6 +27,9 @@ pub struct Report {
     pub start_time_code: Option<f64>,
     pub end_time_code: Option<f64>,
     pub time_codes_per_second: Option<f64>,
+    /// What an unauthored timeCodesPerSecond falls back to (USD: this, else 24).
+    #[serde(skip)]
+    pub frames_per_second: Option<f64>,
     pub up_axis: Option<String>,
     pub rigs: Vec<RigReport>,
     pub axes: Vec<AxisReport>,
@@ -402,6 +405,7 @@ pub fn inspect_stage_for(r: &StageReader, frames: Option<FrameRange>) -> Result<
         start_time_code: meta.start_time_code,
         end_time_code: meta.end_time_code,
         time_codes_per_second: meta.time_codes_per_second,
+        frames_per_second: meta.frames_per_second,
         up_axis: meta.up_axis,
         rigs,
         axes,
@@ -658,9 +662,10 @@ impl Report {
         let mut s = String::new();
         let opt = |v: Option<f64>| v.map_or("-".to_string(), |v| v.to_string());
         let _ = writeln!(s, "{}", self.file.display());
-        let rate = match self.time_codes_per_second {
-            Some(r) => format!("{r} per second"),
-            None => "24 per second (timeCodesPerSecond not authored: USD's default)".to_string(),
+        let rate = match (self.time_codes_per_second, self.frames_per_second) {
+            (Some(r), _) => format!("{r} per second"),
+            (None, Some(f)) => format!("{f} per second (timeCodesPerSecond not authored: USD takes framesPerSecond)"),
+            (None, None) => "24 per second (timeCodesPerSecond not authored: USD's default)".to_string(),
         };
         let _ = writeln!(
             s,
@@ -689,14 +694,22 @@ impl Report {
             }
             let _ = writeln!(
                 s,
-                "  {:<40} {:>8} {:>8} {:>6} {:>6} {:>6} {:>8}",
-                "layer", "strokes", "points", "pos", "opac", "time", "binding"
+                "  {:<40} {:>8} {:>8} {:>6} {:>6} {:>6} {:>6} {:>8} {:>8}",
+                "layer", "strokes", "points", "pos", "opac", "time", "sent", "binding", "opacity"
             );
             for l in &rig.layers {
                 let _ = writeln!(
                     s,
-                    "  {:<40} {:>8} {:>8} {:>6} {:>6} {:>6} {:>8}",
-                    l.path, l.strokes, l.points, l.pose_position_keys, l.pose_opacity_keys, l.time_keys, l.binding
+                    "  {:<40} {:>8} {:>8} {:>6} {:>6} {:>6} {:>6} {:>8} {:>8}",
+                    l.path,
+                    l.strokes,
+                    l.points,
+                    l.pose_position_keys,
+                    l.pose_opacity_keys,
+                    l.time_keys,
+                    l.sentinels,
+                    l.binding,
+                    l.opacity
                 );
             }
             let strokes: usize = rig.layers.iter().map(|l| l.strokes).sum();
@@ -754,12 +767,18 @@ impl Report {
                 count("stale")
             );
         }
-        if self.rigs.is_empty() && self.view_dependent_meshes.is_empty() && self.clip_set.is_none() {
+        let no_layers = self.rigs.iter().all(|r| r.layers.is_empty());
+        if no_layers && self.view_dependent_meshes.is_empty() && self.clip_set.is_none() {
             // Said, because "no problems found" alone reads as "bake will work".
-            let _ = writeln!(
-                s,
+            let what = if !self.problems.is_empty() {
+                "nothing painterly could be listed (the problems below say why), so bake has nothing to bake"
+            } else if self.rigs.is_empty() {
                 "nothing painterly: no rig (PainterlyRigAPI) and no view-dependent mesh, so bake has nothing to bake"
-            );
+            } else {
+                "nothing to bake: no rig has an active stroke layer (PainterlyStrokeLayerAPI) and there is no \
+                 view-dependent mesh"
+            };
+            let _ = writeln!(s, "{what}");
         }
         if self.problems.is_empty() {
             let _ = writeln!(s, "no problems found");
@@ -873,6 +892,7 @@ def PainterlyAxis "outside" { uniform token kind = "blendShape"  rel source = </
             start_time_code: Some(1.0),
             end_time_code: Some(24.0),
             time_codes_per_second: Some(24.0),
+            frames_per_second: None,
             up_axis: Some("Y".into()),
             rigs: Vec::new(),
             axes: Vec::new(),
@@ -881,6 +901,21 @@ def PainterlyAxis "outside" { uniform token kind = "blendShape"  rel source = </
             clip_set,
             problems,
         }
+    }
+
+    #[test]
+    fn text_rate_falls_back_as_usd_does() {
+        // USD: timeCodesPerSecond, else framesPerSecond, else 24.
+        let rate = |tcps, fps| {
+            let mut r = bare(Vec::new(), None);
+            r.time_codes_per_second = tcps;
+            r.frames_per_second = fps;
+            r.to_text().lines().nth(1).unwrap().to_string()
+        };
+        assert!(rate(Some(12.0), Some(30.0)).ends_with("at 12 per second, up axis Y"));
+        assert!(rate(None, Some(30.0))
+            .contains("at 30 per second (timeCodesPerSecond not authored: USD takes framesPerSecond)"));
+        assert!(rate(None, None).contains("at 24 per second (timeCodesPerSecond not authored: USD's default)"));
     }
 
     #[test]
