@@ -205,6 +205,9 @@ CASES = {
     "axis_source_missing_prim": (_ghost, [f"{_ghost_path}.source"], ()),
     "axis_source_missing_attribute": (_ghost_attr, [f"{_ghost_attr_path}.source"], ()),
     "axis_source_empty_targets": (_retarget(AXIS, "source", []), [f"{AXIS}.source"], ()),
+    # the layer's relationship is named, not only the prim it targets
+    "axes_target_not_an_axis": (_retarget(LAYER, "painterly:axes", ["/World/Controls"]),
+                                [f"{LAYER}.painterly:axes", "targets /World/Controls", "not a PainterlyAxis"], ()),
     "view_source_missing_prim_with_camera": (_vghost, [f"{_vghost_path}.source"],
                                              ("--camera", "/World/Orbit/Cam")),
     # axis kind, interpolation, radius

@@ -1090,6 +1090,16 @@ pub fn layer_axes(r: &StageReader, all_paths: &[String], rig: &mut Rig, layer: &
             );
             return Err(Error::prim(ap, message).rule(Rule::Axis));
         }
+        // Named from the layer: the relationship is what is wrong, not the prim.
+        let ty = r.type_name(&axis)?;
+        if ty != "PainterlyAxis" {
+            return Err(Error::attr(
+                path,
+                "painterly:axes",
+                format!("targets {ap}, a {ty:?} prim, not a PainterlyAxis"),
+            )
+            .rule(Rule::Axis));
+        }
         axes.push(axis_index(r, rig, ap)?);
     }
     Ok(axes)
