@@ -143,6 +143,32 @@ def test_non_finite_skinned_proxy_points(painterly, tmp_path):
     expect_failure(painterly, tmp_path, rig.path, names=[rig.mesh, "points"])
 
 
+def test_non_finite_joint_translation_is_named_not_the_proxy_points(painterly, tmp_path):
+    """An animation value that is not finite made the posed points so, and
+    the error blamed the proxy's authored (finite) points (an error-message
+    review, 2026-12-07)."""
+    from pxr import UsdSkel
+
+    rig = good_skel(tmp_path)
+    found = {}
+
+    def f(st):
+        anim = next(p for p in st.Traverse() if p.IsA(UsdSkel.Animation))
+        a = UsdSkel.Animation(anim).GetTranslationsAttr()
+        # The first sample: every earlier frame holds it, and later ones
+        # interpolate from it (usd-core's inf · (1 − s) is inf too).
+        t = a.GetTimeSamples()[0]
+        assert t <= rig.frames[0]
+        v = list(a.Get(t))
+        v[1] = Gf.Vec3f(math.inf, 0.0, 0.0)
+        a.Set(Vt.Vec3fArray(v), t)
+        found.update(path=str(anim.GetPath()), time=t)
+    edit(rig.path, f)
+    err = expect_failure(painterly, tmp_path, rig.path,
+                         names=[f"{found['path']}.translations: joint 1's value is not finite at time {found['time']:g}"])
+    assert ".points" not in err
+
+
 # ---------------------------------------------------------------------------
 # stroke layers
 

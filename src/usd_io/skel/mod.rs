@@ -510,7 +510,19 @@ impl SkelProxy {
     /// else in the mesh's own space.
     pub fn deform(&self, t: f64) -> Result<Vec<DVec3>> {
         let (skinning, weights) = self.pose(t)?;
-        Ok(self.deformer.deform(skinning.as_deref(), &weights))
+        let points = self.deformer.deform(skinning.as_deref(), &weights);
+        if points.iter().any(|p| !p.is_finite()) {
+            if let Some(e) = self
+                .joints
+                .as_ref()
+                .map(|j| j.non_finite_input(t))
+                .transpose()?
+                .flatten()
+            {
+                return Err(e);
+            }
+        }
+        Ok(points)
     }
 
     /// Whether BakeSkinning rewrites authored normals: joints skin the mesh,

@@ -102,6 +102,40 @@ impl AnimJoints {
 }
 
 impl AnimJoints {
+    /// The first animation value at `t` that is not finite, as an error
+    /// naming its attribute and joint: what made posed points not finite,
+    /// which would otherwise be blamed on the mesh's `points`.
+    fn non_finite_at(&self, t: f64) -> Result<Option<Error>> {
+        let finite = |c: &[f32]| c.iter().all(|c| c.is_finite());
+        for (i, q) in [&self.translations, &self.rotations, &self.scales]
+            .into_iter()
+            .enumerate()
+        {
+            let value = q
+                .get_at(t)
+                .map_err(|e| Error::attr(&self.path, TRS[i], format!("cannot read at time {t}: {e}")))?;
+            let bad = match value {
+                Some(Value::QuatfVec(v)) => v.iter().position(|q| !finite(&[q.w, q.x, q.y, q.z])),
+                Some(v) => v
+                    .cast::<Vec<gf::Vec3f>>()
+                    .ok()
+                    .and_then(|v| v.iter().position(|v| !finite(&[v.x, v.y, v.z]))),
+                None => None,
+            };
+            if let Some(j) = bad {
+                return Ok(Some(
+                    Error::attr(
+                        &self.path,
+                        TRS[i],
+                        format!("joint {j}'s value is not finite at time {t}"),
+                    )
+                    .rule(crate::rule::Rule::NonFinite),
+                ));
+            }
+        }
+        Ok(None)
+    }
+
     /// The samples of `q` (the animation's `name`) on either side of `t`,
     /// strictly between them, and `t`'s fraction of the way: what usd-core
     /// interpolates there. None at or outside the sample times, or where a
@@ -201,6 +235,15 @@ fn gf_slerp(alpha: f64, a: &gf::Quatf, b: &gf::Quatf) -> gf::Quatf {
 }
 
 impl JointPose {
+    /// Why skinning at `t` gives points that are not finite, when the cause
+    /// is an animation value (see [`AnimJoints::non_finite_at`]).
+    pub(super) fn non_finite_input(&self, t: f64) -> Result<Option<Error>> {
+        match &self.anim {
+            Some((anim, _)) => anim.non_finite_at(t),
+            None => Ok(None),
+        }
+    }
+
     /// Skinning transforms in mesh joint order (column form: inverse bind,
     /// then the posed joint in skeleton space).
     pub(super) fn skinning(&self, t: f64) -> Result<Vec<DMat4>> {
