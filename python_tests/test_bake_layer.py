@@ -14,7 +14,7 @@ import shutil
 
 import numpy as np
 import pytest
-from pxr import Sdf, Usd, UsdGeom, UsdValidation
+from pxr import Sdf, Usd, UsdGeom, UsdValidation, Vt
 
 import authoring as Au
 import reference_skinning as R
@@ -430,3 +430,48 @@ def test_skeleton_blocked_only_on_meshes_the_bake_writes(painterly, tmp_path, re
         comp = Au.compose(src, out)
         targets = comp.GetPrimAtPath("/Tube/Rig/Proxy").GetRelationship("skel:skeleton").GetTargets()
         assert (targets == []) == blocked, (flags, targets)
+
+
+def _usd_varying_len(basis, wrap, n):
+    """Values of a `varying` primvar on one cubic curve of n vertices, as
+    usd-core counts them (ComputeVaryingDataSize on a curve of its own)."""
+    stage = Usd.Stage.CreateInMemory()
+    c = UsdGeom.BasisCurves.Define(stage, "/c")
+    c.GetCurveVertexCountsAttr().Set([n])
+    c.GetTypeAttr().Set(UsdGeom.Tokens.cubic)
+    c.GetBasisAttr().Set(basis)
+    c.GetWrapAttr().Set(wrap)
+    return c.ComputeVaryingDataSize(Usd.TimeCode.Default())
+
+
+@pytest.mark.parametrize("basis,wrap", [("bezier", "nonperiodic"), ("bezier", "periodic"),
+                                        ("catmullRom", "pinned"), ("bspline", "nonperiodic")])
+@pytest.mark.parametrize("interp", ["varying", "faceVarying"])
+def test_varying_display_opacity_on_cubic_curves(painterly, tmp_path, basis, wrap, interp):
+    """A cubic curve's varying primvar has one value per span end, not per
+    vertex: 4-vertex bezier curves take 2 values each. It was refused
+    ("fit neither 1, N curves nor M points"; a SPEC review, 2026-12-07);
+    the bake's per-curve opacity is the mean of each curve's values."""
+    rig = Au.build_points_rig(tmp_path / "rig.usda", mode="static")
+    st = Usd.Stage.Open(str(rig.path))
+    curves = UsdGeom.BasisCurves(st.GetPrimAtPath(rig.layers[0]))
+    counts = list(curves.GetCurveVertexCountsAttr().Get())
+    curves.GetTypeAttr().Set(UsdGeom.Tokens.cubic)
+    curves.GetBasisAttr().Set(basis)
+    curves.GetWrapAttr().Set(wrap)
+    lens = [_usd_varying_len(basis, wrap, n) for n in counts]
+    assert sum(lens) == curves.ComputeVaryingDataSize(Usd.TimeCode.Default())
+    assert sum(lens) != sum(counts)
+    rng = np.random.default_rng(3)
+    values = rng.uniform(0.1, 0.9, sum(lens))
+    UsdGeom.PrimvarsAPI(curves).CreatePrimvar("displayOpacity", Sdf.ValueTypeNames.FloatArray,
+                                              interp).Set(Vt.FloatArray(values.tolist()))
+    st.GetRootLayer().Save()
+    values = np.array(Vt.FloatArray(values.tolist()), dtype=np.float64)  # as stored, f32
+    expected = [values[s:s + k].mean() for s, k in zip(np.cumsum([0] + lens[:-1]), lens)]
+    out = tmp_path / "bake.usdc"
+    bake(painterly, rig.path, out, "--quiet")
+    comp = Au.compose(rig.path, out)  # kept: the prim dies with its stage
+    pv = UsdGeom.PrimvarsAPI(comp.GetPrimAtPath(rig.layers[0])).GetPrimvar("displayOpacity")
+    assert pv.GetInterpolation() == UsdGeom.Tokens.uniform
+    np.testing.assert_allclose(np.array(pv.ComputeFlattened(rig.frames[0])), expected, atol=1e-6)

@@ -294,6 +294,25 @@ def test_interpolate_in_one_dimension_and_its_errors():
         painterly.interpolate([], [], [[0.5]])
 
 
+def test_errors_raised_by_the_python_side_carry_the_documented_attributes():
+    """`painterly.Error` raised in Python (not by the native module) had no
+    `.message`, `.file`, ...; ragged keys raised numpy's ValueError and bad
+    text usd-core's Tf.ErrorException (an error-message review, 2026-12-07)."""
+    cases = [
+        (lambda: painterly.interpolate([], [], [[0.5]]), "^no keys"),
+        (lambda: painterly.interpolate([[0.0, 1.0], [2.0]], [1.0, 2.0], [[0.5, 0.5]]),
+         "^keys must be numbers in a rectangular array: "),
+        (lambda: painterly.interpolate([0.0, 1.0], [1.0, 2.0], [["a"]]), "^queries must be numbers"),
+        (lambda: painterly.to_layer("#usda 1.0\ndef X \"a\" {\n"), "^usd-core could not read the layer text"),
+    ]
+    for call, message in cases:
+        with pytest.raises(painterly.Error, match=message) as info:
+            call()
+        e = info.value
+        assert e.message == str(e)
+        assert (e.file, e.prim, e.attribute, e.rule) == (None, None, None, None)
+
+
 # ---------------------------------------------------------------------------
 # inspect, errors
 

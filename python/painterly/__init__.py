@@ -38,6 +38,22 @@ __all__ = [
 RULES = [{"id": i, "validator": v, "doc": d} for i, v, d in _rules()]
 
 
+def _error(message: str) -> Error:
+    """An :class:`Error` raised here, with the attributes the native ones
+    carry (nothing is known of where: None)."""
+    e = Error(message)
+    e.message = message
+    e.file = e.prim = e.attribute = e.rule = None
+    return e
+
+
+def _array(name: str, value) -> np.ndarray:
+    try:
+        return np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError) as why:
+        raise _error(f"{name} must be numbers in a rectangular array: {why}") from None
+
+
 def interpolate(keys, values, queries, method: str = "smooth_voronoi", radius: float = 1.0) -> np.ndarray:
     """Configuration-space interpolation (Bassett et al. 2013, §4.2).
 
@@ -48,19 +64,19 @@ def interpolate(keys, values, queries, method: str = "smooth_voronoi", radius: f
     "rbf" with ``radius``, or "shepard"), the weights the ``painterly
     interpolate`` command prints.
     """
-    keys = np.asarray(keys, dtype=np.float64)
-    queries = np.asarray(queries, dtype=np.float64)
-    values = np.asarray(values, dtype=np.float64)
+    keys = _array("keys", keys)
+    queries = _array("queries", queries)
+    values = _array("values", values)
     if keys.ndim == 1:
         keys = keys[:, None]
     if queries.ndim == 1:
         queries = queries[:, None] if keys.shape[1] == 1 else queries[None, :]
     if keys.ndim != 2 or queries.ndim != 2:
-        raise Error("keys and queries must be (n, d) and (m, d) arrays")
+        raise _error("keys and queries must be (n, d) and (m, d) arrays")
     if keys.shape[0] == 0:
-        raise Error("no keys: interpolation needs at least one key")
+        raise _error("no keys: interpolation needs at least one key")
     if values.ndim == 0 or values.shape[0] != keys.shape[0]:
-        raise Error(f"{keys.shape[0]} keys but values of shape {values.shape}: one value per key")
+        raise _error(f"{keys.shape[0]} keys but values of shape {values.shape}: one value per key")
     rest = values.shape[1:]
     flat = np.ascontiguousarray(values.reshape(values.shape[0], -1))
     out = _interpolate(np.ascontiguousarray(keys), flat, np.ascontiguousarray(queries), method, float(radius))
@@ -70,11 +86,15 @@ def interpolate(keys, values, queries, method: str = "smooth_voronoi", radius: f
 def to_layer(text: str):
     """An anonymous usd-core ``Sdf.Layer`` holding ``text`` (usda), e.g. the
     ``"layer"`` of an in-memory :func:`bake`."""
-    from pxr import Sdf
+    from pxr import Sdf, Tf
 
     layer = Sdf.Layer.CreateAnonymous(".usda")
-    if not layer.ImportFromString(text):
-        raise Error("usd-core could not read the layer text")
+    try:
+        ok = layer.ImportFromString(text)
+    except Tf.ErrorException as why:
+        raise _error(f"usd-core could not read the layer text: {str(why).strip()}") from None
+    if not ok:
+        raise _error("usd-core could not read the layer text")
     return layer
 
 

@@ -92,6 +92,81 @@ pub enum Wrap {
     Pinned,
 }
 
+impl CurveType {
+    /// The `type` token's value.
+    pub fn from_token(t: &str) -> Option<CurveType> {
+        Some(match t {
+            "linear" => CurveType::Linear,
+            "cubic" => CurveType::Cubic,
+            _ => return None,
+        })
+    }
+}
+
+impl Basis {
+    /// The `basis` token's value.
+    pub fn from_token(t: &str) -> Option<Basis> {
+        Some(match t {
+            "bezier" => Basis::Bezier,
+            "bspline" => Basis::Bspline,
+            "catmullRom" => Basis::CatmullRom,
+            _ => return None,
+        })
+    }
+}
+
+impl Wrap {
+    /// The `wrap` token's value.
+    pub fn from_token(t: &str) -> Option<Wrap> {
+        Some(match t {
+            "nonperiodic" => Wrap::Nonperiodic,
+            "periodic" => Wrap::Periodic,
+            "pinned" => Wrap::Pinned,
+            _ => return None,
+        })
+    }
+}
+
+/// Cubic spans of a curve of `n` control points (linear curves: segments),
+/// as UsdGeomBasisCurves counts them.
+pub fn spans(curve_type: CurveType, basis: Basis, wrap: Wrap, n: usize) -> usize {
+    match (curve_type, basis, wrap) {
+        (CurveType::Linear, _, Wrap::Periodic) => n,
+        (CurveType::Linear, _, _) => n.saturating_sub(1),
+        (CurveType::Cubic, Basis::Bezier, Wrap::Periodic) => n / 3,
+        (CurveType::Cubic, Basis::Bezier, _) => n.saturating_sub(1) / 3,
+        (CurveType::Cubic, _, Wrap::Periodic) => n,
+        (CurveType::Cubic, _, Wrap::Pinned) => n.saturating_sub(1),
+        (CurveType::Cubic, _, Wrap::Nonperiodic) => n.saturating_sub(3),
+    }
+}
+
+/// `varying` values of a curve of `n` control points: one per span end.
+pub fn varying_len(curve_type: CurveType, basis: Basis, wrap: Wrap, n: usize) -> usize {
+    let s = spans(curve_type, basis, wrap, n);
+    if wrap == Wrap::Periodic {
+        s
+    } else {
+        s + 1
+    }
+}
+
+/// How many values usd-core's `ComputeVaryingDataSize` expects of a
+/// `varying` primvar on one curve of `n` vertices: what a file's author
+/// validates against. It treats `pinned` as `nonperiodic` and gives a linear
+/// periodic curve n + 1, so it differs from [`varying_len`] (the span ends
+/// drawn) there.
+pub fn usd_varying_data_size(curve_type: CurveType, basis: Basis, wrap: Wrap, n: usize) -> usize {
+    match (curve_type, basis, wrap) {
+        (CurveType::Linear, _, Wrap::Periodic) => n + 1,
+        (CurveType::Linear, _, _) => n,
+        (CurveType::Cubic, Basis::Bezier, Wrap::Periodic) => n / 3,
+        (CurveType::Cubic, _, Wrap::Periodic) => n,
+        (CurveType::Cubic, Basis::Bezier, _) => n.saturating_sub(4) / 3 + 2,
+        (CurveType::Cubic, _, _) => n.saturating_sub(2),
+    }
+}
+
 /// One BasisCurves prim at one time, in world space.
 #[derive(Debug, Clone)]
 pub struct CurvesData {
@@ -125,25 +200,12 @@ pub type CurvesProblem = (&'static str, String);
 impl CurvesData {
     /// Cubic spans of a curve of `n` control points (linear curves: segments).
     fn spans(&self, n: usize) -> usize {
-        match (self.curve_type, self.basis, self.wrap) {
-            (CurveType::Linear, _, Wrap::Periodic) => n,
-            (CurveType::Linear, _, _) => n.saturating_sub(1),
-            (CurveType::Cubic, Basis::Bezier, Wrap::Periodic) => n / 3,
-            (CurveType::Cubic, Basis::Bezier, _) => n.saturating_sub(1) / 3,
-            (CurveType::Cubic, _, Wrap::Periodic) => n,
-            (CurveType::Cubic, _, Wrap::Pinned) => n.saturating_sub(1),
-            (CurveType::Cubic, _, Wrap::Nonperiodic) => n.saturating_sub(3),
-        }
+        spans(self.curve_type, self.basis, self.wrap, n)
     }
 
     /// `varying` values of a curve of `n` control points.
     fn varying_len(&self, n: usize) -> usize {
-        let s = self.spans(n);
-        if self.wrap == Wrap::Periodic {
-            s
-        } else {
-            s + 1
-        }
+        varying_len(self.curve_type, self.basis, self.wrap, n)
     }
 
     /// Checks counts against points and primvar lengths.
@@ -359,6 +421,27 @@ pub fn weights(basis: Basis, t: f32) -> [f32; 4] {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn varying_data_size_is_usd_cores() {
+        // usd-core 26.11's BasisCurves.ComputeVaryingDataSize for one curve
+        // of n = 4..=10 vertices (printed with usd-core, 2026-12-07).
+        use {Basis::*, CurveType::*, Wrap::*};
+        let table: [(CurveType, Basis, Wrap, [usize; 7]); 8] = [
+            (Cubic, Bezier, Nonperiodic, [2, 2, 2, 3, 3, 3, 4]),
+            (Cubic, Bezier, Periodic, [1, 1, 2, 2, 2, 3, 3]),
+            (Cubic, Bezier, Pinned, [2, 2, 2, 3, 3, 3, 4]),
+            (Cubic, Bspline, Nonperiodic, [2, 3, 4, 5, 6, 7, 8]),
+            (Cubic, CatmullRom, Periodic, [4, 5, 6, 7, 8, 9, 10]),
+            (Cubic, CatmullRom, Pinned, [2, 3, 4, 5, 6, 7, 8]),
+            (Linear, Bezier, Nonperiodic, [4, 5, 6, 7, 8, 9, 10]),
+            (Linear, Bspline, Periodic, [5, 6, 7, 8, 9, 10, 11]),
+        ];
+        for (ty, basis, wrap, want) in table {
+            let got: Vec<usize> = (4..=10).map(|n| usd_varying_data_size(ty, basis, wrap, n)).collect();
+            assert_eq!(got, want, "{ty:?} {basis:?} {wrap:?}");
+        }
+    }
 
     fn curves(curve_type: CurveType, basis: Basis, wrap: Wrap, pts: Vec<DVec3>) -> CurvesData {
         CurvesData {

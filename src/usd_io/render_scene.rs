@@ -259,6 +259,19 @@ fn token_attr(r: &StageReader, prim: &usd::Prim, name: &str, fallback: &str) -> 
         .unwrap_or_else(|| fallback.to_string()))
 }
 
+/// A BasisCurves prim's `type`, `basis` and `wrap` (their fallbacks when
+/// not authored).
+pub fn curve_shape(r: &StageReader, prim: &usd::Prim, path: &str) -> Result<(CurveType, Basis, Wrap)> {
+    let t = token_attr(r, prim, "type", "cubic")?;
+    let curve_type =
+        CurveType::from_token(&t).ok_or_else(|| Error::attr(path, "type", format!("unknown curve type {t:?}")))?;
+    let b = token_attr(r, prim, "basis", "bezier")?;
+    let basis = Basis::from_token(&b).ok_or_else(|| Error::attr(path, "basis", format!("unknown basis {b:?}")))?;
+    let w = token_attr(r, prim, "wrap", "nonperiodic")?;
+    let wrap = Wrap::from_token(&w).ok_or_else(|| Error::attr(path, "wrap", format!("unknown wrap {w:?}")))?;
+    Ok((curve_type, basis, wrap))
+}
+
 impl RenderScene {
     /// Finds the camera (it must be a `Camera` prim) and everything drawable.
     pub fn discover(r: &StageReader, camera: &str) -> Result<RenderScene> {
@@ -316,23 +329,7 @@ impl RenderScene {
         path: String,
         visibility: Vec<usd::Prim>,
     ) -> Result<CurvesSource> {
-        let curve_type = match token_attr(r, &prim, "type", "cubic")?.as_str() {
-            "linear" => CurveType::Linear,
-            "cubic" => CurveType::Cubic,
-            other => return Err(Error::attr(&path, "type", format!("unknown curve type {other:?}"))),
-        };
-        let basis = match token_attr(r, &prim, "basis", "bezier")?.as_str() {
-            "bezier" => Basis::Bezier,
-            "bspline" => Basis::Bspline,
-            "catmullRom" => Basis::CatmullRom,
-            other => return Err(Error::attr(&path, "basis", format!("unknown basis {other:?}"))),
-        };
-        let wrap = match token_attr(r, &prim, "wrap", "nonperiodic")?.as_str() {
-            "nonperiodic" => Wrap::Nonperiodic,
-            "periodic" => Wrap::Periodic,
-            "pinned" => Wrap::Pinned,
-            other => return Err(Error::attr(&path, "wrap", format!("unknown wrap {other:?}"))),
-        };
+        let (curve_type, basis, wrap) = curve_shape(r, &prim, &path)?;
         let widths = match PrimvarSource::open(r, &prim, "primvars:widths", "vertex")? {
             Some(w) => Some(w),
             None => PrimvarSource::open(r, &prim, "widths", "vertex")?,

@@ -1365,8 +1365,9 @@ pub fn check_binding(
 
 /// Authored displayOpacity as one value per curve.
 ///
-/// constant → repeated; uniform → as is; vertex/varying → mean over each
-/// curve's points (the bake writes uniform opacity, SPEC §7).
+/// constant → repeated; uniform → as is; vertex → mean over each curve's
+/// points, varying → over its span ends (the bake writes uniform opacity,
+/// SPEC §7).
 fn read_display_opacity(
     r: &StageReader,
     prim: &usd::Prim,
@@ -1398,25 +1399,41 @@ fn read_display_opacity(
         check_opacity(o, path, NAME, "")?;
     }
     let npoints: i64 = counts.iter().sum();
-    let out = if v.len() == 1 {
+    // The mean of each curve's run of `lens` values.
+    let per_curve = |lens: &mut dyn Iterator<Item = usize>| -> Vec<f32> {
+        let mut start = 0usize;
+        lens.map(|c| {
+            let s = &v[start..start + c];
+            start += c;
+            if c == 0 {
+                1.0
+            } else {
+                s.iter().sum::<f32>() / c as f32
+            }
+        })
+        .collect()
+    };
+    // `varying` on a cubic curve has one value per segment end, not per
+    // point: as many as usd-core's ComputeVaryingDataSize counts.
+    let varying_lens = match r.primvar_interpolation(prim, NAME, "constant")?.as_str() {
+        "varying" | "faceVarying" => {
+            let (ty, basis, wrap) = super::render_scene::curve_shape(r, prim, path)?;
+            let lens: Vec<usize> = counts
+                .iter()
+                .map(|&c| crate::render::curves::usd_varying_data_size(ty, basis, wrap, c as usize))
+                .collect();
+            (lens.iter().sum::<usize>() == v.len()).then_some(lens)
+        }
+        _ => None,
+    };
+    let out = if let Some(lens) = varying_lens {
+        per_curve(&mut lens.into_iter())
+    } else if v.len() == 1 {
         vec![v[0]; ncurves]
     } else if v.len() == ncurves {
         v
     } else if v.len() as i64 == npoints {
-        let mut start = 0usize;
-        counts
-            .iter()
-            .map(|&c| {
-                let c = c as usize;
-                let s = &v[start..start + c];
-                start += c;
-                if c == 0 {
-                    1.0
-                } else {
-                    s.iter().sum::<f32>() / c as f32
-                }
-            })
-            .collect()
+        per_curve(&mut counts.iter().map(|&c| c as usize))
     } else {
         return Err(Error::attr(
             path,
