@@ -168,8 +168,11 @@ def test_inspect_json_matches_usd_core(painterly):
                 assert x["sentinels"] == sentinels
                 assert x["time_keys"] == len(time) - sentinels
                 op = layer.GetAttribute("painterly:opacity")
-                want = op.Get() if op and op.HasAuthoredValue() else 1.0
-                assert x["opacity"] == pytest.approx(want, abs=1e-6)
+                if op and op.GetNumTimeSamples() > 0:
+                    assert x["opacity"] is None  # animated: read per frame
+                else:
+                    want = op.Get() if op and op.HasAuthoredValue() else 1.0
+                    assert x["opacity"] == pytest.approx(want, abs=1e-6)
         axes = [p for p in stage.Traverse() if p.GetTypeName() == "PainterlyAxis"]
         assert sorted((a["path"], a["kind"]) for a in doc["axes"]) == sorted(
             (str(p.GetPath()), p.GetAttribute("kind").Get()) for p in axes
@@ -385,3 +388,22 @@ def test_an_axis_kind_that_cannot_be_read_is_a_problem_in_a_whole_report(painter
     doc = validate("inspect", json.loads(proc.stdout))
     assert {"path": "/Blowfish/Loose", "kind": None, "source": None} in doc["axes"]
     assert [(p["prim"], p["attribute"]) for p in doc["problems"]] == [("/Blowfish/Loose", "kind")]
+
+
+def test_an_animated_layer_opacity_is_null_not_its_default(painterly, tmp_path):
+    """Time-sampled painterly:opacity (0.2 → 0.4) was reported as 1, a
+    value no frame uses (an inspect review, 2026-12-07)."""
+    src = tmp_path / "fish.usda"
+    Usd.Stage.Open(str(FIXTURES / "blowfish.usda")).Export(str(src))
+    stage = Usd.Stage.Open(str(src))
+    a = stage.GetPrimAtPath("/Blowfish/Paint/Hair").GetAttribute("painterly:opacity")
+    a.Set(0.2, 1)
+    a.Set(0.4, 48)
+    stage.GetRootLayer().Save()
+    doc = validate("inspect", json.loads(painterly("inspect", src, "--json").stdout))
+    layers = {x["path"]: x for r in doc["rigs"] for x in r["layers"]}
+    assert layers["/Blowfish/Paint/Hair"]["opacity"] is None
+    assert layers["/Blowfish/Paint/Spots"]["opacity"] == 1.0
+    text = painterly("inspect", src).stdout
+    assert any(line.split()[0] == "/Blowfish/Paint/Hair" and line.split()[-1] == "animated"
+               for line in text.splitlines() if line.strip()), text

@@ -86,7 +86,8 @@ pub struct LayerReport {
     pub time_keys: usize,
     pub sentinels: usize,
     pub binding: &'static str,
-    pub opacity: f32,
+    /// None when `painterly:opacity` is animated (read per frame).
+    pub opacity: Option<f32>,
 }
 
 #[derive(Debug, Serialize)]
@@ -485,7 +486,7 @@ fn rig_report(r: &StageReader, rig: &Rig, problems: &mut Vec<Problem>) -> RigRep
             } else {
                 "computed"
             },
-            opacity: l.opacity,
+            opacity: (!l.opacity_is_animated()).then_some(l.opacity),
         });
     }
     RigReport {
@@ -709,7 +710,7 @@ impl Report {
                     l.time_keys,
                     l.sentinels,
                     l.binding,
-                    l.opacity
+                    l.opacity.map_or("animated".to_string(), |o| o.to_string())
                 );
             }
             let strokes: usize = rig.layers.iter().map(|l| l.strokes).sum();

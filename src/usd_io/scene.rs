@@ -1473,6 +1473,11 @@ impl StrokeLayer {
             })
     }
 
+    /// Whether `painterly:opacity` has time samples (read per frame).
+    pub fn opacity_is_animated(&self) -> bool {
+        self.fixed_opacity.is_none()
+    }
+
     pub fn opacity_at(&self, r: &StageReader, t: f64) -> Result<f32> {
         if let Some(o) = self.fixed_opacity.as_ref().and_then(|f| f.get()) {
             return Ok(*o);
