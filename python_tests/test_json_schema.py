@@ -407,3 +407,34 @@ def test_an_animated_layer_opacity_is_null_not_its_default(painterly, tmp_path):
     text = painterly("inspect", src).stdout
     assert any(line.split()[0] == "/Blowfish/Paint/Hair" and line.split()[-1] == "animated"
                for line in text.splitlines() if line.strip()), text
+
+
+def test_unresolved_assets_name_the_layer_that_authors_them_anchored(painterly, tmp_path):
+    """A reference authored in a sublayer was said to be "in" the root
+    layer, a missing defaultPrim's in no layer ("(in )"), and a relative
+    sublayer path was left unanchored (two reviews, 2026-12-07). Expected
+    layers and paths are usd-core's (prim stack, ComputeAbsolutePath)."""
+    work = tmp_path / "work"
+    work.mkdir()
+    (work / "nodefault.usda").write_text('#usda 1.0\n\ndef "X"\n{\n}\n')
+    (work / "sub.usda").write_text(
+        '#usda 1.0\n\ndef "A" (\n    references = @./missing_ref.usda@\n)\n{\n}\n\n'
+        'def "B" (\n    references = @./nodefault.usda@\n)\n{\n}\n')
+    root = work / "root.usda"
+    root.write_text('#usda 1.0\n(\n    subLayers = [@./sub.usda@, @./gone/../missing_sub.usda@]\n)\n')
+    stage = Usd.Stage.Open(str(root))
+    for prim in ("/A", "/B"):
+        authored_in = [s.layer.realPath for s in stage.GetPrimAtPath(prim).GetPrimStack()
+                       if s.referenceList.GetAddedOrExplicitItems()]
+        assert authored_in == [str(work / "sub.usda")], authored_in
+    proc = painterly("inspect", root, "--json", check=False)
+    assert proc.returncode == 1
+    doc = validate("inspect", json.loads(proc.stdout))
+    got = sorted((u["arc"], u["prim"], u["layer"], u["asset"]) for u in doc["unresolved_assets"])
+    layer = Sdf.Layer.FindOrOpen(str(root))
+    assert got == sorted([
+        ("reference", "/A", str(work / "sub.usda"),
+         Sdf.Layer.FindOrOpen(str(work / "sub.usda")).ComputeAbsolutePath("./missing_ref.usda")),
+        ("reference", "/B", str(work / "sub.usda"), str(work / "nodefault.usda")),
+        ("sublayer", None, str(root), layer.ComputeAbsolutePath("./gone/../missing_sub.usda")),
+    ])

@@ -1004,9 +1004,55 @@ fn unresolved_assets(stage: &usd::Stage) -> Vec<UnresolvedAsset> {
             out.push(item);
         }
     }
+    for item in &mut out {
+        // openusd names the root layer as the introducer of every arc of the
+        // root layer stack: the layer whose opinion authors it is the one to fix.
+        if let (Some(prim), "reference" | "payload") = (&item.prim, item.arc.as_str()) {
+            if let Some(layer) = authoring_layer(stage, prim, &item.arc, &item.asset) {
+                item.layer = layer;
+            }
+        }
+        // A relative path is shown anchored at the layer that authors it.
+        if !item.layer.is_empty() && !item.asset.contains(['[', ':']) {
+            let anchor = Path::new(&item.layer).parent().unwrap_or(Path::new("/"));
+            item.asset = lexically_normal(&anchor.join(&item.asset));
+        }
+    }
     // Composition reports them in hash order.
     out.sort_by(|a, b| (&a.layer, &a.prim, &a.asset).cmp(&(&b.layer, &b.prim, &b.asset)));
     out
+}
+
+/// The strongest layer of the stage's layer stack whose `references` (or
+/// `payload`) on `prim` names `asset` (by file name), if any.
+fn authoring_layer(stage: &usd::Stage, prim: &str, arc: &str, asset: &str) -> Option<String> {
+    let path = openusd::sdf::Path::new(prim).ok()?;
+    let field = if arc == "payload" { "payload" } else { "references" };
+    let name = Path::new(asset).file_name()?.to_string_lossy().into_owned();
+    stage.layer_stack().into_iter().find(|id| {
+        stage.layer(id).is_some_and(
+            |layer| matches!(layer.data().try_field(&path, field), Ok(Some(v)) if format!("{v:?}").contains(&name)),
+        )
+    })
+}
+
+/// `path` with `.` and `..` components resolved by text (the file need not
+/// exist, so it cannot be canonicalised).
+fn lexically_normal(path: &Path) -> String {
+    use std::path::Component;
+    let mut out = std::path::PathBuf::new();
+    for c in path.components() {
+        match c {
+            Component::CurDir => {}
+            Component::ParentDir => {
+                if !out.pop() {
+                    out.push("..");
+                }
+            }
+            other => out.push(other),
+        }
+    }
+    out.to_string_lossy().into_owned()
 }
 
 #[cfg(test)]
