@@ -438,3 +438,24 @@ def test_unresolved_assets_name_the_layer_that_authors_them_anchored(painterly, 
         ("reference", "/B", str(work / "sub.usda"), str(work / "nodefault.usda")),
         ("sublayer", None, str(root), layer.ComputeAbsolutePath("./gone/../missing_sub.usda")),
     ])
+
+
+def test_an_up_axis_other_than_y_or_z_is_a_problem_bake_refuses(painterly, tmp_path):
+    """upAxis = "X" passed inspect and was copied into the bake (UsdGeom
+    knows only Y and Z); --json broke its own schema (an inspect review,
+    2026-12-07)."""
+    src = tmp_path / "fish.usda"
+    Usd.Stage.Open(str(FIXTURES / "blowfish.usda")).Export(str(src))
+    layer = Sdf.Layer.FindOrOpen(str(src))
+    layer.pseudoRoot.SetInfo("upAxis", "X")
+    layer.Save()
+    why = 'the stage\'s upAxis is "X"; it must be "Y" or "Z"'
+    proc = painterly("inspect", src, "--json", check=False)
+    assert proc.returncode == 1
+    doc = validate("inspect", json.loads(proc.stdout))
+    assert doc["up_axis"] == "X"
+    assert [(p["prim"], p["message"]) for p in doc["problems"]] == [(None, why)]
+    out = tmp_path / "b.usdc"
+    bake = painterly("bake", src, "-o", out, check=False)
+    assert (bake.returncode, bake.stderr) == (1, f"error: {src}: {why}\n")
+    assert not out.exists()

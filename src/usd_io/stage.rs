@@ -256,6 +256,10 @@ impl StageMetadata {
                 }
             }
         }
+        // UsdGeom's two up axes; a bake would copy any other into its layer.
+        if let Some(up) = self.up_axis.as_deref().filter(|u| !matches!(*u, "Y" | "Z")) {
+            return Err(Error::msg(format!("the stage's upAxis is {up:?}; it must be \"Y\" or \"Z\"")));
+        }
         Ok(())
     }
 }
