@@ -205,6 +205,8 @@ CASES = {
     "axis_source_missing_prim": (_ghost, [f"{_ghost_path}.source"], ()),
     "axis_source_missing_attribute": (_ghost_attr, [f"{_ghost_attr_path}.source"], ()),
     "axis_source_empty_targets": (_retarget(AXIS, "source", []), [f"{AXIS}.source"], ()),
+    "axis_source_two_targets": (_retarget(AXIS, "source", [ANIM, "/World/Controls"]),
+                                [f"{AXIS}.source", "has 2 targets", "painterly reads one"], ()),
     # the layer's relationship is named, not only the prim it targets
     "axes_target_not_an_axis": (_retarget(LAYER, "painterly:axes", ["/World/Controls"]),
                                 [f"{LAYER}.painterly:axes", "targets /World/Controls", "not a PainterlyAxis"], ()),

@@ -196,3 +196,23 @@ def test_a_bad_camera_relationship_is_a_problem_of_the_mesh(painterly, tmp_path,
     r = painterly("bake", path, "-o", tmp_path / "out.usdc", check=False)
     assert r.returncode == 1
     assert r.stderr.splitlines()[0].startswith(f"error: {path}: {MESH}.painterly:camera: {why}"), r.stderr
+
+
+def test_a_camera_relationship_with_two_targets_is_refused(painterly, tmp_path):
+    """The first of two targets was used silently (a review, 2026-12-07)."""
+    path = tmp_path / "bad.usda"
+    RV.build_view_stage(path, keys=[(d, None, None, None) for d in OCTAHEDRON], eyes=RV.orbit_eyes(4))
+    st = Usd.Stage.Open(str(path))
+    rel = st.GetPrimAtPath(MESH).GetRelationship("painterly:camera")
+    first = rel.GetTargets()[0]
+    rel.SetTargets([first, "/World"])
+    st.GetRootLayer().Save()
+    del st
+    why = f"has 2 targets ({first}, /World); painterly reads one"
+    r = painterly("inspect", path, "--json", check=False)
+    assert r.returncode == 1, r.stderr
+    problems = json.loads(r.stdout)["problems"]
+    assert [(p["prim"], p["attribute"], p["rule"], p["message"]) for p in problems] == [
+        (MESH, "painterly:camera", "view-mesh", why)], problems
+    r = painterly("bake", path, "-o", tmp_path / "out.usdc", check=False)
+    assert (r.returncode, r.stderr) == (1, f"error: {path}: {MESH}.painterly:camera: {why}\n")

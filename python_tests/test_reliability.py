@@ -747,3 +747,19 @@ def test_an_edit_of_a_file_another_edit_holds_is_refused(tmp_path):
     assert src.read_bytes() == BLOWFISH.read_bytes()
     assert run("key", src, "--layer", "/Blowfish/Paint/Hair", "--time", "5", "--sentinel", "--in-place",
                "-q").returncode == 0
+
+
+def test_an_edit_layer_in_a_folder_whose_name_is_not_utf8_is_named(tmp_path):
+    """The error named the scratch file beside the edit layer
+    (`.e.usda.painterly-….scratch.usda`), a file the user never named (an
+    error-message review, 2026-12-07)."""
+    folder = tmp_path / os.fsdecode(b"dir\xfd")
+    folder.mkdir()
+    edit = folder / "e.usda"
+    proc = run("smudge", BLOWFISH, "--layer", "/Blowfish/Paint/Hair", "--path", "3,6,-2 6,6,-1.5",
+               "--radius", "1", "--strength", "0.2", "--edit-layer", edit)
+    assert proc.returncode == 1, proc.stderr
+    assert proc.stderr.startswith("error: ") and proc.stderr.rstrip().endswith(
+        "e.usda: the edit layer's path is not valid UTF-8 (USD reads layers by UTF-8 paths): name it another way"), proc.stderr
+    assert "scratch" not in proc.stderr
+    assert list(folder.iterdir()) == []

@@ -174,8 +174,7 @@ impl Axis {
             return Err(Error::attr(path, "scale", "scale is not finite"));
         }
         let name = r.typed(&prim, "name", None, "token", values::token)?;
-        let targets = r.targets(&prim, "source")?;
-        let target = targets.first().cloned();
+        let target = r.one_target(&prim, "source")?;
         let need_target = |what: &str| -> Result<String> {
             target
                 .clone()

@@ -320,6 +320,14 @@ impl EditSession {
                     ));
                 }
                 header.push_str(&format!("    subLayers = [\n        @{sub}@\n    ]\n)\n\n"));
+                // openusd opens only UTF-8 paths: said of the edit layer, not
+                // of the scratch file beside it that would be opened.
+                if edit.to_str().is_none() {
+                    return Err(Error::msg(
+                        "the edit layer's path is not valid UTF-8 (USD reads layers by UTF-8 paths): name it another way",
+                    )
+                    .in_file(edit));
+                }
                 let scratch = ScratchFile::create(edit, header.as_bytes())?;
                 let reader = StageReader {
                     file: edit.to_path_buf(),

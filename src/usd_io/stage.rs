@@ -258,7 +258,9 @@ impl StageMetadata {
         }
         // UsdGeom's two up axes; a bake would copy any other into its layer.
         if let Some(up) = self.up_axis.as_deref().filter(|u| !matches!(*u, "Y" | "Z")) {
-            return Err(Error::msg(format!("the stage's upAxis is {up:?}; it must be \"Y\" or \"Z\"")));
+            return Err(Error::msg(format!(
+                "the stage's upAxis is {up:?}; it must be \"Y\" or \"Z\""
+            )));
         }
         Ok(())
     }
@@ -728,6 +730,24 @@ impl StageReader {
             .targets()
             .map(|v| v.iter().map(|p| p.as_str().to_string()).collect())
             .map_err(|e| Error::attr(prim.path(), name, format!("cannot read relationship: {e}")))
+    }
+
+    /// The one target of a relationship that takes one (None when it has
+    /// none): a second target would be silently ignored, so it is refused.
+    pub fn one_target(&self, prim: &usd::Prim, name: &str) -> Result<Option<String>> {
+        let mut targets = self.targets(prim, name)?;
+        if targets.len() > 1 {
+            return Err(Error::attr(
+                prim.path(),
+                name,
+                format!(
+                    "has {} targets ({}); painterly reads one",
+                    targets.len(),
+                    targets.join(", ")
+                ),
+            ));
+        }
+        Ok(targets.pop())
     }
 
     /// Fails when `name` is uniform in painterly's schema (a `painterly:`

@@ -146,7 +146,9 @@ fn read_view_mesh(r: &StageReader, prim: usd::Prim) -> Result<ViewMesh> {
         )
         .rule(Rule::ViewMesh)
     })?;
-    let camera = r.targets(&prim, "painterly:camera")?.into_iter().next();
+    let camera = r
+        .one_target(&prim, "painterly:camera")
+        .map_err(|e| e.or_rule(Rule::ViewMesh))?;
     let rest_time = read_rest_time(r, &prim)?;
     let cache_time = point_cache_time(r, &prim, rest_time)?;
     // A point cache has no rest pose; its first sample only gives the
