@@ -334,7 +334,7 @@ impl Axis {
                 };
                 let local = f.proxy_to_world.inverse().transform_point3(world);
                 let d = local - f.proxy_centre;
-                if d.length() <= 1e-6 * (f.proxy_extent + f.proxy_centre.length()) || d.length() <= f64::MIN_POSITIVE {
+                if crate::view::eye_at_centre(d, f.proxy_extent, f.proxy_centre) {
                     return Err(Error::prim(cam, format!("camera is at the proxy's centre at time {t}")));
                 }
                 d.normalize()[self.component as usize]

@@ -416,11 +416,9 @@ impl ViewBlend {
                 .map_err(|e| Error::msg(format!("sharpness {sharpness} at time {t}: {e}")))?;
             &rebuilt
         };
-        // A camera at the centre has no direction; one within rounding of it
-        // (the base's box is f32, the camera's transform a product of
-        // matrices) has only a direction made of noise. Both see the base.
-        let at_centre = 1e-6 * ((hi - lo).length() as f64 + centre.length());
-        let weights = if eye.length() > at_centre && eye.is_finite() {
+        // A camera at the centre, up to rounding, has no direction: it sees the base.
+        let at_centre = crate::view::eye_at_centre(eye, (hi - lo).length() as f64, centre);
+        let weights = if !at_centre && eye.is_finite() {
             blender.weights(eye.normalize().to_array())
         } else {
             crate::view::ViewWeights::base_only()

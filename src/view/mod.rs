@@ -32,6 +32,16 @@ pub use spline::{weighted_sum, NaturalCubicSpline};
 
 use std::fmt;
 
+/// Whether an eye `offset` from the centre of a box (diagonal `extent`,
+/// centre `centre` from the origin) is at that centre up to rounding: within
+/// 1e-6 × (extent + |centre|), or exactly there. The box is f32 and the
+/// camera's transform a product of matrices, so nearer than that an eye
+/// direction is made of noise.
+pub fn eye_at_centre(offset: glam::DVec3, extent: f64, centre: glam::DVec3) -> bool {
+    let d = offset.length();
+    d <= 1e-6 * (extent + centre.length()) || d <= f64::MIN_POSITIVE
+}
+
 /// Why key viewpoints, a sharpness or a set of key times were rejected.
 ///
 /// Each variant names the offending input by index so that callers can point
@@ -110,3 +120,20 @@ impl fmt::Display for ViewError {
 }
 
 impl std::error::Error for ViewError {}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_eye_within_rounding_of_the_centre_is_at_it() {
+        use glam::DVec3;
+        let c = DVec3::new(3.0, 4.0, 0.0); // |c| = 5; with extent 5, the tolerance is 1e-5
+        assert!(eye_at_centre(DVec3::new(0.99e-5, 0.0, 0.0), 5.0, c));
+        assert!(!eye_at_centre(DVec3::new(1.1e-5, 0.0, 0.0), 5.0, c));
+        // A box of no size at the origin: only exactly there (or subnormal).
+        assert!(eye_at_centre(DVec3::ZERO, 0.0, DVec3::ZERO));
+        assert!(eye_at_centre(DVec3::new(1e-310, 0.0, 0.0), 0.0, DVec3::ZERO));
+        assert!(!eye_at_centre(DVec3::new(1e-300, 0.0, 0.0), 0.0, DVec3::ZERO));
+    }
+}
