@@ -310,6 +310,11 @@ def test_a_rebake_whose_clip_set_is_read_only_publishes_no_chunk(request, painte
                            "--frames", "1:7"], capture_output=True, text=True, timeout=120)
     assert (proc.returncode, proc.stderr) == (1, (
         f"error: {shot}: cannot replace a file this user may not write (mode 444): change its permissions first\n"))
+    # A farm task is refused too: its chunk, published when it ends, could
+    # never be assembled into the locked set.
+    task = subprocess.run([*nobody, str(painterly_binary()), "bake", str(src), "-o", str(shot), "--chunk", "5",
+                           "--frames", "1:10", "--chunk-index", "0"], capture_output=True, text=True, timeout=120)
+    assert (task.returncode, task.stderr) == (1, proc.stderr)
     after = _files(shared)
     assert {p for p in after if p != src} == {p for p in published if p != src}
     assert [p.name for p in published if p != src and after[p] != published[p]] == []
@@ -331,6 +336,15 @@ def test_a_chunked_bake_of_an_input_holding_a_painterly_clip_set_is_refused(pain
                                   '"painterly" here'), proc.stderr
     assert not out.exists() and not (tmp_path / "again.clips").exists()
     painterly("bake", view, "-o", tmp_path / "single.usdc", "--quiet")
+    # The same set reaching the root prim through a reference (a shot that
+    # references the layered character) is refused as well.
+    shot = tmp_path / "shot.usda"
+    shot.write_text(f'#usda 1.0\n(\n    defaultPrim = "Tube"\n)\n\ndef Xform "Tube" (\n'
+                    f'    references = @{view}@</Tube>\n)\n{{\n}}\n')
+    stage = Usd.Stage.Open(str(shot))
+    assert "painterly" in stage.GetPrimAtPath("/Tube").GetMetadata("clips")  # usd-core sees the set
+    proc = painterly("bake", shot, "-o", tmp_path / "again2.usda", "--chunk", "6", "--frames", "1:12", check=False)
+    assert proc.returncode == 1 and '/Tube.clips: the input already holds a value-clip set named "painterly"' in proc.stderr, proc.stderr
 
 
 def test_one_process_at_a_time_writes_a_shot_and_tasks_share_it(painterly, tmp_path, repo_root):

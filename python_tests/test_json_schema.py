@@ -459,3 +459,36 @@ def test_an_up_axis_other_than_y_or_z_is_a_problem_bake_refuses(painterly, tmp_p
     bake = painterly("bake", src, "-o", out, check=False)
     assert (bake.returncode, bake.stderr) == (1, f"error: {src}: {why}\n")
     assert not out.exists()
+
+
+@pytest.mark.parametrize("default,samples", [(0.9, {5: 0.3}), (5.0, {1: 0.5, 48: 0.7})])
+def test_a_sampled_layer_opacity_ignores_its_default(painterly, tmp_path, default, samples):
+    """With time samples usd-core never resolves the default at a frame: a
+    default of 0.9 over one sample of 0.3 was reported as 0.9, and a default
+    of 5 over samples in range was refused (a verification review,
+    2026-12-07). The baked opacity is usd-core's Get(t) at each frame."""
+    src = tmp_path / "fish.usda"
+    Usd.Stage.Open(str(FIXTURES / "blowfish.usda")).Export(str(src))
+    stage = Usd.Stage.Open(str(src))
+    a = stage.GetPrimAtPath("/Blowfish/Paint/Hair").GetAttribute("painterly:opacity")
+    a.Set(default)
+    for t, v in samples.items():
+        a.Set(v, t)
+    stage.GetRootLayer().Save()
+    doc = validate("inspect", json.loads(painterly("inspect", src, "--json").stdout))
+    layers = {x["path"]: x for r in doc["rigs"] for x in r["layers"]}
+    assert layers["/Blowfish/Paint/Hair"]["opacity"] is None
+    out = tmp_path / "b.usdc"
+    painterly("bake", src, "-o", out, "--frames", "1:48:11", "--quiet")
+    import authoring as Au
+
+    comp = Au.compose(src, out)  # the bake over the input, as a shot layers it
+    prim = comp.GetPrimAtPath("/Blowfish/Paint/Hair")
+    plain = Usd.Stage.Open(str(src))  # kept: a prim dies with its stage
+    authored = plain.GetPrimAtPath("/Blowfish/Paint/Hair")
+    for t in (1, 12, 23, 34, 45):
+        want = authored.GetAttribute("painterly:opacity").Get(t)
+        display = authored.GetAttribute("primvars:displayOpacity").Get(t)
+        scale = 1.0 if display is None else np.array(display, dtype=np.float64)
+        got = np.array(UsdGeom.PrimvarsAPI(prim).GetPrimvar("displayOpacity").ComputeFlattened(t), dtype=np.float64)
+        np.testing.assert_allclose(got, want * scale, atol=1e-6, err_msg=f"t={t}")

@@ -304,6 +304,9 @@ def test_errors_raised_by_the_python_side_carry_the_documented_attributes():
          "^keys must be numbers in a rectangular array: "),
         (lambda: painterly.interpolate([0.0, 1.0], [1.0, 2.0], [["a"]]), "^queries must be numbers"),
         (lambda: painterly.to_layer("#usda 1.0\ndef X \"a\" {\n"), "^usd-core could not read the layer text"),
+        (lambda: painterly.to_layer(None), "^to_layer takes usda text"),
+        (lambda: painterly.interpolate([0.0, 1.0], [1.0, 2.0], [0.5], method="rbf", radius="x"),
+         "^radius must be a number"),
     ]
     for call, message in cases:
         with pytest.raises(painterly.Error, match=message) as info:

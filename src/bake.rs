@@ -328,6 +328,10 @@ fn bake_character(
                             plan.chunks.len() - 1
                         ))
                     })?;
+                    // A task's chunk is published when it ends: had the
+                    // assembly no way to write the clip set, the old set
+                    // would show new chunks for good.
+                    plan.check_clip_set_targets()?;
                     plan.create_dir()?;
                     let _lock = clips::lock_clips(&plan, false)?;
                     leave_binding_cache(ch, output);

@@ -86,7 +86,7 @@ pub struct LayerReport {
     pub time_keys: usize,
     pub sentinels: usize,
     pub binding: &'static str,
-    /// None when `painterly:opacity` is animated (read per frame).
+    /// None when `painterly:opacity` has time samples (read per frame).
     pub opacity: Option<f32>,
 }
 
@@ -486,7 +486,7 @@ fn rig_report(r: &StageReader, rig: &Rig, problems: &mut Vec<Problem>) -> RigRep
             } else {
                 "computed"
             },
-            opacity: (!l.opacity_is_animated()).then_some(l.opacity),
+            opacity: (!l.opacity_is_sampled()).then_some(l.opacity),
         });
     }
     RigReport {

@@ -134,7 +134,7 @@ impl Rule {
             Rule::DisplayOpacity => (
                 "display-opacity",
                 "DisplayOpacity",
-                "primvars:displayOpacity has 1, one-per-curve or one-per-point values and valid indices; it, painterly:opacity and key opacities lie in [0, 1].",
+                "primvars:displayOpacity has 1, one-per-curve, one-per-point or (varying) one-per-segment-end values and valid indices; it, painterly:opacity and key opacities lie in [0, 1].",
             ),
             Rule::Axis => (
                 "axis",

@@ -77,9 +77,13 @@ def interpolate(keys, values, queries, method: str = "smooth_voronoi", radius: f
         raise _error("no keys: interpolation needs at least one key")
     if values.ndim == 0 or values.shape[0] != keys.shape[0]:
         raise _error(f"{keys.shape[0]} keys but values of shape {values.shape}: one value per key")
+    try:
+        radius = float(radius)
+    except (TypeError, ValueError):
+        raise _error(f"radius must be a number, not {radius!r}") from None
     rest = values.shape[1:]
     flat = np.ascontiguousarray(values.reshape(values.shape[0], -1))
-    out = _interpolate(np.ascontiguousarray(keys), flat, np.ascontiguousarray(queries), method, float(radius))
+    out = _interpolate(np.ascontiguousarray(keys), flat, np.ascontiguousarray(queries), method, radius)
     return out.reshape((queries.shape[0],) + rest)
 
 
@@ -88,6 +92,8 @@ def to_layer(text: str):
     ``"layer"`` of an in-memory :func:`bake`."""
     from pxr import Sdf, Tf
 
+    if not isinstance(text, str):
+        raise _error(f"to_layer takes usda text (a str), not {type(text).__name__}")
     layer = Sdf.Layer.CreateAnonymous(".usda")
     try:
         ok = layer.ImportFromString(text)

@@ -135,7 +135,10 @@ impl fmt::Display for InterpError {
                 write!(f, "key {key} has a non-finite coordinate")
             }
             InterpError::DuplicateKeys { first, second } => {
-                write!(f, "keys {first} and {second} are at the same coordinates")
+                write!(
+                    f,
+                    "keys {first} and {second} are at the same coordinates (within {DUPLICATE_TOLERANCE:e} of the keys' extent)"
+                )
             }
             InterpError::TooFarApart { first, second } => write!(
                 f,

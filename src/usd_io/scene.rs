@@ -111,6 +111,8 @@ pub struct StrokeLayer {
     /// `painterly:opacity` at every time, once read, when it cannot vary
     /// in time (read per frame otherwise).
     fixed_opacity: Option<std::sync::OnceLock<f32>>,
+    /// `painterly:opacity` has time samples: its default is never read.
+    opacity_sampled: bool,
     /// Authored `primvars:displayOpacity` per curve (1 when absent), its
     /// default value.
     pub display_opacity: Vec<f32>,
@@ -448,7 +450,9 @@ fn check_opacity(o: f32, prim: &str, attr: &str, when: &str) -> Result<()> {
     if !o.is_finite() {
         return Err(Error::attr(prim, attr, format!("opacity is not finite{when}")).rule(Rule::NonFinite));
     }
-    if !(0.0..=1.0).contains(&o) {
+    // A few float steps outside, as float32 sums of weights give, are 0 or 1.
+    const ROUNDING: f32 = 1e-6;
+    if !(-ROUNDING..=1.0 + ROUNDING).contains(&o) {
         return Err(Error::attr(prim, attr, format!("opacity {o}{when} is outside [0, 1]")).rule(Rule::DisplayOpacity));
     }
     Ok(())
@@ -851,7 +855,12 @@ fn read_layer(r: &StageReader, path: &str, proxy_points: usize) -> Result<Stroke
     let opacity = r
         .typed(&prim, "painterly:opacity", None, "float", values::scalar)?
         .unwrap_or(1.0) as f32;
-    check_opacity(opacity, path, "painterly:opacity", "")?;
+    // With time samples the default is never read at a frame (usd-core's
+    // value resolution): each frame's value is checked as it is read.
+    let opacity_sampled = !r.sample_times(&prim, "painterly:opacity")?.is_empty();
+    if !opacity_sampled {
+        check_opacity(opacity, path, "painterly:opacity", "")?;
+    }
     let opacity_varies = prim
         .attribute("painterly:opacity")
         .value_might_be_time_varying()
@@ -895,6 +904,7 @@ fn read_layer(r: &StageReader, path: &str, proxy_points: usize) -> Result<Stroke
         cached_binding,
         opacity,
         fixed_opacity: (!opacity_varies).then(std::sync::OnceLock::new),
+        opacity_sampled,
         display_opacity,
         display_varies,
         display_indexed,
@@ -1473,9 +1483,10 @@ impl StrokeLayer {
             })
     }
 
-    /// Whether `painterly:opacity` has time samples (read per frame).
-    pub fn opacity_is_animated(&self) -> bool {
-        self.fixed_opacity.is_none()
+    /// Whether `painterly:opacity` has time samples (read per frame; its
+    /// default, [`StrokeLayer::opacity`], is then not what any frame uses).
+    pub fn opacity_is_sampled(&self) -> bool {
+        self.opacity_sampled
     }
 
     pub fn opacity_at(&self, r: &StageReader, t: f64) -> Result<f32> {

@@ -692,11 +692,15 @@ impl StageReader {
             .map_err(|e| Error::attr(prim.path(), name, format!("cannot read time samples: {e}")))
     }
 
-    /// The names of the value-clip sets in a prim's composed `clips`, in
-    /// every layer of the stage that authors them on it.
+    /// The names of the value-clip sets on a prim: in its composed `clips`
+    /// (reaching it through references and payloads too) and in every layer
+    /// of the stage's layer stack that authors `clips` on it.
     pub fn prim_clip_set_names(&self, prim: &usd::Prim) -> Result<Vec<String>> {
         let path = prim.path();
         let mut names = Vec::new();
+        if let Ok(Some(Value::Dictionary(sets))) = prim.get_metadata::<Value>("clips") {
+            names.extend(sets.keys().cloned());
+        }
         for id in self.stage.layer_stack() {
             let Some(layer) = self.stage.layer(&id) else { continue };
             if let Ok(Some(clips)) = layer.data().try_field(path, "clips") {
