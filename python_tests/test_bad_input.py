@@ -195,50 +195,49 @@ def test_rest_points_count_differs_from_points(painterly, tmp_path):
     expect_failure(painterly, tmp_path, rig.path, names=[rig.layers[0], "painterly:restPoints"])
 
 
-def test_cached_binding_out_of_range(painterly, tmp_path):
-    rig = good_static(tmp_path)
-
+def _cached_binding(rig, vertices=None, weights=None):
+    """An edit writing a binding on the first layer: (0, 1, 2) and
+    (0.2, 0.3, 0.5) for every point, then `vertices(list, proxy points)` and
+    `weights(list)` change them."""
     def f(st):
         prim = st.GetPrimAtPath(rig.layers[0])
         n = len(prim.GetAttribute("painterly:restPoints").Get())
         nv = len(UsdGeom.Mesh(st.GetPrimAtPath(rig.mesh)).GetPointsAttr().Get())
-        verts = [Gf.Vec3i(0, 1, 2)] * n
-        verts[1] = Gf.Vec3i(0, nv + 10, 2)
+        v = [Gf.Vec3i(0, 1, 2)] * n
+        w = [Gf.Vec3f(0.2, 0.3, 0.5)] * n
+        v = vertices(v, nv) if vertices else v
+        w = weights(w) if weights else w
         prim.CreateAttribute("painterly:bindVertices", Sdf.ValueTypeNames.Int3Array, custom=False).Set(
-            Vt.Vec3iArray(verts))
+            Vt.Vec3iArray(v))
         prim.CreateAttribute("painterly:bindWeights", Sdf.ValueTypeNames.Float3Array, custom=False).Set(
-            Vt.Vec3fArray([Gf.Vec3f(0.2, 0.3, 0.5)] * n))
-    edit(rig.path, f)
+            Vt.Vec3fArray(w))
+    return f
+
+
+def _set_item(i, value):
+    """Item `i` (None: the middle one) of a list set to `value`."""
+    def f(items, *_):
+        items = list(items)
+        items[len(items) // 2 if i is None else i] = value
+        return items
+    return f
+
+
+def test_cached_binding_out_of_range(painterly, tmp_path):
+    rig = good_static(tmp_path)
+    edit(rig.path, _cached_binding(rig, vertices=lambda v, nv: _set_item(1, Gf.Vec3i(0, nv + 10, 2))(v)))
     expect_failure(painterly, tmp_path, rig.path, names=[rig.layers[0], "painterly:bindVertices"])
 
 
 def test_cached_binding_negative_index(painterly, tmp_path):
     rig = good_static(tmp_path)
-
-    def f(st):
-        prim = st.GetPrimAtPath(rig.layers[0])
-        n = len(prim.GetAttribute("painterly:restPoints").Get())
-        verts = [Gf.Vec3i(0, 1, 2)] * n
-        verts[0] = Gf.Vec3i(-1, 1, 2)
-        prim.CreateAttribute("painterly:bindVertices", Sdf.ValueTypeNames.Int3Array, custom=False).Set(
-            Vt.Vec3iArray(verts))
-        prim.CreateAttribute("painterly:bindWeights", Sdf.ValueTypeNames.Float3Array, custom=False).Set(
-            Vt.Vec3fArray([Gf.Vec3f(0.2, 0.3, 0.5)] * n))
-    edit(rig.path, f)
+    edit(rig.path, _cached_binding(rig, vertices=_set_item(0, Gf.Vec3i(-1, 1, 2))))
     expect_failure(painterly, tmp_path, rig.path, names=[rig.layers[0], "painterly:bindVertices"])
 
 
 def test_cached_binding_weights_count_mismatch(painterly, tmp_path):
     rig = good_static(tmp_path)
-
-    def f(st):
-        prim = st.GetPrimAtPath(rig.layers[0])
-        n = len(prim.GetAttribute("painterly:restPoints").Get())
-        prim.CreateAttribute("painterly:bindVertices", Sdf.ValueTypeNames.Int3Array, custom=False).Set(
-            Vt.Vec3iArray([Gf.Vec3i(0, 1, 2)] * n))
-        prim.CreateAttribute("painterly:bindWeights", Sdf.ValueTypeNames.Float3Array, custom=False).Set(
-            Vt.Vec3fArray([Gf.Vec3f(0.2, 0.3, 0.5)] * (n - 1)))
-    edit(rig.path, f)
+    edit(rig.path, _cached_binding(rig, weights=lambda w: w[:-1]))
     expect_failure(painterly, tmp_path, rig.path, names=[rig.layers[0], "painterly:bindWeights"])
 
 
@@ -248,17 +247,7 @@ def test_cached_binding_weights_that_are_not_barycentric(painterly, tmp_path, we
     (each in [0, 1], summing to 1). On a static proxy every binding leaves
     a stroke at rest, but (0.5, 0.5, 0.5) scales it by 1.5: refused."""
     rig = good_static(tmp_path)
-
-    def f(st):
-        prim = st.GetPrimAtPath(rig.layers[0])
-        n = len(prim.GetAttribute("painterly:restPoints").Get())
-        prim.CreateAttribute("painterly:bindVertices", Sdf.ValueTypeNames.Int3Array, custom=False).Set(
-            Vt.Vec3iArray([Gf.Vec3i(0, 1, 2)] * n))
-        w = [Gf.Vec3f(0.2, 0.3, 0.5)] * n
-        w[n // 2] = Gf.Vec3f(*weights)
-        prim.CreateAttribute("painterly:bindWeights", Sdf.ValueTypeNames.Float3Array, custom=False).Set(
-            Vt.Vec3fArray(w))
-    edit(rig.path, f)
+    edit(rig.path, _cached_binding(rig, weights=_set_item(None, Gf.Vec3f(*weights))))
     err = expect_failure(painterly, tmp_path, rig.path, names=[rig.layers[0], "painterly:bindWeights"])
     assert "barycentric" in err
 
