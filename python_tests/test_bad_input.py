@@ -545,3 +545,20 @@ def test_usage_errors_exit_2(painterly, tmp_path, args):
     assert "error" in proc.stderr.lower() and "panicked" not in proc.stderr
     assert not out.exists()
     assert Au.file_hash(rig.path) == before
+
+
+def test_curve_vertex_counts_only_as_time_samples_are_named(painterly, tmp_path):
+    """usd-core reads time-sampled counts at each frame; painterly reads the
+    default, and said "counts sum to 0, but the layer has N points" (an
+    inspect review, 2026-12-07)."""
+    rig = good_static(tmp_path)
+
+    def f(st):
+        a = UsdGeom.BasisCurves(st.GetPrimAtPath(rig.layers[0])).GetCurveVertexCountsAttr()
+        counts = a.Get()
+        a.Clear()
+        a.Set(counts, rig.frames[0])
+    edit(rig.path, f)
+    err = expect_failure(painterly, tmp_path, rig.path,
+                         names=[f"{rig.layers[0]}.curveVertexCounts: authored only as time samples"])
+    assert "sum to 0" not in err

@@ -794,9 +794,20 @@ fn read_layer(r: &StageReader, path: &str, proxy_points: usize) -> Result<Stroke
         )
         .rule(Rule::LayerNotCurves));
     }
-    let counts = r
-        .typed(&prim, "curveVertexCounts", None, "int[]", values::int_array)?
-        .unwrap_or_default();
+    let counts = match r.typed(&prim, "curveVertexCounts", None, "int[]", values::int_array)? {
+        Some(c) => c,
+        // usd-core would read the samples; painterly's strokes keep one topology.
+        None if !r.sample_times(&prim, "curveVertexCounts")?.is_empty() => {
+            return Err(Error::attr(
+                path,
+                "curveVertexCounts",
+                "authored only as time samples: painterly reads a stroke layer's counts from their default \
+                 value (one topology for every frame); author them without a time",
+            )
+            .rule(Rule::PointCounts))
+        }
+        None => Vec::new(),
+    };
     if let Some(bad) = counts.iter().find(|&&c| c < 0) {
         return Err(Error::attr(path, "curveVertexCounts", format!("negative count {bad}")).rule(Rule::PointCounts));
     }
