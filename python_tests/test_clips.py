@@ -315,6 +315,15 @@ def test_a_rebake_whose_clip_set_is_read_only_publishes_no_chunk(request, painte
     task = subprocess.run([*nobody, str(painterly_binary()), "bake", str(src), "-o", str(shot), "--chunk", "5",
                            "--frames", "1:10", "--chunk-index", "0"], capture_output=True, text=True, timeout=120)
     assert (task.returncode, task.stderr) == (1, proc.stderr)
+    # Refused before its clips folder is made: nothing is left behind.
+    fresh = shared / "fresh.usda"
+    fresh.write_text("#usda 1.0\n")
+    fresh.chmod(0o444)
+    first = subprocess.run([*nobody, str(painterly_binary()), "bake", str(src), "-o", str(fresh), "--chunk", "5",
+                            "--frames", "1:10"], capture_output=True, text=True, timeout=120)
+    assert first.returncode == 1 and "may not write (mode 444)" in first.stderr, first.stderr
+    assert not (shared / "fresh.clips").exists()
+    fresh.unlink()
     after = _files(shared)
     assert {p for p in after if p != src} == {p for p in published if p != src}
     assert [p.name for p in published if p != src and after[p] != published[p]] == []

@@ -208,9 +208,10 @@ pub struct ChunkedSink {
 
 impl ChunkedSink {
     pub fn new(plan: ClipPlan, layout: BakeLayout, times: &[f64]) -> Result<ChunkedSink> {
-        plan.create_dir()?;
-        // Before baking: a clip set that cannot be written is known now.
+        // Before baking (and before its folder is made): a clip set that
+        // cannot be written is known now.
         plan.check_clip_set_targets()?;
+        plan.create_dir()?;
         Ok(ChunkedSink {
             plan,
             layout,
