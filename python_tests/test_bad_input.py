@@ -562,3 +562,17 @@ def test_curve_vertex_counts_only_as_time_samples_are_named(painterly, tmp_path)
     err = expect_failure(painterly, tmp_path, rig.path,
                          names=[f"{rig.layers[0]}.curveVertexCounts: authored only as time samples"])
     assert "sum to 0" not in err
+
+
+def test_curve_vertex_counts_never_authored_is_a_count_mismatch(painterly, tmp_path):
+    """With no curveVertexCounts at all (neither default nor samples) the
+    counts are empty, so the message is the plain mismatch, not the
+    samples-only one: the guard must look at the samples."""
+    rig = good_static(tmp_path)
+
+    def f(st):
+        UsdGeom.BasisCurves(st.GetPrimAtPath(rig.layers[0])).GetCurveVertexCountsAttr().Clear()
+    edit(rig.path, f)
+    err = expect_failure(painterly, tmp_path, rig.path,
+                         names=[f"{rig.layers[0]}.curveVertexCounts: counts sum to 0, but the layer has "])
+    assert "time samples" not in err
