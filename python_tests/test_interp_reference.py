@@ -8,6 +8,7 @@ Set PAINTERLY_BIN to test another build of the CLI.
 from __future__ import annotations
 
 import inspect
+import re
 import json
 import subprocess
 
@@ -215,3 +216,49 @@ def test_errors_name_the_problem(payload, needle):
     proc = interpolate(payload, check=False)
     assert proc.returncode == 1
     assert needle in proc.stderr
+
+
+def test_a_request_longer_than_the_limit_is_refused_without_reading_on():
+    """`cat /dev/zero | painterly interpolate` took memory until the machine
+    ran out: stdin is read up to 64 MiB (README, Limits) and the request
+    refused past it, exit 1, before any parsing."""
+    exe = painterly_binary()
+    limit = 64 << 20
+    with subprocess.Popen([str(exe), "interpolate"], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                          stderr=subprocess.PIPE) as proc:
+        chunk = b" " * (1 << 20)
+        sent = 0
+        try:
+            # Far more than the limit: a reader without a bound would take it all.
+            while sent < 4 * limit:
+                proc.stdin.write(chunk)
+                sent += len(chunk)
+        except BrokenPipeError:
+            pass
+        try:
+            proc.stdin.close()
+        except BrokenPipeError:
+            pass
+        err = proc.stderr.read().decode()
+        assert proc.stdout.read() == b""
+        assert proc.wait(timeout=60) == 1
+    assert err == ("error: the request on stdin is longer than 64 MiB; painterly interpolate reads at most "
+                   "that (send the points in several requests)\n")
+    # Exactly at the limit: whitespace around a request is still JSON.
+    body = json.dumps({"method": "shepard", "keys": [[0], [1]], "points": [[0.25]]}).encode()
+    proc = subprocess.run([str(exe), "interpolate"], input=body + b" " * (limit - len(body)),
+                          capture_output=True, timeout=60)
+    assert proc.returncode == 0, proc.stderr
+    # Shepard with power 2 at 0.25: 1/0.0625 and 1/0.5625 normalised.
+    assert np.allclose(json.loads(proc.stdout)["weights"], [[0.9, 0.1]], rtol=1e-15, atol=0)
+
+
+def test_verbose_says_what_was_read():
+    exe = painterly_binary()
+    proc = subprocess.run([str(exe), "interpolate", "-v"], capture_output=True, text=True, timeout=60,
+                          input='{"method": "rbf", "keys": [[0, 0], [1, 0], [0, 1]], "points": [[1, 1]]}')
+    assert proc.returncode == 0, proc.stderr
+    lines = proc.stderr.splitlines()
+    assert lines[0] == "painterly: interpolate: 3 keys of 2 coordinates, 1 points, method rbf"
+    assert re.fullmatch(r"painterly: interpolate: weights in \d+\.\d{3} s", lines[1]), lines
+    assert len(lines) == 2

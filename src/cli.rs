@@ -279,7 +279,9 @@ pub enum Command {
     ///
     /// Input: {"method": "smoothVoronoi"|"rbf"|"shepard", "radius": 1.0,
     /// "keys": [[...], ...], "points": [[...], ...]}. Output:
-    /// {"weights": [[w_0, ..., w_n-1] per point]}. For tests and plots.
+    /// {"weights": [[w_0, ..., w_n-1] per point]}. For tests and plots. At
+    /// most 64 MiB of request and 4,000,000 weights (points × keys) in one
+    /// answer.
     ///
     /// Example: echo '{"method": "smoothVoronoi", "keys": [[0], [1], [3]], "points": [[0.5], [2]]}' | painterly interpolate
     Interpolate,
@@ -741,9 +743,19 @@ fn run_view(input: &Path, bake: &Path, output: &Path, quiet: bool, json: bool) -
 
 /// `painterly interpolate`: one JSON request on stdin, its answer on stdout.
 fn run_interpolate() -> i32 {
+    use crate::interp::json::MAX_REQUEST_BYTES;
     let mut input = String::new();
-    if let Err(e) = std::io::Read::read_to_string(&mut std::io::stdin(), &mut input) {
+    // One byte past the limit tells a request at the limit from a longer one.
+    let mut stdin = std::io::Read::take(std::io::stdin().lock(), MAX_REQUEST_BYTES + 1);
+    if let Err(e) = std::io::Read::read_to_string(&mut stdin, &mut input) {
         return report(&Error::msg(format!("cannot read stdin: {e}")));
+    }
+    if input.len() as u64 > MAX_REQUEST_BYTES {
+        return report(&Error::msg(format!(
+            "the request on stdin is longer than {} MiB; painterly interpolate reads at most that \
+             (send the points in several requests)",
+            MAX_REQUEST_BYTES >> 20
+        )));
     }
     match crate::interp::json::run_json(&input) {
         Ok(out) => {

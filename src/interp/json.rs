@@ -9,6 +9,15 @@
 //! printed with full round-trip precision.
 
 use super::{Interpolator, Method};
+
+/// Largest request read from stdin: a request is a few keys and the points
+/// of a plot, and reading without a bound would let `/dev/zero` take all
+/// memory.
+pub const MAX_REQUEST_BYTES: u64 = 64 << 20;
+
+/// Largest answer, in weights (points × keys): each is about 20 bytes of
+/// JSON, so this keeps the answer near 100 MB.
+pub const MAX_WEIGHTS: usize = 4_000_000;
 use serde::{Deserialize, Serialize};
 
 #[derive(Deserialize)]
@@ -45,7 +54,23 @@ pub fn run_json(input: &str) -> Result<String, String> {
     if let Some((k, key)) = req.keys.iter().enumerate().find(|(_, k)| k.len() != dim) {
         return Err(format!("key {k} has {} coordinates, key 0 has {dim}", key.len()));
     }
+    let count = req.points.len().saturating_mul(req.keys.len());
+    if count > MAX_WEIGHTS {
+        return Err(format!(
+            "{} points × {} keys is {count} weights; painterly interpolate answers at most {MAX_WEIGHTS} \
+             per request (send the points in several requests)",
+            req.points.len(),
+            req.keys.len()
+        ));
+    }
+    crate::vlog!(
+        "interpolate: {} keys of {dim} coordinates, {} points, method {}",
+        req.keys.len(),
+        req.points.len(),
+        req.method
+    );
     let flat: Vec<f64> = req.keys.concat();
+    let started = std::time::Instant::now();
     let interp = Interpolator::new(method, dim, &flat).map_err(|e| e.to_string())?;
     let mut weights = Vec::with_capacity(req.points.len());
     for (p, point) in req.points.iter().enumerate() {
@@ -61,6 +86,7 @@ pub fn run_json(input: &str) -> Result<String, String> {
         }
         weights.push(w);
     }
+    crate::vlog!("interpolate: weights in {:.3} s", started.elapsed().as_secs_f64());
     serde_json::to_string(&Output { weights }).map_err(|e| format!("cannot write output: {e}"))
 }
 
@@ -94,5 +120,22 @@ mod tests {
         assert!(err(r#"{"method": "shepard", "keys": [[0], [0]], "points": []}"#).contains("keys 0 and 1"));
         assert!(err(r#"{"method": "rbf", "radius": -1, "keys": [[0], [1]], "points": []}"#).contains("radius"));
         assert!(err(r#"{"method": "rbf", "raduis": 1, "keys": [[0]], "points": []}"#).contains("raduis"));
+    }
+
+    #[test]
+    fn an_answer_over_the_weight_limit_is_refused_before_any_weight() {
+        // 2,000,001 points × 2 keys = 4,000,002 weights, one past the limit;
+        // 2,000,000 points are exactly at it and answered.
+        let request = |n: usize| {
+            let points = vec!["[0.5]"; n].join(",");
+            format!(r#"{{"method": "shepard", "keys": [[0], [1]], "points": [{points}]}}"#)
+        };
+        let e = run_json(&request(2_000_001)).unwrap_err();
+        assert_eq!(
+            e,
+            "2000001 points × 2 keys is 4000002 weights; painterly interpolate answers at most 4000000 \
+             per request (send the points in several requests)"
+        );
+        assert!(run_json(&request(2_000_000)).is_ok());
     }
 }
