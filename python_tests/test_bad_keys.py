@@ -232,7 +232,7 @@ CASES = {
     "scalar_component_2": (_sc, [f"{_sc_path}.component", "picks from a scalar"], ()),
     "scalar_element_1": (_se, [f"{_se_path}.element", "picks from a scalar"], ()),
     # a viewDirection axis with neither a source nor --camera
-    "view_without_source_or_camera": (_vn, [_vn_path], ()),
+    "view_without_source_or_camera": (_vn, [f"{_vn_path}.source: a viewDirection axis needs `rel source` or `--camera`"], ()),
     # authored opacities lie in [0, 1], as `key --opacity` takes them
     "pose_key_opacity_above_1": (_set(f"{LAYER}/dim", "opacity", Sdf.ValueTypeNames.Float, 1.7),
                                  [f"{LAYER}/dim.opacity", "outside [0, 1]"], ()),

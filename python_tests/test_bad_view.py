@@ -216,3 +216,20 @@ def test_a_camera_relationship_with_two_targets_is_refused(painterly, tmp_path):
         (MESH, "painterly:camera", "view-mesh", why)], problems
     r = painterly("bake", path, "-o", tmp_path / "out.usdc", check=False)
     assert (r.returncode, r.stderr) == (1, f"error: {path}: {MESH}.painterly:camera: {why}\n")
+
+
+def test_no_camera_names_the_option_every_command_takes(painterly, tmp_path):
+    """The message said "pass `painterly bake --camera PRIM`" in inspect,
+    farm and the preview too: each of them takes `--camera`."""
+    path = tmp_path / "bad.usda"
+    RV.build_view_stage(path, keys=[(d, None, None, None) for d in OCTAHEDRON], eyes=RV.orbit_eyes(4))
+    st = Usd.Stage.Open(str(path))
+    no_camera_rel(st)
+    st.GetRootLayer().Save()
+    del st
+    why = "no camera: pass `--camera PRIM` or author `rel painterly:camera`"
+    r = painterly("bake", path, "-o", tmp_path / "out.usda", check=False)
+    assert (r.returncode, r.stderr) == (1, f"error: {path}: {MESH}.painterly:camera: {why}\n")
+    r = painterly("inspect", path, "--json", check=False)
+    problems = json.loads(r.stdout)["problems"]
+    assert [(p["prim"], p["attribute"], p["message"]) for p in problems] == [(MESH, "painterly:camera", why)], problems

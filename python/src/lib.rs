@@ -294,8 +294,8 @@ fn refuse_unsaved_inputs(
 /// (most specific first): a TD calling `painterly.bake(frames=...)` should
 /// not be told to pass `--frames`.
 const PYTHON_WORDS: [(&str, &str); 6] = [
-    ("`painterly bake --camera PRIM`", "`camera=PRIM`"),
-    ("`painterly bake --camera`", "`camera=`"),
+    ("`--camera PRIM`", "`camera=PRIM`"),
+    ("`--camera`", "`camera=`"),
     ("pass --frames A:B", "pass frames=(A, B)"),
     ("--frames", "frames"),
     ("--camera", "`camera`"),

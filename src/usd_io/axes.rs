@@ -323,7 +323,7 @@ impl Axis {
                             Error::attr(
                                 &self.path,
                                 "source",
-                                "a viewDirection axis needs `rel source` or `painterly bake --camera`",
+                                "a viewDirection axis needs `rel source` or `--camera`",
                             )
                         })?;
                         let p = r

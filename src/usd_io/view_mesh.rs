@@ -393,7 +393,7 @@ impl ViewMesh {
             Error::attr(
                 &self.path,
                 "painterly:camera",
-                "no camera: pass `painterly bake --camera PRIM` or author `rel painterly:camera`",
+                "no camera: pass `--camera PRIM` or author `rel painterly:camera`",
             )
         })
     }
