@@ -25,6 +25,8 @@ pub struct SkinningRest {
     centred: Vec<DVec3>,
     offsets: Vec<usize>,
     centroids: Vec<DVec3>,
+    /// Rings whose rest shape fixes no rotation (SPEC §3): their R is I.
+    degenerate: Vec<bool>,
 }
 
 impl SkinningRest {
@@ -33,12 +35,15 @@ impl SkinningRest {
         let mut centred = Vec::new();
         let mut offsets = Vec::with_capacity(rings.len() + 1);
         let mut centroids = Vec::with_capacity(rings.len());
+        let mut degenerate = Vec::with_capacity(rings.len());
         offsets.push(0);
         for v in 0..rings.len() {
             let ring = rings.ring(v);
             let c = centroid(ring.iter().map(|&i| rest[i as usize]), ring.len());
             centroids.push(c);
+            let start = centred.len();
             centred.extend(ring.iter().map(|&i| rest[i as usize] - c));
+            degenerate.push(rest_is_degenerate(&centred[start..]));
             offsets.push(centred.len());
         }
         SkinningRest {
@@ -46,6 +51,7 @@ impl SkinningRest {
             centred,
             offsets,
             centroids,
+            degenerate,
         }
     }
 
@@ -65,7 +71,11 @@ impl SkinningRest {
     /// The rigid motion of one vertex's one-ring.
     pub fn vertex_motion(&self, v: usize, posed: &[DVec3]) -> DAffine3 {
         let (h, spread, c_posed) = self.cross_covariance(v, posed);
-        let r = crate::polar::fast_rotation(&h, spread).unwrap_or_else(|| svd_rotation(&h));
+        let r = if self.degenerate[v] {
+            DMat3::IDENTITY
+        } else {
+            crate::polar::fast_rotation(&h, spread).unwrap_or_else(|| svd_rotation(&h))
+        };
         // x ↦ R (x − c) + c'
         DAffine3::from_mat3_translation(r, c_posed - r * self.centroids[v])
     }
@@ -108,22 +118,56 @@ fn centroid(points: impl Iterator<Item = DVec3>, n: usize) -> DVec3 {
 ///
 /// Kabsch: with H = Σ p qᵀ = U Σ Vᵀ, R = V diag(1, 1, sign det(V Uᵀ)) Uᵀ; the
 /// sign term excludes reflections. Returns I when the rest set is degenerate
-/// (second singular value < 1e-9 × the first), where the rotation is not
-/// determined. The same rotation is found without an SVD where that is
-/// well-conditioned ([`crate::polar`]); the SVD decides the rest.
+/// (SPEC §3: the second singular value of Σ p pᵀ < 1e-9 × the first), where
+/// the rotation is not determined. The same rotation is found without an SVD
+/// where that is well-conditioned ([`crate::polar`]); the SVD decides the rest.
 pub fn procrustes_rotation(pairs: impl Iterator<Item = (DVec3, DVec3)>) -> DMat3 {
-    let (h, spread) = cross_covariance(pairs);
+    let pairs: Vec<_> = pairs.collect();
+    if rest_is_degenerate(&pairs.iter().map(|&(p, _)| p).collect::<Vec<_>>()) {
+        return DMat3::IDENTITY;
+    }
+    let (h, spread) = cross_covariance(pairs.into_iter());
     crate::polar::fast_rotation(&h, spread).unwrap_or_else(|| svd_rotation(&h))
 }
 
+/// Whether centred rest points fix no rotation (SPEC §3): the second singular
+/// value of their covariance C = Σ p pᵀ below 1e-9 × the first, C zero, or C
+/// not finite. The rule looks at the rest shape only: a posed ring that
+/// collapses (half-way through a linear-blend twist) still has a best
+/// rotation, and a rest sliver gets none however it is posed.
+pub fn rest_is_degenerate(centred: &[DVec3]) -> bool {
+    let mut c = DMat3::ZERO;
+    for &p in centred {
+        c.x_axis += p * p.x;
+        c.y_axis += p * p.y;
+        c.z_axis += p * p.z;
+    }
+    // C's eigenvalues λ₁ ≥ λ₂ ≥ λ₃ ≥ 0 are its singular values. With
+    // t = λ₁+λ₂+λ₃ and m = λ₁λ₂+λ₁λ₃+λ₂λ₃ ≤ 3 λ₁λ₂, λ₂/λ₁ ≥ m / (3 t²): most
+    // rings are settled by that bound, the few near the threshold by an SVD.
+    let t = c.x_axis.x + c.y_axis.y + c.z_axis.z;
+    let m = c.x_axis.x * c.y_axis.y - c.y_axis.x * c.y_axis.x + c.x_axis.x * c.z_axis.z - c.z_axis.x * c.z_axis.x
+        + c.y_axis.y * c.z_axis.z
+        - c.z_axis.y * c.z_axis.y;
+    if t.is_finite() && m.is_finite() && t > 0.0 && m >= 2.0 * DEGENERATE_RATIO * 3.0 * t * t {
+        return false;
+    }
+    let svd = Matrix3::from_column_slice(&c.to_cols_array()).svd(false, false);
+    let mut s = [svd.singular_values[0], svd.singular_values[1], svd.singular_values[2]];
+    s.sort_by(|a, b| b.total_cmp(a));
+    !(s[0].is_finite() && s[0] > 0.0 && s[1] >= DEGENERATE_RATIO * s[0])
+}
+
 /// [`procrustes_rotation`] of a cross-covariance H by its SVD: the reference,
-/// and the fallback for ill-conditioned fits.
+/// and the fallback for ill-conditioned fits. A rank-deficient H (a posed set
+/// collapsed onto a line) gets one of its minimisers; only a zero or
+/// non-finite H, where every rotation fits alike or none does, gets I.
 pub fn svd_rotation(h: &DMat3) -> DMat3 {
     let h = Matrix3::from_column_slice(&h.to_cols_array());
     let svd = h.svd(true, true);
     let mut s = [svd.singular_values[0], svd.singular_values[1], svd.singular_values[2]];
     s.sort_by(|a, b| b.total_cmp(a));
-    if s[0].is_nan() || s[0] <= 0.0 || s[1] < DEGENERATE_RATIO * s[0] {
+    if !s[0].is_finite() || s[0] <= 0.0 {
         return DMat3::IDENTITY;
     }
     let (Some(u), Some(v_t)) = (svd.u, svd.v_t) else {
@@ -330,23 +374,106 @@ mod tests {
     }
 
     #[test]
-    fn the_svd_fit_is_the_identity_where_no_rotation_is_determined() {
-        // The doc's rule: I when σ₂ < 1e-9 σ₁ (a ratio: the same at every
-        // scale), when H is zero, and when H is not finite.
+    fn the_svd_fit_of_a_rank_deficient_h_is_a_minimiser() {
+        // Σ |R p − q|² = Σ|p|² + Σ|q|² − 2 tr(R H), and the largest tr(R H)
+        // over proper rotations is σ₁ + σ₂ + sign·σ₃ (von Neumann), here
+        // σ₁ + σ₂ for H = k Q diag(1, ε, 0): any R reaching it is a minimiser.
         let q = DMat3::from_quat(DQuat::from_axis_angle(DVec3::new(0.3, 1.0, -0.4).normalize(), 1.1));
-        let thin = q * DMat3::from_diagonal(DVec3::new(1.0, 1e-10, 0.0));
-        for k in [1e-3, 1.0, 1e3] {
-            assert_eq!(svd_rotation(&(thin * k)), DMat3::IDENTITY, "σ₂/σ₁ = 1e-10 at scale {k}");
+        for eps in [0.0, 1e-10, 1e-8] {
+            for k in [1e-3, 1.0, 1e3] {
+                let h = q * DMat3::from_diagonal(DVec3::new(1.0, eps, 0.0)) * k;
+                let r = svd_rotation(&h);
+                let tr = (r * h).to_cols_array().iter().step_by(4).sum::<f64>();
+                assert!((tr - k * (1.0 + eps)).abs() <= 1e-12 * k, "ε {eps}, k {k}: tr(RH) {tr}");
+                assert!((r.determinant() - 1.0).abs() < 1e-12);
+            }
         }
-        // Just above the ratio a rotation is determined, and it is not I.
-        let wide = q * DMat3::from_diagonal(DVec3::new(1.0, 1e-8, 0.0)) * 1e3;
-        assert_ne!(svd_rotation(&wide), DMat3::IDENTITY);
+        // Every rotation fits a zero H alike, none a non-finite one: I.
         assert_eq!(svd_rotation(&DMat3::ZERO), DMat3::IDENTITY);
         for bad in [f64::NAN, f64::INFINITY] {
             let mut h = q;
             h.y_axis.z = bad;
             assert_eq!(svd_rotation(&h), DMat3::IDENTITY, "H with {bad}");
         }
+    }
+
+    /// An isolated triangle of rest height `height` under a unit base, its
+    /// apex lifted by 0.01 in z in the pose: the rings of all three vertices
+    /// are the whole triangle.
+    fn sliver(height: f64) -> (SkinningRest, Vec<DVec3>) {
+        let rest = vec![
+            DVec3::new(14.0, 0.0, 0.0),
+            DVec3::new(15.0, 0.0, 0.0),
+            DVec3::new(14.5, height, 0.0),
+        ];
+        let mut posed = rest.clone();
+        posed[2] = DVec3::new(14.5, 0.0, 0.01);
+        (SkinningRest::new(OneRings::new(3, &[3], &[0, 1, 2]), &rest), posed)
+    }
+
+    #[test]
+    fn a_rest_sliver_gets_the_identity_however_it_is_posed() {
+        // SPEC §3 judges the REST ring: centred, the sliver's covariance is
+        // diag(1/2, h²·2/3, 0) (x: ±1/2 twice; y: −h/3 twice, 2h/3 once), so
+        // σ₂/σ₁ = 4h²/3: 1.3e-12 at h = 1e-6, degenerate, and R = I. The
+        // cross-covariance H = Σ p qᵀ mixes in the pose (its σ₂/σ₁ is about
+        // 1e-8 here), and the old rule, on H, fitted a quarter turn whose
+        // sense followed the sign of h: a stroke 0.3 above went sideways.
+        for h in [1e-6, -1e-6] {
+            let (sk, posed) = sliver(h);
+            for (v, m) in sk.vertex_motions(&posed).iter().enumerate() {
+                assert_eq!(m.matrix3, DMat3::IDENTITY, "h {h}, vertex {v}");
+                // x ↦ x − c + c': the centroid moves up 0.01/3.
+                let c_shift = DVec3::new(0.0, -h / 3.0, 0.01 / 3.0);
+                let x = DVec3::new(14.5, 0.0, 0.3);
+                assert!((m.transform_point3(x) - (x + c_shift)).length() < 1e-12);
+            }
+        }
+        // 4h²/3 = 1.3e-8 at h = 1e-4: above the ratio, a rotation is fitted.
+        let (sk, posed) = sliver(1e-4);
+        assert!(sk.vertex_motions(&posed).iter().all(|m| m.matrix3 != DMat3::IDENTITY));
+    }
+
+    #[test]
+    fn the_degenerate_rule_is_the_ratio_of_the_rest_covariance() {
+        // Points ±a x, ±b y: C = diag(2a², 2b², 0), σ₂/σ₁ = b²/a².
+        let ring = |b: f64| [DVec3::X, -DVec3::X, DVec3::Y * b, -DVec3::Y * b];
+        for scale in [1e-3, 1.0, 1e3] {
+            let at = |b: f64| rest_is_degenerate(&ring(b).map(|p| p * scale));
+            assert!(at(3e-5), "b²/a² = 9e-10 at scale {scale}");
+            assert!(!at(3.2e-5), "b²/a² = 1.02e-9 at scale {scale}");
+            assert!(!at(1.0));
+        }
+        assert!(rest_is_degenerate(&[]));
+        assert!(rest_is_degenerate(&[DVec3::ZERO; 3]));
+        assert!(rest_is_degenerate(&[DVec3::X, DVec3::NAN, DVec3::Y]));
+        assert!(rest_is_degenerate(&[DVec3::X * 2.0, DVec3::X * -1.0, DVec3::X * -1.0]));
+    }
+
+    #[test]
+    fn a_ring_posed_onto_a_line_gets_a_best_rotation_not_the_identity() {
+        // The pyramid's rings, every posed point moved onto the x axis (a
+        // linear-blend twist half-way round): H has rank 1, so the fit is a
+        // rotation reaching tr(R H) = σ₁ (a minimiser), where I reached less.
+        let (rings, rest) = square_rings();
+        let posed: Vec<_> = rest
+            .iter()
+            .map(|p| DVec3::new(p.x + 2.0 * p.y - p.z, 0.0, 0.0))
+            .collect();
+        let sk = SkinningRest::new(rings, &rest);
+        let mut better = 0;
+        for (v, m) in sk.vertex_motions(&posed).iter().enumerate() {
+            let (h, _, _) = sk.cross_covariance(v, &posed);
+            let s = Matrix3::from_column_slice(&h.to_cols_array()).singular_values();
+            let sigma1 = s.max();
+            let tr = |r: DMat3| (r * h).to_cols_array().iter().step_by(4).sum::<f64>();
+            assert!((tr(m.matrix3) - sigma1).abs() <= 1e-12 * sigma1, "vertex {v}");
+            assert!((m.matrix3.determinant() - 1.0).abs() < 1e-12);
+            if tr(DMat3::IDENTITY) < sigma1 - 1e-9 {
+                better += 1;
+            }
+        }
+        assert!(better > 0, "I was a minimiser everywhere: the case tests nothing");
     }
 
     #[test]
