@@ -587,3 +587,74 @@ def test_a_character_names_its_file_in_evaluation_errors():
     with pytest.raises(painterly.Error) as e:
         ch.evaluate(1, configuration={"/Nope": 1.0})
     assert e.value.file == str(fish)
+
+
+# ---------------------------------------------------------------------------
+# adversarial arguments (a review of the package, 2026-12-07)
+
+
+def test_two_bakes_of_one_output_in_one_process_each_publish_a_whole_file(tmp_path):
+    """Both bakes used `.<name>.painterly-<host>-<pid>.tmp`: the second
+    truncated the first's temporary, the inner call returned having
+    published nothing of its own and the outer raised ENOENT. Now each
+    write has its own temporary and the last rename wins, whole."""
+    fish = FIXTURES / "blowfish.usda"
+    outer_alone, inner_alone, out = tmp_path / "outer.usdc", tmp_path / "inner.usdc", tmp_path / "shot.usdc"
+    painterly.bake(fish, outer_alone, frames="1:4")
+    painterly.bake(fish, inner_alone, frames="10:11")
+    inner = []
+
+    def progress(done, total):
+        if done == 1:  # a hook that bakes a preview of the same shot
+            inner.append(painterly.bake(fish, out, frames="10:11"))
+            inner.append(out.read_bytes())
+
+    summary = painterly.bake(fish, out, frames="1:4", progress=progress)
+    assert inner[0]["frames"] == 2 and summary["frames"] == 4
+    assert inner[1] == inner_alone.read_bytes()
+    assert out.read_bytes() == outer_alone.read_bytes()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["inner.usdc", "outer.usdc", "shot.usdc"]
+
+
+def test_frames_given_as_bytes_are_refused():
+    """b"12" extracted as the sequence (49, 50): frames 49:50 baked."""
+    for frames in (b"12", bytearray(b"1:4")):
+        with pytest.raises(TypeError, match=r"not bytes \(decode them first\)$"):
+            painterly.bake(FIXTURES / "tube.usda", frames=frames)
+
+
+def test_interpolate_refuses_what_a_float_conversion_would_drop():
+    """Complex values lost their imaginary part (numpy only warned) and a
+    masked array's hidden values were interpolated."""
+    keys = [[0.0], [1.0]]
+    with pytest.raises(painterly.Error, match=r"^values must be real numbers, not complex$"):
+        painterly.interpolate(keys, np.array([1 + 5j, 2]), [[0.5]])
+    with pytest.raises(painterly.Error, match=r"^queries must be real numbers, not complex$"):
+        painterly.interpolate(keys, [1.0, 2.0], [[0.5 + 1j]])
+    masked = np.ma.masked_array([1.0, 999.0], mask=[False, True])
+    with pytest.raises(painterly.Error, match=r"^values is a masked array"):
+        painterly.interpolate(keys, masked, [[0.5]])
+    # The real values still interpolate: Shepard at 0.25 weighs 0.9 and 0.1.
+    got = painterly.interpolate(keys, [1.0, 2.0], [[0.25]], method="shepard")
+    assert np.allclose(got, [1.1], rtol=1e-15, atol=0)
+
+
+def test_interpolate_that_cannot_allocate_its_answer_is_a_memory_error():
+    """10⁶ queries × 10⁶ values per key is 8 TB: it aborted the interpreter
+    ("memory allocation failed", SIGABRT); numpy raises MemoryError."""
+    keys = np.zeros((1, 1))
+    values = np.broadcast_to(np.zeros(1), (1, 1_000_000))
+    queries = np.broadcast_to(np.zeros(1), (1_000_000, 1))
+    with pytest.raises(MemoryError, match=r"cannot allocate the answer: 1000000 queries × 1000000 values per key"):
+        painterly.interpolate(keys, values, queries)
+
+
+def test_a_bake_to_a_name_that_is_not_utf8_is_refused_before_writing(tmp_path):
+    """The summary names the output as a str: the bake was written, then
+    "cannot encode the result" raised without the file."""
+    out = os.fsdecode(os.path.join(os.fsencode(tmp_path), b"\xff.usda"))
+    with pytest.raises(painterly.Error) as e:
+        painterly.bake(FIXTURES / "tube.usda", out, frames="1:2")
+    assert e.value.message == "the output's name is not UTF-8, and the summary names it as text: rename it"
+    assert e.value.file == f"{tmp_path}/\ufffd.usda"  # as text, the byte shown as U+FFFD
+    assert os.listdir(tmp_path) == []

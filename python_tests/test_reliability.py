@@ -12,6 +12,7 @@ import pathlib
 import re
 import shutil
 import signal
+import stat
 import subprocess
 import time
 
@@ -763,3 +764,75 @@ def test_an_edit_layer_in_a_folder_whose_name_is_not_utf8_is_named(tmp_path):
         "e.usda: the edit layer's path is not valid UTF-8 (USD reads layers by UTF-8 paths): name it another way"), proc.stderr
     assert "scratch" not in proc.stderr
     assert list(folder.iterdir()) == []
+
+
+@pytest.mark.parametrize("through_link", [False, True])
+def test_an_output_that_is_no_regular_file_is_refused_not_replaced(tmp_path, through_link):
+    """An output that was a FIFO or a device (or a link to one) was replaced
+    by a regular file: `-o null.usda` linked to /dev/null replaced /dev/null
+    itself (an I/O review, 2026-12-07). A FIFO stands in for the device."""
+    fifo = tmp_path / "pipe.usda"
+    os.mkfifo(fifo)
+    target = fifo
+    if through_link:
+        target = tmp_path / "out.usda"
+        target.symlink_to(fifo)
+    proc = run("bake", BLOWFISH, "-o", target, "--frames", "1:2", "-q")
+    assert (proc.returncode, proc.stderr) == (1, (
+        f"error: {fifo}: cannot write over something that is not a regular file (a device, FIFO or socket): "
+        "name a file to write\n"))
+    assert stat.S_ISFIFO(os.stat(fifo).st_mode)
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted({"pipe.usda", target.name})
+
+
+@pytest.mark.skipif(not os.path.exists("/dev/full"), reason="no /dev/full")
+def test_a_full_stderr_ends_in_exit_1_not_an_abort(tmp_path):
+    """With stderr on a full device, the first `-v` line or error panicked,
+    and the panic hook's own eprintln! panicked again: SIGABRT, exit 134,
+    no message anywhere (an I/O review, 2026-12-07)."""
+    with open("/dev/full", "w") as full:
+        proc = subprocess.run([str(painterly_binary()), "bake", str(BLOWFISH), "-o", str(tmp_path / "b.usdc"),
+                               "--frames", "1:2", "-v"], stdout=subprocess.PIPE, stderr=full, timeout=HANG)
+        assert proc.returncode == 1
+        proc = subprocess.run([str(painterly_binary()), "inspect", str(tmp_path / "missing.usda")],
+                              stdout=subprocess.PIPE, stderr=full, timeout=HANG)
+        assert proc.returncode == 1
+    assert sorted(p.name for p in tmp_path.iterdir()) == []
+
+
+def test_json_refuses_a_file_name_that_is_not_utf8_before_any_work(tmp_path):
+    """`bake -o $'\\xfc.usda' --json` baked, then printed an empty line and
+    exited 0 (JSON strings cannot hold the name). Refused up front, exit 2;
+    without --json the same bake runs."""
+    out = os.path.join(os.fsencode(tmp_path), b"\xfc.usda")
+    exe = os.fsencode(painterly_binary())
+    proc = subprocess.run([exe, b"bake", os.fsencode(BLOWFISH), b"-o", out, b"--frames", b"1:2", b"--json"],
+                          capture_output=True, timeout=HANG)
+    assert (proc.returncode, proc.stdout) == (2, b"")
+    assert proc.stderr == (b"error: --json names files in UTF-8, and " + os.fsencode(tmp_path) +
+                           "/\ufffd.usda is not: rename it, or run without --json\n".encode())
+    assert os.listdir(tmp_path) == []
+    proc = subprocess.run([exe, b"bake", os.fsencode(BLOWFISH), b"-o", out, b"--frames", b"1:2", b"-q"],
+                          capture_output=True, timeout=HANG)
+    assert proc.returncode == 0 and os.listdir(os.fsencode(tmp_path)) == [b"\xfc.usda"]
+
+
+@pytest.mark.skipif(os.geteuid() != 0, reason="mounting a file system needs root")
+def test_a_read_only_file_system_is_named_not_blamed_on_permissions(tmp_path):
+    """On a read-only mount, `--in-place` said "cannot replace a file this
+    user may not write (mode 644): change its permissions first", advice
+    that cannot help (an I/O review, 2026-12-07)."""
+    mnt = tmp_path / "ro"
+    mnt.mkdir()
+    if subprocess.run(["mount", "-t", "tmpfs", "-o", "size=4m", "tmpfs", str(mnt)]).returncode != 0:
+        pytest.skip("cannot mount a tmpfs here")
+    try:
+        rig = mnt / "fish.usda"
+        shutil.copy(BLOWFISH, rig)
+        assert subprocess.run(["mount", "-o", "remount,ro", str(mnt)]).returncode == 0
+        proc = run("key", rig, "--layer", "/Blowfish/Paint/Hair", "--time", "5", "--sentinel", "--in-place", "-q")
+        assert (proc.returncode, proc.stderr) == (
+            1, f"error: {rig}: cannot replace the file: Read-only file system (os error 30)\n")
+        assert rig.read_bytes() == BLOWFISH.read_bytes()
+    finally:
+        subprocess.run(["umount", str(mnt)])

@@ -8,6 +8,7 @@ copied from painterly's output.
 """
 
 import json
+import os
 import pathlib
 import re
 import resource
@@ -808,3 +809,18 @@ def test_a_committed_contact_sheet_is_what_the_readme_command_renders(painterly,
     assert got.shape == want.shape, f"render_{name}_sheet.png is {want.shape}, the command renders {got.shape}"
     differ = int((got != want).any(axis=2).sum())
     assert differ == 0, f"docs/figures/render_{name}_sheet.png: {differ} pixels differ from today's render (run scripts/render_figures)"
+
+
+def test_a_brush_that_is_a_fifo_is_refused_not_waited_on(tmp_path, scene):
+    """`--brush` on a FIFO blocked in open() until a writer came (an I/O
+    review, 2026-12-07); every other file option refuses what is not a
+    regular file."""
+    fifo = tmp_path / "brush.png"
+    os.mkfifo(fifo)
+    out = tmp_path / "out"
+    out.mkdir()
+    proc = subprocess.run([str(painterly_binary()), "render", str(scene), "--camera", "/Cam", "--frames", "1",
+                           "-o", str(out / "f.####.exr"), "--size", "32x24", "--brush", str(fifo)],
+                          capture_output=True, text=True, timeout=30)
+    assert (proc.returncode, proc.stderr) == (1, f"error: {fifo}: cannot open brush: not a regular file\n")
+    assert not any(out.iterdir())

@@ -498,7 +498,7 @@ fn finish(result: Result<EditSummary, Error>, edit: &EditArgs) -> i32 {
     match result {
         Ok(s) => {
             if edit.json {
-                println!("{}", serde_json::to_string(&s).unwrap_or_default());
+                return print_json(&s, false);
             } else if !edit.quiet {
                 println!("{}", s.message);
             }
@@ -605,7 +605,7 @@ fn run_bake(input: &Path, output: &Path, opts: &BakeOptions, quiet: bool, json: 
     match result {
         Ok(s) => {
             if json {
-                println!("{}", serde_json::to_string(&s).unwrap_or_default());
+                return print_json(&s, false);
             } else if !quiet {
                 // An assembly bakes nothing: it writes the clip set over the chunks.
                 let done = if opts.assemble {
@@ -651,7 +651,10 @@ fn run_inspect(input: &Path, camera: Option<&str>, frames: Option<FrameRange>, j
     match result {
         Ok(rep) => {
             if json {
-                println!("{}", serde_json::to_string_pretty(&rep).unwrap_or_default());
+                let printed = print_json(&rep, true);
+                if printed != 0 {
+                    return printed;
+                }
             } else {
                 print!("{}", rep.to_text());
             }
@@ -703,7 +706,7 @@ fn run_render(args: &crate::render::RenderArgs) -> i32 {
                 }
             }
             if args.json {
-                println!("{}", serde_json::to_string(&summary).unwrap_or_default());
+                return print_json(&summary, false);
             } else if !args.quiet {
                 println!("{}", summary.line());
             }
@@ -723,7 +726,7 @@ fn run_view(input: &Path, bake: &Path, output: &Path, quiet: bool, json: bool) -
                 }
             }
             if json {
-                println!("{}", serde_json::to_string(&s).unwrap_or_default());
+                return print_json(&s, false);
             } else if !quiet {
                 println!(
                     "wrote {}: {} over {}, frames {}:{}, defaultPrim {}",
@@ -764,6 +767,40 @@ fn run_interpolate() -> i32 {
         }
         Err(e) => report(&Error::msg(e)),
     }
+}
+
+/// `--json` output: one document on stdout, exit 0. JSON strings are
+/// Unicode, so a value that cannot be one (a file name that is not UTF-8,
+/// from the stage) is an error, not an empty line with exit 0.
+fn print_json(value: &impl serde::Serialize, pretty: bool) -> i32 {
+    let text = if pretty {
+        serde_json::to_string_pretty(value)
+    } else {
+        serde_json::to_string(value)
+    };
+    match text {
+        Ok(t) => {
+            println!("{t}");
+            0
+        }
+        Err(e) => report(&Error::msg(format!(
+            "cannot write the --json output: {e} (JSON names files in UTF-8)"
+        ))),
+    }
+}
+
+/// Why `args` cannot run with `--json`, checked before any work: every
+/// file named on the command line must be UTF-8 to be named in the JSON.
+pub fn json_args_problem(args: impl IntoIterator<Item = std::ffi::OsString>) -> Option<String> {
+    let args: Vec<_> = args.into_iter().collect();
+    if !args.iter().any(|a| a == "--json") {
+        return None;
+    }
+    let bad = args.iter().skip(1).find(|a| a.to_str().is_none())?;
+    Some(format!(
+        "--json names files in UTF-8, and {} is not: rename it, or run without --json",
+        bad.to_string_lossy()
+    ))
 }
 
 fn report(e: &Error) -> i32 {

@@ -1,5 +1,7 @@
 //! The `painterly` binary: parses arguments, runs, maps failures to exit codes.
 
+use std::io::Write;
+
 use clap::Parser;
 
 fn main() {
@@ -27,19 +29,26 @@ fn main() {
             if msg.contains("Broken pipe") {
                 std::process::exit(141);
             }
-            eprintln!("error: {msg}");
+            // Not eprintln!: when stderr is what failed, a second panic
+            // inside this hook aborts the process (SIGABRT, no message).
+            let _ = writeln!(std::io::stderr(), "error: {msg}");
             std::process::exit(1);
         }
         let at = info
             .location()
             .map(|l| format!(" at {}:{}", l.file(), l.line()))
             .unwrap_or_default();
-        eprintln!(
+        let _ = writeln!(
+            std::io::stderr(),
             "error: internal error{at}: {msg} (this is a bug in painterly; please report it with the input file)"
         );
     }));
     // SIGTERM/SIGINT/SIGHUP remove this run's temporary files, then exit 128+signo.
     painterly::usd_io::atomic::install_signal_cleanup();
+    if let Some(problem) = painterly::cli::json_args_problem(std::env::args_os()) {
+        let _ = writeln!(std::io::stderr(), "error: {problem}");
+        std::process::exit(2);
+    }
     let cli = painterly::cli::Cli::parse();
     let code = std::panic::catch_unwind(|| {
         // The one way to reach exit code 3 on purpose: the contract tests

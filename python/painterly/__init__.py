@@ -48,6 +48,17 @@ def _error(message: str) -> Error:
 
 
 def _array(name: str, value) -> np.ndarray:
+    # Converting these to float64 would drop something silently: an
+    # imaginary part (numpy only warns) or a mask (its hidden values used).
+    if isinstance(value, np.ma.MaskedArray):
+        raise _error(f"{name} is a masked array: pass the values to use (e.g. {name}.filled(...) or "
+                     f"{name}.compressed())")
+    try:
+        kind = np.asarray(value).dtype.kind
+    except (TypeError, ValueError):
+        kind = None  # ragged: the conversion below names it
+    if kind == "c":
+        raise _error(f"{name} must be real numbers, not complex")
     try:
         return np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError) as why:

@@ -345,6 +345,13 @@ fn frames_from_py(py: Python<'_>, frames: Option<&Bound<'_, PyAny>>) -> PyResult
     if f.is_none() {
         return Ok(None);
     }
+    // bytes and bytearray extract as sequences of numbers: b"12" read as
+    // frames 49:50.
+    if f.is_instance_of::<pyo3::types::PyBytes>() || f.is_instance_of::<pyo3::types::PyByteArray>() {
+        return Err(PyTypeError::new_err(
+            "frames: expected \"A:B:STEP\", a number or (start, end[, step]), not bytes (decode them first)",
+        ));
+    }
     let text = if let Ok(s) = f.extract::<String>() {
         s
     } else if let Ok(x) = f.extract::<f64>() {
@@ -411,6 +418,15 @@ fn bake(
     };
     if chunk.is_some() && output.is_none() {
         return Err(msg_err(py, "a chunked bake writes files: give an output path"));
+    }
+    // The summary names the output as a str: refuse before baking a name
+    // that cannot be one, rather than after writing it.
+    if let Some(o) = output.as_deref().filter(|o| o.to_str().is_none()) {
+        return Err(to_py(
+            py,
+            painterly::Error::msg("the output's name is not UTF-8, and the summary names it as text: rename it")
+                .in_file(o),
+        ));
     }
     // Without an output the bake goes to a temporary folder (removed when
     // dropped, or by the next process if this one dies) and is read back.
@@ -557,13 +573,22 @@ fn _interpolate<'py>(
     if n > 0 && d == 0 {
         return Err(msg_err(py, "the keys have no coordinates"));
     }
+    // As numpy: an answer that cannot be allocated is a MemoryError, not an
+    // abort of the interpreter.
+    let mut out = Vec::new();
+    if m.checked_mul(k).is_none_or(|len| out.try_reserve_exact(len).is_err()) {
+        return Err(pyo3::exceptions::PyMemoryError::new_err(format!(
+            "cannot allocate the answer: {m} queries × {k} values per key"
+        )));
+    }
+    out.resize(m * k, 0.0);
     let keys = keys.as_slice()?.to_vec();
     let values = values.as_slice()?.to_vec();
     let queries = queries.as_slice()?.to_vec();
-    let out = py.detach(|| -> Result<Vec<f64>, String> {
+    let out = py.detach(move || -> Result<Vec<f64>, String> {
         let interp = Interpolator::new(method, d, &keys).map_err(|e| e.to_string())?;
         let mut w = vec![0.0; n];
-        let mut out = vec![0.0; m * k];
+        let mut out = out;
         for q in 0..m {
             let x = &queries[q * d..(q + 1) * d];
             interp.weights(x, &mut w);

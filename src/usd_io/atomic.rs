@@ -264,27 +264,48 @@ pub fn sweep_stale(dir: &Path) -> Vec<PathBuf> {
 }
 
 /// Creates `tmp` (read-write) and registers it, under the registry lock, so
-/// a signal never finds it created but unregistered.
+/// a signal never finds it created but unregistered. A temporary this
+/// process holds already is refused (AlreadyExists), never truncated: two
+/// writes of one target in one process (Python threads, a bake from a
+/// progress hook) each need their own file.
+#[cfg(test)]
 fn create_registered(tmp: &Path) -> std::io::Result<File> {
-    let mut reg = registry();
-    let live = reg.live.iter().any(|p| p == tmp);
+    create_locked(&mut registry(), tmp)
+}
+
+fn create_locked(reg: &mut Registry, tmp: &Path) -> std::io::Result<File> {
+    if reg.live.iter().any(|p| p == tmp) {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::AlreadyExists,
+            "this process is writing that temporary already",
+        ));
+    }
     // A leftover with our own pid belongs to a dead process (pid reuse).
     // It may be a symlink, even a dangling one: remove the link itself
     // (symlink_metadata does not follow it), then create the file only if
     // nothing is there, so a link put back meanwhile is never followed.
-    if !live && tmp.symlink_metadata().is_ok() {
+    if tmp.symlink_metadata().is_ok() {
         let _ = std::fs::remove_file(tmp);
     }
-    let mut opts = File::options();
-    opts.read(true).write(true);
-    if live {
-        opts.create(true).truncate(true);
-    } else {
-        opts.create_new(true);
-    }
-    let f = opts.open(tmp)?;
+    let f = File::options().read(true).write(true).create_new(true).open(tmp)?;
     reg.live.push(tmp.to_path_buf());
     Ok(f)
+}
+
+/// Creates and registers this process's temporary for `named` with
+/// `suffix`: the plain name, or, while this process writes that one
+/// already, `<name>+2`, `<name>+3`, … (the last write renamed wins, whole).
+fn create_unique(named: &Path, suffix: &str) -> Result<(PathBuf, std::io::Result<File>)> {
+    let mut reg = registry();
+    let mut path = temp_path(named, suffix)?;
+    let mut k = 2u32;
+    while reg.live.iter().any(|p| p == &path) {
+        let name = named.file_name().unwrap_or_default().to_string_lossy();
+        path = temp_path(&named.with_file_name(format!("{name}+{k}")), suffix)?;
+        k += 1;
+    }
+    let f = create_locked(&mut reg, &path);
+    Ok((path, f))
 }
 
 fn unregister(reg: &mut Registry, p: &Path) {
@@ -343,8 +364,8 @@ impl TempFile {
                 .ok_or_else(|| Error::msg("output path has no file name").in_file(target))?;
             target.with_file_name(format!("{}{tag}", name.to_string_lossy()))
         };
-        let path = temp_path(&named, TMP_SUFFIX)?;
-        match create_registered(&path) {
+        let (path, file) = create_unique(&named, TMP_SUFFIX)?;
+        match file {
             Ok(f) => Ok((TempFile { path, persisted: false }, f)),
             Err(e) => {
                 discard(&path);
@@ -468,12 +489,25 @@ fn check_replaceable(target: &Path) -> Result<Option<std::fs::Metadata>> {
     if meta.is_dir() {
         return Ok(None); // the rename fails and says so
     }
+    if !meta.is_file() {
+        // A rename would put a regular file where the device or FIFO was
+        // (an output linked to /dev/null replaced /dev/null itself).
+        return Err(Error::msg(
+            "cannot write over something that is not a regular file (a device, FIFO or socket): \
+             name a file to write",
+        )
+        .in_file(target));
+    }
     let Ok(c) = std::ffi::CString::new(target.as_os_str().as_bytes()) else {
         return Ok(Some(meta));
     };
     // SAFETY: `c` is a valid NUL-terminated path for the duration of the call.
     if unsafe { libc::access(c.as_ptr(), libc::W_OK) } == 0 {
         return Ok(Some(meta));
+    }
+    let why = std::io::Error::last_os_error();
+    if why.raw_os_error() == Some(libc::EROFS) {
+        return Err(Error::msg(format!("cannot replace the file: {why}")).in_file(target));
     }
     Err(Error::msg(format!(
         "cannot replace a file this user may not write (mode {:03o}): change its permissions first",
@@ -517,8 +551,8 @@ impl ScratchFile {
     /// beside `target`. Nothing is left behind when the write fails.
     pub fn create(target: &Path, contents: &[u8]) -> Result<ScratchFile> {
         sweep_stale(dir_of(target));
-        let path = temp_path(target, SCRATCH_SUFFIX)?;
-        let result = create_registered(&path).and_then(|mut f| f.write_all(contents));
+        let (path, file) = create_unique(target, SCRATCH_SUFFIX)?;
+        let result = file.and_then(|mut f| f.write_all(contents));
         if let Err(e) = result {
             discard(&path);
             return Err(Error::msg(format!("cannot create a scratch file: {e}")).in_file(target));
@@ -821,16 +855,47 @@ mod tests {
     }
 
     #[test]
-    fn creating_a_live_temporary_again_keeps_its_file() {
+    fn a_second_write_of_a_target_in_one_process_gets_its_own_temporary() {
         use std::os::unix::fs::MetadataExt;
         let dir = fresh_dir("again");
-        let tmp = ours(&dir, "t.usdc");
+        let target = dir.join("t.usdc");
+        // Two bakes of one output in one process (Python threads): the
+        // second truncated the first's temporary, and the two wrote into one
+        // file, which one of them then published mixed.
+        let (a, mut fa) = TempFile::create(&target, "").unwrap();
+        let (b, mut fb) = TempFile::create(&target, "").unwrap();
+        let (c, _fc) = TempFile::create(&target, "").unwrap();
+        fa.write_all(b"first").unwrap();
+        fb.write_all(b"second").unwrap();
+        let names = [a.path(), b.path(), c.path()].map(|p| p.file_name().unwrap().to_str().unwrap().to_string());
+        let inode_a = fa.metadata().unwrap().ino() == std::fs::metadata(a.path()).unwrap().ino();
+        drop((fa, fb));
+        b.persist(&target).unwrap();
+        let after_b = std::fs::read(&target).unwrap();
+        a.persist(&target).unwrap();
+        let after_a = std::fs::read(&target).unwrap();
+        drop(c);
+        let me = std::process::id();
+        let h = host();
+        assert_eq!(
+            names,
+            [
+                format!(".t.usdc.painterly-{h}-{me}.tmp"),
+                format!(".t.usdc+2.painterly-{h}-{me}.tmp"),
+                format!(".t.usdc+3.painterly-{h}-{me}.tmp"),
+            ]
+        );
+        assert!(inode_a);
+        assert_eq!((after_b, after_a), (b"second".to_vec(), b"first".to_vec()));
+        // Each temporary is its own; none is left.
+        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1);
+        // The registry's own refusal, under the plain name.
+        let tmp = ours(&dir, "u.usdc");
         let first = create_registered(&tmp).unwrap();
-        let _second = create_registered(&tmp).unwrap();
-        // Registered, so not a dead process's leftover: the same inode, not unlinked.
-        let same = first.metadata().unwrap().ino() == std::fs::metadata(&tmp).unwrap().ino();
+        let again = create_registered(&tmp).map(drop).map_err(|e| e.kind());
+        drop(first);
         discard(&tmp);
-        assert!(same);
+        assert_eq!(again, Err(std::io::ErrorKind::AlreadyExists));
     }
 
     #[test]
