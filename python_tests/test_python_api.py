@@ -20,6 +20,7 @@ is not, these tests skip unless PAINTERLY_PYTHON_PACKAGE=required.
 
 import json
 import os
+import shutil
 import threading
 import time
 
@@ -658,3 +659,30 @@ def test_a_bake_to_a_name_that_is_not_utf8_is_refused_before_writing(tmp_path):
     assert e.value.message == "the output's name is not UTF-8, and the summary names it as text: rename it"
     assert e.value.file == f"{tmp_path}/\ufffd.usda"  # as text, the byte shown as U+FFFD
     assert os.listdir(tmp_path) == []
+
+
+def test_an_input_saved_during_a_bake_fails_it_naming_the_file(tmp_path):
+    """A save of the input while a bake ran left a bake holding the old
+    data with the new file's stamp (render, view and the farm's assembly
+    then vouched for it). The bake now fails before replacing its output,
+    naming the file; the CLI and chunked bakes share the check (an I/O
+    review, 2026-12-07)."""
+    fish = tmp_path / "fish.usda"
+    shutil.copy(FIXTURES / "blowfish.usda", fish)
+    out = tmp_path / "bake.usdc"
+    out.write_bytes(b"previous")
+
+    def progress(done, total):
+        if done == 2:
+            stage = Usd.Stage.Open(str(fish))
+            stage.GetRootLayer().customLayerData = {"note": "saved mid-bake"}
+            stage.GetRootLayer().Save()
+
+    with pytest.raises(painterly.Error) as e:
+        painterly.bake(fish, out, frames="1:6", progress=progress)
+    assert e.value.file == str(fish)
+    assert e.value.message.startswith("changed while painterly read it (saved during this run?)")
+    assert out.read_bytes() == b"previous"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bake.usdc", "fish.usda"]
+    # Unchanged since: the same bake goes through.
+    assert painterly.bake(fish, out, frames="1:6")["frames"] == 6

@@ -249,7 +249,9 @@ impl FrameSink for DiscardSink {
 /// A plain bake of `input` for `render` (read unmapped, as render reads it;
 /// no chunks), except that a stage with nothing to bake writes nothing and
 /// returns None (a render of a plain scene needs no bake).
-pub fn bake_if_any(input: &Path, output: &Path, opts: &BakeOptions) -> Result<Option<BakeSummary>> {
+/// With the bake, the versions of the files it read ([`StageReader::opened`]):
+/// a caller that opens the input again compares them.
+pub fn bake_if_any(input: &Path, output: &Path, opts: &BakeOptions) -> Result<Option<(BakeSummary, OpenedFiles)>> {
     let started = Instant::now();
     check_output(input, output)?;
     let mut character = Character::open(input, opts.camera.as_deref())?;
@@ -258,9 +260,12 @@ pub fn bake_if_any(input: &Path, output: &Path, opts: &BakeOptions) -> Result<Op
         return Ok(None);
     }
     bake_character(&character, input, output, opts, &|_, _| {}, started)
-        .map(Some)
+        .map(|s| Some((s, character.reader.opened.clone())))
         .map_err(|e| e.in_file(input))
 }
+
+/// Files a stage read and their versions then ([`StageReader::opened`]).
+pub type OpenedFiles = BTreeMap<PathBuf, crate::usd_io::guard::FileId>;
 
 fn is_empty(model: &Model, opts: &BakeOptions) -> bool {
     // --bake-proxy alone still has proxies to write.
@@ -569,6 +574,7 @@ fn stream_with(
     let panicked = std::sync::Mutex::new(None);
     let panicked = &panicked;
     let started = Instant::now();
+    let opened = ch.reader.opened.clone();
     let result = std::thread::scope(|s| {
         let writer = s.spawn(move || -> Result<f64> {
             let mut pending = BTreeMap::new();
@@ -593,6 +599,10 @@ fn stream_with(
                 // Stopped after the last frame: the output is still not replaced.
                 return Err(Error::msg(INTERRUPTED));
             }
+            // A save in place (usd-core writes a .usdc into the same file)
+            // changes mapped pages under the reader: refuse what may mix two
+            // versions before it replaces the output.
+            crate::usd_io::stage::check_unchanged(&opened)?;
             let t0 = Instant::now();
             sink.finish()?;
             Ok(writing + t0.elapsed().as_secs_f64())
@@ -938,9 +948,10 @@ mod tests {
         let dir = crate::test_dir::ScratchDir::new("bake-if-any");
         let tube = tube();
         let out = dir.join("tube_bake.usdc");
-        let s = bake_if_any(&tube, &out, &BakeOptions::default())
+        let (s, opened) = bake_if_any(&tube, &out, &BakeOptions::default())
             .unwrap()
             .expect("the tube has strokes to bake");
+        assert_eq!(opened.keys().collect::<Vec<_>>(), [&tube]);
         assert_eq!((s.frames, s.rigs, s.layers), (24, 1, 2));
         assert!(std::fs::metadata(&out).unwrap().len() > 1000, "a baked layer");
         let plain = dir.join("plain.usda");

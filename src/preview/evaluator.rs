@@ -531,8 +531,10 @@ impl State {
     /// Why the frame may not show the input as it is on disk now: a file it
     /// reads changed since the preview opened it. `None` when none did.
     fn stale(&self) -> Option<String> {
-        let now = crate::usd_io::clips::input_stamp(&self.ch.reader).ok()?;
-        (now != self.opened).then(|| {
+        // The stamp fails on a file changed since the reader read it (or
+        // gone): changed too.
+        let changed = crate::usd_io::clips::input_stamp(&self.ch.reader).map_or(true, |now| now != self.opened);
+        changed.then(|| {
             "the input changed on disk since this preview opened it: restart `painterly preview` to see the edits"
                 .into()
         })

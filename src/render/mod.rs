@@ -538,6 +538,7 @@ struct RenderStage {
 
 impl RenderStage {
     fn open(args: &RenderArgs, tmp: &Path) -> Result<Self> {
+        let mut baked_from = None;
         let bake_layer = match &args.bake {
             Some(b) => Some(b.clone()),
             None => {
@@ -548,12 +549,26 @@ impl RenderStage {
                     ..Default::default()
                 };
                 // A plain scene (no painted strokes) renders without a bake.
-                bake_if_any(&args.input, &out, &opts)?.map(|_| out)
+                bake_if_any(&args.input, &out, &opts)?.map(|(_, opened)| {
+                    baked_from = Some(opened);
+                    out
+                })
             }
         };
         let root = write_root(tmp, &args.input, bake_layer.as_deref())?;
         let named = |e| name_input(e, &root, &args.input);
         let reader = StageReader::open(&root).map_err(named)?;
+        // The input is read twice, by the bake and here: a save in between
+        // would draw the old strokes over the new scene.
+        for (file, id) in baked_from.iter().flatten() {
+            if reader.opened.get(file).is_some_and(|now| now != id) {
+                return Err(Error::msg(
+                    "changed while painterly rendered it (saved during this run?): the strokes were baked from \
+                     another version than the scene read; run again once it is saved",
+                )
+                .in_file(file));
+            }
+        }
         reader.require_resolved().map_err(named)?;
         // write_root resolved it: canonicalize succeeds.
         let bake = args.bake.as_ref().and_then(|b| b.canonicalize().ok());

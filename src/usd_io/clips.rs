@@ -581,7 +581,10 @@ fn template_files(template: &Path) -> Vec<PathBuf> {
 
 /// [`input_hash`]'s digest: each file's bytes.
 fn hash_layers(r: &StageReader) -> Result<String> {
-    layers_digest(r, |f, h| std::io::copy(&mut std::fs::File::open(f)?, h).map(|_| ()))
+    let hash = layers_digest(r, |f, h| std::io::copy(&mut std::fs::File::open(f)?, h).map(|_| ()))?;
+    // Checked after hashing: a save before or during it shows.
+    r.check_unchanged()?;
+    Ok(hash)
 }
 
 /// The same digest over each layer file's size and modification time in
@@ -600,6 +603,7 @@ pub fn input_stamp(r: &StageReader) -> Result<String> {
         h.update(format!("{} {modified}\n", meta.len()).as_bytes());
         Ok(())
     })?;
+    r.check_unchanged()?;
     Ok(if r.unsaved {
         format!("{UNSAVED_STAMP}{stamp}")
     } else {

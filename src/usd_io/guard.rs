@@ -74,6 +74,32 @@ struct State {
     targets: HashMap<String, Vec<(String, String)>>,
     /// Layers already scanned (by identifier).
     scanned: HashSet<String>,
+    /// Each file opened, as it was just before it was read.
+    opened: std::collections::BTreeMap<std::path::PathBuf, FileId>,
+}
+
+/// What tells a file's version apart without reading it: a save by rename
+/// gives a new inode, one in place a new size or modification time.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FileId {
+    dev: u64,
+    ino: u64,
+    len: u64,
+    mtime_ns: i128,
+}
+
+impl FileId {
+    /// The file at `path` now, through links; None when it cannot be seen.
+    pub fn of(path: &std::path::Path) -> Option<FileId> {
+        use std::os::unix::fs::MetadataExt;
+        let m = std::fs::metadata(path).ok()?;
+        Some(FileId {
+            dev: m.dev(),
+            ino: m.ino(),
+            len: m.len(),
+            mtime_ns: i128::from(m.mtime()) * 1_000_000_000 + i128::from(m.mtime_nsec()),
+        })
+    }
 }
 
 /// Shared handle to the guard's findings.
@@ -94,6 +120,25 @@ impl Guard {
         GuardedResolver {
             inner,
             guard: self.clone(),
+        }
+    }
+
+    /// Every file read so far (a package once, by its own path), as it was
+    /// just before it was read.
+    pub fn opened_files(&self) -> std::collections::BTreeMap<std::path::PathBuf, FileId> {
+        self.state.borrow().opened.clone()
+    }
+
+    /// Notes the version of the file behind `resolved` (a package for
+    /// `pkg.usdz[inner.usda]`) the first time it is read.
+    fn note_opened(&self, resolved: &ResolvedPath) {
+        let text = resolved.to_str().unwrap_or_default();
+        let file = std::path::PathBuf::from(text.split_once('[').map_or(text, |(pkg, _)| pkg));
+        if self.state.borrow().opened.contains_key(&file) {
+            return;
+        }
+        if let Some(id) = FileId::of(&file) {
+            self.state.borrow_mut().opened.insert(file, id);
         }
     }
 
@@ -324,6 +369,8 @@ impl<R: ar::Resolver> ar::Resolver for GuardedResolver<R> {
     }
 
     fn open_asset(&self, resolved_path: &ResolvedPath) -> io::Result<Box<dyn Asset>> {
+        // Before the read: a save between the two shows as a change later.
+        self.guard.note_opened(resolved_path);
         let buffer = self.inner.open_asset(resolved_path)?.into_buffer()?;
         if let Err(e) = self.guard.check_bytes(resolved_path, &buffer) {
             return Err(io::Error::new(io::ErrorKind::InvalidData, e.message));

@@ -163,6 +163,9 @@ pub struct StageReader {
     /// Every file the stage reads, once listed ([`super::clips::input_files`]):
     /// the output check and the input's hash both need it.
     pub input_files: std::sync::OnceLock<std::collections::BTreeSet<PathBuf>>,
+    /// Each file composition read, as it was just before it was read: what
+    /// [`StageReader::check_unchanged`] compares with.
+    pub opened: std::collections::BTreeMap<PathBuf, super::guard::FileId>,
     /// Whether the layers are mapped files on disk, unedited, for one
     /// command ([`StageReader::open_mapped`]): only then are time samples read
     /// straight from the files ([`super::crate_samples`]) and fixed world
@@ -294,6 +297,21 @@ pub fn require_file(path: &Path, what: &str) -> Result<()> {
         Err(e) => e.to_string(),
     };
     Err(Error::msg(format!("cannot open {what}: {why}")).in_file(path))
+}
+
+/// [`StageReader::check_unchanged`] over files noted when read (a copy of
+/// [`StageReader::opened`], for threads the reader cannot go to).
+pub fn check_unchanged(opened: &std::collections::BTreeMap<PathBuf, super::guard::FileId>) -> Result<()> {
+    for (file, id) in opened {
+        if super::guard::FileId::of(file).as_ref() != Some(id) {
+            return Err(Error::msg(
+                "changed while painterly read it (saved during this run?): what was read is not what the \
+                 file now holds; run again once it is saved",
+            )
+            .in_file(file));
+        }
+    }
+    Ok(())
 }
 
 /// Checks that `path`, given by the user as `option` (`--camera`,
@@ -493,10 +511,19 @@ impl StageReader {
             unresolved,
             input_hash: std::sync::OnceLock::new(),
             input_files: std::sync::OnceLock::new(),
+            opened: guard.opened_files(),
             mapped: false,
             fixed_transforms: Mutex::default(),
             unsaved: false,
         })
+    }
+
+    /// Fails naming the first file composition read that has changed since
+    /// (saved while this command ran): a bake's provenance, a chunk's input
+    /// hash or a second open of the input would describe another version
+    /// than the one read.
+    pub fn check_unchanged(&self) -> Result<()> {
+        check_unchanged(&self.opened)
     }
 
     /// Fails naming every missing sublayer, reference and payload: a bake
@@ -1656,6 +1683,39 @@ def BasisCurves "L" {
         assert!(!mapped_in(&b), "{} is mapped", b.display());
         drop(mapped);
         assert!(!mapped_in(&a), "{} is still mapped", a.display());
+    }
+
+    #[test]
+    fn a_file_saved_after_it_was_read_is_named_by_the_check() {
+        // An input saved while a bake ran: its provenance (hash or stamp)
+        // described the new file, its data the old one.
+        let dir = crate::test_dir::ScratchDir::new("stage-unchanged");
+        let sub = dir.join("sub.usda");
+        let root = dir.join("root.usda");
+        std::fs::write(&sub, "#usda 1.0\ndef Xform \"S\"\n{\n}\n").unwrap();
+        std::fs::write(&root, "#usda 1.0\n(\n    subLayers = [@./sub.usda@]\n)\n").unwrap();
+        let r = StageReader::open_mapped(&root).unwrap();
+        assert_eq!(r.opened.len(), 2, "{:?}", r.opened.keys());
+        r.check_unchanged().unwrap();
+        crate::usd_io::clips::input_stamp(&r).unwrap();
+        // Saved by rename (as painterly and most tools save): a new inode.
+        let next = dir.join("sub.next");
+        std::fs::write(&next, "#usda 1.0\ndef Xform \"S\"\n{\n}\n").unwrap();
+        std::fs::rename(&next, &sub).unwrap();
+        let e = r.check_unchanged().unwrap_err();
+        assert_eq!(e.file.as_deref(), Some(sub.as_path()), "{e}");
+        assert!(
+            e.message
+                .starts_with("changed while painterly read it (saved during this run?)"),
+            "{e}"
+        );
+        for digest in [crate::usd_io::clips::input_stamp, crate::usd_io::clips::input_hash] {
+            assert_eq!(digest(&r).unwrap_err().file.as_deref(), Some(sub.as_path()));
+        }
+        // Saved in place, a byte longer: the same inode, another size.
+        let r = StageReader::open_mapped(&root).unwrap();
+        std::fs::write(&root, "#usda 1.0\n(\n    subLayers = [@./sub.usda@]\n)\n\n").unwrap();
+        assert_eq!(r.check_unchanged().unwrap_err().file.as_deref(), Some(root.as_path()));
     }
 
     #[test]
