@@ -41,6 +41,10 @@ const RENDER_DIR_PREFIX: &str = "painterly-render-";
 struct Registry {
     live: Vec<PathBuf>,
     swept: HashSet<PathBuf>,
+    /// A handle on each live temporary file holding its `flock`: a process
+    /// whose pid /proc cannot see (another PID namespace of this host name,
+    /// as containers on the host network are) still shows it is alive.
+    locks: Vec<(PathBuf, File)>,
 }
 
 fn registry() -> MutexGuard<'static, Registry> {
@@ -49,6 +53,7 @@ fn registry() -> MutexGuard<'static, Registry> {
         Mutex::new(Registry {
             live: Vec::new(),
             swept: HashSet::new(),
+            locks: Vec::new(),
         })
     })
     .lock()
@@ -255,6 +260,8 @@ pub fn sweep_stale(dir: &Path) -> Vec<PathBuf> {
         let is_file = entry.file_type().map(|t| t.is_file()).unwrap_or(false);
         if stale && is_file {
             let p = entry.path();
+            // Removed only while we hold its lock: a live writer holds it.
+            let Some(_held) = lock_if_free(&p) else { continue };
             if std::fs::remove_file(&p).is_ok() {
                 removed.push(p);
             }
@@ -288,8 +295,35 @@ fn create_locked(reg: &mut Registry, tmp: &Path) -> std::io::Result<File> {
         let _ = std::fs::remove_file(tmp);
     }
     let f = File::options().read(true).write(true).create_new(true).open(tmp)?;
+    // Held until the temporary is renamed or removed (the writer's handle is
+    // closed before the rename; this one, of the same open file, is not).
+    let lock = f.try_clone()?;
+    if !try_flock(&lock) {
+        let _ = std::fs::remove_file(tmp);
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::WouldBlock,
+            "another process locked this temporary as it was made",
+        ));
+    }
     reg.live.push(tmp.to_path_buf());
+    reg.locks.push((tmp.to_path_buf(), lock));
     Ok(f)
+}
+
+/// Takes an exclusive `flock` on `f` without waiting; false when another
+/// open file holds one.
+fn try_flock(f: &File) -> bool {
+    use std::os::fd::AsRawFd;
+    // SAFETY: flock on a descriptor this File owns for the call's duration.
+    unsafe { libc::flock(f.as_raw_fd(), libc::LOCK_EX | libc::LOCK_NB) == 0 }
+}
+
+/// The file at `p` opened and locked, when no live writer holds its lock
+/// (and it is not a link: a leftover is never followed).
+fn lock_if_free(p: &Path) -> Option<File> {
+    use std::os::unix::fs::OpenOptionsExt;
+    let f = File::options().read(true).custom_flags(libc::O_NOFOLLOW).open(p).ok()?;
+    try_flock(&f).then_some(f)
 }
 
 /// Creates and registers this process's temporary for `named` with
@@ -310,6 +344,7 @@ fn create_unique(named: &Path, suffix: &str) -> Result<(PathBuf, std::io::Result
 
 fn unregister(reg: &mut Registry, p: &Path) {
     reg.live.retain(|q| q != p);
+    reg.locks.retain(|(q, _)| q != p);
 }
 
 /// Removes a registered temporary and forgets it.
@@ -748,6 +783,39 @@ mod tests {
             assert!(!dead.exists());
         }
         assert!(alive.exists() && remote.exists() && user.exists());
+    }
+
+    #[test]
+    fn a_locked_temporary_of_a_pid_this_process_cannot_see_is_kept() {
+        // Two farm containers on the host network share a host name but not
+        // a PID namespace: /proc shows neither the other's pid, and each
+        // sweep removed the other's live temporary (the task failed, ENOENT).
+        let dir = fresh_dir("locked");
+        let theirs = leftover(&dir, "a.usdc", host(), 4194305);
+        std::fs::write(&theirs, b"x").unwrap();
+        let held = File::open(&theirs).unwrap();
+        assert!(try_flock(&held));
+        let removed_while_held = sweep_stale(&dir);
+        let kept = theirs.exists();
+        // Once its writer is gone (the lock with it), the next sweep removes it.
+        drop(held);
+        let again = fresh_dir("locked-again");
+        let gone = leftover(&again, "a.usdc", host(), 4194305);
+        std::fs::rename(&theirs, &gone).unwrap();
+        let removed = sweep_stale(&again);
+        if Path::new("/proc/self").exists() {
+            assert_eq!((removed_while_held, kept), (vec![], true));
+            assert_eq!(removed, vec![gone]);
+        }
+        // Ours are locked from creation to rename.
+        let target = dir.join("b.usdc");
+        let (tmp, f) = TempFile::create(&target, "").unwrap();
+        drop(f);
+        let other = File::open(tmp.path()).unwrap();
+        let free = try_flock(&other);
+        tmp.persist(&target).unwrap();
+        assert!(!free, "a live temporary's lock was free after its writer closed it");
+        assert!(try_flock(&File::open(&target).unwrap()), "the lock outlived the rename");
     }
 
     #[test]
