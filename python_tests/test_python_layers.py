@@ -126,6 +126,41 @@ def test_a_layer_inside_a_package_is_read_through_its_text_as_unsaved(tmp_path):
         assert np.array_equal(pa, pb)
 
 
+def test_a_package_layer_that_composes_a_sibling_is_refused_not_resolved_beside_the_package(tmp_path):
+    """`pkg.usdz[root.usda]` referencing `./base.usda` (inside the package
+    for usd-core) was served as text beside the package, so an older
+    base.usda on disk there was baked instead, 1 unit off (a Python review,
+    2026-12-07). Refused, naming the layer and what it composes; the
+    package's path still bakes what usd-core composes."""
+    build = tmp_path / "build"
+    build.mkdir()
+    shutil.copy(TUBE, build / "base.usda")
+    root = Sdf.Layer.CreateNew(str(build / "root.usda"))
+    root.startTimeCode, root.endTimeCode = 1, 24
+    Sdf.CreatePrimInLayer(root, "/Shot").specifier = Sdf.SpecifierDef
+    fish = Sdf.CreatePrimInLayer(root, "/Shot/Tube")
+    fish.specifier = Sdf.SpecifierDef
+    fish.referenceList.Prepend(Sdf.Reference("./base.usda", "/Tube"))
+    root.Save()
+    pkg = tmp_path / "pkg.usdz"
+    assert UsdUtils.CreateNewUsdzPackage(Sdf.AssetPath(str(build / "root.usda")), str(pkg))
+    shutil.copy(TUBE, tmp_path / "base.usda")  # a decoy beside the package
+    inner = Sdf.Layer.FindOrOpen(f"{pkg}[root.usda]")
+    edited = Usd.Stage.Open(str(pkg))
+    edited.GetPrimAtPath("/Shot").SetMetadata("comment", "tweak")
+    for layer in (inner, edited.GetRootLayer()):
+        with pytest.raises(painterly.Error) as e:
+            painterly.Character(layer)
+        assert str(e.value).startswith(f"{layer.identifier} is a layer of a package with unsaved edits or read "
+                                       "from inside it, and it composes ./base.usda: "), str(e.value)
+        with pytest.raises(painterly.Error):
+            painterly.bake(layer, frames="1:1")
+    # The package by path: read inside it, as usd-core composes it.
+    got = painterly.Character(str(pkg)).evaluate(1)["/Shot/Tube/Paint/Rings"]
+    want = painterly.Character(str(build / "root.usda")).evaluate(1)["/Shot/Tube/Paint/Rings"]
+    assert np.array_equal(got, want)
+
+
 # ---------------------------------------------------------------------------
 # unsaved edits in what an input composes
 

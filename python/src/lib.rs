@@ -102,6 +102,24 @@ impl Source {
                     name: real,
                 });
             }
+            // A layer of a package (`pkg.usdz[root.usda]`, or an edited
+            // package root) served as text beside the package would resolve
+            // its relative assets on disk beside it, not in the package.
+            let in_package = [&identifier, &real]
+                .iter()
+                .any(|p| p.contains('[') || p.to_ascii_lowercase().ends_with(".usdz"));
+            let dependencies: Vec<String> = obj.call_method0("GetCompositionAssetDependencies")?.extract()?;
+            if in_package && !dependencies.is_empty() {
+                return Err(to_py(
+                    obj.py(),
+                    painterly::Error::msg(format!(
+                        "{identifier} is a layer of a package with unsaved edits or read from inside it, and it \
+                         composes {}: painterly would resolve that beside the package on disk, not inside it; \
+                         pass the package's path (saved), or stage.Flatten()",
+                        dependencies.join(", ")
+                    )),
+                ));
+            }
             let text: String = obj.call_method0("ExportToString")?.extract()?;
             // Served where the layer lives, so its relative asset paths
             // resolve as they would on disk; named .usda since the text is usda.
