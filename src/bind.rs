@@ -704,10 +704,29 @@ pub fn closest_point_barycentric(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> [f64
         // Degenerate (collinear) triangle: best of its three edges.
         return degenerate_barycentric(p, a, b, c);
     }
+    // denom = |ab × ac|² = |ab|²|ac|² sin²θ, each term a difference of
+    // products: on a sliver (small sin θ) they cancel, and vb/denom loses
+    // about 1e-16/sin²θ (1e-3 at a 1e-7 high sliver). There the weights come
+    // from cross products with the normal n, which lose about 1e-16/sin θ:
+    // p − a = v ab + w ac + (normal part), so ap × ac = v n, ab × ap = w n.
+    if denom < THIN_TRIANGLE * ab.length_squared() * ac.length_squared() {
+        let n = ab.cross(ac);
+        let nn = n.length_squared();
+        if nn > f64::MIN_POSITIVE && nn.is_finite() {
+            let v = ap.cross(ac).dot(n) / nn;
+            let w = ab.cross(ap).dot(n) / nn;
+            return [1.0 - v - w, v, w];
+        }
+    }
     let v = vb / denom;
     let w = vc / denom;
     [1.0 - v - w, v, w]
 }
+
+/// sin²θ of a triangle's angle at `a` below which its face weights come
+/// from cross products ([`closest_point_barycentric`]): there Ericson's
+/// products would have lost more than about 1e-12.
+const THIN_TRIANGLE: f64 = 1e-4;
 
 fn degenerate_barycentric(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> [f64; 3] {
     let seg = |x: DVec3, y: DVec3| {
@@ -792,6 +811,34 @@ mod tests {
             let p = DVec3::new(p.0, p.1, 1.0);
             assert_weights(closest_point_barycentric(p, a, b, c), want, what);
         }
+    }
+
+    #[test]
+    fn a_sliver_gets_its_face_weights_to_rounding() {
+        // a = 0, b = (1, 0, 0), c = (1/2, h, 0) and p = (0.3, h/4, 1/2): in
+        // the plane, p = a + v ab + w ac with w h = h/4 and v + w/2 = 0.3, so
+        // (u, v, w) = (0.575, 0.175, 0.25) exactly, for every h (the inputs
+        // are exact in binary up to h/4). Ericson's products lost about
+        // 1e-16/h²: 1.2e-3 at h = 1e-7, against 1e-16/h now. (Near 1e-9 the
+        // region tests' own products round: p is put on the edge ab, h/4
+        // from where it belongs.)
+        for h in [1e-2, 1e-5, 1e-7] {
+            let (a, b, c) = (DVec3::ZERO, DVec3::X, DVec3::new(0.5, h, 0.0));
+            let w = closest_point_barycentric(DVec3::new(0.3, h / 4.0, 0.5), a, b, c);
+            let want = [0.575, 0.175, 0.25];
+            let err = (0..3).map(|k| (w[k] - want[k]).abs()).fold(0.0, f64::max);
+            assert!(err <= 1e-15 / h, "h {h}: {w:?}, off by {err:e}");
+        }
+        // A sliver tilted out of every axis plane, checked against the
+        // projection p − (n̂·ap) n̂ rebuilt from the weights.
+        let (a, b) = (DVec3::new(1.0, 2.0, 3.0), DVec3::new(2.0, 2.5, 3.25));
+        let c = (a + b) * 0.5 + DVec3::new(-0.3, 0.6, 0.0).normalize() * 1e-6;
+        let p = a * 0.4 + b * 0.35 + c * 0.25 + (b - a).cross(c - a).normalize() * 0.7;
+        let w = closest_point_barycentric(p, a, b, c);
+        assert!(
+            (w[0] - 0.4).abs() < 1e-9 && (w[1] - 0.35).abs() < 1e-9 && (w[2] - 0.25).abs() < 1e-9,
+            "{w:?}"
+        );
     }
 
     #[test]
