@@ -135,7 +135,15 @@ def "C" (
 def test_openusd_composition_crash_is_an_error(tmp_path, command):
     src = write(tmp_path, "hier.usda", OPENUSD_CRASH)
     args = ["-o", tmp_path / "o.usdc"] if command == "bake" else []
-    expect_error(run(command, src, *args), 1, "hier.usda", "openusd 0.8")
+    proc = run(command, src, *args)
+    expect_error(proc, 1, "hier.usda", "openusd 0.8")
+    # The README's Limits row, word for word (it did not name memory, which
+    # a stage too large for `ulimit -v` ends in too).
+    assert proc.stderr == (
+        f"error: {src}: openusd 0.8 crashed composing this stage (stack overflow or aborted allocation). "
+        "Its composition arcs are beyond what openusd can compose (e.g. recursive inherits, specializes or "
+        "references, which usd-core reports as arc cycles), or composing it needs more memory than the process "
+        "may use (ulimit -v).\n")
     assert leftovers(tmp_path) == []
 
 

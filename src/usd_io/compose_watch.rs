@@ -216,7 +216,8 @@ pub fn watched<T>(file: &Path, f: impl FnOnce() -> Result<T>) -> Result<T> {
     let msg = format!(
         "error: {}: openusd 0.8 crashed composing this stage (stack overflow or aborted allocation). \
          Its composition arcs are beyond what openusd can compose (e.g. recursive inherits, specializes \
-         or references, which usd-core reports as arc cycles).\n",
+         or references, which usd-core reports as arc cycles), or composing it needs more memory than \
+         the process may use (ulimit -v).\n",
         file.display()
     );
     let bytes: Box<[u8]> = msg.into_bytes().into_boxed_slice();
