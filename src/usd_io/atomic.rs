@@ -402,6 +402,18 @@ impl TempFile {
         let (path, file) = create_unique(&named, TMP_SUFFIX)?;
         match file {
             Ok(f) => Ok((TempFile { path, persisted: false }, f)),
+            Err(e) if e.raw_os_error() == Some(libc::ENAMETOOLONG) => {
+                discard(&path);
+                // The target's own path may fit where the longer name of
+                // the temporary beside it does not.
+                Err(Error::msg(format!(
+                    "cannot write output: its temporary {} is {} bytes long, more than the system takes \
+                     (File name too long): use a shorter folder path or name",
+                    path.display(),
+                    path.as_os_str().len()
+                ))
+                .in_file(target))
+            }
             Err(e) => {
                 discard(&path);
                 Err(e.report().in_file(target))
@@ -816,6 +828,33 @@ mod tests {
         tmp.persist(&target).unwrap();
         assert!(!free, "a live temporary's lock was free after its writer closed it");
         assert!(try_flock(&File::open(&target).unwrap()), "the lock outlived the rename");
+    }
+
+    #[test]
+    fn a_temporary_path_too_long_for_the_system_is_named_with_its_length() {
+        // A target whose own path fits in PATH_MAX (4096) while the
+        // temporary's longer name beside it does not: the error said "File
+        // name too long" of the target.
+        let scratch = fresh_dir("long-path");
+        let mut dir = scratch.to_path_buf();
+        while dir.as_os_str().len() < 3880 {
+            dir = dir.join("d".repeat(50));
+            std::fs::create_dir(&dir).unwrap();
+        }
+        // A 4,090-byte target (a name of 158 to 209 bytes): its temporary
+        // adds about 35 bytes, past 4,095.
+        let name = 4090 - dir.as_os_str().len() - 1;
+        let target = dir.join("t".repeat(name - 5) + ".usdc");
+        assert_eq!(target.as_os_str().len(), 4090);
+        let e = TempFile::create(&target, "").map(|_| ()).unwrap_err();
+        assert_eq!(e.file.as_deref(), Some(target.as_path()));
+        assert!(
+            e.message.starts_with("cannot write output: its temporary ")
+                && e.message.contains(
+                    " bytes long, more than the system takes (File name too long): use a shorter folder path or name"
+                ),
+            "{e}"
+        );
     }
 
     #[test]
