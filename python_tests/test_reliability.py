@@ -844,3 +844,28 @@ def test_a_read_only_file_system_is_named_not_blamed_on_permissions(tmp_path):
         assert rig.read_bytes() == BLOWFISH.read_bytes()
     finally:
         subprocess.run(["umount", str(mnt)])
+
+
+def test_a_folder_with_a_bracket_in_its_name_is_a_folder(tmp_path):
+    """`take[2]/shot.usda` was read as a layer inside a package `take`: the
+    list of files the input reads came out empty, so `-o` over its sublayer
+    replaced it with exit 0, and no saved file was ever noticed (a
+    verification review, 2026-12-07). usd-core's Ar.IsPackageRelativePath
+    is false there."""
+    take = tmp_path / "take[2]"
+    take.mkdir()
+    shutil.copy(BLOWFISH, take / "body.usda")
+    (take / "shot.usda").write_text("#usda 1.0\n(\n    subLayers = [@./body.usda@]\n)\n")
+    before = (take / "body.usda").read_bytes()
+    proc = run("bake", take / "shot.usda", "-o", take / "body.usda", "--frames", "1:2", "-q")
+    assert (proc.returncode, proc.stderr) == (1, (
+        f"error: {take / 'body.usda'}: output would overwrite {take / 'body.usda'}, a file the input reads; "
+        "inputs are never modified\n"))
+    assert (take / "body.usda").read_bytes() == before
+    # The bake records a stamp of the file it read: view finds it unchanged.
+    assert run("bake", take / "shot.usda", "-o", tmp_path / "b.usda", "--frames", "1:2", "-q").returncode == 0
+    view = run("view", take / "shot.usda", "--bake", tmp_path / "b.usda", "-o", tmp_path / "v.usda")
+    assert view.returncode == 0 and "changed since" not in view.stderr, view.stderr
+    (take / "body.usda").write_bytes(before + b"\n")
+    view = run("view", take / "shot.usda", "--bake", tmp_path / "b.usda", "-o", tmp_path / "v2.usda")
+    assert view.returncode == 0 and "changed since this bake was made" in view.stderr, view.stderr

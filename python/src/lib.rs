@@ -107,7 +107,7 @@ impl Source {
             // its relative assets on disk beside it, not in the package.
             let in_package = [&identifier, &real]
                 .iter()
-                .any(|p| p.contains('[') || p.to_ascii_lowercase().ends_with(".usdz"));
+                .any(|p| painterly::usd_io::stage::is_package_relative(p) || p.to_ascii_lowercase().ends_with(".usdz"));
             let dependencies: Vec<String> = obj.call_method0("GetCompositionAssetDependencies")?.extract()?;
             if in_package && !dependencies.is_empty() {
                 return Err(to_py(

@@ -472,14 +472,14 @@ fn list_input_files(r: &StageReader) -> BTreeSet<PathBuf> {
     let mut files: BTreeSet<PathBuf> = BTreeSet::new();
     for id in r.stage.layer_identifiers() {
         // "pkg.usdz[inner.usdc]" names a layer inside a package.
-        let file = id.split('[').next().unwrap_or(&id);
+        let file = super::stage::package_file(&id);
         let path = PathBuf::from(file);
         if path.is_file() {
             files.insert(path.canonicalize().unwrap_or(path));
         }
         // Value clips are no layer of the stage, yet their samples are part
         // of the input (a point cache delivered as clips).
-        if !id.contains('[') {
+        if !super::stage::is_package_relative(&id) {
             if let Some(layer) = r.stage.layer(&id) {
                 files.extend(input_clip_files(layer.data(), Path::new(file)));
             }

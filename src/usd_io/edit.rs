@@ -205,7 +205,7 @@ fn require_over(reader: &StageReader, input: &Path, edit: &Path) -> Result<()> {
     let stack = reader.stage.layer_stack();
     let found = stack.iter().any(|id| {
         // A package's inner layer is named `a.usdz[inner.usdc]`.
-        let file = id.split('[').next().unwrap_or(id);
+        let file = super::stage::package_file(id);
         Path::new(file).canonicalize().is_ok_and(|p| p == want)
     });
     if found {

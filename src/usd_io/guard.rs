@@ -133,7 +133,7 @@ impl Guard {
     /// `pkg.usdz[inner.usda]`) the first time it is read.
     fn note_opened(&self, resolved: &ResolvedPath) {
         let text = resolved.to_str().unwrap_or_default();
-        let file = std::path::PathBuf::from(text.split_once('[').map_or(text, |(pkg, _)| pkg));
+        let file = std::path::PathBuf::from(super::stage::package_file(text));
         if self.state.borrow().opened.contains_key(&file) {
             return;
         }

@@ -104,7 +104,11 @@ pub fn open_bytes(bytes: Vec<u8>, path: &Path) -> Result<StageReader> {
         bytes,
     };
     // The checks and composition of a file on disk (guard, watch, unresolved assets).
-    StageReader::compose(&PathBuf::from(path_str), &identifier, resolver)
+    let mut reader = StageReader::compose(&PathBuf::from(path_str), &identifier, resolver)?;
+    // Served from memory: a save of the file at `path` changes nothing read.
+    reader.opened.remove(Path::new(&identifier));
+    reader.opened.remove(&path);
+    Ok(reader)
 }
 
 #[cfg(test)]
@@ -136,6 +140,23 @@ mod tests {
             .err()
             .unwrap();
         assert!(err.to_string().contains("bad.usda"), "{err}");
+    }
+
+    #[test]
+    fn a_save_of_the_file_at_the_served_path_is_no_change_of_what_was_read() {
+        // The text served is what was read: a file saved at its path (by
+        // another process) is not, and refused a Python bake of an edited
+        // layer as "changed while painterly read it".
+        let dir = crate::test_dir::ScratchDir::new("memory-saved");
+        std::fs::write(dir.join("base.usda"), "#usda 1.0\ndef Xform \"World\" {}\n").unwrap();
+        std::fs::write(dir.join("shot.usda"), "#usda 1.0\n").unwrap();
+        let text = "#usda 1.0\n(\n    subLayers = [@./base.usda@]\n)\n";
+        let r = open_bytes(text.as_bytes().to_vec(), &dir.join("shot.usda")).unwrap();
+        assert_eq!(r.opened.keys().collect::<Vec<_>>(), [&dir.join("base.usda")]);
+        std::fs::write(dir.join("shot.usda"), "#usda 1.0\n\n").unwrap();
+        r.check_unchanged().unwrap();
+        std::fs::write(dir.join("base.usda"), "#usda 1.0\ndef Xform \"World\" {}\n\n").unwrap();
+        assert!(r.check_unchanged().is_err());
     }
 
     /// Every question but "what is at our path" goes to the filesystem

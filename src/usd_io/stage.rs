@@ -363,6 +363,35 @@ fn first_file_name(head: &[u8]) -> Option<String> {
 
 /// Whether `name`'s extension is `ext`, in any case (usd-core finds a file
 /// format by its extension without case).
+/// The file behind a layer identifier: the package for a layer inside one
+/// (`pkg.usdz[inner.usda]`, nested `a.usdz[b.usdz[c.usda]]`), else the
+/// identifier itself. As usd-core's `Ar.IsPackageRelativePath`, only an
+/// identifier ending in `]` is package-relative: a folder `take[2]/` is not.
+pub fn package_file(id: &str) -> &str {
+    if !id.ends_with(']') {
+        return id;
+    }
+    let mut depth = 0usize;
+    for (i, b) in id.bytes().enumerate().rev() {
+        match b {
+            b']' => depth += 1,
+            b'[' => {
+                depth -= 1;
+                if depth == 0 {
+                    return &id[..i];
+                }
+            }
+            _ => {}
+        }
+    }
+    id
+}
+
+/// Whether `id` names a layer inside a package ([`package_file`]).
+pub fn is_package_relative(id: &str) -> bool {
+    package_file(id).len() != id.len()
+}
+
 fn has_extension(name: &str, ext: &str) -> bool {
     Path::new(name).extension().is_some_and(|e| e.eq_ignore_ascii_case(ext))
 }
@@ -499,7 +528,7 @@ impl StageReader {
         // sublayered or referenced by its bare path): `pkg.usdz[inner.usda]`
         // names a layer inside a package, which is no package's root.
         for id in stage.layer_identifiers() {
-            if has_extension(&id, "usdz") && !id.contains('[') {
+            if has_extension(&id, "usdz") && !is_package_relative(&id) {
                 let id = Path::new(&id);
                 check_package(if same_file(id, path) { path } else { id }, true)?;
             }
@@ -1068,7 +1097,7 @@ fn unresolved_assets(stage: &usd::Stage) -> Vec<UnresolvedAsset> {
             }
         }
         // A relative path is shown anchored at the layer that authors it.
-        if !item.layer.is_empty() && !item.asset.contains(['[', ':']) {
+        if !item.layer.is_empty() && !is_package_relative(&item.asset) && !item.asset.contains(':') {
             let anchor = Path::new(&item.layer).parent().unwrap_or(Path::new("/"));
             item.asset = lexically_normal(&anchor.join(&item.asset));
         }
@@ -1683,6 +1712,30 @@ def BasisCurves "L" {
         assert!(!mapped_in(&b), "{} is mapped", b.display());
         drop(mapped);
         assert!(!mapped_in(&a), "{} is still mapped", a.display());
+    }
+
+    #[test]
+    fn only_an_identifier_ending_in_a_bracket_is_inside_a_package() {
+        // As usd-core's Ar.IsPackageRelativePath: a folder named `take[2]`
+        // is a folder. Splitting at the first `[` emptied the list of input
+        // files there (an output over a sublayer was not refused) and noted
+        // no file versions.
+        assert_eq!(package_file("/a/pkg.usdz[inner.usda]"), "/a/pkg.usdz");
+        assert_eq!(package_file("/a/b.usdz[c.usdz[d.usda]]"), "/a/b.usdz");
+        assert_eq!(package_file("/take[2]/pkg.usdz[x.usda]"), "/take[2]/pkg.usdz");
+        assert_eq!(package_file("/take[2]/shot.usda"), "/take[2]/shot.usda");
+        assert_eq!(package_file("/odd]"), "/odd]");
+        assert!(is_package_relative("p.usdz[a.usda]") && !is_package_relative("/t[1]/a.usda"));
+        let dir = crate::test_dir::ScratchDir::new("stage-bracket");
+        let take = dir.join("take[2]");
+        std::fs::create_dir(&take).unwrap();
+        std::fs::write(take.join("body.usda"), "#usda 1.0\ndef Xform \"B\"\n{\n}\n").unwrap();
+        let root = take.join("shot.usda");
+        std::fs::write(&root, "#usda 1.0\n(\n    subLayers = [@./body.usda@]\n)\n").unwrap();
+        let r = StageReader::open_mapped(&root).unwrap();
+        assert_eq!(r.opened.len(), 2, "{:?}", r.opened.keys());
+        let e = crate::usd_io::clips::check_not_an_input_file(&r, &take.join("body.usda")).unwrap_err();
+        assert!(e.to_string().contains("body.usda"), "{e}");
     }
 
     #[test]
