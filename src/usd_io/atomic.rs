@@ -326,20 +326,35 @@ fn lock_if_free(p: &Path) -> Option<File> {
     try_flock(&f).then_some(f)
 }
 
+/// Most writes of one target at once in one process (each has its own
+/// temporary): a bound, so that no fault can make the search endless.
+const MAX_SAME_NAME: u32 = 1000;
+
 /// Creates and registers this process's temporary for `named` with
 /// `suffix`: the plain name, or, while this process writes that one
 /// already, `<name>+2`, `<name>+3`, … (the last write renamed wins, whole).
 fn create_unique(named: &Path, suffix: &str) -> Result<(PathBuf, std::io::Result<File>)> {
     let mut reg = registry();
-    let mut path = temp_path(named, suffix)?;
-    let mut k = 2u32;
-    while reg.live.iter().any(|p| p == &path) {
-        let name = named.file_name().unwrap_or_default().to_string_lossy();
-        path = temp_path(&named.with_file_name(format!("{name}+{k}")), suffix)?;
-        k += 1;
+    // Ours already, or locked by a live writer this process cannot see
+    // (another PID namespace with our pid): another name, never theirs.
+    let held_elsewhere =
+        |p: &Path| std::fs::symlink_metadata(p).is_ok_and(|m| m.file_type().is_file()) && lock_if_free(p).is_none();
+    let name = named.file_name().unwrap_or_default().to_string_lossy();
+    for k in 1..=MAX_SAME_NAME {
+        let path = if k == 1 {
+            temp_path(named, suffix)?
+        } else {
+            temp_path(&named.with_file_name(format!("{name}+{k}")), suffix)?
+        };
+        if !reg.live.iter().any(|p| p == &path) && !held_elsewhere(&path) {
+            let f = create_locked(&mut reg, &path);
+            return Ok((path, f));
+        }
     }
-    let f = create_locked(&mut reg, &path);
-    Ok((path, f))
+    Err(Error::msg(format!(
+        "cannot write output: {MAX_SAME_NAME} writes of this file are under way at once"
+    ))
+    .in_file(named))
 }
 
 fn unregister(reg: &mut Registry, p: &Path) {
@@ -828,6 +843,28 @@ mod tests {
         tmp.persist(&target).unwrap();
         assert!(!free, "a live temporary's lock was free after its writer closed it");
         assert!(try_flock(&File::open(&target).unwrap()), "the lock outlived the rename");
+    }
+
+    #[test]
+    fn a_temporary_name_locked_by_another_writer_is_not_taken() {
+        // Another PID namespace may run a process with our pid: its live
+        // temporary has the name ours would have, and its lock says so.
+        let dir = fresh_dir("same-name");
+        let target = dir.join("t.usdc");
+        let theirs = ours(&dir, "t.usdc");
+        std::fs::write(&theirs, b"theirs").unwrap();
+        let held = File::open(&theirs).unwrap();
+        assert!(try_flock(&held));
+        let (tmp, _f) = TempFile::create(&target, "").unwrap();
+        let name = tmp.path().file_name().unwrap().to_str().unwrap().to_string();
+        drop(tmp);
+        let kept = std::fs::read(&theirs).unwrap();
+        drop(held);
+        assert_eq!(
+            name,
+            format!(".t.usdc+2.painterly-{}-{}.tmp", host(), std::process::id())
+        );
+        assert_eq!(kept, b"theirs");
     }
 
     #[test]

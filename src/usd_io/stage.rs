@@ -361,8 +361,6 @@ fn first_file_name(head: &[u8]) -> Option<String> {
     head.get(30..30 + len).map(|n| String::from_utf8_lossy(n).into_owned())
 }
 
-/// Whether `name`'s extension is `ext`, in any case (usd-core finds a file
-/// format by its extension without case).
 /// The file behind a layer identifier: the package for a layer inside one
 /// (`pkg.usdz[inner.usda]`, nested `a.usdz[b.usdz[c.usda]]`), else the
 /// identifier itself. As usd-core's `Ar.IsPackageRelativePath`, only an
@@ -392,6 +390,8 @@ pub fn is_package_relative(id: &str) -> bool {
     package_file(id).len() != id.len()
 }
 
+/// Whether `name`'s extension is `ext`, in any case (usd-core finds a file
+/// format by its extension without case).
 fn has_extension(name: &str, ext: &str) -> bool {
     Path::new(name).extension().is_some_and(|e| e.eq_ignore_ascii_case(ext))
 }
