@@ -23,6 +23,7 @@ use crate::frames::FrameRange;
 use crate::usd_io::bake_layer::{self, BakeAttr, BakeLayout, BlockedAttr, FrameSink, Provenance, Sample, SampleKind};
 use crate::usd_io::binding_cache::{self, BindingCache};
 use crate::usd_io::clips::{self, ChunkedSink, ClipPlan};
+use crate::usd_io::guard::OpenedFiles;
 use crate::usd_io::layer::Format;
 use crate::usd_io::stage::StageReader;
 
@@ -263,9 +264,6 @@ pub fn bake_if_any(input: &Path, output: &Path, opts: &BakeOptions) -> Result<Op
         .map(|s| Some((s, character.reader.opened.clone())))
         .map_err(|e| e.in_file(input))
 }
-
-/// Files a stage read and their versions then ([`StageReader::opened`]).
-pub type OpenedFiles = BTreeMap<PathBuf, crate::usd_io::guard::FileId>;
 
 fn is_empty(model: &Model, opts: &BakeOptions) -> bool {
     // --bake-proxy alone still has proxies to write.

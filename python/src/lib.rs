@@ -108,8 +108,12 @@ impl Source {
             let in_package = [&identifier, &real]
                 .iter()
                 .any(|p| painterly::usd_io::stage::is_package_relative(p) || p.to_ascii_lowercase().ends_with(".usdz"));
-            let dependencies: Vec<String> = obj.call_method0("GetCompositionAssetDependencies")?.extract()?;
-            if in_package && !dependencies.is_empty() {
+            let dependencies: Vec<String> = if in_package {
+                obj.call_method0("GetCompositionAssetDependencies")?.extract()?
+            } else {
+                Vec::new()
+            };
+            if !dependencies.is_empty() {
                 return Err(to_py(
                     obj.py(),
                     painterly::Error::msg(format!(

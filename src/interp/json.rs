@@ -9,6 +9,7 @@
 //! printed with full round-trip precision.
 
 use super::{Interpolator, Method};
+use serde::{Deserialize, Serialize};
 
 /// Largest request read from stdin: a request is a few keys and the points
 /// of a plot, and reading without a bound would let `/dev/zero` take all
@@ -18,7 +19,6 @@ pub const MAX_REQUEST_BYTES: u64 = 64 << 20;
 /// Largest answer, in weights (points × keys): each is about 20 bytes of
 /// JSON, so this keeps the answer near 100 MB.
 pub const MAX_WEIGHTS: usize = 4_000_000;
-use serde::{Deserialize, Serialize};
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]

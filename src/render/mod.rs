@@ -560,14 +560,8 @@ impl RenderStage {
         let reader = StageReader::open(&root).map_err(named)?;
         // The input is read twice, by the bake and here: a save in between
         // would draw the old strokes over the new scene.
-        for (file, id) in baked_from.iter().flatten() {
-            if reader.opened.get(file).is_some_and(|now| now != id) {
-                return Err(Error::msg(
-                    "changed while painterly rendered it (saved during this run?): the strokes were baked from \
-                     another version than the scene read; run again once it is saved",
-                )
-                .in_file(file));
-            }
+        if let Some(opened) = &baked_from {
+            crate::usd_io::stage::check_unchanged(opened)?;
         }
         reader.require_resolved().map_err(named)?;
         // write_root resolved it: canonicalize succeeds.

@@ -75,8 +75,11 @@ struct State {
     /// Layers already scanned (by identifier).
     scanned: HashSet<String>,
     /// Each file opened, as it was just before it was read.
-    opened: std::collections::BTreeMap<std::path::PathBuf, FileId>,
+    opened: OpenedFiles,
 }
+
+/// Files a stage read, each with its version just before it was read.
+pub type OpenedFiles = std::collections::BTreeMap<std::path::PathBuf, FileId>;
 
 /// What tells a file's version apart without reading it: a save by rename
 /// gives a new inode, one in place a new size or modification time.
@@ -125,7 +128,7 @@ impl Guard {
 
     /// Every file read so far (a package once, by its own path), as it was
     /// just before it was read.
-    pub fn opened_files(&self) -> std::collections::BTreeMap<std::path::PathBuf, FileId> {
+    pub fn opened_files(&self) -> OpenedFiles {
         self.state.borrow().opened.clone()
     }
 

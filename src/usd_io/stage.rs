@@ -165,7 +165,7 @@ pub struct StageReader {
     pub input_files: std::sync::OnceLock<std::collections::BTreeSet<PathBuf>>,
     /// Each file composition read, as it was just before it was read: what
     /// [`StageReader::check_unchanged`] compares with.
-    pub opened: std::collections::BTreeMap<PathBuf, super::guard::FileId>,
+    pub opened: super::guard::OpenedFiles,
     /// Whether the layers are mapped files on disk, unedited, for one
     /// command ([`StageReader::open_mapped`]): only then are time samples read
     /// straight from the files ([`super::crate_samples`]) and fixed world
@@ -301,7 +301,7 @@ pub fn require_file(path: &Path, what: &str) -> Result<()> {
 
 /// [`StageReader::check_unchanged`] over files noted when read (a copy of
 /// [`StageReader::opened`], for threads the reader cannot go to).
-pub fn check_unchanged(opened: &std::collections::BTreeMap<PathBuf, super::guard::FileId>) -> Result<()> {
+pub fn check_unchanged(opened: &super::guard::OpenedFiles) -> Result<()> {
     for (file, id) in opened {
         if super::guard::FileId::of(file).as_ref() != Some(id) {
             return Err(Error::msg(
