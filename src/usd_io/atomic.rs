@@ -39,12 +39,29 @@ const RENDER_DIR_PREFIX: &str = "painterly-render-";
 /// Registered live temporaries (files and folders), and the folders already
 /// swept for stale ones.
 struct Registry {
-    live: Vec<PathBuf>,
+    live: Vec<Live>,
     swept: HashSet<PathBuf>,
-    /// A handle on each live temporary file holding its `flock`: a process
-    /// whose pid /proc cannot see (another PID namespace of this host name,
-    /// as containers on the host network are) still shows it is alive.
-    locks: Vec<(PathBuf, File)>,
+}
+
+/// A temporary this process is writing: removed on a signal, never swept.
+struct Live {
+    path: PathBuf,
+    /// For a file, a handle holding its `flock`: a process whose pid /proc
+    /// cannot see (another PID namespace of this host name, as containers
+    /// on the host network are) still shows it is alive. Folders have none.
+    _lock: Option<File>,
+}
+
+impl Registry {
+    fn holds(&self, p: &Path) -> bool {
+        self.live.iter().any(|l| l.path == p)
+    }
+
+    fn remove_all(&mut self) {
+        for l in self.live.drain(..) {
+            remove_any(&l.path);
+        }
+    }
 }
 
 fn registry() -> MutexGuard<'static, Registry> {
@@ -53,7 +70,6 @@ fn registry() -> MutexGuard<'static, Registry> {
         Mutex::new(Registry {
             live: Vec::new(),
             swept: HashSet::new(),
-            locks: Vec::new(),
         })
     })
     .lock()
@@ -109,9 +125,7 @@ pub fn install_signal_cleanup() {
                     // Holding the lock until exit: no temporary can be created
                     // or renamed after the sweep.
                     let mut reg = registry();
-                    for p in reg.live.drain(..) {
-                        remove_any(&p);
-                    }
+                    reg.remove_all();
                     eprintln!("painterly: stopped by signal {sig}; temporary files removed");
                     std::process::exit(128 + sig);
                 }
@@ -160,10 +174,7 @@ pub fn check_target(target: &Path) -> Result<()> {
 
 /// Removes every registered temporary (before an exit that skips destructors).
 pub fn remove_all_temporaries() {
-    let mut reg = registry();
-    for p in reg.live.drain(..) {
-        remove_any(&p);
-    }
+    registry().remove_all();
 }
 
 fn remove_any(p: &Path) {
@@ -253,7 +264,7 @@ pub fn sweep_stale(dir: &Path) -> Vec<PathBuf> {
             // Our own pid: a previous process that had it died; ours are registered.
             Some((h, pid)) if h == host() && pid == me => {
                 let p = entry.path();
-                !registry().live.contains(&p)
+                !registry().holds(&p)
             }
             _ => false,
         };
@@ -281,7 +292,7 @@ fn create_registered(tmp: &Path) -> std::io::Result<File> {
 }
 
 fn create_locked(reg: &mut Registry, tmp: &Path) -> std::io::Result<File> {
-    if reg.live.iter().any(|p| p == tmp) {
+    if reg.holds(tmp) {
         return Err(std::io::Error::new(
             std::io::ErrorKind::AlreadyExists,
             "this process is writing that temporary already",
@@ -305,8 +316,10 @@ fn create_locked(reg: &mut Registry, tmp: &Path) -> std::io::Result<File> {
             "another process locked this temporary as it was made",
         ));
     }
-    reg.live.push(tmp.to_path_buf());
-    reg.locks.push((tmp.to_path_buf(), lock));
+    reg.live.push(Live {
+        path: tmp.to_path_buf(),
+        _lock: Some(lock),
+    });
     Ok(f)
 }
 
@@ -346,7 +359,7 @@ fn create_unique(named: &Path, suffix: &str) -> Result<(PathBuf, std::io::Result
         } else {
             temp_path(&named.with_file_name(format!("{name}+{k}")), suffix)?
         };
-        if !reg.live.iter().any(|p| p == &path) && !held_elsewhere(&path) {
+        if !reg.holds(&path) && !held_elsewhere(&path) {
             let f = create_locked(&mut reg, &path);
             return Ok((path, f));
         }
@@ -358,8 +371,7 @@ fn create_unique(named: &Path, suffix: &str) -> Result<(PathBuf, std::io::Result
 }
 
 fn unregister(reg: &mut Registry, p: &Path) {
-    reg.live.retain(|q| q != p);
-    reg.locks.retain(|(q, _)| q != p);
+    reg.live.retain(|l| l.path != p);
 }
 
 /// Removes a registered temporary and forgets it.
@@ -654,7 +666,10 @@ impl TempDir {
         let mut reg = registry();
         let stem = format!("{RENDER_DIR_PREFIX}{}-{}-", host(), std::process::id());
         let path = create_new_dir(&base, &stem, nanos)?;
-        reg.live.push(path.clone());
+        reg.live.push(Live {
+            path: path.clone(),
+            _lock: None,
+        });
         Ok(TempDir { path })
     }
 
@@ -1047,10 +1062,10 @@ mod tests {
         let dir = fresh_dir("discard");
         let tmp = ours(&dir, "t.usdc");
         drop(create_registered(&tmp).unwrap());
-        assert!(registry().live.contains(&tmp));
+        assert!(registry().holds(&tmp));
         discard(&tmp);
         // A forgotten path is no longer removed on signals nor kept by sweeps.
-        assert!(!registry().live.contains(&tmp));
+        assert!(!registry().holds(&tmp));
         assert!(!tmp.exists());
     }
 
