@@ -166,6 +166,17 @@ def _samples_only(prim_path, name):
     return f
 
 
+def _samples_beside_default(prim_path, name):
+    """The attribute's default kept and a time sample at 1 added: usd-core's
+    Get() reads the default, its Get(1) the sample."""
+    def f(stage, rig, rest):
+        a = stage.GetPrimAtPath(prim_path).GetAttribute(name)
+        v = a.Get()
+        assert v is not None, f"{prim_path}.{name} has no default"
+        a.Set(v, 1.0)
+    return f
+
+
 _missing_src_path, _missing_src = _new_axis("noSource", "blendShape", name="bulge")
 _ghost_path, _ghost = _new_axis("ghost", "position", source="/World/Nope", component=1)
 _ghost_attr_path, _ghost_attr = _new_axis("ghostAttr", "attribute", source="/World/Controls.ctl:nope")
@@ -251,6 +262,12 @@ CASES = {
        for p, n in [(f"{LAYER}/flat", "points"), (f"{LAYER}/puffed", "coordinates"), (f"{LAYER}/dim", "opacity"),
                     (f"{LAYER}/shock", "time"), (f"{LAYER}/s0", "sentinel"), (AXIS, "name"), (AXIS, "kind"),
                     (LAYER, "painterly:restPoints")]},
+    # and beside a default (usd-core's Get at a frame reads the samples)
+    **{f"samples_beside_default_{n.split(':')[-1]}_{p.rsplit('/', 1)[1]}": (
+        _samples_beside_default(p, n), [f"{p}.{n}", "time samples (1 sample, first at 1) beside its default"], ())
+       for p, n in [(f"{LAYER}/flat", "points"), (f"{LAYER}/puffed", "coordinates"), (f"{LAYER}/dim", "opacity"),
+                    (f"{LAYER}/shock", "time"), (f"{LAYER}/s0", "sentinel"), (AXIS, "name"), (AXIS, "kind"),
+                    (LAYER, "painterly:restPoints")]},
 }
 
 
@@ -297,8 +314,7 @@ def test_inspect_reports_bad_key(painterly, tmp_path, case):
 
 
 def test_a_uniform_attribute_with_only_time_samples_is_named(painterly, tmp_path):
-    """The whole message and the inspect problem's rule; a default beside
-    time samples is read, as usd-core's Get() reads it."""
+    """The whole message and the inspect problem's rule."""
     rig, rest = good_stage(tmp_path)
     edit(rig.path, lambda st: _samples_only(LAYER, "painterly:restPoints")(st, rig, rest))
     err = expect_failure(painterly, tmp_path, rig.path)
@@ -310,18 +326,32 @@ def test_a_uniform_attribute_with_only_time_samples_is_named(painterly, tmp_path
     assert [(p["prim"], p["attribute"], p["rule"]) for p in report["problems"]] == [
         (LAYER, "painterly:restPoints", "attribute-type")]
 
+
+def test_a_uniform_attribute_with_time_samples_beside_its_default_is_named(painterly, tmp_path):
+    """usd-core's Get() reads the default but Get(frame) the samples (a
+    review's chain: bind --in-place, then usd-core keyed the rest points and
+    the bake used the default, 0.5 off what usd-core reads at a frame, with
+    inspect silent): refused like samples alone, by bake and inspect."""
+    rig, rest = good_stage(tmp_path)
+
     def default_and_samples(stage):
         a = stage.GetPrimAtPath(LAYER).GetAttribute("painterly:restPoints")
         a.Set(Vt.Vec3fArray([tuple(p) for p in rest]))
         a.Set(Vt.Vec3fArray([tuple(p + 1.0) for p in rest]), 2.0)
+        a.Set(Vt.Vec3fArray([tuple(p + 1.0) for p in rest]), 5.0)
     edit(rig.path, default_and_samples)
-    out = tmp_path / "bake.usda"
-    painterly("bake", rig.path, "-o", out, "--frames", "1:2", "--quiet")
-    clean, _ = good_stage(tmp_path / "clean")
-    painterly("bake", clean.path, "-o", tmp_path / "clean.usda", "--frames", "1:2", "--quiet")
-    baked = [Usd.Stage.Open(str(p)) for p in (out, tmp_path / "clean.usda")]
-    got, want = (np.array(st.GetPrimAtPath(LAYER).GetAttribute("points").Get(2)) for st in baked)
-    assert got.shape == (len(rest), 3) and np.array_equal(got, want)
+    st = Usd.Stage.Open(str(rig.path))
+    a = st.GetPrimAtPath(LAYER).GetAttribute("painterly:restPoints")
+    assert np.allclose(np.array(a.Get(2.0)) - np.array(a.Get()), 1.0)  # the two readings differ
+    err = expect_failure(painterly, tmp_path, rig.path)
+    assert err == (
+        f"error: {rig.path}: {LAYER}.painterly:restPoints: has time samples (2 samples, first at 2) beside its "
+        "default, but the schema makes it uniform: painterly reads only the default, where usd-core's Get at a "
+        "frame reads the samples; remove the samples or the default\n"
+    )
+    report = json.loads(painterly("inspect", rig.path, "--json", check=False).stdout)
+    assert [(p["prim"], p["attribute"], p["rule"]) for p in report["problems"]] == [
+        (LAYER, "painterly:restPoints", "attribute-type")]
 
 
 def test_a_blend_shape_axis_the_animation_does_not_animate_gets_a_note(painterly, tmp_path):

@@ -812,10 +812,12 @@ impl StageReader {
 
     /// Fails when `name` is uniform in painterly's schema (a `painterly:`
     /// attribute in [`PAINTERLY_UNIFORM`], or any attribute of a Painterly
-    /// typed prim) and is authored only as time samples: its default, the
-    /// only value painterly reads, would be absent and the bake would go on
-    /// without it (rest points from `points`, a key without its points).
-    fn refuse_samples_only(&self, prim: &usd::Prim, name: &str) -> Result<()> {
+    /// typed prim) and has time samples. Alone, its default, the only value
+    /// painterly reads, would be absent and the bake would go on without it
+    /// (rest points from `points`, a key without its points); beside a
+    /// default, usd-core's reads at a frame would see another value than
+    /// painterly's.
+    fn refuse_samples(&self, prim: &usd::Prim, name: &str, has_default: bool) -> Result<()> {
         let uniform = PAINTERLY_UNIFORM.contains(&name) || self.type_name(prim)?.starts_with("Painterly");
         if !uniform {
             return Ok(());
@@ -824,16 +826,22 @@ impl StageReader {
         let Some(first) = times.first() else {
             return Ok(());
         };
-        Err(Error::attr(
-            prim.path(),
-            name,
+        let samples = crate::words::plural(times.len(), "sample");
+        let message = if has_default {
+            // usd-core's Get() reads the default but Get(frame) the samples:
+            // which one the author meant cannot be told.
             format!(
-                "authored only as time samples ({}, first at {first}), but the schema makes it uniform: \
-                 painterly reads its default value; author it without a time",
-                crate::words::plural(times.len(), "sample")
-            ),
-        )
-        .rule(crate::rule::Rule::AttributeType))
+                "has time samples ({samples}, first at {first}) beside its default, but the schema makes it \
+                 uniform: painterly reads only the default, where usd-core's Get at a frame reads the samples; \
+                 remove the samples or the default"
+            )
+        } else {
+            format!(
+                "authored only as time samples ({samples}, first at {first}), but the schema makes it uniform: \
+                 painterly reads its default value; author it without a time"
+            )
+        };
+        Err(Error::attr(prim.path(), name, message).rule(crate::rule::Rule::AttributeType))
     }
 
     /// How many layers the stage opened (root, sublayers, references, ...).
@@ -889,15 +897,13 @@ impl StageReader {
         expected: &str,
         convert: impl Fn(&Value) -> Option<T>,
     ) -> Result<Option<T>> {
-        match self.value(prim, name, time)? {
-            None => {
-                if time.is_none() {
-                    self.refuse_samples_only(prim, name)?;
-                }
-                Ok(None)
-            }
-            Some(v) => convert_typed(prim, name, expected, &v, &convert).map(Some),
+        let value = self.value(prim, name, time)?;
+        if time.is_none() {
+            self.refuse_samples(prim, name, value.is_some())?;
         }
+        value
+            .map(|v| convert_typed(prim, name, expected, &v, &convert))
+            .transpose()
     }
 
     /// Local-to-world transform of a prim at `time`, in glam column form.
@@ -1147,7 +1153,7 @@ mod tests {
 
     /// `PAINTERLY_UNIFORM` is the schema's uniform `painterly:` attributes,
     /// and every attribute of a Painterly typed prim (the other half of the
-    /// rule `refuse_samples_only` applies) is uniform.
+    /// rule `refuse_samples` applies) is uniform.
     #[test]
     fn painterly_uniform_is_the_schema_s() {
         let schema = include_str!("../../schemas/painterly/schema.usda");
@@ -1547,7 +1553,7 @@ def Xform "Moving" {
     /// a varying attribute with only samples reads as absent at the default
     /// time, as usd-core's Get() gives.
     #[test]
-    fn a_uniform_attribute_with_only_time_samples_is_refused() {
+    fn a_uniform_attribute_with_time_samples_is_refused() {
         let r = crate::usd_io::testutil::stage_from_usda(
             r#"#usda 1.0
 def BasisCurves "L" {
@@ -1556,6 +1562,7 @@ def BasisCurves "L" {
     float painterly:opacity.timeSamples = { 1: 0.5 }
     token painterly:interpolation = "rbf"
     token painterly:interpolation.timeSamples = { 1: "shepard" }
+    uniform float painterly:rbfRadius = 0.5
     def PainterlyPoseKey "k" {
         float[] coordinates.timeSamples = { 2: [0.5] }
     }
@@ -1586,10 +1593,19 @@ def BasisCurves "L" {
         );
         assert_eq!(read("/L", "points").unwrap(), None);
         assert_eq!(read("/L", "painterly:opacity").unwrap(), None);
+        // Beside a default, usd-core's Get at a frame reads the samples.
+        let e = read("/L", "painterly:interpolation").unwrap_err();
         assert_eq!(
-            read("/L", "painterly:interpolation").unwrap(),
-            Some(Value::Token("rbf".into()))
+            (e.attribute.as_deref(), e.message.as_str()),
+            (
+                Some("painterly:interpolation"),
+                "has time samples (1 sample, first at 1) beside its default, but the schema makes it uniform: \
+                 painterly reads only the default, where usd-core's Get at a frame reads the samples; remove \
+                 the samples or the default"
+            )
         );
+        assert_eq!(e.rule, Some(crate::rule::Rule::AttributeType));
+        assert_eq!(read("/L", "painterly:rbfRadius").unwrap(), Some(Value::Float(0.5)));
         assert_eq!(read("/L/k", "opacity").unwrap(), None);
     }
 
