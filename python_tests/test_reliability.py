@@ -486,6 +486,37 @@ def test_signal_during_write_leaves_no_temporary_and_the_old_output(tmp_path, si
     assert out.read_bytes() == old or Usd.Stage.Open(str(out)), err
 
 
+@pytest.mark.parametrize("stderr_kind", ["full disk", "closed pipe"])
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
+def test_a_signal_ends_the_run_when_stderr_cannot_be_written(tmp_path, stderr_kind, sig):
+    """A farm task killed while its log disk is full or its log reader is
+    gone: the signal's cleanup still ends the process, 128 + signal (it
+    deadlocked: the signal thread held the temporaries' list when its
+    message failed, and the panic hook waited for the list; found by a
+    review, 2026-12-07)."""
+    if stderr_kind == "full disk":
+        err = open("/dev/full", "w")
+        closer = err.close
+    else:
+        r, w = os.pipe()
+        os.close(r)
+        err = w
+        closer = lambda: os.close(w)  # noqa: E731
+    proc = subprocess.Popen([str(painterly_binary()), "preview", str(BLOWFISH), "--port", "0"],
+                            stdout=subprocess.PIPE, stderr=err, text=True)
+    closer()
+    try:
+        line = proc.stdout.readline()  # the URL: the server is up
+        assert "http://" in line, line
+        proc.send_signal(sig)
+        code = proc.wait(timeout=20)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert code == 128 + sig
+
+
 @pytest.mark.parametrize("mode", [0o600, 0o664, 0o444])
 def test_a_replaced_file_keeps_its_permission_bits(tmp_path, mode):
     """An in-place edit and a bake over an existing output replace the file

@@ -25,7 +25,7 @@ fn main() {
         // such failure (a full disk) is a failed write, not a bug: exit 1.
         if msg.starts_with("failed printing to") {
             // exit() runs no destructors: the temporaries go first.
-            painterly::usd_io::atomic::remove_all_temporaries();
+            painterly::usd_io::atomic::remove_all_temporaries_unless_held();
             if msg.contains("Broken pipe") {
                 std::process::exit(141);
             }

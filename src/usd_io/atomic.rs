@@ -64,7 +64,7 @@ impl Registry {
     }
 }
 
-fn registry() -> MutexGuard<'static, Registry> {
+fn registry_mutex() -> &'static Mutex<Registry> {
     static REG: OnceLock<Mutex<Registry>> = OnceLock::new();
     REG.get_or_init(|| {
         Mutex::new(Registry {
@@ -72,9 +72,13 @@ fn registry() -> MutexGuard<'static, Registry> {
             swept: HashSet::new(),
         })
     })
-    .lock()
-    // A panic while holding the lock leaves the list intact; keep using it.
-    .unwrap_or_else(|e| e.into_inner())
+}
+
+fn registry() -> MutexGuard<'static, Registry> {
+    registry_mutex()
+        .lock()
+        // A panic while holding the lock leaves the list intact; keep using it.
+        .unwrap_or_else(|e| e.into_inner())
 }
 
 /// This machine's name as used in temporaries (`[A-Za-z0-9._]` only).
@@ -126,7 +130,13 @@ pub fn install_signal_cleanup() {
                     // or renamed after the sweep.
                     let mut reg = registry();
                     reg.remove_all();
-                    eprintln!("painterly: stopped by signal {sig}; temporary files removed");
+                    // Not eprintln!: with stderr unwritable (a full log
+                    // disk, a closed pipe) it panics, and the panic hook
+                    // would wait for the registry this thread holds.
+                    let _ = writeln!(
+                        std::io::stderr(),
+                        "painterly: stopped by signal {sig}; temporary files removed"
+                    );
                     std::process::exit(128 + sig);
                 }
             });
@@ -175,6 +185,23 @@ pub fn check_target(target: &Path) -> Result<()> {
 /// Removes every registered temporary (before an exit that skips destructors).
 pub fn remove_all_temporaries() {
     registry().remove_all();
+}
+
+/// [`remove_all_temporaries`] for a panic hook, which must not wait for
+/// ever: the registry may be held by the panicking thread itself, or by the
+/// signal thread, which removes them and exits. Waits a moment at most.
+pub fn remove_all_temporaries_unless_held() {
+    let deadline = std::time::Instant::now() + std::time::Duration::from_millis(500);
+    loop {
+        match registry_mutex().try_lock() {
+            Ok(mut reg) => return reg.remove_all(),
+            Err(std::sync::TryLockError::Poisoned(e)) => return e.into_inner().remove_all(),
+            Err(std::sync::TryLockError::WouldBlock) if std::time::Instant::now() < deadline => {
+                std::thread::sleep(std::time::Duration::from_millis(5))
+            }
+            Err(std::sync::TryLockError::WouldBlock) => return,
+        }
+    }
 }
 
 fn remove_any(p: &Path) {

@@ -28,6 +28,7 @@
 
 use std::cell::Cell;
 use std::collections::BTreeMap;
+use std::io::Write;
 use std::path::Path;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Condvar, Mutex, Once};
@@ -77,7 +78,9 @@ fn watch_loop() {
                 if now < at {
                     map = w.wake.wait_timeout(map, at - now).unwrap_or_else(|e| e.into_inner()).0;
                 } else {
-                    eprintln!("{msg}");
+                    // Not eprintln!: it panics when stderr cannot be
+                    // written, and this thread would end without the exit.
+                    let _ = writeln!(std::io::stderr(), "{msg}");
                     super::atomic::remove_all_temporaries();
                     std::process::exit(1);
                 }
