@@ -591,6 +591,48 @@ def spikes_times(path):
     return out
 
 
+def test_a_key_past_the_interpolation_limit_is_refused(painterly, repo_root, tmp_path):
+    """README, Limits: 300 keys per interpolation. A 301st time key was
+    written (exit 0), and every command then refused the character (found
+    by a review, 2026-12-07); `key` refuses it as it refuses a key the bake
+    would count as another's, and writes nothing."""
+    import authoring_keys as AK
+
+    inp = tmp_path / "blowfish.usda"
+    shutil.copy(repo_root / "fixtures" / "blowfish.usda", inp)
+    hair = "/Blowfish/Paint/Hair"
+    st = Usd.Stage.Open(str(inp))
+    for i in range(300):
+        AK.add_time_key(st, hair, f"t{i}", 1 + 0.15 * i, opacity=0.5)
+    st.GetRootLayer().Save()
+    del st
+    before = Au.file_hash(inp)
+    p = painterly("key", inp, "--in-place", "--layer", hair, "--time", 5, "--time-key", "--opacity", 0.5,
+                  check=False)
+    assert p.returncode == 1, f"exit {p.returncode}: {p.stderr}"
+    assert p.stderr == (
+        f"error: {inp}: {hair}: the new key {hair}/time1 would make 301 opacity time keys with no sentinel between "
+        "them; painterly interpolates at most 300 at once, and the bake would refuse the layer: split them over "
+        "layers or sentinels\n"), p.stderr
+    assert Au.file_hash(inp) == before, "a refused key changed its input"
+    # A sentinel splits the run instead: written, and a key after it too.
+    painterly("key", inp, "--in-place", "--layer", hair, "--time", 20.1, "--sentinel", "--quiet")
+    painterly("key", inp, "--in-place", "--layer", hair, "--time", 5, "--time-key", "--opacity", 0.5, "--quiet")
+    st = Usd.Stage.Open(str(inp))
+    assert len(st.GetPrimAtPath(hair).GetChildren()) == 302
+    del st
+    # Replacing that sentinel by a time key would join the runs again.
+    before = Au.file_hash(inp)
+    p = painterly("key", inp, "--in-place", "--layer", hair, "--time", 20.1, "--time-key", "--opacity", 0.5,
+                  "--name", "sentinel1", "--replace", check=False)
+    assert p.returncode == 1, f"exit {p.returncode}: {p.stderr}"
+    assert p.stderr == (
+        f"error: {inp}: {hair}: replacing the sentinel {hair}/sentinel1 with a time key at time 20.1 would take "
+        "away the split it makes and join runs of the layer's opacity keys into 302 keys, more than the 300 "
+        "painterly interpolates at once, and the bake would refuse the layer\n"), p.stderr
+    assert Au.file_hash(inp) == before, "a refused key changed its input"
+
+
 def test_time_key_at_a_time_the_bake_calls_the_same_is_refused(painterly, repo_root, tmp_path):
     # blowfish.usda's Spikes: time keys shock (40) and settle (44) between
     # the sentinels shockStart (36) and shockEnd (47). The bake interpolates

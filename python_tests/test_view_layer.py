@@ -176,3 +176,26 @@ def test_view_layer_paths_are_relative_to_its_own_folder(painterly, tmp_path, re
     assert [l.realPath for l in stage.GetLayerStack(includeSessionLayers=False)[1:]] == [
         str(shot / "bake.usdc"), str(src)]
     assert stage.GetPrimAtPath("/Tube/Paint/Rings").IsValid()
+
+
+def test_a_view_written_through_a_linked_folder_opens_from_both_paths(painterly, tmp_path, repo_root):
+    """usd-core anchors a relative sublayer path to the path the view was
+    opened by, as text: a view written into `views`, a link to a deeper
+    folder, named its sublayers between real paths (`../../../../proj/...`)
+    and composed nothing when opened through the link (found by a review,
+    2026-12-07). Its sublayers now resolve from the link and from the real
+    folder; the bake beside it stays `./`."""
+    proj, deep = tmp_path / "proj", tmp_path / "scratch" / "user" / "a" / "b" / "views"
+    proj.mkdir(), deep.mkdir(parents=True)
+    (tmp_path / "views").symlink_to(deep)
+    src = proj / "tube.usda"
+    shutil.copy(repo_root / "fixtures" / "tube.usda", src)
+    bake = tmp_path / "views" / "bake.usdc"
+    painterly("bake", src, "-o", bake, "--frames", "1:3")
+    painterly("view", src, "--bake", bake, "-o", tmp_path / "views" / "view.usda")
+    layer = Sdf.Layer.FindOrOpen(str(deep / "view.usda"))
+    assert list(layer.subLayerPaths) == ["./bake.usdc", str(src)]
+    for opened in (tmp_path / "views" / "view.usda", deep / "view.usda"):
+        stage = Usd.Stage.Open(str(opened))
+        assert len(stage.GetLayerStack(includeSessionLayers=False)) == 3, opened
+        assert len(stage.GetAttributeAtPath("/Tube/Paint/Rings.points").Get(2)) > 0, opened

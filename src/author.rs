@@ -810,7 +810,8 @@ fn check_channels_stay_readable(
                 }
                 let (members, mut layout) = pose_layout(existing, place, in_channel, Some(path));
                 let pair = |l: &[f64]| match crate::interp::validate_keys(dim, l) {
-                    Err(InterpError::DuplicateKeys { first, second }) => Some((first, second)),
+                    Err(InterpError::DuplicateKeys { first, second }) => Some(Unreadable::Clash(first, second)),
+                    Err(InterpError::TooManyKeys { count }) => Some(Unreadable::TooMany(count)),
                     _ => None,
                 };
                 let old = pair(&layout);
@@ -818,28 +819,58 @@ fn check_channels_stay_readable(
                 (members, old, pair(&layout))
             }
         };
-        if let (None, Some((a, b))) = (old, new) {
-            let name = |k: usize| members.get(k).map_or(path, |&i| existing[i].path.as_str());
-            return Err(Error::prim(
-                &opts.layer,
-                format!(
-                    "the new key {path} would widen the layer's {channel} keys so far that {} and {} count as one \
-                     (within 1e-12 of the keys' extent), and the bake would refuse the layer",
-                    name(a),
-                    name(b)
-                ),
-            ));
+        let name = |k: usize| members.get(k).map_or(path, |&i| existing[i].path.as_str());
+        match (old, new) {
+            (None, Some(Unreadable::Clash(a, b))) => {
+                return Err(Error::prim(
+                    &opts.layer,
+                    format!(
+                        "the new key {path} would widen the layer's {channel} keys so far that {} and {} count as \
+                         one (within 1e-12 of the keys' extent), and the bake would refuse the layer",
+                        name(a),
+                        name(b)
+                    ),
+                ));
+            }
+            (None, Some(Unreadable::TooMany(count))) => {
+                let group = if opts.kind == KeyKind::Time {
+                    "time keys with no sentinel between them"
+                } else {
+                    "pose keys"
+                };
+                return Err(Error::prim(
+                    &opts.layer,
+                    format!(
+                        "the new key {path} would make {count} {channel} {group}; painterly interpolates at most {} \
+                         at once, and the bake would refuse the layer: split them over layers or sentinels",
+                        crate::interp::MAX_KEYS
+                    ),
+                ));
+            }
+            _ => {}
         }
     }
     Ok(())
 }
 
-/// Two keys of a time channel the bake counts as one time, if any.
-fn time_clash(times: &[f64], sentinels: &[f64]) -> Option<(usize, usize)> {
+/// Why the bake would refuse a channel's keys, where a key command can
+/// cause it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Unreadable {
+    /// Two keys (indices into the channel's members) count as one.
+    Clash(usize, usize),
+    /// More keys in one interpolation than [`crate::interp::MAX_KEYS`].
+    TooMany(usize),
+}
+
+/// Why the bake would refuse a time channel, if it would for a reason a key
+/// command can cause.
+fn time_clash(times: &[f64], sentinels: &[f64]) -> Option<Unreadable> {
     match crate::keys::TimeChannel::new(times, sentinels) {
         Err(TimeKeyError::SameTime { first, second } | TimeKeyError::CloseTimes { first, second }) => {
-            Some((first, second))
+            Some(Unreadable::Clash(first, second))
         }
+        Err(TimeKeyError::TooMany { count }) => Some(Unreadable::TooMany(count)),
         _ => None,
     }
 }
@@ -870,25 +901,32 @@ fn check_sentinel_move(
             _ => {}
         }
         debug_assert_eq!(all, members, "a sentinel is no member of a channel");
-        if let (None, Some((a, b))) = (old, time_clash(&times, &sentinels)) {
-            let name = |k: usize| members.get(k).map_or(path, |&i| existing[i].path.as_str());
-            let what = if opts.kind == KeyKind::Sentinel {
-                "a sentinel"
-            } else {
-                "a time key"
-            };
-            return Err(Error::prim(
-                &opts.layer,
-                format!(
-                    "replacing the sentinel {path} with {what} at time {new_time} would take away the split it \
-                     makes and join runs of the layer's {channel} keys so that {} and {} count as one (within \
-                     1e-12 of the span of the time keys between their sentinels), and the bake would refuse the \
-                     layer",
-                    name(a),
-                    name(b)
-                ),
-            ));
-        }
+        let name = |k: usize| members.get(k).map_or(path, |&i| existing[i].path.as_str());
+        let what = if opts.kind == KeyKind::Sentinel {
+            "a sentinel"
+        } else {
+            "a time key"
+        };
+        let joined = match (old, time_clash(&times, &sentinels)) {
+            (None, Some(Unreadable::Clash(a, b))) => format!(
+                "so that {} and {} count as one (within 1e-12 of the span of the time keys between their \
+                 sentinels)",
+                name(a),
+                name(b)
+            ),
+            (None, Some(Unreadable::TooMany(count))) => format!(
+                "into {count} keys, more than the {} painterly interpolates at once",
+                crate::interp::MAX_KEYS
+            ),
+            _ => continue,
+        };
+        return Err(Error::prim(
+            &opts.layer,
+            format!(
+                "replacing the sentinel {path} with {what} at time {new_time} would take away the split it makes \
+                 and join runs of the layer's {channel} keys {joined}, and the bake would refuse the layer"
+            ),
+        ));
     }
     Ok(())
 }
@@ -1199,6 +1237,49 @@ pub fn path_from_prim(r: &StageReader, prim_path: &str, time: Option<f64>, xform
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_pose_key_past_the_interpolation_limit_is_refused() {
+        let key = |i: usize| ExistingKey {
+            path: format!("/L/k{i}"),
+            ty: "PainterlyPoseKey".into(),
+            coords: vec![i as f64],
+            points: true,
+            opacity: false,
+            sentinel: false,
+            authored: vec!["coordinates", "points"],
+        };
+        let opts = KeyOptions {
+            layer: "/L".into(),
+            time: 1.0,
+            kind: KeyKind::Pose,
+            name: None,
+            points: true,
+            opacity: None,
+            replace: false,
+            camera: None,
+        };
+        let place = KeyPlace {
+            ty: "PainterlyPoseKey",
+            coords: vec![0.5],
+            scales: vec![1.0],
+        };
+        let keys = |n: usize| (0..n).map(key).collect::<Vec<_>>();
+        assert!(check_channels_stay_readable(&opts, &keys(299), &place, "/L/new").is_ok());
+        let e = check_channels_stay_readable(&opts, &keys(300), &place, "/L/new").unwrap_err();
+        assert_eq!(
+            (e.prim.as_deref(), e.message.as_str()),
+            (
+                Some("/L"),
+                "the new key /L/new would make 301 position pose keys; painterly interpolates at most 300 at \
+                 once, and the bake would refuse the layer: split them over layers or sentinels"
+            )
+        );
+        // Already past the limit: the key does not make it so (the bake's error names it).
+        assert!(check_channels_stay_readable(&opts, &keys(301), &place, "/L/new").is_ok());
+        // Replacing one of 300 keeps 300.
+        assert!(check_channels_stay_readable(&opts, &keys(300), &place, "/L/k7").is_ok());
+    }
 
     #[test]
     fn a_singular_or_non_finite_blend_is_refused_naming_the_point() {

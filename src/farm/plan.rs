@@ -92,13 +92,14 @@ impl FarmPlan {
     /// The plan of a submission.
     pub fn new(scheduler: SchedulerKind, job: &FarmJob, sub: &Submission) -> FarmPlan {
         let step = crate::usd_io::clips::frame_step(&job.times);
+        let tasks: std::collections::HashMap<usize, &String> = sub.tasks.iter().map(|(k, id)| (*k, id)).collect();
         let chunks = job
             .clips
             .chunks
             .iter()
             .zip(&job.states)
             .map(|(c, state)| {
-                let task = sub.tasks.iter().find(|(k, _)| *k == c.index).map(|(_, id)| id.clone());
+                let task = tasks.get(&c.index).map(|id| (*id).clone());
                 PlanChunk {
                     index: c.index,
                     name: c.name.clone(),

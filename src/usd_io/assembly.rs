@@ -6,7 +6,7 @@
 //! `metersPerUnit` and `defaultPrim` (UsdValidation checks the last three).
 
 use std::fmt::Write as _;
-use std::path::{Component, Path, PathBuf};
+use std::path::{Path, PathBuf};
 
 use super::bake_layer::{check_baked_from, quoted, UsdaNumber};
 use super::layer::{write_atomic, Format};
@@ -105,29 +105,16 @@ pub fn write_view_layer(input: &Path, bake: &Path, output: &Path) -> Result<View
     })
 }
 
-/// `file` as an asset path from `dir`: relative (`./`, `../`) when both are
-/// on one filesystem tree, so a shot folder can move; absolute otherwise.
+/// `file` as an asset path from `dir`: relative (`./`, `../`) when one
+/// names it whether `dir` is opened as given or by its real path (see
+/// [`super::anchor`]), so a shot folder can move; absolute otherwise.
 fn asset_path(file: &Path, dir: &Path) -> Result<String> {
     let abs = file
         .canonicalize()
         .map_err(|e| Error::msg(format!("cannot resolve path: {e}")).in_file(file))?;
-    let base = dir
-        .canonicalize()
+    dir.canonicalize()
         .map_err(|e| Error::msg(format!("cannot resolve path: {e}")).in_file(dir))?;
-    let a: Vec<Component> = abs.components().collect();
-    let b: Vec<Component> = base.components().collect();
-    let common = a.iter().zip(&b).take_while(|(x, y)| x == y).count();
-    let s = if common <= 1 {
-        abs.to_string_lossy().into_owned()
-    } else {
-        let mut parts: Vec<String> = vec![".".into()];
-        parts.extend(std::iter::repeat_n("..".to_string(), b.len() - common));
-        parts.extend(a[common..].iter().map(|c| c.as_os_str().to_string_lossy().into_owned()));
-        if parts.len() > 1 && parts[1] == ".." {
-            parts.remove(0);
-        }
-        parts.join("/")
-    };
+    let s = super::anchor::relative_asset_path(file, dir).unwrap_or_else(|| abs.to_string_lossy().into_owned());
     super::layer::check_asset_path(&s, file)?;
     Ok(s)
 }

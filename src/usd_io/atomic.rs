@@ -19,7 +19,7 @@
 //! SIGXFSZ is caught too, so a write past `ulimit -f` fails with an error
 //! (EFBIG) that is reported and cleaned up instead of killing the process.
 
-use std::collections::HashSet;
+use std::collections::{HashMap, HashSet};
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
@@ -39,27 +39,24 @@ const RENDER_DIR_PREFIX: &str = "painterly-render-";
 /// Registered live temporaries (files and folders), and the folders already
 /// swept for stale ones.
 struct Registry {
-    live: Vec<Live>,
+    /// The temporaries this process is writing, removed on a signal and
+    /// never swept, each with, for a file, a handle holding its `flock`: a
+    /// process whose pid /proc cannot see (another PID namespace of this
+    /// host name, as containers on the host network are) still shows it is
+    /// alive. Folders have none. A map: a chunked bake registers a
+    /// temporary per chunk until it publishes them all.
+    live: HashMap<PathBuf, Option<File>>,
     swept: HashSet<PathBuf>,
-}
-
-/// A temporary this process is writing: removed on a signal, never swept.
-struct Live {
-    path: PathBuf,
-    /// For a file, a handle holding its `flock`: a process whose pid /proc
-    /// cannot see (another PID namespace of this host name, as containers
-    /// on the host network are) still shows it is alive. Folders have none.
-    _lock: Option<File>,
 }
 
 impl Registry {
     fn holds(&self, p: &Path) -> bool {
-        self.live.iter().any(|l| l.path == p)
+        self.live.contains_key(p)
     }
 
     fn remove_all(&mut self) {
-        for l in self.live.drain(..) {
-            remove_any(&l.path);
+        for (p, _lock) in self.live.drain() {
+            remove_any(&p);
         }
     }
 }
@@ -68,7 +65,7 @@ fn registry_mutex() -> &'static Mutex<Registry> {
     static REG: OnceLock<Mutex<Registry>> = OnceLock::new();
     REG.get_or_init(|| {
         Mutex::new(Registry {
-            live: Vec::new(),
+            live: HashMap::new(),
             swept: HashSet::new(),
         })
     })
@@ -343,10 +340,7 @@ fn create_locked(reg: &mut Registry, tmp: &Path) -> std::io::Result<File> {
             "another process locked this temporary as it was made",
         ));
     }
-    reg.live.push(Live {
-        path: tmp.to_path_buf(),
-        _lock: Some(lock),
-    });
+    reg.live.insert(tmp.to_path_buf(), Some(lock));
     Ok(f)
 }
 
@@ -398,7 +392,7 @@ fn create_unique(named: &Path, suffix: &str) -> Result<(PathBuf, std::io::Result
 }
 
 fn unregister(reg: &mut Registry, p: &Path) {
-    reg.live.retain(|l| l.path != p);
+    reg.live.remove(p);
 }
 
 /// Removes a registered temporary and forgets it.
@@ -693,10 +687,7 @@ impl TempDir {
         let mut reg = registry();
         let stem = format!("{RENDER_DIR_PREFIX}{}-{}-", host(), std::process::id());
         let path = create_new_dir(&base, &stem, nanos)?;
-        reg.live.push(Live {
-            path: path.clone(),
-            _lock: None,
-        });
+        reg.live.insert(path.clone(), None);
         Ok(TempDir { path })
     }
 

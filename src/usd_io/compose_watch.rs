@@ -231,8 +231,10 @@ pub fn watched<T>(file: &Path, f: impl FnOnce() -> Result<T>) -> Result<T> {
     if HANDLERS.is_completed() {
         let w = watchdog();
         let text = format!(
-            "error: {}: composing this stage took longer than {} s; openusd 0.8 composes some recursive \
-             inherits/specializes/references exponentially (set PAINTERLY_COMPOSE_TIMEOUT=SECONDS to wait longer)",
+            "error: {}: composing this stage took longer than {} s; openusd 0.8 is slow on some stages: \
+             recursive inherits/specializes/references (exponential), thousands of sublayers, namespaces \
+             composed hundreds of prims deep through references, or tens of thousands of properties on one \
+             prim of a .usda (a .usdc reads fast) (set PAINTERLY_COMPOSE_TIMEOUT=SECONDS to wait longer)",
             file.display(),
             limit.as_secs_f64()
         );

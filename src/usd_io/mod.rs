@@ -4,6 +4,7 @@
 //! arrays, the math modules evaluate, and [`bake_layer`] streams the override
 //! layer of a bake ([`layer`] holds the specs of the smaller layers).
 
+pub mod anchor;
 pub mod assembly;
 pub mod atomic;
 pub mod axes;

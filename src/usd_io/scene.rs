@@ -194,12 +194,21 @@ fn read_widths(r: &StageReader, prim: &usd::Prim, path: &str) -> Result<Widths> 
         return Ok(Widths::Constant(crate::extent::max_width(w)));
     }
     let mut samples = Vec::with_capacity(times.len());
-    for t in times {
-        let w = r.typed(prim, "widths", Some(t), "float[]", values::f32_array)?;
-        if let Some(w) = &w {
-            check(w, Some(t))?;
+    if let Some(read) = r.sample_values(prim, "widths")? {
+        // One read of the whole map (see `sample_values`).
+        for (t, v) in read {
+            let w = super::stage::convert_typed(prim, "widths", "float[]", &v, values::f32_array)?;
+            check(&w, Some(t))?;
+            samples.push((t, Some(w)));
         }
-        samples.push((t, w));
+    } else {
+        for t in times {
+            let w = r.typed(prim, "widths", Some(t), "float[]", values::f32_array)?;
+            if let Some(w) = &w {
+                check(w, Some(t))?;
+            }
+            samples.push((t, w));
+        }
     }
     samples.sort_by(|a, b| a.0.total_cmp(&b.0));
     Ok(Widths::Sampled(samples))

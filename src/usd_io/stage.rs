@@ -91,7 +91,7 @@ fn local_transform_held(prim: &usd::Prim, time: f64) -> std::result::Result<(gf:
 }
 
 /// `v` converted by `convert`, or an error naming the type `expected`.
-fn convert_typed<T>(
+pub(crate) fn convert_typed<T>(
     prim: &usd::Prim,
     name: &str,
     expected: &str,
@@ -741,6 +741,20 @@ impl StageReader {
         CrateSamples::open(&self.stage, prim, name)
     }
 
+    /// Every time sample of an attribute with its value at that time, in
+    /// stage time, from one read of the `timeSamples` that answer. Reading
+    /// sample by sample decodes the whole map at each read, which made an
+    /// exporter's sample per frame cost the square of the frames. `None`
+    /// when the samples cannot be read in one go (value clips; a block,
+    /// which [`Self::value`] reads as usd-core does): read them by time.
+    pub fn sample_values(&self, prim: &usd::Prim, name: &str) -> Result<Option<sdf::TimeSampleMap>> {
+        let map = prim
+            .attribute(name)
+            .time_samples()
+            .map_err(|e| Error::attr(prim.path(), name, format!("cannot read time samples: {e}")))?;
+        Ok(map.filter(|m| !m.iter().any(|(_, v)| matches!(v, Value::None | Value::ValueBlock))))
+    }
+
     /// Authored time-sample times of an attribute (empty when none).
     pub fn sample_times(&self, prim: &usd::Prim, name: &str) -> Result<Vec<f64>> {
         prim.attribute(name)
@@ -856,6 +870,23 @@ impl StageReader {
     /// its default. Samples that differ are refused: painterly poses a mesh
     /// with one value of each.
     pub fn value_over_time(&self, prim: &usd::Prim, name: &str) -> Result<Option<Value>> {
+        if let Some(samples) = self.sample_values(prim, name)? {
+            let differ = |first: f64, t: f64| {
+                Error::attr(
+                    prim.path(),
+                    name,
+                    format!(
+                        "changes over time (its samples at {first} and {t} differ): painterly poses the mesh with one value of it (usd-core would read it anew at every frame); author a single value"
+                    ),
+                )
+            };
+            if let Some(((first, v), rest)) = samples.split_first() {
+                if let Some((t, _)) = rest.iter().find(|(_, w)| w != v) {
+                    return Err(differ(*first, *t));
+                }
+                return Ok(Some(v.clone()));
+            }
+        }
         let times = self.sample_times(prim, name)?;
         let Some((&first, rest)) = times.split_first() else {
             return self.value(prim, name, None);

@@ -144,9 +144,13 @@ impl AnimJoints {
         let times = q
             .times()
             .map_err(|e| Error::attr(&self.path, name, format!("cannot read time samples: {e}")))?;
-        let Some(i) = times.windows(2).position(|w| w[0] < t && t < w[1]) else {
+        // A binary search: a scan made a check at every sample cost the
+        // square of the samples (a shot sampled every frame).
+        let j = times.partition_point(|&x| x <= t);
+        if j == 0 || j == times.len() || times[j - 1] >= t {
             return Ok(None);
-        };
+        }
+        let i = j - 1;
         let (t0, t1) = (times[i], times[i + 1]);
         let sample = |at: f64| {
             q.get_at(at)
