@@ -201,6 +201,34 @@ def test_a_request_is_a_json_object_of_media_type_application_json_in_any_case(f
     assert fish.alive()
 
 
+def test_the_websocket_message_limit_closes_only_that_connection(fish):
+    """README, Limits: 64 KiB a websocket message. One just under it is
+    answered (a bad request, the padding is no field); one just over it
+    closes that page's connection; the server and other pages go on."""
+    ws = WebSocket(fish.url)
+    try:
+        msg = json.dumps({"id": 5, "time": 12, "pad": ""})
+        ws.send(msg[:-2] + "x" * (65536 - len(msg)) + '"}')
+        op, body = ws.recv()
+        assert op == 1 and json.loads(body)["status"] == 400, body[:200]
+        ws.send(msg[:-2] + "x" * (65537 - len(msg)) + '"}')
+        with pytest.raises((EOFError, ConnectionError)):
+            while True:
+                op, body = ws.recv()
+                if op == 8:  # a close frame, then the end
+                    raise EOFError("closed")
+    finally:
+        ws.close()
+    other = WebSocket(fish.url)
+    try:
+        other.send(json.dumps({"id": 8, "time": 12}))
+        op, body = other.recv()
+        assert op == 2 and decode_frame(body)[0]["id"] == 8
+    finally:
+        other.close()
+    assert fish.alive()
+
+
 def test_bad_render_requests_get_4xx(fish):
     cam = {"position": [0, 0, 30], "target": [0, 0, 0], "up": [0, 1, 0], "fov_y": 40, "near": 0.1, "far": 1000}
     for width, c in [(0, cam), (100000, cam), (64, {**cam, "near": -1}), (64, {**cam, "fov_y": 0})]:

@@ -315,16 +315,18 @@ fn refuse_unsaved_inputs(
 /// How the library's messages name a CLI option, and how Python names it
 /// (most specific first): a TD calling `painterly.bake(frames=...)` should
 /// not be told to pass `--frames`.
-const PYTHON_WORDS: [(&str, &str); 6] = [
+const PYTHON_WORDS: [(&str, &str); 7] = [
     ("`--camera PRIM`", "`camera=PRIM`"),
     ("`--camera`", "`camera=`"),
     ("pass --frames A:B", "pass frames=(A, B)"),
+    ("its own --frames A:B", "its own frames=(A, B)"),
     ("--frames", "frames"),
     ("--camera", "`camera`"),
     ("--chunk", "`chunk`"),
 ];
 
-/// `message` with the CLI's option names in their Python spelling.
+/// `message` with the CLI's option names in their Python spelling (errors,
+/// and the problems `inspect` reports).
 fn python_words(message: &str) -> String {
     PYTHON_WORDS
         .iter()
@@ -550,6 +552,9 @@ fn inspect(
         let mut rep = painterly::inspect::inspect_reader(src.open_mapped()?, camera.as_deref(), frames, &|_, _| {})?;
         if src.text.is_some() {
             rep.file = PathBuf::from(&src.name);
+        }
+        for p in &mut rep.problems {
+            p.message = python_words(&p.message);
         }
         Ok(rep)
     });
