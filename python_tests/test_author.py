@@ -606,15 +606,16 @@ def test_a_key_past_the_interpolation_limit_is_refused(painterly, repo_root, tmp
         AK.add_time_key(st, hair, f"t{i}", 1 + 0.15 * i, opacity=0.5)
     st.GetRootLayer().Save()
     del st
-    before = Au.file_hash(inp)
-    p = painterly("key", inp, "--in-place", "--layer", hair, "--time", 5, "--time-key", "--opacity", 0.5,
-                  check=False)
-    assert p.returncode == 1, f"exit {p.returncode}: {p.stderr}"
-    assert p.stderr == (
-        f"error: {inp}: {hair}: the new key {hair}/time1 would make 301 opacity time keys with no sentinel between "
-        "them; painterly interpolates at most 300 at once, and the bake would refuse the layer: split them over "
-        "layers or sentinels\n"), p.stderr
-    assert Au.file_hash(inp) == before, "a refused key changed its input"
+
+    def refused(*args, message):
+        before = Au.file_hash(inp)
+        p = painterly("key", inp, "--in-place", "--layer", hair, "--time-key", "--opacity", 0.5, *args, check=False)
+        assert (p.returncode, p.stderr) == (1, f"error: {inp}: {hair}: {message}\n"), p.stderr
+        assert Au.file_hash(inp) == before, "a refused key changed its input"
+
+    refused("--time", 5, message=(
+        f"the new key {hair}/time1 would make 301 opacity time keys with no sentinel between them; painterly "
+        "interpolates at most 300 at once, and the bake would refuse the layer: split them over layers or sentinels"))
     # A sentinel splits the run instead: written, and a key after it too.
     painterly("key", inp, "--in-place", "--layer", hair, "--time", 20.1, "--sentinel", "--quiet")
     painterly("key", inp, "--in-place", "--layer", hair, "--time", 5, "--time-key", "--opacity", 0.5, "--quiet")
@@ -622,15 +623,10 @@ def test_a_key_past_the_interpolation_limit_is_refused(painterly, repo_root, tmp
     assert len(st.GetPrimAtPath(hair).GetChildren()) == 302
     del st
     # Replacing that sentinel by a time key would join the runs again.
-    before = Au.file_hash(inp)
-    p = painterly("key", inp, "--in-place", "--layer", hair, "--time", 20.1, "--time-key", "--opacity", 0.5,
-                  "--name", "sentinel1", "--replace", check=False)
-    assert p.returncode == 1, f"exit {p.returncode}: {p.stderr}"
-    assert p.stderr == (
-        f"error: {inp}: {hair}: replacing the sentinel {hair}/sentinel1 with a time key at time 20.1 would take "
-        "away the split it makes and join runs of the layer's opacity keys into 302 keys, more than the 300 "
-        "painterly interpolates at once, and the bake would refuse the layer\n"), p.stderr
-    assert Au.file_hash(inp) == before, "a refused key changed its input"
+    refused("--time", 20.1, "--name", "sentinel1", "--replace", message=(
+        f"replacing the sentinel {hair}/sentinel1 with a time key at time 20.1 would take away the split it makes "
+        "and join runs of the layer's opacity keys into 302 keys, more than the 300 painterly interpolates at "
+        "once, and the bake would refuse the layer"))
 
 
 def test_time_key_at_a_time_the_bake_calls_the_same_is_refused(painterly, repo_root, tmp_path):
