@@ -281,6 +281,34 @@ def test_display_opacity_outside_unit_range(painterly, tmp_path, values):
                    names=[f"{rig.layers[0]}.primvars:displayOpacity", "outside [0, 1]"])
 
 
+@pytest.mark.parametrize("case", ["element_size", "interpolation"])
+def test_display_opacity_painterly_cannot_read_as_usd_core_does(painterly, tmp_path, case):
+    """elementSize above 1 (6 values, constant, elementSize 6 on 6 curves:
+    usd-core reads one element of 6 values for every curve; the bake read
+    one value per curve, exit 0) and an interpolation usd-core does
+    not know (`faceConstant`: the bake guessed from the count; render
+    refused it) are refused, naming what (a review, 2026-12-07). The
+    same primvars of render and preview refuse elementSize too."""
+    rig = good_static(tmp_path)
+    interp = UsdGeom.Tokens.constant if case == "element_size" else "faceConstant"
+    assert not UsdGeom.Primvar.IsValidInterpolation("faceConstant")
+
+    def f(st):
+        curves = UsdGeom.BasisCurves(st.GetPrimAtPath(rig.layers[0]))
+        n = len(curves.GetCurveVertexCountsAttr().Get())
+        assert n == 6
+        pv = UsdGeom.PrimvarsAPI(curves).CreatePrimvar("displayOpacity", Sdf.ValueTypeNames.FloatArray)
+        pv.Set(Vt.FloatArray([0.2 + 0.1 * i for i in range(n)]))
+        pv.GetAttr().SetMetadata("interpolation", interp)
+        if case == "element_size":
+            pv.SetElementSize(n)
+    edit(rig.path, f)
+    message = ("elementSize 6: painterly reads one value per element of this primvar (elementSize 1)"
+               if case == "element_size" else 'unknown interpolation "faceConstant"')
+    err = expect_failure(painterly, tmp_path, rig.path, names=[f"{rig.layers[0]}.primvars:displayOpacity"])
+    assert err.endswith(f": {message}\n"), err
+
+
 def test_an_opacity_a_float_step_above_1_is_accepted(painterly, tmp_path):
     """float32 sums of weights that should be 1 give 1.0000001 (4 % of them
     in a review's numpy run): rounding, not a fault."""

@@ -320,6 +320,50 @@ def test_stroke_widths_and_colours_come_from_the_stage(fish):
     assert_strokes_come_from_the_stage(fish, Usd.Stage.Open(str(FISH)))
 
 
+def test_varying_primvars_of_pinned_cubic_curves_show_in_render_and_preview(tmp_path):
+    """blowfish's Spots (60 curves of 7 points) made pinned Catmull-Rom,
+    with varying widths, colours and opacities of usd-core's count (5 a
+    curve: ComputeVaryingDataSize). render and preview refused them (they
+    wanted the 7 span ends a pinned curve draws), and preview drew varying
+    values of cubic curves at its default width 1 and grey (a review,
+    2026-12-07). The pinned ends take the nearest value: control point
+    k + 1 takes value k, points 0 and 6 those of points 1 and 5."""
+    fish = tmp_path / "fish.usda"
+    shutil.copy(FISH, fish)
+    stage = Usd.Stage.Open(str(fish))
+    curves = UsdGeom.BasisCurves(stage.GetPrimAtPath("/Blowfish/Paint/Spots"))
+    counts = list(curves.GetCurveVertexCountsAttr().Get())
+    curves.GetTypeAttr().Set(UsdGeom.Tokens.cubic)
+    curves.GetBasisAttr().Set(UsdGeom.Tokens.catmullRom)
+    curves.GetWrapAttr().Set(UsdGeom.Tokens.pinned)
+    n = curves.ComputeVaryingDataSize(Usd.TimeCode.Default())
+    assert n == 5 * len(counts) and set(counts) == {7}
+    widths = np.linspace(0.01, 0.05, n).astype(np.float32)
+    colours = np.random.default_rng(1).uniform(0, 1, (n, 3)).astype(np.float32)
+    curves.GetWidthsAttr().Set(Vt.FloatArray(widths.tolist()))
+    curves.SetWidthsInterpolation(UsdGeom.Tokens.varying)
+    api = UsdGeom.PrimvarsAPI(curves)
+    api.CreatePrimvar("displayColor", Sdf.ValueTypeNames.Color3fArray, UsdGeom.Tokens.varying).Set(
+        Vt.Vec3fArray.FromNumpy(colours))
+    api.CreatePrimvar("displayOpacity", Sdf.ValueTypeNames.FloatArray, UsdGeom.Tokens.varying).Set(
+        Vt.FloatArray([0.5] * n))
+    stage.GetRootLayer().Save()
+    assert curves.ComputeInterpolationForSize(n, Usd.TimeCode.Default()) == UsdGeom.Tokens.varying
+    proc = run_painterly("render", fish, "--camera", "/Blowfish/Camera", "--frames", "1", "--size", "64x48",
+                         "-o", tmp_path / "f.####.exr", "-q", check=False)
+    assert (proc.returncode, proc.stderr) == (0, ""), proc.stderr
+    pick = [0] + [k for k in range(5)] + [4]  # control point -> value, per curve
+    with PreviewServer(fish) as server:
+        status, _, data = server.request("api/strokes")
+        assert status == 200
+        _, arrays = decode_frame(data)
+        i = [l["path"] for l in server.scene()["layers"]].index("/Blowfish/Paint/Spots")
+        want = np.concatenate([widths[5 * c + np.array(pick)] for c in range(len(counts))])
+        np.testing.assert_allclose(arrays[f"layer/{i}/widths"], want, rtol=1e-6)
+        want = np.concatenate([colours[5 * c + np.array(pick)] for c in range(len(counts))])
+        np.testing.assert_allclose(arrays[f"layer/{i}/colors"].reshape(-1, 3), want, rtol=1e-6)
+
+
 def test_a_layer_shaped_like_another_keeps_its_own_colours(tmp_path):
     # A copy of Spikes after it, green: the same curve and point counts, so
     # only its path tells the copy's widths and colours from the original's.

@@ -195,7 +195,13 @@ def test_a_view_written_through_a_linked_folder_opens_from_both_paths(painterly,
     painterly("view", src, "--bake", bake, "-o", tmp_path / "views" / "view.usda")
     layer = Sdf.Layer.FindOrOpen(str(deep / "view.usda"))
     assert list(layer.subLayerPaths) == ["./bake.usdc", str(src)]
-    for opened in (tmp_path / "views" / "view.usda", deep / "view.usda"):
+    # And from a shell that went into the link (`cd views`: $PWD is the
+    # link's path, the process's working folder the real one).
+    painterly("view", src, "--bake", "bake.usdc", "-o", "shell.usda", cwd=tmp_path / "views",
+              env={**os.environ, "PWD": str(tmp_path / "views")})
+    layer = Sdf.Layer.FindOrOpen(str(deep / "shell.usda"))
+    assert list(layer.subLayerPaths) == ["./bake.usdc", str(src)]
+    for opened in (tmp_path / "views" / "view.usda", deep / "view.usda", tmp_path / "views" / "shell.usda"):
         stage = Usd.Stage.Open(str(opened))
         assert len(stage.GetLayerStack(includeSessionLayers=False)) == 3, opened
         assert len(stage.GetAttributeAtPath("/Tube/Paint/Rings.points").Get(2)) > 0, opened

@@ -21,7 +21,7 @@ use super::protocol::{
 use crate::character::{key_weights, Character, FrameOutput};
 use crate::error::{Error, Result};
 use crate::render::camera::{CameraParams, Projection};
-use crate::render::curves::Primvar;
+use crate::render::curves::{CurvesData, Primvar};
 use crate::render::prepare::MeshData;
 use crate::render::{check_bake, render_png, write_root, ImageSize, TempDir};
 use crate::usd_io::render_scene::{RenderScene, DEFAULT_COLOR, DEFAULT_WIDTH};
@@ -277,8 +277,8 @@ fn stroke_buffer(r: &StageReader, drawables: &RenderScene, start: f64, layer_inf
             .find(|c| c.path == info.path && c.points.len() == n && c.counts.len() == info.curve_counts.len());
         let (widths, colors) = match c {
             Some(c) => (
-                per_point(&c.widths, &info.curve_counts, DEFAULT_WIDTH),
-                per_point(&c.colors, &info.curve_counts, DEFAULT_COLOR),
+                per_point(c, &c.widths, &info.curve_counts, DEFAULT_WIDTH),
+                per_point(c, &c.colors, &info.curve_counts, DEFAULT_COLOR),
             ),
             None => (vec![DEFAULT_WIDTH; n], vec![DEFAULT_COLOR; n]),
         };
@@ -693,18 +693,29 @@ fn sample_configurations(ch: &Character, start: f64, end: f64) -> Result<Vec<cra
         .collect()
 }
 
-/// A primvar expanded to one value per point of linear curves.
-fn per_point<T: Copy>(p: &Primvar<T>, counts: &[u32], fallback: T) -> Vec<T> {
+/// A primvar of `curves` expanded to one value per control point (the
+/// page draws curves through them); `varying` values sit at span ends
+/// ([`CurvesData::varying_at_points`]).
+fn per_point<T>(curves: &CurvesData, p: &Primvar<T>, counts: &[u32], fallback: T) -> Vec<T>
+where
+    T: Copy + std::ops::Add<Output = T> + std::ops::Mul<f32, Output = T>,
+{
     let n: usize = counts.iter().map(|&c| c as usize).sum();
-    match p {
+    let out = match p {
         Primvar::Constant(v) => vec![*v; n],
         Primvar::Uniform(v) if v.len() == counts.len() => counts
             .iter()
             .zip(v)
             .flat_map(|(&c, &x)| std::iter::repeat_n(x, c as usize))
             .collect(),
-        Primvar::Vertex(v) | Primvar::Varying(v) | Primvar::FaceVarying(v) if v.len() == n => v.clone(),
-        _ => vec![fallback; n],
+        Primvar::Vertex(v) if v.len() == n => v.clone(),
+        Primvar::Varying(v) | Primvar::FaceVarying(v) => curves.varying_at_points(v),
+        _ => Vec::new(),
+    };
+    if out.len() == n {
+        out
+    } else {
+        vec![fallback; n]
     }
 }
 
@@ -807,6 +818,7 @@ pub fn camera_params(v: &ViewCamera, width: usize, height: usize) -> CameraParam
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::render::curves::{Basis, CurveType, Wrap};
 
     #[test]
     fn bounds_of_nothing_are_the_unit_box_around_the_origin() {
@@ -825,15 +837,55 @@ mod tests {
         assert_eq!((lo, hi), (DVec3::splat(-1.0), DVec3::splat(1.0)));
     }
 
+    /// Curves of `counts` points (their positions do not matter here).
+    fn curves_of(curve_type: CurveType, basis: Basis, counts: &[u32]) -> CurvesData {
+        let n: u32 = counts.iter().sum();
+        CurvesData {
+            path: "/L".into(),
+            curve_type,
+            basis,
+            wrap: Wrap::Nonperiodic,
+            counts: counts.iter().map(|&c| c as usize).collect(),
+            points: vec![DVec3::ZERO; n as usize],
+            widths: Primvar::Constant(1.0),
+            colors: Primvar::Constant(Vec3::ONE),
+            opacities: Primvar::Constant(1.0),
+        }
+    }
+
     #[test]
     fn primvars_expand_per_point() {
         let counts = [2, 3];
-        assert_eq!(per_point(&Primvar::Constant(1.0), &counts, 0.0), [1.0; 5]);
+        let c = curves_of(CurveType::Linear, Basis::Bezier, &counts);
+        assert_eq!(per_point(&c, &Primvar::Constant(1.0), &counts, 0.0), [1.0; 5]);
         assert_eq!(
-            per_point(&Primvar::Uniform(vec![1.0, 2.0]), &counts, 0.0),
+            per_point(&c, &Primvar::Uniform(vec![1.0, 2.0]), &counts, 0.0),
             [1.0, 1.0, 2.0, 2.0, 2.0]
         );
-        assert_eq!(per_point(&Primvar::Vertex(vec![1.0; 4]), &counts, 9.0), [9.0; 5]);
+        assert_eq!(per_point(&c, &Primvar::Vertex(vec![1.0; 4]), &counts, 9.0), [9.0; 5]);
+        // Linear varying: one per point.
+        let v = vec![1.0, 2.0, 3.0, 4.0, 5.0];
+        assert_eq!(per_point(&c, &Primvar::Varying(v.clone()), &counts, 9.0), v);
+    }
+
+    #[test]
+    fn varying_primvars_of_cubic_curves_reach_every_control_point() {
+        // Bézier curves of 4 and 7 points: 1 and 2 spans, 2 and 3 span
+        // ends (usd-core's ComputeVaryingDataSize: 5). A control point takes
+        // the value a third of a span on per point. They fell back to the
+        // default width 1 before (a review, 2026-12-07).
+        let counts = [4, 7];
+        let c = curves_of(CurveType::Cubic, Basis::Bezier, &counts);
+        let got = per_point(&c, &Primvar::Varying(vec![0.0, 3.0, 30.0, 33.0, 36.0]), &counts, 9.0);
+        let want = [0.0, 1.0, 2.0, 3.0, 30.0, 31.0, 32.0, 33.0, 34.0, 35.0, 36.0];
+        assert!(got.iter().zip(want).all(|(g, w)| (g - w).abs() < 1e-5), "{got:?}");
+        // Catmull-Rom, 5 points: spans from point 1 to 3, ends at points 1, 2, 3.
+        let counts = [5];
+        let c = curves_of(CurveType::Cubic, Basis::CatmullRom, &counts);
+        let got = per_point(&c, &Primvar::Varying(vec![1.0, 2.0, 3.0]), &counts, 9.0);
+        assert_eq!(got, [1.0, 1.0, 2.0, 3.0, 3.0]);
+        // A length that fits nothing: the fallback.
+        assert_eq!(per_point(&c, &Primvar::Varying(vec![1.0]), &counts, 9.0), [9.0; 5]);
     }
 
     #[test]
@@ -859,10 +911,11 @@ mod tests {
     #[test]
     fn primvars_of_the_wrong_length_fall_back_and_vertex_ones_pass_through() {
         let counts = [2, 3];
+        let c = curves_of(CurveType::Linear, Basis::Bezier, &counts);
         // A uniform primvar with one value too many is not per curve.
-        assert_eq!(per_point(&Primvar::Uniform(vec![1.0; 3]), &counts, 9.0), [9.0; 5]);
+        assert_eq!(per_point(&c, &Primvar::Uniform(vec![1.0; 3]), &counts, 9.0), [9.0; 5]);
         let v = vec![1.0, 2.0, 3.0, 4.0, 5.0];
-        assert_eq!(per_point(&Primvar::Vertex(v.clone()), &counts, 9.0), v);
+        assert_eq!(per_point(&c, &Primvar::Vertex(v.clone()), &counts, 9.0), v);
     }
 
     #[test]

@@ -208,6 +208,107 @@ impl CurvesData {
         varying_len(self.curve_type, self.basis, self.wrap, n)
     }
 
+    /// Takes `varying` primvars authored with usd-core's count
+    /// ([`usd_varying_data_size`]) where it differs from the span ends
+    /// drawn ([`varying_len`]): a pinned B-spline or Catmull-Rom curve of n
+    /// points has n - 2 values (its span ends were it not pinned: control
+    /// points 1 to n - 2), drawn at n span ends (control points 0 to n - 1),
+    /// so the end spans the pinning adds take the nearest value; a linear
+    /// periodic curve has n + 1, the last closing the loop on the first
+    /// point, which is drawn with the first. Other lengths are left for
+    /// [`Self::validate`] to report.
+    pub fn adopt_usd_varying(&mut self) {
+        let (ty, basis, wrap) = (self.curve_type, self.basis, self.wrap);
+        let usd: usize = self
+            .counts
+            .iter()
+            .map(|&n| usd_varying_data_size(ty, basis, wrap, n))
+            .sum();
+        let drawn: usize = self.counts.iter().map(|&n| varying_len(ty, basis, wrap, n)).sum();
+        if usd == drawn
+            || self
+                .counts
+                .iter()
+                .any(|&n| usd_varying_data_size(ty, basis, wrap, n) == 0)
+        {
+            return;
+        }
+        // For each drawn span end, the authored value it takes.
+        let mut idx = Vec::with_capacity(drawn);
+        let mut o = 0;
+        for &n in &self.counts {
+            let (have, want) = (
+                usd_varying_data_size(ty, basis, wrap, n),
+                varying_len(ty, basis, wrap, n),
+            );
+            let last = o + have.saturating_sub(1);
+            for k in 0..want {
+                let j = if (ty, wrap) == (CurveType::Cubic, Wrap::Pinned) {
+                    k.saturating_sub(1)
+                } else {
+                    k
+                };
+                idx.push((o + j).min(last));
+            }
+            o += have;
+        }
+        fn take<T: Copy>(p: &mut Primvar<T>, usd: usize, idx: &[usize]) {
+            if let Primvar::Varying(v) | Primvar::FaceVarying(v) = p {
+                if v.len() == usd && !v.is_empty() {
+                    *v = idx.iter().map(|&i| v[i]).collect();
+                }
+            }
+        }
+        take(&mut self.widths, usd, &idx);
+        take(&mut self.colors, usd, &idx);
+        take(&mut self.opacities, usd, &idx);
+    }
+
+    /// A `varying` primvar (one value per span end, as drawn) at each
+    /// control point, for a viewer that draws curves through their control
+    /// points: a control point takes the value at the curve parameter
+    /// nearest to it, interpolated between the span ends around it
+    /// (Bézier: point i at a third of the way per point; B-spline and
+    /// Catmull-Rom: span s runs from point s + 1 to s + 2, pinned from s to
+    /// s + 1; linear: one per point).
+    pub fn varying_at_points<T: Copy + Add<Output = T> + Mul<f32, Output = T>>(&self, v: &[T]) -> Vec<T> {
+        let mut out = Vec::with_capacity(self.points.len());
+        let mut vo = 0;
+        for &n in &self.counts {
+            let nv = self.varying_len(n);
+            for i in 0..n {
+                if nv == 0 || v.len() < vo + nv {
+                    break;
+                }
+                let u = match (self.curve_type, self.basis, self.wrap) {
+                    (CurveType::Linear, _, _) => i as f32,
+                    (CurveType::Cubic, Basis::Bezier, _) => i as f32 / 3.0,
+                    (CurveType::Cubic, _, Wrap::Pinned) => i as f32,
+                    (CurveType::Cubic, _, Wrap::Periodic) => ((i + n - 1) % n) as f32,
+                    (CurveType::Cubic, _, Wrap::Nonperiodic) => i as f32 - 1.0,
+                };
+                let periodic = self.wrap == Wrap::Periodic;
+                let u = if periodic { u } else { u.clamp(0.0, (nv - 1) as f32) };
+                let a = u.floor() as usize;
+                let t = u - a as f32;
+                let at = |k: usize| {
+                    if periodic {
+                        v[vo + k % nv]
+                    } else {
+                        v[vo + k.min(nv - 1)]
+                    }
+                };
+                out.push(if t == 0.0 {
+                    at(a)
+                } else {
+                    at(a) * (1.0 - t) + at(a + 1) * t
+                });
+            }
+            vo += nv;
+        }
+        out
+    }
+
     /// Checks counts against points and primvar lengths.
     pub fn validate(&self) -> Result<(), CurvesProblem> {
         let total: usize = self.counts.iter().sum();
@@ -218,12 +319,19 @@ impl CurvesData {
             ));
         }
         let varying: usize = self.counts.iter().map(|&n| self.varying_len(n)).sum();
+        // What usd-core counts (and the message names); see [`Self::adopt_usd_varying`].
+        let usd_varying: usize = self
+            .counts
+            .iter()
+            .map(|&n| usd_varying_data_size(self.curve_type, self.basis, self.wrap, n))
+            .sum();
         let check = |name: &'static str, len: usize, interp: &str| -> Result<(), CurvesProblem> {
-            let want = match interp {
-                "constant" => 1,
-                "uniform" => self.counts.len(),
-                "vertex" => self.points.len(),
-                _ => varying,
+            // Varying: the span ends drawn (usd-core's count once adopted).
+            let (want, named) = match interp {
+                "constant" => (1, 1),
+                "uniform" => (self.counts.len(), self.counts.len()),
+                "vertex" => (self.points.len(), self.points.len()),
+                _ => (varying, usd_varying),
             };
             if len == want {
                 Ok(())
@@ -231,7 +339,7 @@ impl CurvesData {
                 Err((
                     name,
                     format!(
-                        "{len} values with {interp} interpolation, expected {want} ({} curves, {} points)",
+                        "{len} values with {interp} interpolation, expected {named} ({} curves, {} points)",
                         self.counts.len(),
                         self.points.len()
                     ),
@@ -464,6 +572,48 @@ mod tests {
     }
 
     #[test]
+    fn varying_primvars_with_usd_core_s_count_are_drawn() {
+        // A pinned Catmull-Rom curve of 5 points: usd-core counts 3 varying
+        // values (those of control points 1 to 3); the pinned curve draws 4
+        // spans, 5 span ends, the ends taking the nearest value. Render and
+        // preview refused these (the count drawn, 5, was required).
+        let mut c = curves(CurveType::Cubic, Basis::CatmullRom, Wrap::Pinned, line_pts(5));
+        c.widths = Primvar::Varying(vec![1.0, 2.0, 3.0]);
+        c.colors = Primvar::Varying(vec![Vec3::X, Vec3::Y, Vec3::Z]);
+        assert!(c.validate().is_err());
+        c.adopt_usd_varying();
+        assert_eq!(c.widths, Primvar::Varying(vec![1.0, 1.0, 2.0, 3.0, 3.0]));
+        assert_eq!(
+            c.colors,
+            Primvar::Varying(vec![Vec3::X, Vec3::X, Vec3::Y, Vec3::Z, Vec3::Z])
+        );
+        assert_eq!(c.validate(), Ok(()));
+        // The count drawn is taken as it is.
+        let mut d = curves(CurveType::Cubic, Basis::CatmullRom, Wrap::Pinned, line_pts(5));
+        d.widths = Primvar::Varying(vec![1.0, 2.0, 3.0, 4.0, 5.0]);
+        d.adopt_usd_varying();
+        assert_eq!(d.widths, Primvar::Varying(vec![1.0, 2.0, 3.0, 4.0, 5.0]));
+        // A linear periodic curve of 3 points: usd-core counts 4, the last
+        // closing the loop; 3 are drawn.
+        let mut l = curves(CurveType::Linear, Basis::Bezier, Wrap::Periodic, line_pts(3));
+        l.widths = Primvar::Varying(vec![1.0, 2.0, 3.0, 1.0]);
+        l.adopt_usd_varying();
+        assert_eq!(l.widths, Primvar::Varying(vec![1.0, 2.0, 3.0]));
+        assert_eq!(l.validate(), Ok(()));
+        // Other lengths are left to validate, which names usd-core's count.
+        let mut bad = curves(CurveType::Cubic, Basis::Bspline, Wrap::Pinned, line_pts(6));
+        bad.widths = Primvar::Varying(vec![1.0; 7]);
+        bad.adopt_usd_varying();
+        assert_eq!(
+            bad.validate(),
+            Err((
+                "widths",
+                "7 values with varying interpolation, expected 4 (1 curves, 6 points)".to_string()
+            ))
+        );
+    }
+
+    #[test]
     fn undrawn_names_the_curves_that_draw_nothing() {
         let mut c = curves(CurveType::Cubic, Basis::Bspline, Wrap::Nonperiodic, line_pts(9));
         c.opacities = Primvar::Constant(1.0);
@@ -602,10 +752,12 @@ mod tests {
                         c.widths = Primvar::Varying(vec![1.0; 2 * want + 1]);
                         let (attr, msg) = c.validate().unwrap_err();
                         assert_eq!(attr, "widths", "{case}");
+                        // The message names usd-core's count (checked
+                        // against usd-core in varying_data_size_is_usd_cores).
                         let expected = format!(
                             "{} values with varying interpolation, expected {} (2 curves, {} points)",
                             2 * want + 1,
-                            2 * want,
+                            2 * usd_varying_data_size(ty, basis, wrap, n),
                             2 * n
                         );
                         assert_eq!(msg, expected, "{case}");

@@ -30,9 +30,19 @@ fn names(dir: &Path, rel: &str, target: &Path) -> bool {
     normalise(&dir.join(rel)).canonicalize().is_ok_and(|p| p == target)
 }
 
-/// `p` made absolute from the working folder and normalised as text.
+/// `p` made absolute from the working folder and normalised as text. The
+/// working folder is the shell's `$PWD` when that names it (`cd views`
+/// through a link: the path the user sees, as `pwd -L` gives it), else the
+/// real one.
 fn lexical_absolute(p: &Path) -> Option<PathBuf> {
-    std::path::absolute(p).ok().map(|p| normalise(&p))
+    if p.is_absolute() {
+        return Some(normalise(p));
+    }
+    let real = std::env::current_dir().ok()?;
+    let seen = std::env::var_os("PWD")
+        .map(PathBuf::from)
+        .filter(|d| d.is_absolute() && d.canonicalize().ok() == real.canonicalize().ok());
+    Some(normalise(&seen.unwrap_or(real).join(p)))
 }
 
 /// `.` removed and each `..` taking away the component before it, without

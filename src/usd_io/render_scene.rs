@@ -49,6 +49,7 @@ impl PrimvarSource {
             return Ok(None);
         }
         let interpolation = r.primvar_interpolation(prim, name, default_interp)?;
+        r.require_element_size_one(prim, name)?;
         let idx_name = format!("{name}:indices");
         let indices = if r.has_authored(prim, &idx_name)? {
             Some(HeldQuery::new(prim, &idx_name)?)
@@ -537,7 +538,7 @@ impl RenderScene {
             }
             .unwrap_or(Primvar::Constant(1.0))
             .map(|o| if o.is_finite() { o.clamp(0.0, 1.0) } else { 0.0 });
-            let data = CurvesData {
+            let mut data = CurvesData {
                 path: c.path.clone(),
                 curve_type: c.curve_type,
                 basis: c.basis,
@@ -548,6 +549,7 @@ impl RenderScene {
                 colors,
                 opacities,
             };
+            data.adopt_usd_varying();
             data.validate()
                 .map_err(|(attr, msg)| Error::attr(&c.path, attr, format!("at time {t}: {msg}")))?;
             out.push(data);

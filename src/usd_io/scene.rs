@@ -1410,6 +1410,18 @@ fn read_display_opacity(
     let Some(v) = r.typed(prim, NAME, time, "float[]", values::f32_array)? else {
         return Ok(vec![1.0; ncurves]);
     };
+    let interpolation = r.primvar_interpolation(prim, NAME, "constant")?;
+    if !matches!(
+        interpolation.as_str(),
+        "constant" | "uniform" | "varying" | "vertex" | "faceVarying"
+    ) {
+        return Err(Error::attr(
+            path,
+            NAME,
+            format!("unknown interpolation {interpolation:?}"),
+        ));
+    }
+    r.require_element_size_one(prim, NAME)?;
     let v = match r.typed(
         prim,
         "primvars:displayOpacity:indices",
@@ -1445,7 +1457,7 @@ fn read_display_opacity(
     };
     // `varying` on a cubic curve has one value per segment end, not per
     // point: as many as usd-core's ComputeVaryingDataSize counts.
-    let varying_lens = match r.primvar_interpolation(prim, NAME, "constant")?.as_str() {
+    let varying_lens = match interpolation.as_str() {
         "varying" | "faceVarying" => {
             let (ty, basis, wrap) = super::render_scene::curve_shape(r, prim, path)?;
             let lens: Vec<usize> = counts

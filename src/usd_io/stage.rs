@@ -722,6 +722,31 @@ impl StageReader {
         }
     }
 
+    /// The stage times of the `timeSamples` that win over any default of
+    /// `prim.name` (the strongest spec with samples, not below one with a
+    /// default), blocks included; empty when a default or nothing wins.
+    fn winning_sample_times_with_blocks(&self, prim: &usd::Prim, name: &str) -> Vec<f64> {
+        let Ok(stack) = prim.attribute(name).property_stack() else {
+            return Vec::new();
+        };
+        for site in stack {
+            let Some(layer) = self.stage.layer(&site.layer) else {
+                continue;
+            };
+            if let Ok(Some(v)) = layer.data().try_field(&site.path, "timeSamples") {
+                if let Value::TimeSamples(map) = v.as_ref() {
+                    if !map.is_empty() {
+                        return map.iter().map(|(t, _)| site.offset.apply(*t)).collect();
+                    }
+                }
+            }
+            if layer.data().has_field(&site.path, "default") {
+                break;
+            }
+        }
+        Vec::new()
+    }
+
     /// The layer whose opinion gives `prim.name` its value at `time` (None =
     /// the default), by its identifier (a file's path); None when no layer
     /// does. On a stage of several files, this is the file to name for a bad
@@ -798,6 +823,26 @@ impl StageReader {
             .unwrap_or_else(|| default.to_string()))
     }
 
+    /// Refuses a primvar whose `elementSize` is not 1: painterly reads one
+    /// value per element (curve, point, span end) of widths, colours and
+    /// opacities, where usd-core reads `elementSize` values each.
+    pub fn require_element_size_one(&self, prim: &usd::Prim, name: &str) -> Result<()> {
+        match self.attr_metadata(prim, name, "elementSize")? {
+            None => Ok(()),
+            Some(v) => match values::scalar(&v) {
+                Some(1.0) => Ok(()),
+                n => Err(Error::attr(
+                    prim.path(),
+                    name,
+                    format!(
+                        "elementSize {}: painterly reads one value per element of this primvar (elementSize 1)",
+                        n.map_or_else(|| values::kind_name(&v), |n| n.to_string())
+                    ),
+                )),
+            },
+        }
+    }
+
     /// Relationship targets (forwarded targets are not followed).
     pub fn targets(&self, prim: &usd::Prim, name: &str) -> Result<Vec<String>> {
         prim.relationship(name)
@@ -836,7 +881,12 @@ impl StageReader {
         if !uniform {
             return Ok(());
         }
-        let times = self.sample_times(prim, name)?;
+        let mut times = self.sample_times(prim, name)?;
+        if times.is_empty() {
+            // openusd lists no times for a map of blocks alone, which
+            // usd-core reads as no value at any frame.
+            times = self.winning_sample_times_with_blocks(prim, name);
+        }
         let Some(first) = times.first() else {
             return Ok(());
         };
@@ -1597,6 +1647,10 @@ def BasisCurves "L" {
     def PainterlyPoseKey "k" {
         float[] coordinates.timeSamples = { 2: [0.5] }
     }
+    def PainterlyPoseKey "j" {
+        float opacity = 0.5
+        float opacity.timeSamples = { 3: None, 4: None }
+    }
 }
 "#,
         );
@@ -1637,6 +1691,15 @@ def BasisCurves "L" {
         );
         assert_eq!(e.rule, Some(crate::rule::Rule::AttributeType));
         assert_eq!(read("/L", "painterly:rbfRadius").unwrap(), Some(Value::Float(0.5)));
+        // Samples that are all blocks: usd-core reads no value at a frame
+        // (openusd lists no times for them).
+        let e = read("/L/j", "opacity").unwrap_err();
+        assert!(
+            e.message
+                .starts_with("has time samples (2 samples, first at 3) beside its default"),
+            "{}",
+            e.message
+        );
         assert_eq!(read("/L/k", "opacity").unwrap(), None);
     }
 
