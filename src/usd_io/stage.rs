@@ -881,12 +881,14 @@ impl StageReader {
         if !uniform {
             return Ok(());
         }
-        let mut times = self.sample_times(prim, name)?;
-        if times.is_empty() {
-            // openusd lists no times for a map of blocks alone, which
-            // usd-core reads as no value at any frame.
-            times = self.winning_sample_times_with_blocks(prim, name);
-        }
+        // Beside a default, the specs down to it (blocks included: openusd
+        // lists no times for a map of blocks alone, which usd-core reads as
+        // no value at a frame); alone, the composed sample times (clips too).
+        let times = if has_default {
+            self.winning_sample_times_with_blocks(prim, name)
+        } else {
+            self.sample_times(prim, name)?
+        };
         let Some(first) = times.first() else {
             return Ok(());
         };
@@ -920,16 +922,20 @@ impl StageReader {
     /// its default. Samples that differ are refused: painterly poses a mesh
     /// with one value of each.
     pub fn value_over_time(&self, prim: &usd::Prim, name: &str) -> Result<Option<Value>> {
+        let times = self.sample_times(prim, name)?;
+        let Some((&first, rest)) = times.split_first() else {
+            return self.value(prim, name, None);
+        };
+        let differ = |first: f64, t: f64| {
+            Error::attr(
+                prim.path(),
+                name,
+                format!(
+                    "changes over time (its samples at {first} and {t} differ): painterly poses the mesh with one value of it (usd-core would read it anew at every frame); author a single value"
+                ),
+            )
+        };
         if let Some(samples) = self.sample_values(prim, name)? {
-            let differ = |first: f64, t: f64| {
-                Error::attr(
-                    prim.path(),
-                    name,
-                    format!(
-                        "changes over time (its samples at {first} and {t} differ): painterly poses the mesh with one value of it (usd-core would read it anew at every frame); author a single value"
-                    ),
-                )
-            };
             if let Some(((first, v), rest)) = samples.split_first() {
                 if let Some((t, _)) = rest.iter().find(|(_, w)| w != v) {
                     return Err(differ(*first, *t));
@@ -937,20 +943,10 @@ impl StageReader {
                 return Ok(Some(v.clone()));
             }
         }
-        let times = self.sample_times(prim, name)?;
-        let Some((&first, rest)) = times.split_first() else {
-            return self.value(prim, name, None);
-        };
         let v = self.value(prim, name, Some(first))?;
         for &t in rest {
             if self.value(prim, name, Some(t))? != v {
-                return Err(Error::attr(
-                    prim.path(),
-                    name,
-                    format!(
-                        "changes over time (its samples at {first} and {t} differ): painterly poses the mesh with one value of it (usd-core would read it anew at every frame); author a single value"
-                    ),
-                ));
+                return Err(differ(first, t));
             }
         }
         Ok(v)
