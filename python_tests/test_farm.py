@@ -618,6 +618,53 @@ def only_jobs(jobs, body):
             f"exit 1;; esac\n{body}")
 
 
+def test_two_submits_of_one_shot_at_once_take_turns(tmp_path):
+    """Two `farm submit`s of one shot started together: both passed the
+    live-task check, shared the job scripts, and the later plan hid the
+    other's tasks, so status said complete while they waited and then
+    rewrote the shot from another input (a review on a real cluster,
+    2026-12-07). One submission at a time now holds `farm/submit.lock`: the
+    second waits, finds the first's tasks waiting, and is refused; sbatch is
+    called twice in all (array and assembly), not four times."""
+    bin_dir = tmp_path / "bin"
+    env = stand_ins(bin_dir, {
+        "sbatch": f"echo x >> {bin_dir}/calls; /bin/sleep 0.5\n" + TWO_JOBS_SBATCH.format(d=bin_dir),
+        "squeue": only_jobs("4242,4243", "printf '%s\\n' '4242_0|PENDING|Priority' '4242_1|PENDING|Priority' "
+                                         "'4243|PENDING|Dependency'\n"),
+    })
+    shot = tmp_path / "shot.usda"
+    cmd = [str(painterly_binary()), "farm", "submit", str(BLOWFISH), "-o", str(shot), "--chunk", "24",
+           "--scheduler", "slurm", "--json"]
+    procs = [subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+             for _ in range(2)]
+    outs = [p.communicate(timeout=120) for p in procs]
+    codes = sorted(p.returncode for p in procs)
+    assert codes == [0, 1], outs
+    refused = next(err for p, (_, err) in zip(procs, outs) if p.returncode == 1)
+    assert "still wait or run" in refused, refused
+    assert (bin_dir / "calls").read_text() == "x\nx\n"
+
+
+def test_a_shot_is_not_complete_while_its_tasks_still_wait(painterly, tmp_path):
+    """A local bake finished the shot while its farm tasks still wait in the
+    queue: they will write the chunks and the clip set again, so status says
+    pending, not done and complete (it said complete, exit 0; a review,
+    2026-12-07), as submit's live-task check says."""
+    bin_dir = tmp_path / "bin"
+    env = stand_ins(bin_dir, {
+        "sbatch": TWO_JOBS_SBATCH.format(d=bin_dir),
+        "squeue": only_jobs("4242,4243", "printf '%s\\n' '4242_0|PENDING|JobHeldUser' '4242_1|PENDING|JobHeldUser' "
+                                         "'4243|PENDING|Dependency'\n"),
+    })
+    shot = tmp_path / "shot.usda"
+    submit(painterly, env, BLOWFISH, shot, "--chunk", "24", "--scheduler", "slurm")
+    painterly("bake", BLOWFISH, "-o", shot, "--chunk", "24", "--quiet")
+    st = status(painterly, env, shot)
+    assert (st["assembled"], st["complete"]) == (True, False)
+    assert states(st) == ["pending", "pending"] and st["counts"] == counts(pending=2)
+    assert st["assembly"]["state"] == "pending"
+
+
 @pytest.mark.parametrize("printed", ["", "Submitted batch job 4242"])
 def test_sbatch_that_prints_no_job_id_is_refused(painterly, tmp_path, printed):
     # sbatch exits 0 without the --parsable "ID[;CLUSTER]" line: nothing at

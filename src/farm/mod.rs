@@ -376,12 +376,16 @@ pub fn submit(args: &SubmitArgs) -> Result<SubmitSummary> {
     }
     let (job, character) = FarmJob::prepare(args)?;
     let plan_path = plan::plan_path(&job.clips);
+    std::fs::create_dir_all(job.farm_dir().join("logs"))
+        .map_err(|e| Error::msg(format!("cannot create the farm folder: {e}")).in_file(&job.farm_dir()))?;
+    // From reading the previous plan to writing this one: two submissions of
+    // one shot at once both passed the live-task check, shared the job
+    // scripts, and the later plan hid the other's tasks.
+    let _submitting = hold_submit_lock(&job.farm_dir())?;
     if let Some(previous) = FarmPlan::read_if_any(&plan_path)? {
         refuse_live_tasks(&previous, &plan_path)?;
     }
     let todo = job.todo();
-    std::fs::create_dir_all(job.farm_dir().join("logs"))
-        .map_err(|e| Error::msg(format!("cannot create the farm folder: {e}")).in_file(&job.farm_dir()))?;
     if !todo.is_empty() {
         // Bound once here, for every task and the assembly.
         crate::bake::leave_binding_cache(&character, &job.output);
@@ -424,6 +428,24 @@ pub fn submit(args: &SubmitArgs) -> Result<SubmitSummary> {
 
 /// Refuses to submit while tasks of the previous submission still wait or
 /// run: two tasks writing one chunk waste a node and race on the rename.
+/// How long a submission waits for another one of the same shot.
+const SUBMIT_LOCK_WAIT: std::time::Duration = std::time::Duration::from_secs(60);
+
+/// The lock on `farm/submit.lock` that one submission of a shot holds.
+fn hold_submit_lock(farm_dir: &Path) -> Result<std::fs::File> {
+    let path = farm_dir.join("submit.lock");
+    match crate::usd_io::atomic::hold_lock(&path, SUBMIT_LOCK_WAIT) {
+        Ok(Some(f)) => Ok(f),
+        Ok(None) => Err(Error::msg(format!(
+            "another `painterly farm submit` of this shot has held this lock for over {} s; wait for it to end, \
+             then see `painterly farm status`",
+            SUBMIT_LOCK_WAIT.as_secs()
+        ))
+        .in_file(&path)),
+        Err(e) => Err(Error::msg(format!("cannot lock: {e}")).in_file(&path)),
+    }
+}
+
 fn refuse_live_tasks(previous: &FarmPlan, plan_path: &Path) -> Result<()> {
     let scheduler = previous.scheduler.scheduler(None);
     let ids = previous.task_ids();

@@ -169,6 +169,7 @@ pub fn status(output: &Path) -> Result<FarmStatus> {
         asm,
         known.is_some(),
     );
+    let complete = all_done && assembled && assembly.state == "done";
     Ok(FarmStatus {
         output,
         plan: plan_path,
@@ -183,7 +184,7 @@ pub fn status(output: &Path) -> Result<FarmStatus> {
         counts,
         assembly,
         assembled,
-        complete: all_done && assembled,
+        complete,
     })
 }
 
@@ -196,9 +197,11 @@ fn chunk_state(
 ) -> (&'static str, Option<String>) {
     let reason = |t: &TaskInfo| t.reason.clone();
     match (file, task) {
-        (ChunkState::Done, _) => ("done", None),
+        // A task that waits or runs will still write the chunk, even over a
+        // current file (one a local bake wrote meanwhile): not done yet.
         (_, Some(t)) if t.state == TaskState::Pending => ("pending", reason(t)),
         (_, Some(t)) if t.state == TaskState::Running => ("running", reason(t)),
+        (ChunkState::Done, _) => ("done", None),
         (file, Some(t)) => (
             "failed",
             Some(format!(
@@ -237,9 +240,10 @@ fn assembly_state(
     queried: bool,
 ) -> AssemblyStatus {
     let (state, detail) = match task {
-        _ if assembled => ("done", None),
+        // A live assembly task will write the clip set again.
         Some(t) if t.state == TaskState::Pending => ("pending", t.reason.clone()),
         Some(t) if t.state == TaskState::Running => ("running", t.reason.clone()),
+        _ if assembled => ("done", None),
         Some(t) => (
             "failed",
             Some(format!(
@@ -282,7 +286,10 @@ impl FarmStatus {
             self.job.as_ref().map(|j| format!(" job {j}")).unwrap_or_default(),
             self.submitted_at
         );
-        if !self.scheduler_queried {
+        if self.scheduler == crate::farm::SchedulerKind::Openjd {
+            // Nothing to ask: an Open Job Description job runs elsewhere.
+            s += "  (states come from the files)\n";
+        } else if !self.scheduler_queried {
             s += "  (no answer from the scheduler, not on PATH or not reachable: states come from the files)\n";
         }
         if self.input_changed {
@@ -335,9 +342,19 @@ mod tests {
     }
 
     #[test]
-    fn a_chunk_on_disk_is_done_whatever_its_task_says() {
+    fn a_chunk_on_disk_is_done_unless_its_task_still_waits_or_runs() {
         let t = task(TaskState::Failed, "CANCELLED");
         assert_eq!(chunk_state(&ChunkState::Done, Some("1_0"), Some(&t), true).0, "done");
+        // A live task will write the chunk again (a local bake finished it
+        // meanwhile): status said done and the shot complete while the farm
+        // was still to rewrite it (a review, 2026-12-07).
+        for (state, raw, word) in [
+            (TaskState::Pending, "PENDING", "pending"),
+            (TaskState::Running, "RUNNING", "running"),
+        ] {
+            let live = task(state, raw);
+            assert_eq!(chunk_state(&ChunkState::Done, Some("1_0"), Some(&live), true).0, word);
+        }
     }
 
     #[test]
@@ -375,10 +392,15 @@ mod tests {
         let job = || Some("7".to_string());
         let got = |a: AssemblyStatus| (a.state, a.scheduler_state, a.detail);
         let s = |x: &str| Some(x.to_string());
-        // Assembled is done whatever the task says, but its word is kept.
+        // Assembled is done whatever an ended task says, but its word is kept.
         assert_eq!(
             got(assembly_state(true, true, job(), Some(&cancelled), true)),
             ("done", s("CANCELLED"), None)
+        );
+        // A live assembly task will write the clip set again.
+        assert_eq!(
+            got(assembly_state(true, true, job(), Some(&pending), true)),
+            ("pending", s("PENDING"), s("Dependency"))
         );
         assert_eq!(
             got(assembly_state(false, true, job(), Some(&pending), true)),
@@ -479,6 +501,21 @@ mod tests {
              \x20 shot.0001.13-24.usdc  failed   task 4242_1 (why)\n\
              \x20 assembly: pending (job 4243): Dependency\n\
              1 done, 0 running, 0 pending, 1 failed, 0 missing, 0 stale; clip set not assembled\n"
+        );
+        // Open Job Description: no scheduler to ask, so no "no answer".
+        let openjd = FarmStatus {
+            scheduler: crate::farm::SchedulerKind::Openjd,
+            job: None,
+            ..st
+        };
+        let text = openjd.to_text();
+        let lines: Vec<&str> = text.lines().take(2).collect();
+        assert_eq!(
+            lines,
+            [
+                "/x/shot.usda: 2 chunks of 12 frames, openjd, submitted 2026-12-03T20:00:00Z",
+                "  (states come from the files)"
+            ]
         );
     }
 }

@@ -352,6 +352,31 @@ fn try_flock(f: &File) -> bool {
     unsafe { libc::flock(f.as_raw_fd(), libc::LOCK_EX | libc::LOCK_NB) == 0 }
 }
 
+/// An exclusive `flock` on the file at `path` (created when missing), held
+/// until the returned file is dropped; `None` when another process still
+/// holds it after `wait`. For steps that must not run twice at once (a
+/// farm submission reads, submits and writes its plan).
+pub fn hold_lock(path: &Path, wait: std::time::Duration) -> std::io::Result<Option<File>> {
+    use std::os::unix::fs::OpenOptionsExt;
+    let f = File::options()
+        .read(true)
+        .write(true)
+        .create(true)
+        .truncate(false)
+        .custom_flags(libc::O_NOFOLLOW)
+        .open(path)?;
+    let deadline = std::time::Instant::now() + wait;
+    loop {
+        if try_flock(&f) {
+            return Ok(Some(f));
+        }
+        if std::time::Instant::now() >= deadline {
+            return Ok(None);
+        }
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+}
+
 /// The file at `p` opened and locked, when no live writer holds its lock
 /// (and it is not a link: a leftover is never followed).
 fn lock_if_free(p: &Path) -> Option<File> {

@@ -8,10 +8,10 @@
 //! to 6 inherit/specialize/internal-reference arcs among 7 prims): the guard
 //! refused 6, openusd crashed or ran over 10 s on 28 more; usd-core reports
 //! arc cycles (`Pcp.ErrorArcCycle`) on 22 of those 28, cannot parse 2, and
-//! composes 4 cleanly (e.g. `class "C" (inherits = </B/Y>, specializes =
-//! </B>)` with a prim inheriting C). Recognising them up front means
-//! re-implementing
-//! Pcp, so instead, while [`watched`] runs a composition:
+//! composes 4 cleanly (e.g. `/C` inheriting `/B/Y` and specializing `/B`,
+//! with a child, and a prim under `/A` inheriting `/C`: `OPENUSD_CRASH` in
+//! `python_tests/test_reliability.py`). Recognising them up front means
+//! re-implementing Pcp, so instead, while [`watched`] runs a composition:
 //!
 //! - a panic inside openusd becomes an error (exit 1) naming the file;
 //! - a stack overflow or an aborted allocation (SIGSEGV, SIGBUS, SIGABRT)
