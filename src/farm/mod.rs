@@ -426,8 +426,6 @@ pub fn submit(args: &SubmitArgs) -> Result<SubmitSummary> {
     })
 }
 
-/// Refuses to submit while tasks of the previous submission still wait or
-/// run: two tasks writing one chunk waste a node and race on the rename.
 /// How long a submission waits for another one of the same shot.
 const SUBMIT_LOCK_WAIT: std::time::Duration = std::time::Duration::from_secs(60);
 
@@ -446,6 +444,8 @@ fn hold_submit_lock(farm_dir: &Path) -> Result<std::fs::File> {
     }
 }
 
+/// Refuses to submit while tasks of the previous submission still wait or
+/// run: two tasks writing one chunk waste a node and race on the rename.
 fn refuse_live_tasks(previous: &FarmPlan, plan_path: &Path) -> Result<()> {
     let scheduler = previous.scheduler.scheduler(None);
     let ids = previous.task_ids();
