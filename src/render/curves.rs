@@ -219,29 +219,27 @@ impl CurvesData {
     /// [`Self::validate`] to report.
     pub fn adopt_usd_varying(&mut self) {
         let (ty, basis, wrap) = (self.curve_type, self.basis, self.wrap);
-        let usd: usize = self
+        // Per curve: (usd-core's count, the span ends drawn).
+        let sizes: Vec<(usize, usize)> = self
             .counts
             .iter()
-            .map(|&n| usd_varying_data_size(ty, basis, wrap, n))
-            .sum();
-        let drawn: usize = self.counts.iter().map(|&n| varying_len(ty, basis, wrap, n)).sum();
-        if usd == drawn
-            || self
-                .counts
-                .iter()
-                .any(|&n| usd_varying_data_size(ty, basis, wrap, n) == 0)
-        {
+            .map(|&n| {
+                (
+                    usd_varying_data_size(ty, basis, wrap, n),
+                    varying_len(ty, basis, wrap, n),
+                )
+            })
+            .collect();
+        let usd: usize = sizes.iter().map(|s| s.0).sum();
+        let drawn: usize = sizes.iter().map(|s| s.1).sum();
+        if usd == drawn || sizes.iter().any(|s| s.0 == 0) {
             return;
         }
         // For each drawn span end, the authored value it takes.
         let mut idx = Vec::with_capacity(drawn);
         let mut o = 0;
-        for &n in &self.counts {
-            let (have, want) = (
-                usd_varying_data_size(ty, basis, wrap, n),
-                varying_len(ty, basis, wrap, n),
-            );
-            let last = o + have.saturating_sub(1);
+        for &(have, want) in &sizes {
+            let last = o + have - 1;
             for k in 0..want {
                 let j = if (ty, wrap) == (CurveType::Cubic, Wrap::Pinned) {
                     k.saturating_sub(1)

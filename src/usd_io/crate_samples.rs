@@ -142,9 +142,24 @@ fn winning_time_samples(stage: &usd::Stage, prim: &usd::Prim, name: &str) -> Opt
         }
         p = q.parent();
     }
+    strongest_samples_site(stage, prim, name, |data, path| data.has_field(path, "timeSamples"))
+}
+
+/// The strongest spec of `prim.name` for which `has_samples` holds, walking
+/// its property stack as USD's value resolution does: a spec with a
+/// `default` (and none of its own samples) ends the walk, and so does a
+/// layer the stage does not hold. `has_samples` decides how much of the
+/// field to read: its presence alone ([`winning_time_samples`], which must
+/// not decode a point cache) or a non-empty map.
+pub(crate) fn strongest_samples_site(
+    stage: &usd::Stage,
+    prim: &usd::Prim,
+    name: &str,
+    has_samples: impl Fn(&dyn sdf::AbstractData, &sdf::Path) -> bool,
+) -> Option<usd::SpecSite> {
     for site in prim.attribute(name).property_stack().ok()? {
         let layer = stage.layer(&site.layer)?;
-        if layer.data().has_field(&site.path, "timeSamples") {
+        if has_samples(layer.data(), &site.path) {
             return Some(site);
         }
         if layer.data().has_field(&site.path, "default") {

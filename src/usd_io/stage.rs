@@ -726,25 +726,22 @@ impl StageReader {
     /// `prim.name` (the strongest spec with samples, not below one with a
     /// default), blocks included; empty when a default or nothing wins.
     fn winning_sample_times_with_blocks(&self, prim: &usd::Prim, name: &str) -> Vec<f64> {
-        let Ok(stack) = prim.attribute(name).property_stack() else {
+        let samples = |data: &dyn sdf::AbstractData, path: &sdf::Path| match data.try_field(path, "timeSamples") {
+            Ok(Some(v)) => match v.as_ref() {
+                Value::TimeSamples(map) => map.iter().map(|(t, _)| *t).collect(),
+                _ => Vec::new(),
+            },
+            _ => Vec::new(),
+        };
+        let site = super::crate_samples::strongest_samples_site(&self.stage, prim, name, |data, path| {
+            !samples(data, path).is_empty()
+        });
+        let Some(site) = site else { return Vec::new() };
+        let Some(layer) = self.stage.layer(&site.layer) else {
             return Vec::new();
         };
-        for site in stack {
-            let Some(layer) = self.stage.layer(&site.layer) else {
-                continue;
-            };
-            if let Ok(Some(v)) = layer.data().try_field(&site.path, "timeSamples") {
-                if let Value::TimeSamples(map) = v.as_ref() {
-                    if !map.is_empty() {
-                        return map.iter().map(|(t, _)| site.offset.apply(*t)).collect();
-                    }
-                }
-            }
-            if layer.data().has_field(&site.path, "default") {
-                break;
-            }
-        }
-        Vec::new()
+        let times = samples(layer.data(), &site.path);
+        times.into_iter().map(|t| site.offset.apply(t)).collect()
     }
 
     /// The layer whose opinion gives `prim.name` its value at `time` (None =
