@@ -461,6 +461,8 @@ def test_errors_name_options_as_python_spells_them(tmp_path):
     # Options checked before any file is read name no file.
     for call, message in [
         (lambda: painterly.bake(tube, output=tmp_path / "shot.usda", chunk=0), "`chunk` must be at least 1"),
+        # Negative too, not an OverflowError (a review, 2026-12-07).
+        (lambda: painterly.bake(tube, output=tmp_path / "shot.usda", chunk=-1), "`chunk` must be at least 1"),
         (lambda: painterly.bake(tube, chunk=2), "a chunked bake writes files: give an output path"),
     ]:
         with pytest.raises(painterly.Error) as e:

@@ -415,7 +415,7 @@ fn bake(
     input: &Bound<'_, PyAny>,
     output: Option<PathBuf>,
     frames: Option<&Bound<'_, PyAny>>,
-    chunk: Option<usize>,
+    chunk: Option<i64>,
     camera: Option<String>,
     bake_proxy: bool,
     progress: Option<Py<PyAny>>,
@@ -428,6 +428,9 @@ fn bake(
             )));
         }
     }
+    // A negative chunk is refused as 0 is ("must be at least 1"), not with
+    // the OverflowError an unsigned parameter would raise.
+    let chunk = chunk.map(|c| usize::try_from(c).unwrap_or(0));
     let src = Source::from_py(input)?;
     // Set when Ctrl-C reaches the waiting thread: the bake stops before its
     // next frame and before replacing the output, and writes nothing.
