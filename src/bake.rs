@@ -413,7 +413,8 @@ fn frames_text(times: &[f64], range: Option<FrameRange>) -> String {
 }
 
 /// The attributes a bake writes, in the order [`frame_samples`] fills them:
-/// per stroke layer points, extent, displayOpacity; per rig (with
+/// per stroke layer points, extent, displayOpacity (and normals, when it
+/// has rest normals); per rig (with
 /// `--bake-proxy`) the proxy's points and extent; per view-dependent mesh
 /// its points and extent.
 fn layout_attrs(model: &Model, bake_proxy: bool) -> Vec<BakeAttr> {
@@ -434,6 +435,9 @@ fn layout_attrs(model: &Model, bake_proxy: bool) -> Vec<BakeAttr> {
                 SampleKind::Floats,
                 Some("uniform"),
             ));
+            if l.rest_normals.is_some() {
+                attrs.push(attr(&l.path, "normals", SampleKind::Normals, None));
+            }
         }
     }
     if bake_proxy {
@@ -507,6 +511,9 @@ fn frame_samples(out: FrameOutput, baked_proxy: &[bool]) -> Vec<Sample> {
         s.push(Sample::Vec3s(l.points));
         s.push(e);
         s.push(Sample::Floats(l.opacity));
+        if let Some(n) = l.normals {
+            s.push(Sample::Vec3s(n));
+        }
     }
     let proxies = out.proxies.into_iter().zip(out.proxy_normals);
     for ((p, n), _) in proxies.zip(baked_proxy).filter(|(_, &keep)| keep) {

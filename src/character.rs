@@ -19,7 +19,7 @@ use crate::bind::{Binding, ClosestPoint};
 use crate::error::{Error, Result};
 use crate::keys::{combine, Source};
 use crate::mesh::{bounds_f64, fan_triangulate, OneRings};
-use crate::skinning::{skin_blended_points, to_f32, SkinningRest};
+use crate::skinning::{skin_blended_points, skin_normals, to_f32, SkinningRest};
 use crate::usd_io::axes::AxisFrame;
 use crate::usd_io::binding_cache::BindingCache;
 use crate::usd_io::scene::{LayerKeys, Proxy, Rig, Scene};
@@ -42,6 +42,9 @@ pub struct LayerModel {
     /// Whether the input authors `primvars:displayOpacity:indices` (the
     /// bake blocks them: it writes one value per curve).
     pub display_indexed: bool,
+    /// Rest normals the bake turns with the strokes, proxy-local, when the
+    /// layer has them ([`crate::usd_io::scene::StrokeLayer::rest_normals`]).
+    pub rest_normals: Option<Vec<Vec3>>,
 }
 
 /// One rig's pure data: the skinning stencils and its layers.
@@ -149,6 +152,8 @@ pub struct LayerFrame {
     pub max_width: f32,
     /// The points' box, [`crate::extent::point_based_extent`] of `points`.
     pub bounds: [Vec3; 2],
+    /// Stroke-local normals, when the layer has rest normals.
+    pub normals: Option<Vec<Vec3>>,
 }
 
 /// One frame's results.
@@ -439,6 +444,10 @@ impl Model {
                         format!("baked point {i} is not finite at time {t}"),
                     ));
                 }
+                let normals = layer
+                    .rest_normals
+                    .as_deref()
+                    .map(|n| skin_normals(&layer.binding, &motions, &frame, n));
                 let o = opacity * keyed_opacity;
                 layers.push(LayerFrame {
                     points,
@@ -450,6 +459,7 @@ impl Model {
                         .collect(),
                     max_width,
                     bounds: skinned.extent,
+                    normals,
                 });
             }
             proxies.push(with_proxies.then(|| rf.posed.iter().map(|p| p.as_vec3()).collect()));
@@ -522,6 +532,7 @@ impl RigModel {
                     display_opacity: std::mem::take(&mut l.display_opacity),
                     curve_counts: l.curve_counts.clone(),
                     display_indexed: l.display_indexed,
+                    rest_normals: l.rest_normals.take(),
                 }
             })
             .collect();

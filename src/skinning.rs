@@ -267,6 +267,42 @@ pub fn skin_blended_points(
     }
 }
 
+/// Turns a layer's rest normals with its strokes: out[k] is along
+/// frame⁻ᵀ · (Σ w R_v) · rest[k] with rest[k]'s length (zero stays zero).
+///
+/// Σ w R_v is the linear part of the point's blended motion (eq. 1); the
+/// vertex motions are rigid, so each R_v is its own inverse transpose and
+/// the sum is the linear-blend normal skinning UsdSkel gives a mesh's
+/// normals. Keyed shapes do not turn them (keys hold no normals): a normal
+/// follows the rig, not a sculpt.
+pub fn skin_normals(binding: &Binding, motions: &[Affine3A], frame: &Affine3A, rest: &[Vec3]) -> Vec<Vec3> {
+    // The inverse transpose of the frame's linear part (the identity when
+    // it is singular: a normal matrix has nothing better to offer).
+    let f = frame.matrix3;
+    let f = if f.determinant() != 0.0 {
+        f.inverse().transpose()
+    } else {
+        Mat3A::IDENTITY
+    };
+    let mut out = vec![Vec3::ZERO; rest.len()];
+    out.par_chunks_mut(SKIN_CHUNK).enumerate().for_each(|(chunk, out)| {
+        let start = chunk * SKIN_CHUNK;
+        for (k, o) in out.iter_mut().enumerate() {
+            let i = start + k;
+            let n = Vec3A::from(rest[i]);
+            let m = blended_motion(motions, binding.vertices[i], binding.weights[i]);
+            let v = f * (m.matrix3 * n);
+            let len = v.length();
+            *o = if len > 0.0 {
+                (v * (n.length() / len)).into()
+            } else {
+                Vec3::ZERO
+            };
+        }
+    });
+    out
+}
+
 /// Rest points per block of [`skin_with`].
 const REST_BLOCK: usize = 256;
 
@@ -663,5 +699,40 @@ mod tests {
                 "{bad}"
             );
         }
+    }
+
+    #[test]
+    fn normals_turn_by_the_blended_rotation_then_the_frames_inverse_transpose() {
+        // Two vertex motions: a quarter turn about z and the identity; a
+        // point weighted 1 to the turn, one 1/2 each, one at a zero normal.
+        let turn = Affine3A::from_rotation_z(std::f32::consts::FRAC_PI_2);
+        let motions = [turn, Affine3A::IDENTITY];
+        let binding = Binding {
+            vertices: vec![[0, 1, 1], [0, 1, 1], [0, 1, 1]],
+            weights: vec![[1.0, 0.0, 0.0], [0.5, 0.5, 0.0], [1.0, 0.0, 0.0]],
+        };
+        // A frame that stretches y by 2 (and moves: translation is no part
+        // of a normal's turn): normals scale by its inverse transpose, 1/2 in y.
+        let frame = Affine3A::from_scale_rotation_translation(
+            Vec3::new(1.0, 2.0, 1.0),
+            glam::Quat::IDENTITY,
+            Vec3::new(5.0, 6.0, 7.0),
+        );
+        let rest = [Vec3::new(3.0, 0.0, 0.0), Vec3::new(0.0, 0.0, 2.0), Vec3::ZERO];
+        let out = skin_normals(&binding, &motions, &frame, &rest);
+        // x turned to y, then halved in y: along y, rest length 3.
+        assert!((out[0] - Vec3::new(0.0, 3.0, 0.0)).length() < 1e-6, "{}", out[0]);
+        // z is fixed by both motions and by the frame: unchanged.
+        assert!((out[1] - Vec3::new(0.0, 0.0, 2.0)).length() < 1e-6, "{}", out[1]);
+        assert_eq!(out[2], Vec3::ZERO);
+        // A blend of the turn and the identity on x: (1/2, 1/2, 0), then
+        // (1/2, 1/4, 0) through the frame, rescaled to length 1.
+        let out = skin_normals(&binding, &motions, &frame, &[Vec3::X, Vec3::X, Vec3::X]);
+        let want = Vec3::new(0.5, 0.25, 0.0).normalize();
+        assert!((out[1] - want).length() < 1e-6, "{}", out[1]);
+        // A singular frame leaves the turn alone.
+        let flat = Affine3A::from_scale(Vec3::new(1.0, 0.0, 1.0));
+        let out = skin_normals(&binding, &motions, &flat, &[Vec3::X, Vec3::X, Vec3::X]);
+        assert!((out[0] - Vec3::Y).length() < 1e-6, "{}", out[0]);
     }
 }

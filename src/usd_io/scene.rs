@@ -95,6 +95,29 @@ fn read_rest_normals(
     Ok(Some(RestNormals { values, point_of }))
 }
 
+/// A stroke layer's `normals` the bake turns with its strokes: a default
+/// value of one normal per point (`vertex` interpolation, or `varying` when
+/// the curves have as many span ends as points), like the proxy normals
+/// BakeSkinning deforms; other layouts (per curve, constant, time samples
+/// only) compose through unchanged, as they do for a proxy.
+fn read_stroke_normals(r: &StageReader, prim: &usd::Prim, path: &str, npoints: usize) -> Result<Option<Vec<Vec3>>> {
+    let Some(n) = r.value(prim, "normals", None)?.as_ref().and_then(values::vec3_array) else {
+        return Ok(None);
+    };
+    if n.len() != npoints
+        || !matches!(
+            r.primvar_interpolation(prim, "normals", "vertex")?.as_str(),
+            "vertex" | "varying"
+        )
+    {
+        return Ok(None);
+    }
+    if let Some(i) = n.iter().position(|v| !v.is_finite()) {
+        return Err(Error::attr(path, "normals", format!("normal {i} is not finite ({})", n[i])).rule(Rule::NonFinite));
+    }
+    Ok(Some(n))
+}
+
 /// One stroke layer (a BasisCurves prim).
 pub struct StrokeLayer {
     pub path: String,
@@ -126,6 +149,11 @@ pub struct StrokeLayer {
     widths: Widths,
     /// Pose and time keys (SPEC §4–5).
     pub keys: LayerKeys,
+    /// The default value of `normals`, one per point (`vertex`, or
+    /// `varying` of the points' count), read as proxy-local like points
+    /// without `painterly:restPoints`: the bake turns them with the strokes
+    /// ([`read_stroke_normals`]).
+    pub rest_normals: Option<Vec<Vec3>>,
     prim: usd::Prim,
 }
 
@@ -916,6 +944,7 @@ fn read_layer(r: &StageReader, path: &str, proxy_points: usize) -> Result<Stroke
     }
     .map_err(|e| e.or_rule(Rule::DisplayOpacity))?;
     let widths = read_widths(r, &prim, path)?;
+    let rest_normals = read_stroke_normals(r, &prim, path, rest_points.len())?;
     Ok(StrokeLayer {
         path: path.to_string(),
         curve_counts: counts.iter().map(|&c| c as u32).collect(),
@@ -930,6 +959,7 @@ fn read_layer(r: &StageReader, path: &str, proxy_points: usize) -> Result<Stroke
         display_indexed,
         widths,
         keys: LayerKeys::default(),
+        rest_normals,
         prim,
     })
 }
