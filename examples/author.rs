@@ -91,7 +91,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             falloff: Falloff::None,
             time: None,
             key: None,
-            strokes: Some((0..5).collect()),
+            strokes: Some(vec![(0, 4)]),
         },
     )?;
     s.save()?;

@@ -140,6 +140,8 @@ def test_radius_not_positive(painterly, case, radius):
     ({"path": "inf,0,0 1,0,0"}, '--path point "inf,0,0" is not finite'),
     ({"path": "1,nan,0 1,0,0"}, '--path point "1,nan,0" is not finite'),
     ({"strength": "nan"}, "--strength NaN is not finite"),
+    # It was blamed on the radius (a review, 2026-12-07).
+    ({"strength": "0"}, "--strength 0 moves nothing: give a non-zero strength"),
     ({"extra": ("--strokes", "12-7")}, '--strokes: range "12-7" ends before it starts'),
     ({"extra": ("--strokes", "x")}, '--strokes: "x" is not a stroke index'),
 ])
@@ -148,6 +150,15 @@ def test_bad_brush_values_are_usage_errors(painterly, case, extra, why):
     inp, refused = case
     for which in ("smudge", "expand"):
         refused(painterly, *brush_args(inp, which, **extra), code=2, names=[why])
+
+
+def test_a_strength_below_float_precision_moves_nothing_and_says_so(painterly, case):
+    # It reported "moved 269 points" and wrote a layer that changed none
+    # (a review, 2026-12-07).
+    inp, refused = case
+    for which in ("smudge", "expand"):
+        refused(painterly, *brush_args(inp, which, strength="1e-12"),
+                names=[LAYER, "the brush moves ", " by less than a float's precision (--strength is too small): nothing changed"])
 
 
 def test_bad_key_values_are_usage_errors(painterly, case):
@@ -222,6 +233,11 @@ def test_brush_bad_key_and_strokes(painterly, case):
     refused(painterly, *brush_args(inp, extra=("--key", "nokey")), names=[f"{LAYER}/nokey"])
     refused(painterly, *brush_args(inp, extra=("--key", "nopts")), names=[f"{LAYER}/nopts"])
     refused(painterly, *brush_args(inp, extra=("--strokes", "2,40")), names=[LAYER, "40"])
+    # A range past any layer is refused as such, at once: it aborted
+    # allocating 2^64 indices, or took 400 MB for 0-50000000 (a review, 2026-12-07).
+    for big in ("0-18446744073709551615", "0-1000000000000", "3-50000000,1"):
+        refused(painterly, *brush_args(inp, extra=("--strokes", big)),
+                names=[LAYER, "out of range (the layer has"])
 
 
 def test_bad_path_text(painterly, case):

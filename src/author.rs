@@ -32,6 +32,7 @@ use crate::usd_io::edit::{Authored, EditSession};
 use crate::usd_io::scene::{layer_axes, Rig, Scene, StrokeLayer};
 use crate::usd_io::stage::StageReader;
 use crate::usd_io::values;
+use crate::words::plural;
 
 /// A rig posed at one time: proxy points, per-vertex motions, transform.
 pub struct PosedRig {
@@ -985,8 +986,9 @@ pub struct BrushOptions {
     /// Edit this key's points (a PainterlyPoseKey or PainterlyTimeKey child)
     /// instead of the layer's rest points.
     pub key: Option<String>,
-    /// Only these strokes (curve indices); None = all.
-    pub strokes: Option<Vec<usize>>,
+    /// Only these strokes (inclusive ranges of curve indices, as
+    /// [`tools::parse_strokes`] gives them); None = all.
+    pub strokes: Option<Vec<(usize, usize)>>,
 }
 
 /// Applies smudge or expand (Bassett §3.3) in the pose at `time`; the
@@ -1040,15 +1042,29 @@ pub fn brush(session: &EditSession, brush: Brush, opts: &BrushOptions) -> Result
         }
     };
     // Each world displacement back to rest space through its point's motion.
-    let mut moved = 0;
+    // Moved: points whose stored value changes (a displacement below a
+    // float's precision at a point reaches it but moves nothing).
+    let (mut moved, mut reached) = (0, 0);
     for i in 0..target.len() {
         if !selected[i] || disp[i] == DVec3::ZERO {
             continue;
         }
         let inv = invert(&blends[i], &layer.path, i)?;
         let d_rest = inv.matrix3 * (to_proxy * disp[i]);
+        let before = target[i];
         target[i] += d_rest.as_vec3();
-        moved += 1;
+        reached += 1;
+        moved += usize::from(target[i] != before);
+    }
+    if moved == 0 && reached > 0 {
+        return Err(Error::prim(
+            &layer.path,
+            format!(
+                "the brush moves {} by less than a float's precision (--strength is too small): \
+                 nothing changed, nothing written",
+                plural(reached, "point")
+            ),
+        ));
     }
     if let Some(i) = first_non_finite(target.iter().copied()) {
         return Err(Error::attr(
@@ -1093,6 +1109,9 @@ fn check_brush_options(opts: &BrushOptions) -> Result<()> {
     }
     if !opts.strength.is_finite() {
         return Err(Error::usage(format!("--strength {} is not finite", opts.strength)));
+    }
+    if opts.strength == 0.0 {
+        return Err(Error::usage("--strength 0 moves nothing: give a non-zero strength"));
     }
     Ok(())
 }
@@ -1156,30 +1175,34 @@ fn check_key_prim(r: &StageReader, prim: &crate::usd_io::stage::Prim, kp: &str, 
 }
 
 /// Per point of the layer, whether `--strokes` selects it (all without it).
-fn selected_points(layer: &StrokeLayer, strokes: Option<&[usize]>) -> Result<Vec<bool>> {
+fn selected_points(layer: &StrokeLayer, strokes: Option<&[(usize, usize)]>) -> Result<Vec<bool>> {
     let npoints = layer.rest_points.len();
     let Some(strokes) = strokes else {
         return Ok(vec![true; npoints]);
     };
+    let ncurves = layer.curve_counts.len();
+    // The first selected index past the layer's strokes, if any.
+    if let Some(s) = strokes
+        .iter()
+        .filter(|r| r.1 >= ncurves)
+        .map(|r| r.0.max(ncurves))
+        .min()
+    {
+        return Err(Error::prim(
+            &layer.path,
+            format!("--strokes {s} is out of range (the layer has {ncurves} strokes)"),
+        ));
+    }
     let mut selected = vec![false; npoints];
-    let mut starts = Vec::with_capacity(layer.curve_counts.len() + 1);
+    let mut starts = Vec::with_capacity(ncurves + 1);
     let mut acc = 0usize;
     for &c in &layer.curve_counts {
         starts.push(acc);
         acc += c as usize;
     }
     starts.push(acc);
-    for &s in strokes {
-        if s >= layer.curve_counts.len() {
-            return Err(Error::prim(
-                &layer.path,
-                format!(
-                    "--strokes {s} is out of range (the layer has {} strokes)",
-                    layer.curve_counts.len()
-                ),
-            ));
-        }
-        selected[starts[s]..starts[s + 1]].iter_mut().for_each(|x| *x = true);
+    for &(a, b) in strokes {
+        selected[starts[a]..starts[b + 1]].iter_mut().for_each(|x| *x = true);
     }
     Ok(selected)
 }

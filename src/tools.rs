@@ -116,8 +116,10 @@ pub fn vertex_normals(points: &[DVec3], triangles: &[[u32; 3]], left_handed: boo
     n.iter().map(|v| v.normalize_or_zero() * side).collect()
 }
 
-/// Parses a stroke selection like `3,7-12` into sorted, unique indices.
-pub fn parse_strokes(s: &str) -> Result<Vec<usize>, String> {
+/// Parses a stroke selection like `3,7-12` into inclusive index ranges,
+/// sorted by start. Ranges stay ranges: `0-18446744073709551615` costs
+/// nothing until it meets a layer's stroke count.
+pub fn parse_strokes(s: &str) -> Result<Vec<(usize, usize)>, String> {
     let mut out = Vec::new();
     for part in s.split(',').map(str::trim).filter(|p| !p.is_empty()) {
         let num = |x: &str| {
@@ -131,16 +133,18 @@ pub fn parse_strokes(s: &str) -> Result<Vec<usize>, String> {
                 if b < a {
                     return Err(format!("range {part:?} ends before it starts"));
                 }
-                out.extend(a..=b);
+                out.push((a, b));
             }
-            None => out.push(num(part)?),
+            None => {
+                let a = num(part)?;
+                out.push((a, a));
+            }
         }
     }
     if out.is_empty() {
         return Err("no strokes selected".into());
     }
     out.sort_unstable();
-    out.dedup();
     Ok(out)
 }
 
@@ -290,8 +294,10 @@ mod tests {
 
     #[test]
     fn stroke_selection_parses_ranges() {
-        assert_eq!(parse_strokes("3,7-9, 1").unwrap(), vec![1, 3, 7, 8, 9]);
-        assert_eq!(parse_strokes("4-4,2").unwrap(), vec![2, 4]);
+        assert_eq!(parse_strokes("3,7-9, 1").unwrap(), vec![(1, 1), (3, 3), (7, 9)]);
+        assert_eq!(parse_strokes("4-4,2").unwrap(), vec![(2, 2), (4, 4)]);
+        // The widest range is two numbers, not 2^64 indices.
+        assert_eq!(parse_strokes("0-18446744073709551615").unwrap(), vec![(0, usize::MAX)]);
         assert_eq!(
             parse_strokes("1,5-2").unwrap_err(),
             "range \"5-2\" ends before it starts"
