@@ -432,6 +432,25 @@ def test_bad_inputs_and_outputs(painterly, tmp_path):
         assert proc.returncode == code, proc.stderr
         assert message in proc.stderr
     assert list(tmp_path.iterdir()) == []
+    # A stage every frame of which fails to bake (viewDirection axes with no
+    # source and no --camera) is refused before anything is planned or
+    # submitted (it was submitted, and every task failed; a review,
+    # 2026-12-07); with --camera it is submitted.
+    head = (REPO / "fixtures" / "head.usda").read_text()
+    no_source = tmp_path / "in" / "head.usda"
+    no_source.parent.mkdir()
+    no_source.write_text(head.replace("rel source = </Head/Camera>", ""))
+    proc = painterly("farm", "submit", no_source, "-o", tmp_path / "shot.usda", "--chunk", "4",
+                     "--scheduler", "openjd", check=False)
+    assert proc.returncode == 1, proc.stderr
+    assert proc.stderr == (f"error: {no_source}: /Head/Paint/viewX.source: "
+                           "a viewDirection axis needs `rel source` or `--camera`\n"), proc.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["in"]
+    painterly("farm", "submit", no_source, "-o", tmp_path / "shot.usda", "--chunk", "4",
+              "--scheduler", "openjd", "--camera", "/Head/Camera", "--quiet")
+    assert (tmp_path / "shot.clips").is_dir()
+    shutil.rmtree(tmp_path / "shot.clips")
+    shutil.rmtree(tmp_path / "in")
     bad = tmp_path / "shot.clips" / "farm"
     bad.mkdir(parents=True)
     (bad / "plan.json").write_text("{not json")
@@ -663,6 +682,16 @@ def test_a_shot_is_not_complete_while_its_tasks_still_wait(painterly, tmp_path):
     assert (st["assembled"], st["complete"]) == (True, False)
     assert states(st) == ["pending", "pending"] and st["counts"] == counts(pending=2)
     assert st["assembly"]["state"] == "pending"
+    # The assembly task has ended (sacct: COMPLETED) while a chunk task
+    # still waits: the assembly is done, the shot is still not complete.
+    (bin_dir / "squeue").write_text("#!/bin/sh\n" + only_jobs("4242,4243", "printf '%s\\n' '4242_1|PENDING|JobHeldUser'\n"))
+    (bin_dir / "sacct").write_text("#!/bin/sh\n" + only_jobs("4242,4243", "printf '%s\\n' '4242_0|COMPLETED|None' "
+                                                                        "'4243|COMPLETED|None'\n"))
+    (bin_dir / "sacct").chmod(0o755)
+    st = status(painterly, env, shot)
+    assert st["assembly"]["state"] == "done" and st["assembled"]
+    assert states(st) == ["done", "pending"]
+    assert not st["complete"]
 
 
 @pytest.mark.parametrize("printed", ["", "Submitted batch job 4242"])

@@ -234,6 +234,23 @@ pub fn evaluate_every_frame(
     Ok(times.len())
 }
 
+/// Evaluates `ch` at `t` as its bake would, writing nothing: `farm
+/// submit`'s check that a frame can be baked at all (a problem every frame
+/// meets, such as a viewDirection axis with no source and no camera, shows
+/// only when a frame is evaluated).
+pub fn evaluate_one_frame(ch: &Character, t: f64, bake_proxy: bool) -> Result<()> {
+    if is_empty(
+        &ch.model,
+        &BakeOptions {
+            bake_proxy,
+            ..Default::default()
+        },
+    ) {
+        return Ok(());
+    }
+    stream(ch, &[t], bake_proxy, Box::new(DiscardSink), &|_, _| {}, None)
+}
+
 /// A sink that drops every frame: evaluation without output.
 struct DiscardSink;
 

@@ -229,6 +229,13 @@ impl FarmJob {
         let character = open_for_bake(&args.input, &args.output, &opts)?;
         let reader = &character.reader;
         let times = resolve_frames(reader, args.frames).map_err(|e| e.in_file(&args.input))?;
+        // One frame evaluated here refuses what would fail every task (a
+        // review, 2026-12-07: an axis with no source was submitted, and
+        // every task failed); a problem of some frames only still shows in
+        // their tasks.
+        if let Some(&first) = times.first() {
+            crate::bake::evaluate_one_frame(&character, first, args.bake_proxy).map_err(|e| e.in_file(&args.input))?;
+        }
         let frame_range = resolved_range(&times, args.frames);
         let input_hash = clips::input_hash(reader)?;
         let output = absolute(&args.output)?;
