@@ -86,7 +86,8 @@ pub enum Command {
         /// (a farm's last step).
         #[arg(long, requires = "chunk")]
         assemble: bool,
-        /// Print nothing on success.
+        /// Print nothing on success (errors still go to stderr); with --json,
+        /// only the JSON.
         #[arg(short, long)]
         quiet: bool,
         /// Print a JSON summary on stdout instead of the summary line.
@@ -257,7 +258,8 @@ pub enum Command {
         /// The view layer to write (.usda).
         #[arg(short, long)]
         output: PathBuf,
-        /// Print nothing on success.
+        /// Print nothing on success (errors still go to stderr); with --json,
+        /// only the JSON.
         #[arg(short, long)]
         quiet: bool,
         /// Print a JSON summary on stdout instead of the summary line.
@@ -305,7 +307,8 @@ pub struct EditArgs {
     /// Edit the input file itself (atomically).
     #[arg(long)]
     pub in_place: bool,
-    /// Print nothing on success.
+    /// Print nothing on success (errors still go to stderr); with --json,
+    /// only the JSON.
     #[arg(short, long)]
     pub quiet: bool,
     /// Print a JSON summary on stdout instead of the text line: command,

@@ -88,9 +88,10 @@ pub struct SubmitArgs {
     #[arg(long, value_name = "ARG", allow_hyphen_values = true)]
     pub sbatch_arg: Vec<String>,
     /// Print a JSON summary on stdout instead of text.
-    #[arg(long, conflicts_with = "quiet")]
+    #[arg(long)]
     pub json: bool,
-    /// Print nothing on success (errors still go to stderr), as for bake.
+    /// Print nothing on success (errors still go to stderr); with --json,
+    /// only the JSON, as for bake.
     #[arg(short, long)]
     pub quiet: bool,
 }
@@ -101,9 +102,10 @@ pub struct StatusArgs {
     /// The clip-set layer given to `farm submit -o`.
     pub output: PathBuf,
     /// Print the status as JSON.
-    #[arg(long, conflicts_with = "quiet")]
+    #[arg(long)]
     pub json: bool,
-    /// Print nothing: the exit code alone says whether the shot is done.
+    /// Print nothing: the exit code alone says whether the shot is done
+    /// (with --json, only the JSON).
     #[arg(short, long)]
     pub quiet: bool,
 }
