@@ -143,6 +143,35 @@ def test_timeline_shows_the_bakes_frame(browser, tmp_path):
         assert browser.call("console")["errors"] == []
 
 
+def test_a_page_whose_server_restarted_asks_for_a_reload(browser, tmp_path):
+    """The page drew a restarted server's frames against its old scene
+    (another file on the same port: every layer vanished) with a normal
+    status line (a review, 2026-12-07). Once its websocket closes it asks
+    for no more frames and says to reload."""
+    with PreviewServer(FISH) as s:
+        open_page(browser, s)
+        port = s.url.rstrip("/").rsplit(":", 1)[1]
+        url = s.url
+    browser.wait("window.painterly.lost === true")
+    drawn = browser.eval("window.painterly.framesDrawn")
+    other = PreviewServer(APPLE)
+    other.args[other.args.index("--port") + 1] = port
+    with other:
+        assert other.url == url
+        set_slider(browser, "#time", 5)
+        status = browser.eval("document.querySelector('#status').textContent")
+        assert status == ("the preview server closed the connection: "
+                          "reload this page once painterly preview runs again"), status
+        assert browser.eval("window.painterly.framesDrawn") == drawn
+        # A reload shows the new server's scene.
+        browser.call("goto", url=url)
+        browser.settle(0)
+        assert browser.eval("window.painterly.lost") is False
+        assert browser.eval("window.painterly.scene.layers.length") > 0
+        assert "apple.usda" in browser.eval("document.title")
+    assert browser.call("console")["errors"] == []
+
+
 def test_orbiting_with_view_drives_changes_the_view_dependent_mesh(browser, tmp_path):
     with PreviewServer(HEAD) as s:
         open_page(browser, s)

@@ -16,6 +16,8 @@
     lastHeader: null,
     roundTrips: [],
     errors: [],
+    // True once the server closed the websocket (see `lost`).
+    lost: false,
   });
 
   // ---------- protocol ----------
@@ -286,6 +288,10 @@
 
   // ---------- requests: one in flight, the latest state wins ----------
   let socket = null;
+  // Set when the websocket to the server closes: the server stopped (or was
+  // restarted, perhaps on another file), so its frames no longer match this
+  // page's scene, and no more are asked for.
+  let lost = null;
   let inFlight = null; // {id, sent}
   let dirty = false;
   let nextId = 1;
@@ -304,6 +310,10 @@
     pump();
   }
   function pump() {
+    if (lost) {
+      setStatus(lost, true);
+      return;
+    }
     if (inFlight || !dirty || !scene) return;
     dirty = false;
     const req = frameRequest();
@@ -353,8 +363,13 @@
       ws.onopen = () => resolve(ws);
       ws.onerror = () => resolve(null);
       ws.onclose = () => {
-        if (socket === ws) socket = null;
+        if (socket === ws) {
+          socket = null;
+          lost = 'the preview server closed the connection: reload this page once painterly preview runs again';
+          api.lost = true;
+        }
         if (inFlight) failed('connection to the preview server closed');
+        else if (lost) setStatus(lost, true);
       };
       ws.onmessage = (m) => {
         if (typeof m.data === 'string') {
