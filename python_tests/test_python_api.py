@@ -703,3 +703,93 @@ def test_an_input_saved_during_a_bake_fails_it_naming_the_file(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bake.usdc", "fish.usda"]
     # Unchanged since: the same bake goes through.
     assert painterly.bake(fish, out, frames="1:6")["frames"] == 6
+
+
+def _in_child(what, path):
+    """Runs in a forked child: one painterly call, its result in plain data."""
+    if what == "bake":
+        return painterly.bake(path)["points"]
+    if what == "inspect":
+        return len(painterly.inspect(path)["problems"])
+    c = painterly.Character(path)
+    return {k: v.tolist() for k, v in c.evaluate(12).items()}
+
+
+def test_a_child_forked_after_painterly_calls_works(tmp_path):
+    """multiprocessing's default start method on Linux forks. A child forked
+    after any painterly call in the parent waited forever on the parent's
+    thread pool, which the child does not have (a review, 2026-12-07); it
+    now gets its own pool, and the same answers."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    tube = str(FIXTURES / "tube.usda")
+    here = {w: _in_child(w, tube) for w in ("bake", "inspect", "evaluate")}
+    ex = ProcessPoolExecutor(2, mp_context=multiprocessing.get_context("fork"))
+    try:
+        futures = {w: ex.submit(_in_child, w, tube) for w in here}
+        there = {w: f.result(timeout=120) for w, f in futures.items()}
+    finally:
+        # A hung child would keep the executor's shutdown waiting: kill it.
+        for proc in list(ex._processes.values()):
+            proc.kill()
+        ex.shutdown(wait=False, cancel_futures=True)
+    assert there == here
+    assert here["bake"] > 0 and here["inspect"] == 0
+
+
+def test_interpreter_exit_during_a_bake_in_a_daemon_thread(tmp_path):
+    """A bake with a progress callback still running in a daemon thread when
+    the script ends: the process aborted at exit (SIGABRT, 4 and 10 times in
+    12; a review, 2026-12-07). An atexit hook now cancels it and waits for
+    it to leave its call: exit 0, and no output and no temporary left."""
+    import subprocess
+    import sys
+
+    out = tmp_path / "out"
+    out.mkdir()
+    script = (
+        "import threading, time, painterly\n"
+        "def cb(d, t): time.sleep(0.02)\n"
+        f"def run(): painterly.bake({str(FIXTURES / 'blowfish.usda')!r}, {str(out / 'o.usdc')!r}, progress=cb)\n"
+        "threading.Thread(target=run, daemon=True).start()\n"
+        "time.sleep(0.3)\n"
+    )
+    for _ in range(8):
+        p = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
+        assert p.returncode == 0, p.stderr[-2000:]
+        assert list(out.iterdir()) == []
+
+
+def test_a_write_onto_another_threads_input_names_that_cause(tmp_path):
+    """Thread A bakes a shot that sublayers tube_bake.usdc; thread B bakes
+    the tube to tube_bake.usdc meanwhile. B is refused (inputs are never
+    modified), and the message said B's input read the file through a link,
+    which it did not (a review, 2026-12-07): it now names the other cause."""
+    tube = tmp_path / "tube.usda"
+    shutil.copy(FIXTURES / "tube.usda", tube)
+    painterly.bake(tube, tmp_path / "tube_bake.usdc", frames=(1, 2))
+    shot = tmp_path / "shot.usda"
+    shot.write_text('#usda 1.0\n(\n    subLayers = [@./tube_bake.usdc@, @./tube.usda@]\n)\n')
+    started, release = threading.Event(), threading.Event()
+
+    def hold(done, total):
+        started.set()
+        release.wait(60)
+
+    a = threading.Thread(target=lambda: painterly.bake(shot, tmp_path / "shot_bake.usdc", frames=(1, 2), progress=hold))
+    a.start()
+    try:
+        assert started.wait(60)
+        before = (tmp_path / "tube_bake.usdc").read_bytes()
+        with pytest.raises(painterly.Error) as e:
+            painterly.bake(tube, tmp_path / "tube_bake.usdc")
+        assert e.value.message == (
+            f"would overwrite {(tmp_path / 'tube_bake.usdc').resolve()}, a file the input reads (through a link of "
+            "that name?), or the input of other painterly work running in this process (another Python thread's); "
+            "inputs are never modified: remove the link or write elsewhere")
+        assert (tmp_path / "tube_bake.usdc").read_bytes() == before
+    finally:
+        release.set()
+        a.join()
+    assert (tmp_path / "shot_bake.usdc").is_file()

@@ -312,6 +312,78 @@ fn refuse_unsaved_inputs(
     }
 }
 
+/// This process's thread pool for the library's parallel work (binding,
+/// skinning, blends). rayon's global pool does not survive `fork()`: a
+/// child forked after any painterly call (multiprocessing's default start
+/// method on Linux) waited forever on workers it does not have (a review,
+/// 2026-12-07). A pool made per process id is made again in a child.
+fn pool() -> Option<Arc<rayon::ThreadPool>> {
+    static POOL: Mutex<Option<(u32, Arc<rayon::ThreadPool>)>> = Mutex::new(None);
+    let pid = std::process::id();
+    let mut slot = POOL.lock().unwrap_or_else(|p| p.into_inner());
+    match slot.take() {
+        Some((p, pool)) if p == pid => {
+            *slot = Some((p, pool.clone()));
+            return Some(pool);
+        }
+        // The parent's pool: its threads are not in this process, so it
+        // is never dropped here (that would signal them).
+        Some(parent) => std::mem::forget(parent),
+        None => {}
+    }
+    // A pool that cannot be made (no threads to spare) leaves the work to
+    // the global pool, as before.
+    let pool = Arc::new(rayon::ThreadPoolBuilder::new().build().ok()?);
+    *slot = Some((pid, pool.clone()));
+    Some(pool)
+}
+
+/// Runs `f` on this process's [`pool`] and waits for it: for work that
+/// only computes (a character's binding, a frame). `f` must not touch
+/// Python: it runs on a pool thread while the caller waits.
+fn in_pool<R>(f: impl FnOnce() -> R) -> R {
+    match pool() {
+        Some(pool) => install(&pool, f),
+        None => f(),
+    }
+}
+
+/// Runs `f` on a pool of its own, one thread more than rayon's default,
+/// dropped after: for bakes and inspections, whose thread waits on frames
+/// the others evaluate. In the shared [`pool`], as many of them at once as
+/// it has threads would each hold one thread waiting, and none would be
+/// left to evaluate (a deadlock).
+fn in_own_pool<R>(f: impl FnOnce() -> R) -> R {
+    let threads = std::env::var("RAYON_NUM_THREADS")
+        .ok()
+        .and_then(|v| v.parse::<usize>().ok())
+        .filter(|&n| n > 0)
+        .or_else(|| std::thread::available_parallelism().ok().map(|n| n.get()))
+        .unwrap_or(1);
+    match rayon::ThreadPoolBuilder::new().num_threads(threads + 1).build() {
+        Ok(pool) => install(&pool, f),
+        Err(_) => f(),
+    }
+}
+
+/// `pool.install(f)` for an `f` whose captures and result need not be Send.
+fn install<R>(pool: &rayon::ThreadPool, f: impl FnOnce() -> R) -> R {
+    // What `f` holds or returns (a stage: `Rc` inside) is not Send; it is
+    // still used by one thread at a time: the caller waits, blocked, until
+    // the pool thread has finished with it, and takes it back after.
+    struct Handover<T>(T);
+    // SAFETY: see above: `install` returns only after `f` has run and its
+    // result has been moved out of the pool thread, so no value crosses
+    // while another thread can reach it.
+    unsafe impl<T> Send for Handover<T> {}
+    let f = Handover(f);
+    let out = pool.install(move || {
+        let f = f;
+        Handover((f.0)())
+    });
+    out.0
+}
+
 /// How the library's messages name a CLI option, and how Python names it
 /// (most specific first): a TD calling `painterly.bake(frames=...)` should
 /// not be told to pass `--frames`.
@@ -404,6 +476,50 @@ fn frames_from_py(py: Python<'_>, frames: Option<&Bound<'_, PyAny>>) -> PyResult
         .map_err(|e| msg_err(py, format!("frames={written}: {e}")))
 }
 
+/// The cancel flags of the bakes running in this process, for
+/// [`_stop_bakes_at_exit`].
+static RUNNING: Mutex<Vec<Arc<AtomicBool>>> = Mutex::new(Vec::new());
+
+/// A bake's entry in [`RUNNING`], removed when the bake returns (on the
+/// calling thread, holding the GIL: past that point the call only returns
+/// to Python).
+struct Running(Arc<AtomicBool>);
+
+impl Running {
+    fn register(cancel: &Arc<AtomicBool>) -> Running {
+        RUNNING.lock().unwrap_or_else(|p| p.into_inner()).push(cancel.clone());
+        Running(cancel.clone())
+    }
+}
+
+impl Drop for Running {
+    fn drop(&mut self) {
+        RUNNING
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .retain(|c| !Arc::ptr_eq(c, &self.0));
+    }
+}
+
+/// Registered with `atexit`: at interpreter exit, a bake still running in
+/// a daemon thread (with a progress callback) was cut off inside its call
+/// when the interpreter finalized, and the process aborted (a review,
+/// 2026-12-07). Every running bake is cancelled, as Ctrl-C cancels it (it
+/// stops before its next frame and writes nothing), and waited for, at
+/// most 30 s, without the GIL, so that its thread leaves the call first.
+#[pyfunction]
+fn _stop_bakes_at_exit(py: Python<'_>) {
+    for c in RUNNING.lock().unwrap_or_else(|p| p.into_inner()).iter() {
+        c.store(true, Ordering::Relaxed);
+    }
+    py.detach(|| {
+        let deadline = std::time::Instant::now() + std::time::Duration::from_secs(30);
+        while !RUNNING.lock().unwrap_or_else(|p| p.into_inner()).is_empty() && std::time::Instant::now() < deadline {
+            std::thread::sleep(std::time::Duration::from_millis(5));
+        }
+    });
+}
+
 /// Bakes `input` (a path or an `Sdf.Layer`) and returns the `--json` summary
 /// as a dict; without `output`, bakes in memory and the summary's "layer"
 /// holds the baked layer's usda text.
@@ -435,6 +551,7 @@ fn bake(
     // Set when Ctrl-C reaches the waiting thread: the bake stops before its
     // next frame and before replacing the output, and writes nothing.
     let cancel = Arc::new(AtomicBool::new(false));
+    let _running = Running::register(&cancel);
     let opts = BakeOptions {
         frames: frames_from_py(py, frames)?,
         bake_proxy,
@@ -470,7 +587,9 @@ fn bake(
     let callback_error: Mutex<Option<PyErr>> = Mutex::new(None);
     let report = |done: usize, total: usize| {
         if let Some(cb) = &progress {
-            Python::attach(|py| {
+            // Not while the interpreter shuts down (a bake in a daemon
+            // thread at exit): attaching then aborted the process.
+            let _ = Python::try_attach(|py| {
                 if let Err(e) = cb.call1(py, (done, total)) {
                     let mut slot = callback_error.lock().unwrap_or_else(|p| p.into_inner());
                     slot.get_or_insert(e);
@@ -496,7 +615,7 @@ fn bake(
     let result = std::thread::scope(|scope| {
         let (done_tx, mut done_rx) = std::sync::mpsc::channel();
         let worker = scope.spawn(move || {
-            let r = run();
+            let r = in_own_pool(run);
             let _ = done_tx.send(());
             r
         });
@@ -552,7 +671,9 @@ fn inspect(
     let frames = frames_from_py(py, frames)?;
     let report = py.detach(|| {
         // As the CLI: passing means a bake with the same camera and frames succeeds.
-        let mut rep = painterly::inspect::inspect_reader(src.open_mapped()?, camera.as_deref(), frames, &|_, _| {})?;
+        let mut rep = in_own_pool(|| {
+            painterly::inspect::inspect_reader(src.open_mapped()?, camera.as_deref(), frames, &|_, _| {})
+        })?;
         if src.text.is_some() {
             rep.file = PathBuf::from(&src.name);
         }
@@ -680,12 +801,10 @@ impl Character {
         configuration: Option<BTreeMap<String, f64>>,
     ) -> PyResult<painterly::character::FrameOutput> {
         finite_time(py, t)?;
-        let input = self
-            .inner
-            .read_frame_with(t, &Self::overrides(configuration))
-            .map_err(|e| self.error(py, e))?;
+        let overrides = Self::overrides(configuration);
+        let input = in_pool(|| self.inner.read_frame_with(t, &overrides)).map_err(|e| self.error(py, e))?;
         let model = &self.inner.model;
-        py.detach(|| model.evaluate(input, false))
+        py.detach(|| in_pool(|| model.evaluate(input, false)))
             .map_err(|e| self.error(py, e))
     }
 
@@ -711,9 +830,7 @@ impl Character {
     #[pyo3(signature = (input, camera=None))]
     fn new(py: Python<'_>, input: &Bound<'_, PyAny>, camera: Option<String>) -> PyResult<Self> {
         let src = Source::from_py(input)?;
-        let inner = src
-            .open()
-            .and_then(|r| Inner::from_reader(r, camera.as_deref()))
+        let inner = in_pool(|| src.open().and_then(|r| Inner::from_reader(r, camera.as_deref())))
             .map_err(|e| to_py(py, src.name_in(e.in_file(&src.path))))?;
         // The text is no longer needed, only that there was one.
         let source = Source {
@@ -744,7 +861,7 @@ impl Character {
     /// Every axis's value at `t` (axis path → value, in axis units).
     fn configuration(&self, py: Python<'_>, t: f64) -> PyResult<BTreeMap<String, f64>> {
         finite_time(py, t)?;
-        self.inner.configuration(t).map_err(|e| self.error(py, e))
+        in_pool(|| self.inner.configuration(t)).map_err(|e| self.error(py, e))
     }
 
     /// Points at `t` (prim path → float32 (N, 3)): every stroke layer in its
@@ -804,6 +921,8 @@ fn _painterly(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(inspect, m)?)?;
     m.add_function(wrap_pyfunction!(_interpolate, m)?)?;
     m.add_function(wrap_pyfunction!(_rules, m)?)?;
+    let stop = wrap_pyfunction!(_stop_bakes_at_exit, m)?;
+    m.py().import("atexit")?.call_method1("register", (stop,))?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

@@ -587,7 +587,9 @@ fn check_not_protected(target: &Path) -> Result<()> {
     };
     if protected().contains_key(&file) {
         return Err(Error::msg(format!(
-            "would overwrite {}, a file the input reads (through a link of that name?); inputs are never modified: remove the link or write elsewhere",
+            "would overwrite {}, a file the input reads (through a link of that name?), or the input of other \
+             painterly work running in this process (another Python thread's); inputs are never modified: \
+             remove the link or write elsewhere",
             file.display()
         ))
         .in_file(target));
