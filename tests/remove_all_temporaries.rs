@@ -2,7 +2,9 @@
 //! removes every live temporary. A file of its own: it removes the
 //! temporaries of every thread, so no other test may run in this process.
 
-use painterly::usd_io::atomic::{remove_all_temporaries, ScratchFile, TempDir, TempFile};
+use painterly::usd_io::atomic::{
+    remove_all_temporaries, remove_all_temporaries_unless_held, ScratchFile, TempDir, TempFile,
+};
 
 #[test]
 fn remove_all_temporaries_removes_files_and_folders() {
@@ -19,5 +21,14 @@ fn remove_all_temporaries_removes_files_and_folders() {
     assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 0);
     assert!(!render.path().exists());
     drop((tmp, scratch, render));
+    // The panic hook's version does the same when nothing holds the list.
+    let (tmp, file) = TempFile::create(&dir.join("out.usdc"), "").unwrap();
+    drop(file);
+    let render = TempDir::new().unwrap();
+    assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1);
+    remove_all_temporaries_unless_held();
+    assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 0);
+    assert!(!render.path().exists());
+    drop((tmp, render));
     std::fs::remove_dir_all(&dir).unwrap();
 }
