@@ -4,7 +4,8 @@
 // stdin: one JSON command per line; stdout: one JSON reply per line
 // ({"ok": true, ...} or {"ok": false, "error": "..."}). Commands:
 //   launch                        → {pid, browser_pids}
-//   goto {url}                    → opens the page (console errors are collected)
+//   goto {url, init}              → opens the page (console errors are collected;
+//                                   `init`: a script run before the page's own)
 //   eval {js}                     → {value} of the expression (promises awaited)
 //   wait {js, timeout}            → waits until the expression is truthy
 //   drag {selector, dx, dy, steps, shift}
@@ -62,9 +63,10 @@ const commands = {
     });
     return { pid: process.pid, browser_pids: childPids() };
   },
-  async goto({ url }) {
+  async goto({ url, init }) {
     if (page) await page.close();
     page = await context.newPage();
+    if (init) await page.addInitScript(init);
     page.on('console', (m) => {
       if (m.type() === 'error') errors.push(`console: ${m.text()}`);
     });

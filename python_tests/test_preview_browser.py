@@ -172,6 +172,33 @@ def test_a_page_whose_server_restarted_asks_for_a_reload(browser, tmp_path):
     assert browser.call("console")["errors"] == []
 
 
+def test_a_page_without_a_websocket_whose_server_restarted_asks_for_a_reload(browser, tmp_path):
+    """The same on the page's HTTP fallback (a browser whose websocket cannot
+    connect; a verification, 2026-12-07): a request that reaches no server
+    stops the page, which does not draw the next server's frames."""
+    no_socket = ("window.WebSocket = class { constructor() { setTimeout(() => { "
+                 "if (this.onerror) this.onerror(); if (this.onclose) this.onclose(); }, 0); } "
+                 "send() {} close() {} };")
+    with PreviewServer(FISH) as s:
+        browser.call("goto", url=s.url, init=no_socket)
+        browser.settle(0)
+        assert browser.eval("window.painterly.lost") is False
+        port = s.url.rstrip("/").rsplit(":", 1)[1]
+        url = s.url
+    set_slider(browser, "#time", 3)
+    browser.wait("window.painterly.lost === true")
+    drawn = browser.eval("window.painterly.framesDrawn")
+    other = PreviewServer(APPLE)
+    other.args[other.args.index("--port") + 1] = port
+    with other:
+        assert other.url == url
+        set_slider(browser, "#time", 5)
+        status = browser.eval("document.querySelector('#status').textContent")
+        assert status == ("the preview server cannot be reached: "
+                          "reload this page once painterly preview runs again"), status
+        assert browser.eval("window.painterly.framesDrawn") == drawn
+
+
 def test_orbiting_with_view_drives_changes_the_view_dependent_mesh(browser, tmp_path):
     with PreviewServer(HEAD) as s:
         open_page(browser, s)

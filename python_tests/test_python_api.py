@@ -793,3 +793,26 @@ def test_a_write_onto_another_threads_input_names_that_cause(tmp_path):
         release.set()
         a.join()
     assert (tmp_path / "shot_bake.usdc").is_file()
+
+
+def test_a_child_forked_while_a_bake_runs_exits_at_once(tmp_path):
+    """A child forked while a bake runs in another thread of the parent
+    inherited the list of running bakes, and its exit waited the whole 30 s
+    for a bake that runs only in the parent (a review, 2026-12-07)."""
+    import subprocess
+    import sys
+
+    script = (
+        "import os, sys, threading, time, painterly\n"
+        "started = threading.Event()\n"
+        "def cb(d, t): started.set(); time.sleep(0.3)\n"
+        f"threading.Thread(target=lambda: painterly.bake({str(FIXTURES / 'tube.usda')!r}, progress=cb), daemon=True).start()\n"
+        "started.wait(30)\n"
+        "pid = os.fork()\n"
+        "if pid == 0:\n"
+        "    sys.exit(0)\n"
+        "t = time.monotonic(); os.waitpid(pid, 0); print(time.monotonic() - t)\n"
+    )
+    p = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
+    assert p.returncode == 0, p.stderr[-2000:]
+    assert float(p.stdout) < 10, p.stdout

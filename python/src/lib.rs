@@ -476,9 +476,10 @@ fn frames_from_py(py: Python<'_>, frames: Option<&Bound<'_, PyAny>>) -> PyResult
         .map_err(|e| msg_err(py, format!("frames={written}: {e}")))
 }
 
-/// The cancel flags of the bakes running in this process, for
+/// The cancel flags of the bakes running, each with its process id (a
+/// forked child inherits the list, not the bakes), for
 /// [`_stop_bakes_at_exit`].
-static RUNNING: Mutex<Vec<Arc<AtomicBool>>> = Mutex::new(Vec::new());
+static RUNNING: Mutex<Vec<(u32, Arc<AtomicBool>)>> = Mutex::new(Vec::new());
 
 /// A bake's entry in [`RUNNING`], removed when the bake returns (on the
 /// calling thread, holding the GIL: past that point the call only returns
@@ -487,7 +488,10 @@ struct Running(Arc<AtomicBool>);
 
 impl Running {
     fn register(cancel: &Arc<AtomicBool>) -> Running {
-        RUNNING.lock().unwrap_or_else(|p| p.into_inner()).push(cancel.clone());
+        RUNNING
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .push((std::process::id(), cancel.clone()));
         Running(cancel.clone())
     }
 }
@@ -497,7 +501,7 @@ impl Drop for Running {
         RUNNING
             .lock()
             .unwrap_or_else(|p| p.into_inner())
-            .retain(|c| !Arc::ptr_eq(c, &self.0));
+            .retain(|(_, c)| !Arc::ptr_eq(c, &self.0));
     }
 }
 
@@ -509,12 +513,25 @@ impl Drop for Running {
 /// most 30 s, without the GIL, so that its thread leaves the call first.
 #[pyfunction]
 fn _stop_bakes_at_exit(py: Python<'_>) {
-    for c in RUNNING.lock().unwrap_or_else(|p| p.into_inner()).iter() {
+    // Only this process's: a forked child's copy of its parent's entries
+    // names bakes that run in the parent (a review, 2026-12-07: the child
+    // waited the whole 30 s).
+    let pid = std::process::id();
+    let ours = || {
+        RUNNING
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .iter()
+            .filter(|(p, _)| *p == pid)
+            .map(|(_, c)| c.clone())
+            .collect::<Vec<_>>()
+    };
+    for c in ours() {
         c.store(true, Ordering::Relaxed);
     }
     py.detach(|| {
         let deadline = std::time::Instant::now() + std::time::Duration::from_secs(30);
-        while !RUNNING.lock().unwrap_or_else(|p| p.into_inner()).is_empty() && std::time::Instant::now() < deadline {
+        while !ours().is_empty() && std::time::Instant::now() < deadline {
             std::thread::sleep(std::time::Duration::from_millis(5));
         }
     });

@@ -326,7 +326,15 @@
           if (!r.ok) throw new Error((await r.json()).error || r.statusText);
           return r.arrayBuffer();
         })
-        .then(received, (e) => failed(e.message));
+        .then(received, (e) => {
+          // fetch's TypeError: no server answers. A server started again
+          // on this port may serve another scene (see `lost`).
+          if (e instanceof TypeError) {
+            lost = 'the preview server cannot be reached: reload this page once painterly preview runs again';
+            api.lost = true;
+          }
+          failed(e.message);
+        });
     }
   }
   function received(buf) {
