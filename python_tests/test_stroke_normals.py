@@ -16,7 +16,7 @@ from pxr import Sdf, Usd, UsdGeom, Vt
 import authoring as Au
 
 
-def rigid_turn_rig(tmp_path, *, interpolation="vertex", per_curve=False, nan=False):
+def rigid_turn_rig(tmp_path, *, interpolation="vertex", per_curve=False, nan=False, primvar=None):
     """The points rig with its proxy at rest at frame 1 and turned 45 degrees
     about z at frame 10, under transforms (a non-uniform scale on the layer),
     and normals of several lengths on its stroke layer."""
@@ -40,8 +40,19 @@ def rigid_turn_rig(tmp_path, *, interpolation="vertex", per_curve=False, nan=Fal
     normals = rng.normal(size=(count, 3)) * rng.uniform(0.5, 2.0, size=(count, 1))
     if nan:
         normals[2, 1] = np.nan
-    curves.CreateNormalsAttr(Au.v3f(normals))
-    curves.SetNormalsInterpolation(UsdGeom.Tokens.uniform if per_curve else interpolation)
+    if primvar is None:
+        curves.CreateNormalsAttr(Au.v3f(normals))
+        curves.SetNormalsInterpolation(UsdGeom.Tokens.uniform if per_curve else interpolation)
+    else:
+        # `primvars:normals`, which UsdGeom reads before `normals`: indexed
+        # (each normal stored once, in reverse, and indexed back), and with
+        # a decoy `normals` beside it when primvar == "both".
+        pv = UsdGeom.PrimvarsAPI(curves.GetPrim()).CreatePrimvar(
+            "normals", Sdf.ValueTypeNames.Normal3fArray, interpolation)
+        pv.Set(Au.v3f(normals[::-1]))
+        pv.SetIndices(Vt.IntArray(list(range(count - 1, -1, -1))))
+        if primvar == "both":
+            curves.CreateNormalsAttr(Au.v3f(np.tile([0.0, 0.0, 1.0], (count, 1))))
     st.GetRootLayer().Save()
     return rig, np.array(Au.v3f(normals), dtype=np.float64), rz
 
@@ -54,17 +65,28 @@ def proxy_to_stroke_linear(rig, t):
     return (pm @ np.linalg.inv(sm))[:3, :3]
 
 
-@pytest.mark.parametrize("interpolation", ["vertex", "varying"])
-def test_normals_turn_with_the_rig(painterly, tmp_path, interpolation):
-    rig, rest_normals, rz = rigid_turn_rig(tmp_path, interpolation=interpolation)
+@pytest.mark.parametrize("interpolation, primvar", [
+    ("vertex", None), ("varying", None), ("faceVarying", None),
+    # A verification, 2026-12-07: `primvars:normals` was never turned, and
+    # with both authored the turned `normals` were hidden behind it.
+    ("vertex", "indexed"), ("vertex", "both")])
+def test_normals_turn_with_the_rig(painterly, tmp_path, interpolation, primvar):
+    rig, rest_normals, rz = rigid_turn_rig(tmp_path, interpolation=interpolation, primvar=primvar)
     out = tmp_path / "bake.usda"
     painterly("bake", rig.path, "-o", out, "--frames", "1:10:9", "--quiet")
     layer = Sdf.Layer.FindOrOpen(str(out))
-    normals_path = Sdf.Path(rig.layers[0]).AppendProperty("normals")
+    name = "normals" if primvar is None else "primvars:normals"
+    normals_path = Sdf.Path(rig.layers[0]).AppendProperty(name)
     assert sorted(layer.ListTimeSamplesForPath(normals_path)) == [1.0, 10.0]
     comp = Au.compose(rig.path, out)
-    attr = UsdGeom.BasisCurves(comp.GetPrimAtPath(rig.layers[0])).GetNormalsAttr()
-    assert UsdGeom.BasisCurves(comp.GetPrimAtPath(rig.layers[0])).GetNormalsInterpolation() == interpolation
+    curves = UsdGeom.BasisCurves(comp.GetPrimAtPath(rig.layers[0]))
+    if primvar is None:
+        attr = curves.GetNormalsAttr()
+        assert curves.GetNormalsInterpolation() == interpolation
+    else:
+        pv = UsdGeom.PrimvarsAPI(curves.GetPrim()).GetPrimvar("normals")
+        assert not pv.IsIndexed(), "the input's indices would re-index the baked normals"
+        attr = pv.GetAttr()
     for t, turn in [(1.0, np.eye(3)), (10.0, rz)]:
         # Column vectors: a normal goes through the turn, then the inverse
         # transpose of proxy -> stroke, whose row-vector matrix is F: (F^-1) n.

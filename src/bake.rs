@@ -452,8 +452,8 @@ fn layout_attrs(model: &Model, bake_proxy: bool) -> Vec<BakeAttr> {
                 SampleKind::Floats,
                 Some("uniform"),
             ));
-            if l.rest_normals.is_some() {
-                attrs.push(attr(&l.path, "normals", SampleKind::Normals, None));
+            if let Some(n) = &l.rest_normals {
+                attrs.push(attr(&l.path, n.attr, SampleKind::Normals, None));
             }
         }
     }
@@ -494,18 +494,25 @@ fn baked_proxies(model: &Model) -> impl Iterator<Item = &RigModel> {
         .map(|(r, _)| r)
 }
 
-/// Stroke layers whose input indexes `primvars:displayOpacity`: the bake
-/// writes one value per curve, which the input's indices would re-index.
+/// Indices the bake blocks: of `primvars:displayOpacity` (it writes one
+/// value per curve) and of `primvars:normals` (one per point), which the
+/// input's indices would re-index.
 fn blocked_attrs(model: &Model) -> Vec<BlockedAttr> {
     let layers = model.rigs.iter().flat_map(|r| &r.layers);
-    layers
-        .filter(|l| l.display_indexed)
+    let opacity = layers.clone().filter(|l| l.display_indexed).map(|l| BlockedAttr {
+        prim: l.path.clone(),
+        name: "primvars:displayOpacity:indices",
+        type_name: "int[]",
+    });
+    // Likewise an indexed `primvars:normals`: the bake writes one per point.
+    let normals = layers
+        .filter(|l| l.rest_normals.as_ref().is_some_and(|n| n.indexed))
         .map(|l| BlockedAttr {
             prim: l.path.clone(),
-            name: "primvars:displayOpacity:indices",
+            name: "primvars:normals:indices",
             type_name: "int[]",
-        })
-        .collect()
+        });
+    opacity.chain(normals).collect()
 }
 
 /// Baked skinned meshes: their `skel:skeleton` is blocked so viewers do not

@@ -22,7 +22,7 @@ use crate::mesh::{bounds_f64, fan_triangulate, OneRings};
 use crate::skinning::{skin_blended_points, skin_normals, to_f32, SkinningRest};
 use crate::usd_io::axes::AxisFrame;
 use crate::usd_io::binding_cache::BindingCache;
-use crate::usd_io::scene::{LayerKeys, Proxy, Rig, Scene};
+use crate::usd_io::scene::{LayerKeys, Proxy, Rig, Scene, StrokeNormals};
 use crate::usd_io::stage::{Prim, StageReader};
 use crate::usd_io::view_mesh::{check_camera, read_view_meshes, sharpness_at, ViewBlend, ViewMesh};
 use crate::words::plural;
@@ -44,7 +44,7 @@ pub struct LayerModel {
     pub display_indexed: bool,
     /// Rest normals the bake turns with the strokes, proxy-local, when the
     /// layer has them ([`crate::usd_io::scene::StrokeLayer::rest_normals`]).
-    pub rest_normals: Option<Vec<Vec3>>,
+    pub rest_normals: Option<StrokeNormals>,
 }
 
 /// One rig's pure data: the skinning stencils and its layers.
@@ -446,8 +446,8 @@ impl Model {
                 }
                 let normals = layer
                     .rest_normals
-                    .as_deref()
-                    .map(|n| skin_normals(&layer.binding, &motions, &frame, n));
+                    .as_ref()
+                    .map(|n| skin_normals(&layer.binding, &motions, &frame, &n.rest));
                 let o = opacity * keyed_opacity;
                 layers.push(LayerFrame {
                     points,

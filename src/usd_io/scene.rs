@@ -95,27 +95,60 @@ fn read_rest_normals(
     Ok(Some(RestNormals { values, point_of }))
 }
 
-/// A stroke layer's `normals` the bake turns with its strokes: a default
-/// value of one normal per point (`vertex` interpolation, or `varying` when
-/// the curves have as many span ends as points), like the proxy normals
-/// BakeSkinning deforms; other layouts (per curve, constant, time samples
-/// only) compose through unchanged, as they do for a proxy.
-fn read_stroke_normals(r: &StageReader, prim: &usd::Prim, path: &str, npoints: usize) -> Result<Option<Vec<Vec3>>> {
-    let Some(n) = r.value(prim, "normals", None)?.as_ref().and_then(values::vec3_array) else {
-        return Ok(None);
-    };
-    if n.len() != npoints
-        || !matches!(
-            r.primvar_interpolation(prim, "normals", "vertex")?.as_str(),
-            "vertex" | "varying"
-        )
-    {
-        return Ok(None);
+/// A stroke layer's per-point normals, which the bake turns with its
+/// strokes ([`read_stroke_normals`]).
+#[derive(Debug, Clone)]
+pub struct StrokeNormals {
+    /// `primvars:normals` when it has a value (UsdGeom reads it before
+    /// `normals`), else `normals`.
+    pub attr: &'static str,
+    /// The primvar is indexed: the bake writes one normal per point and
+    /// blocks its indices, as it does displayOpacity's.
+    pub indexed: bool,
+    /// One per point, read as proxy-local like points without
+    /// `painterly:restPoints`.
+    pub rest: Vec<Vec3>,
+}
+
+/// A stroke layer's normals the bake turns with its strokes: the default
+/// value of the one UsdGeom reads (`primvars:normals`, indices resolved,
+/// else `normals`) when it holds one normal per point (`vertex`,
+/// `varying` or `faceVarying` interpolation, which for curves count
+/// alike), like the proxy normals BakeSkinning deforms; other layouts (per
+/// curve, constant, time samples only) compose through unchanged, as they
+/// do for a proxy.
+fn read_stroke_normals(r: &StageReader, prim: &usd::Prim, path: &str, npoints: usize) -> Result<Option<StrokeNormals>> {
+    for attr in ["primvars:normals", "normals"] {
+        let Some(values) = r.value(prim, attr, None)?.as_ref().and_then(values::vec3_array) else {
+            continue;
+        };
+        let indices_attr = "primvars:normals:indices";
+        let indices = match attr {
+            "primvars:normals" => r.typed(prim, indices_attr, None, "int[]", values::int_array)?,
+            _ => None,
+        };
+        let n = match &indices {
+            None => values,
+            Some(idx) => idx
+                .iter()
+                .map(|&i| usize::try_from(i).ok().and_then(|i| values.get(i).copied()))
+                .collect::<Option<Vec<_>>>()
+                .ok_or_else(|| Error::attr(path, indices_attr, "index out of range"))?,
+        };
+        let interpolation = r.primvar_interpolation(prim, attr, "vertex")?;
+        if n.len() != npoints || !matches!(interpolation.as_str(), "vertex" | "varying" | "faceVarying") {
+            return Ok(None);
+        }
+        if let Some(i) = n.iter().position(|v| !v.is_finite()) {
+            return Err(Error::attr(path, attr, format!("normal {i} is not finite ({})", n[i])).rule(Rule::NonFinite));
+        }
+        return Ok(Some(StrokeNormals {
+            attr,
+            indexed: indices.is_some(),
+            rest: n,
+        }));
     }
-    if let Some(i) = n.iter().position(|v| !v.is_finite()) {
-        return Err(Error::attr(path, "normals", format!("normal {i} is not finite ({})", n[i])).rule(Rule::NonFinite));
-    }
-    Ok(Some(n))
+    Ok(None)
 }
 
 /// One stroke layer (a BasisCurves prim).
@@ -149,11 +182,8 @@ pub struct StrokeLayer {
     widths: Widths,
     /// Pose and time keys (SPEC §4–5).
     pub keys: LayerKeys,
-    /// The default value of `normals`, one per point (`vertex`, or
-    /// `varying` of the points' count), read as proxy-local like points
-    /// without `painterly:restPoints`: the bake turns them with the strokes
-    /// ([`read_stroke_normals`]).
-    pub rest_normals: Option<Vec<Vec3>>,
+    /// Per-point normals the bake turns with the strokes.
+    pub rest_normals: Option<StrokeNormals>,
     prim: usd::Prim,
 }
 
