@@ -11,7 +11,8 @@
 //   drag {selector, dx, dy, steps, shift}
 //   click {selector}
 //   screenshot {selector, path}
-//   console                       → {errors: [...]} collected so far
+//   console {clear}               → {errors: [...]} collected so far (`clear`:
+//                                   and forget them)
 //   quit
 import { chromium } from 'playwright-core';
 import { mkdtempSync, rmSync, readdirSync, readFileSync } from 'node:fs';
@@ -108,8 +109,10 @@ const commands = {
     await page.locator(selector).screenshot({ path });
     return {};
   },
-  async console() {
-    return { errors: errors.slice() };
+  async console({ clear } = {}) {
+    const out = errors.slice();
+    if (clear) errors.length = 0;
+    return { errors: out };
   },
   async quit() {
     if (context) await context.close();

@@ -197,6 +197,12 @@ def test_a_page_without_a_websocket_whose_server_restarted_asks_for_a_reload(bro
         assert status == ("the preview server cannot be reached: "
                           "reload this page once painterly preview runs again"), status
         assert browser.eval("window.painterly.framesDrawn") == drawn
+    # The requests that found no server are the only errors (and are
+    # forgotten, so that later tests start clean).
+    errors = browser.call("console", clear=True)["errors"]
+    assert errors and all(("/api/frame " in e and e.startswith("request failed: "))
+                          or e == "console: Failed to load resource: net::ERR_CONNECTION_REFUSED"
+                          for e in errors), errors
 
 
 def test_orbiting_with_view_drives_changes_the_view_dependent_mesh(browser, tmp_path):
