@@ -734,5 +734,15 @@ mod tests {
         let flat = Affine3A::from_scale(Vec3::new(1.0, 0.0, 1.0));
         let out = skin_normals(&binding, &motions, &flat, &[Vec3::X, Vec3::X, Vec3::X]);
         assert!((out[0] - Vec3::Y).length() < 1e-6, "{}", out[0]);
+        // Past the first parallel chunk each point still gets its own
+        // normal (a missed mutant: chunk / SKIN_CHUNK as the start).
+        let n = 2 * SKIN_CHUNK + 7;
+        let still = Binding {
+            vertices: vec![[1, 1, 1]; n],
+            weights: vec![[1.0, 0.0, 0.0]; n],
+        };
+        let rest: Vec<Vec3> = (0..n).map(|i| Vec3::new(1.0, i as f32, 0.5)).collect();
+        let out = skin_normals(&still, &motions, &Affine3A::IDENTITY, &rest);
+        assert_eq!(out, rest);
     }
 }
