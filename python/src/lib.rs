@@ -321,15 +321,15 @@ fn pool() -> Option<Arc<rayon::ThreadPool>> {
     static POOL: Mutex<Option<(u32, Arc<rayon::ThreadPool>)>> = Mutex::new(None);
     let pid = std::process::id();
     let mut slot = POOL.lock().unwrap_or_else(|p| p.into_inner());
-    match slot.take() {
-        Some((p, pool)) if p == pid => {
-            *slot = Some((p, pool.clone()));
-            return Some(pool);
+    if let Some((p, pool)) = &*slot {
+        if *p == pid {
+            return Some(pool.clone());
         }
-        // The parent's pool: its threads are not in this process, so it
-        // is never dropped here (that would signal them).
-        Some(parent) => std::mem::forget(parent),
-        None => {}
+    }
+    // The parent's pool: its threads are not in this process, so it is
+    // never dropped here (that would signal them).
+    if let Some(parent) = slot.take() {
+        std::mem::forget(parent);
     }
     // A pool that cannot be made (no threads to spare) leaves the work to
     // the global pool, as before.
@@ -348,18 +348,14 @@ fn in_pool<R>(f: impl FnOnce() -> R) -> R {
     }
 }
 
-/// Runs `f` on a pool of its own, one thread more than rayon's default,
-/// dropped after: for bakes and inspections, whose thread waits on frames
-/// the others evaluate. In the shared [`pool`], as many of them at once as
-/// it has threads would each hold one thread waiting, and none would be
-/// left to evaluate (a deadlock).
+/// Runs `f` on a pool of its own, one thread more than the shared
+/// [`pool`] (rayon's default: `RAYON_NUM_THREADS`, else the cores), dropped
+/// after: for bakes and inspections, whose thread waits on frames the
+/// others evaluate. In the shared pool, as many of them at once as it has
+/// threads would each hold one thread waiting, and none would be left to
+/// evaluate (a deadlock).
 fn in_own_pool<R>(f: impl FnOnce() -> R) -> R {
-    let threads = std::env::var("RAYON_NUM_THREADS")
-        .ok()
-        .and_then(|v| v.parse::<usize>().ok())
-        .filter(|&n| n > 0)
-        .or_else(|| std::thread::available_parallelism().ok().map(|n| n.get()))
-        .unwrap_or(1);
+    let threads = pool().map_or(1, |p| p.current_num_threads());
     match rayon::ThreadPoolBuilder::new().num_threads(threads + 1).build() {
         Ok(pool) => install(&pool, f),
         Err(_) => f(),

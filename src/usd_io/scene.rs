@@ -129,11 +129,7 @@ fn read_stroke_normals(r: &StageReader, prim: &usd::Prim, path: &str, npoints: u
         };
         let n = match &indices {
             None => values,
-            Some(idx) => idx
-                .iter()
-                .map(|&i| usize::try_from(i).ok().and_then(|i| values.get(i).copied()))
-                .collect::<Option<Vec<_>>>()
-                .ok_or_else(|| Error::attr(path, indices_attr, "index out of range"))?,
+            Some(idx) => flatten_indexed(&values, idx, path, indices_attr)?,
         };
         let interpolation = r.primvar_interpolation(prim, attr, "vertex")?;
         if n.len() != npoints || !matches!(interpolation.as_str(), "vertex" | "varying" | "faceVarying") {
@@ -149,6 +145,16 @@ fn read_stroke_normals(r: &StageReader, prim: &usd::Prim, path: &str, npoints: u
         }));
     }
     Ok(None)
+}
+
+/// An indexed primvar's values, one per index (elementSize 1); an index
+/// out of range is an error on `indices_attr` of `path`.
+fn flatten_indexed<T: Copy>(values: &[T], indices: &[i64], path: &str, indices_attr: &str) -> Result<Vec<T>> {
+    indices
+        .iter()
+        .map(|&i| usize::try_from(i).ok().and_then(|i| values.get(i).copied()))
+        .collect::<Option<Vec<_>>>()
+        .ok_or_else(|| Error::attr(path, indices_attr, "index out of range"))
 }
 
 /// One stroke layer (a BasisCurves prim).
@@ -1490,11 +1496,7 @@ fn read_display_opacity(
         values::int_array,
     )? {
         None => v,
-        Some(idx) => idx
-            .iter()
-            .map(|&i| usize::try_from(i).ok().and_then(|i| v.get(i).copied()))
-            .collect::<Option<Vec<_>>>()
-            .ok_or_else(|| Error::attr(path, "primvars:displayOpacity:indices", "index out of range"))?,
+        Some(idx) => flatten_indexed(&v, &idx, path, "primvars:displayOpacity:indices")?,
     };
     // Each authored value, before any mean over a curve hides it.
     for &o in &v {
