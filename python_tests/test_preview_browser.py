@@ -8,6 +8,7 @@ Screenshots of three fixtures are taken (scripts/preview_figures makes the
 committed ones in docs/figures/).
 """
 
+import contextlib
 import shutil
 import subprocess
 
@@ -143,6 +144,23 @@ def test_timeline_shows_the_bakes_frame(browser, tmp_path):
         assert browser.call("console")["errors"] == []
 
 
+@contextlib.contextmanager
+def apple_on_the_same_port(browser, url, why):
+    """A preview of the apple on the port of `url`, whose server (the fish)
+    has stopped: moving the open page's timeline draws nothing and the
+    status says `why` and to reload. Yields with the apple's server up."""
+    drawn = browser.eval("window.painterly.framesDrawn")
+    other = PreviewServer(APPLE)
+    other.args[other.args.index("--port") + 1] = url.rstrip("/").rsplit(":", 1)[1]
+    with other:
+        assert other.url == url
+        set_slider(browser, "#time", 5)
+        status = browser.eval("document.querySelector('#status').textContent")
+        assert status == f"{why}: reload this page once painterly preview runs again", status
+        assert browser.eval("window.painterly.framesDrawn") == drawn
+        yield other
+
+
 def test_a_page_whose_server_restarted_asks_for_a_reload(browser, tmp_path):
     """The page drew a restarted server's frames against its old scene
     (another file on the same port: every layer vanished) with a normal
@@ -150,19 +168,9 @@ def test_a_page_whose_server_restarted_asks_for_a_reload(browser, tmp_path):
     for no more frames and says to reload."""
     with PreviewServer(FISH) as s:
         open_page(browser, s)
-        port = s.url.rstrip("/").rsplit(":", 1)[1]
         url = s.url
     browser.wait("window.painterly.lost === true")
-    drawn = browser.eval("window.painterly.framesDrawn")
-    other = PreviewServer(APPLE)
-    other.args[other.args.index("--port") + 1] = port
-    with other:
-        assert other.url == url
-        set_slider(browser, "#time", 5)
-        status = browser.eval("document.querySelector('#status').textContent")
-        assert status == ("the preview server closed the connection: "
-                          "reload this page once painterly preview runs again"), status
-        assert browser.eval("window.painterly.framesDrawn") == drawn
+    with apple_on_the_same_port(browser, url, "the preview server closed the connection"):
         # A reload shows the new server's scene.
         browser.call("goto", url=url)
         browser.settle(0)
@@ -183,20 +191,11 @@ def test_a_page_without_a_websocket_whose_server_restarted_asks_for_a_reload(bro
         browser.call("goto", url=s.url, init=no_socket)
         browser.settle(0)
         assert browser.eval("window.painterly.lost") is False
-        port = s.url.rstrip("/").rsplit(":", 1)[1]
         url = s.url
     set_slider(browser, "#time", 3)
     browser.wait("window.painterly.lost === true")
-    drawn = browser.eval("window.painterly.framesDrawn")
-    other = PreviewServer(APPLE)
-    other.args[other.args.index("--port") + 1] = port
-    with other:
-        assert other.url == url
-        set_slider(browser, "#time", 5)
-        status = browser.eval("document.querySelector('#status').textContent")
-        assert status == ("the preview server cannot be reached: "
-                          "reload this page once painterly preview runs again"), status
-        assert browser.eval("window.painterly.framesDrawn") == drawn
+    with apple_on_the_same_port(browser, url, "the preview server cannot be reached"):
+        pass
     # The requests that found no server are the only errors (and are
     # forgotten, so that later tests start clean).
     errors = browser.call("console", clear=True)["errors"]

@@ -157,3 +157,28 @@ def test_a_bake_with_normals_saves_in_usd_core(painterly, tmp_path):
     again = Sdf.Layer.OpenAsAnonymous(str(out))
     assert list(again.QueryTimeSample(attr.path, 10.0)) == list(before)
     assert sorted(again.ListTimeSamplesForPath(attr.path)) == [1.0, 5.0, 10.0]
+
+
+@pytest.mark.parametrize("primvar", ["normals", "displayOpacity"])
+def test_an_index_past_the_values_is_named(painterly, tmp_path, primvar):
+    """Both indexed primvars the bake flattens (one per point, one per
+    curve) refuse an index past their values, naming the indices."""
+    rig, _, _ = rigid_turn_rig(tmp_path, primvar="indexed")
+    st = Usd.Stage.Open(str(rig.path))
+    pvs = UsdGeom.PrimvarsAPI(st.GetPrimAtPath(rig.layers[0]))
+    if primvar == "displayOpacity":
+        n_curves = len(UsdGeom.BasisCurves(pvs.GetPrim()).GetCurveVertexCountsAttr().Get())
+        pv = pvs.CreatePrimvar("displayOpacity", Sdf.ValueTypeNames.FloatArray, UsdGeom.Tokens.uniform)
+        pv.Set(Vt.FloatArray([0.5]))
+        pv.SetIndices(Vt.IntArray([0] * (n_curves - 1) + [1]))
+    else:
+        pv = pvs.GetPrimvar("normals")
+        idx = list(pv.GetIndices())
+        idx[3] = len(idx)
+        pv.SetIndices(Vt.IntArray(idx))
+    st.Save()
+    out = tmp_path / "bake.usda"
+    r = painterly("bake", rig.path, "-o", out, "--frames", "1:10:9", check=False)
+    assert r.returncode == 1, r.stderr
+    assert r.stderr == f"error: {rig.path}: {rig.layers[0]}.primvars:{primvar}:indices: index out of range\n"
+    assert not out.exists()
