@@ -425,12 +425,29 @@ impl State {
         // A job whose client has gone (its reply dropped) is skipped: the
         // frames queued behind it are the ones still wanted.
         match job {
-            Job::Frame(_, reply) | Job::Render(_, reply) if reply.is_closed() => {}
+            Job::Frame(_, reply) | Job::Render(_, reply) if reply.is_closed() => {
+                crate::vlog!("preview: a request skipped (its client has gone)");
+            }
             Job::Frame(req, reply) => {
+                let t0 = Instant::now();
                 let _ = reply.send(guarded(|| self.frame(&req)));
+                crate::vlog!(
+                    "preview: frame request {} at time {} in {:.1} ms",
+                    req.id,
+                    req.time,
+                    ms(t0)
+                );
             }
             Job::Render(req, reply) => {
+                let t0 = Instant::now();
                 let _ = reply.send(guarded(|| self.render(&req)));
+                crate::vlog!(
+                    "preview: render of {}x{} at time {} in {:.1} ms",
+                    req.width,
+                    req.height,
+                    req.frame.time,
+                    ms(t0)
+                );
             }
         }
     }

@@ -11,7 +11,9 @@
 //! | [`protocol`] | requests, the binary frame format, the scene description |
 //! | [`evaluator`] | the thread that owns the character and evaluates frames |
 //! | [`server`] | routes, assets, host check, websocket stream |
+//! | [`connections`] | accepting connections: a cap and a header timeout |
 
+pub mod connections;
 pub mod evaluator;
 pub mod protocol;
 pub mod server;
@@ -98,9 +100,8 @@ pub fn run(args: &PreviewArgs) -> Result<()> {
             println!("(serving {} only; Ctrl-C stops)", local.ip());
         }
         let _ = std::io::stdout().flush();
-        axum::serve(listener, server::router(state))
-            .await
-            .map_err(|e| Error::msg(format!("server stopped: {e}")))
+        connections::serve(listener, server::router(state)).await;
+        Ok(())
     })
 }
 

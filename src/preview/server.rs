@@ -17,6 +17,7 @@
 //! otherwise open `ws://127.0.0.1:PORT/api/ws` and read frames); bad JSON
 //! or values get 400, frames that cannot be evaluated 422.
 
+use std::future::Future;
 use std::sync::Arc;
 
 use axum::body::Bytes;
@@ -232,7 +233,16 @@ async fn ws(State(state): State<Arc<AppState>>, upgrade: WebSocketUpgrade) -> Re
 /// One page's slider stream: each text message is a [`FrameRequest`],
 /// answered by a binary frame or a text `{"id", "status", "error"}`.
 async fn stream(mut socket: WebSocket, state: Arc<AppState>) {
-    while let Some(Ok(msg)) = socket.recv().await {
+    // A message that came while a frame was evaluated, answered next.
+    let mut next: Option<Message> = None;
+    loop {
+        let msg = match next.take() {
+            Some(msg) => msg,
+            None => match socket.recv().await {
+                Some(Ok(msg)) => msg,
+                _ => break,
+            },
+        };
         let text = match msg {
             Message::Text(t) => t,
             Message::Close(_) => break,
@@ -251,9 +261,10 @@ async fn stream(mut socket: WebSocket, state: Arc<AppState>) {
                 let id = req.id;
                 match req.check(&state.evaluator.axes) {
                     Err(b) => error_message(id, StatusCode::BAD_REQUEST, &b.0),
-                    Ok(()) => match state.evaluator.frame(req).await {
-                        Ok(bytes) => Message::Binary(bytes.into()),
-                        Err(e) => {
+                    Ok(()) => match watching(&mut socket, &mut next, state.evaluator.frame(req)).await {
+                        None => break,
+                        Some(Ok(bytes)) => Message::Binary(bytes.into()),
+                        Some(Err(e)) => {
                             let ApiError(status, m) = e.into();
                             error_message(id, status, &m)
                         }
@@ -263,6 +274,26 @@ async fn stream(mut socket: WebSocket, state: Arc<AppState>) {
         };
         if socket.send(reply).await.is_err() {
             break;
+        }
+    }
+}
+
+/// Awaits `job` while watching the socket: `None` when the page closes or
+/// goes first, which drops the job (the evaluator skips a request whose
+/// client has gone, so a closed page's frames are not computed). One
+/// message that arrives meanwhile is kept in `next`; the socket is then not
+/// read again until the job is done, so a client cannot queue more here
+/// than one message.
+async fn watching<T>(socket: &mut WebSocket, next: &mut Option<Message>, job: impl Future<Output = T>) -> Option<T> {
+    tokio::pin!(job);
+    loop {
+        tokio::select! {
+            done = &mut job => return Some(done),
+            msg = socket.recv(), if next.is_none() => match msg {
+                Some(Ok(Message::Ping(_) | Message::Pong(_))) => {}
+                Some(Ok(Message::Close(_)) | Err(_)) | None => return None,
+                Some(Ok(msg)) => *next = Some(msg),
+            },
         }
     }
 }

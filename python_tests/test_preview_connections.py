@@ -1,0 +1,137 @@
+"""`painterly preview` over many connections (README Limits): at most 256
+open at once, a connection that sends no request headers within 30 s is
+closed, and the requests of a page that has gone are not evaluated."""
+
+import json
+import re
+import shutil
+import socket
+import threading
+import time
+import urllib.parse
+
+import pytest
+
+from conftest import REPO
+from preview_helpers import PreviewServer, WebSocket
+
+MAX_CONNECTIONS = 256
+HEADER_TIMEOUT = 30
+CAMERA = {"position": [0, 0, 50], "target": [0, 0, 0], "up": [0, 1, 0], "fov_y": 30, "near": 0.1, "far": 1000}
+
+
+@pytest.fixture
+def fish(tmp_path):
+    p = tmp_path / "blowfish.usda"
+    shutil.copy(REPO / "fixtures" / "blowfish.usda", p)
+    return p
+
+
+def address(server):
+    u = urllib.parse.urlsplit(server.url)
+    return (u.hostname, u.port), u.netloc
+
+
+def read_response(sock):
+    """The status of one HTTP/1.1 response with a Content-Length, read whole."""
+    buf = b""
+    while b"\r\n\r\n" not in buf:
+        chunk = sock.recv(65536)
+        assert chunk, f"closed before a response: {buf!r}"
+        buf += chunk
+    head, body = buf.split(b"\r\n\r\n", 1)
+    length = int(re.search(rb"(?i)content-length: *(\d+)", head).group(1))
+    while len(body) < length:
+        body += sock.recv(65536)
+    return int(head.split()[1])
+
+
+def closed_within(sock, seconds):
+    """Whether the server closes `sock` within `seconds` (it sends nothing)."""
+    sock.settimeout(seconds)
+    try:
+        return sock.recv(1) == b""
+    except ConnectionResetError:
+        return True
+    except socket.timeout:
+        return False
+
+
+def test_idle_connections_are_capped_and_closed_after_the_header_timeout(fish):
+    """256 connections that never send a request (one of them kept alive
+    after one) hold every slot: a new request waits, not refused, until
+    the server closes the idle ones 30 s after their last request, and is
+    then answered. Before, nothing bounded them: a client holding idle
+    sockets used up the server's file descriptors."""
+    with PreviewServer(fish) as server:
+        addr, host = address(server)
+        kept = socket.create_connection(addr)
+        kept.sendall(f"GET /api/scene HTTP/1.1\r\nHost: {host}\r\n\r\n".encode())
+        assert read_response(kept) == 200
+        idle = [socket.create_connection(addr) for _ in range(MAX_CONNECTIONS - 1)]
+        opened = time.monotonic()
+        answered = {}
+
+        def late_request():
+            s = socket.create_connection(addr, timeout=120)
+            s.sendall(f"GET /api/scene HTTP/1.1\r\nHost: {host}\r\nConnection: close\r\n\r\n".encode())
+            answered["status"] = read_response(s)
+            answered["after"] = time.monotonic() - opened
+            s.close()
+
+        t = threading.Thread(target=late_request)
+        t.start()
+        try:
+            t.join(10)
+            assert "status" not in answered, "a connection past the cap was served at once"
+            assert closed_within(kept, HEADER_TIMEOUT + 30)
+            assert all(closed_within(s, 30) for s in idle)
+            t.join(30)
+            assert answered.get("status") == 200
+            assert HEADER_TIMEOUT - 5 < answered["after"] < HEADER_TIMEOUT + 60
+        finally:
+            for s in [kept, *idle]:
+                s.close()
+            t.join(120)
+        assert server.alive()
+        # A page's websocket holds its slot while open, and the server goes on.
+        ws = WebSocket(server.url)
+        ws.send(json.dumps({"id": 1, "time": 1}))
+        assert ws.recv()[0] == 2
+        ws.close()
+
+
+def test_requests_of_a_page_that_has_gone_are_not_evaluated(fish):
+    """Pages that send a frame request and close (over the websocket or
+    HTTP) while the evaluator is busy: their requests are skipped (the
+    `-v` log says so), and the next page's frame is the only one computed
+    after the busy render. Before, each was evaluated for nobody."""
+    with PreviewServer(fish, "-v") as server:
+        addr, host = address(server)
+        render = {"frame": {"time": 1}, "camera": CAMERA, "width": 4096, "height": 4096}
+        busy = threading.Thread(target=lambda: server.request("api/render", body=render))
+        busy.start()
+        time.sleep(0.3)  # the render is queued first (it takes about 1.5 s)
+        for i in range(10):
+            ws = WebSocket(server.url)
+            ws.send(json.dumps({"id": 100 + i, "time": 2}))
+            ws.close()
+        body = json.dumps({"id": 200, "time": 3}).encode()
+        for _ in range(5):
+            s = socket.create_connection(addr)
+            s.sendall(f"POST /api/frame HTTP/1.1\r\nHost: {host}\r\nContent-Type: application/json\r\n"
+                      f"Content-Length: {len(body)}\r\n\r\n".encode() + body)
+            s.close()
+        busy.join(120)
+        ws = WebSocket(server.url)
+        ws.send(json.dumps({"id": 1, "time": 4}))
+        assert ws.recv()[0] == 2
+        ws.close()
+        server.stop()
+        log = server.proc.stderr.read()
+    frames = re.findall(r"preview: frame request (\d+) at time", log)
+    assert frames == ["1"], log
+    assert log.count("preview: render of 4096x4096 at time 1 in ") == 1, log
+    # The websocket requests reached the evaluator's queue and were skipped
+    # there; HTTP ones may be dropped before (hyper saw the close first).
+    assert 10 <= log.count("preview: a request skipped (its client has gone)") <= 15, log
