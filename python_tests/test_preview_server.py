@@ -400,7 +400,8 @@ def test_scene_and_frame_headers_hold_exactly_the_documented_keys(tmp_path):
         assert live["stale"] is None
         assert set(live["timing"]) == {"read_ms", "evaluate_ms", "encode_ms", "total_ms"}
         baked, _ = s.frame(id=6, time=1, bake=True)
-        assert set(baked) == {"id", "time", "source", "hidden", "timing", "arrays"}
+        assert set(baked) == {"id", "time", "source", "hidden", "stale", "timing", "arrays"}
+        assert baked["stale"] is None
         assert (baked["id"], baked["source"], set(baked["timing"])) == (6, "bake", {"total_ms"})
 
 
@@ -1148,3 +1149,24 @@ def test_a_frame_says_when_the_input_changed_on_disk(tmp_path):
         header, _ = server.frame(time=24)
         assert header["stale"] == ("the input changed on disk since this preview opened it: "
                                    "restart `painterly preview` to see the edits")
+
+
+@pytest.mark.parametrize("changed", ["bake", "input"])
+def test_a_bake_frame_says_when_the_bake_or_the_input_changed_on_disk(tmp_path, changed):
+    """`--bake` frames come from the files as the preview opened them, and,
+    unlike live frames, carried no `stale`: a bake layer re-baked (or an
+    input saved) while the preview ran went on showing the old frames with
+    nothing said."""
+    src = tmp_path / "fish.usda"
+    shutil.copy(FISH, src)
+    bake = tmp_path / "fish_bake.usdc"
+    subprocess.run([str(painterly_binary()), "bake", str(src), "-o", str(bake), "--frames", "1:2", "--quiet"], check=True)
+    with PreviewServer(src, "--bake", bake) as server:
+        assert server.frame(time=1, bake=True)[0]["stale"] is None
+        layer = Sdf.Layer.FindOrOpen(str(bake if changed == "bake" else src))
+        layer.customLayerData = dict(layer.customLayerData, edited=True)
+        layer.Save()
+        header, _ = server.frame(time=1, bake=True)
+        assert header["stale"] == ("the bake layer or the input changed on disk since this preview opened them: "
+                                   "restart `painterly preview` to see the new files")
+        assert (server.frame(time=1)[0]["stale"] is None) == (changed == "bake")

@@ -169,11 +169,20 @@ fn open_bake(
     // Drawables read through their own stage's attributes: the input's
     // would show the input's points, not the bake's.
     let drawables = RenderScene::discover_drawables(&reader).map_err(|e| e.in_file(b))?;
+    let opened = crate::usd_io::clips::input_stamp(&reader).map_err(|e| e.in_file(b))?;
     Ok(Bake {
         _folder: folder,
         reader,
         drawables,
+        opened,
     })
+}
+
+/// Whether a file `r` reads has changed on disk since its stamp was
+/// `opened`. The stamp fails on a file changed since the reader read it
+/// (or gone): changed too.
+fn changed(r: &StageReader, opened: &str) -> bool {
+    crate::usd_io::clips::input_stamp(r).map_or(true, |now| now != opened)
 }
 
 /// The `--bake` layer composed over the input, and what `render` draws of it.
@@ -182,6 +191,8 @@ struct Bake {
     _folder: TempDir,
     reader: StageReader,
     drawables: RenderScene,
+    /// The bake's and the input's files as opened, as [`State::stale`] does.
+    opened: String,
 }
 
 /// The stage's problems as `inspect` finds them, then the bake's warnings.
@@ -548,10 +559,7 @@ impl State {
     /// Why the frame may not show the input as it is on disk now: a file it
     /// reads changed since the preview opened it. `None` when none did.
     fn stale(&self) -> Option<String> {
-        // The stamp fails on a file changed since the reader read it (or
-        // gone): changed too.
-        let changed = crate::usd_io::clips::input_stamp(&self.ch.reader).map_or(true, |now| now != self.opened);
-        changed.then(|| {
+        changed(&self.ch.reader, &self.opened).then(|| {
             "the input changed on disk since this preview opened it: restart `painterly preview` to see the edits"
                 .into()
         })
@@ -561,7 +569,7 @@ impl State {
     /// with the bake sublayered over it (as `painterly render --bake`).
     fn baked_frame(&self, req: &FrameRequest) -> Result<Vec<u8>> {
         let t0 = Instant::now();
-        let Some(Bake { reader: r, .. }) = &self.bake else {
+        let Some(Bake { reader: r, opened, .. }) = &self.bake else {
             return Err(Error::msg(NO_BAKE));
         };
         let t = req.time;
@@ -599,6 +607,9 @@ impl State {
             "time": t,
             "source": "bake",
             "hidden": self.hidden(t)?,
+            "stale": changed(r, opened).then_some(
+                "the bake layer or the input changed on disk since this preview opened them: restart `painterly preview` to see the new files"
+            ),
             "timing": { "total_ms": ms(t0) },
         })))
     }
