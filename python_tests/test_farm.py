@@ -458,6 +458,20 @@ def test_bad_inputs_and_outputs(painterly, tmp_path):
     assert proc.returncode == 1 and "not a painterly farm plan" in proc.stderr
 
 
+def test_status_of_a_relative_output_gives_absolute_paths(painterly, tmp_path):
+    """`farm status shot.usda` run in the output's folder: `output` was
+    absolute and `plan` as typed (`shot.clips/farm/plan.json`), unusable
+    from another folder."""
+    shot = tmp_path / "shot.usda"
+    submit(painterly, None, BLOWFISH, shot, "--chunk", "12", "--scheduler", "openjd")
+    proc = subprocess.run([str(painterly_binary()), "farm", "status", "shot.usda", "--json"],
+                          capture_output=True, text=True, timeout=120, cwd=tmp_path)
+    assert proc.returncode == 1, proc.stderr
+    st = json.loads(proc.stdout)
+    assert (st["output"], st["plan"], st["input"]) == (
+        str(shot), str(tmp_path / "shot.clips" / "farm" / "plan.json"), str(BLOWFISH))
+
+
 # --------------------------------------------------------------------------
 # Open Job Description
 # --------------------------------------------------------------------------

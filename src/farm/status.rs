@@ -171,8 +171,9 @@ pub fn status(output: &Path) -> Result<FarmStatus> {
     );
     let complete = all_done && assembled && assembly.state == "done";
     Ok(FarmStatus {
+        // The plan beside the absolute output, not as typed.
+        plan: plan_path_for_output(&output),
         output,
-        plan: plan_path,
         input: plan.input.clone(),
         scheduler: plan.scheduler,
         submitted_at: plan.submitted_at.clone(),
