@@ -151,6 +151,30 @@ def test_a_full_stdout_is_a_failed_write(repo_root):
     assert "internal error" not in proc.stderr
 
 
+@pytest.mark.skipif(not pathlib.Path("/dev/full").exists(), reason="no /dev/full")
+@pytest.mark.parametrize("command", [["bind", "{src}", "--in-place", "--json"], ["bake", "{src}", "-o", "{out}", "--frames", "1:2"]])
+def test_a_full_stdout_after_the_write_says_the_file_was_written(repo_root, tmp_path, command):
+    """The report fails after the work is saved: exit 1 as before, and the
+    message now says the file was written, so a TD does not redo an
+    in-place edit that is there (an I/O review's finding, 2026-12-07)."""
+    import shutil
+    import subprocess
+
+    from conftest import painterly_binary
+
+    src, out = tmp_path / "fish.usda", tmp_path / "fish_bake.usdc"
+    shutil.copy(repo_root / "fixtures" / "blowfish.usda", src)
+    written = src if command[0] == "bind" else out
+    with open("/dev/full", "w") as full:
+        proc = subprocess.run([str(painterly_binary()), *(a.format(src=src, out=out) for a in command)],
+                              stdout=full, stderr=subprocess.PIPE, text=True, timeout=120)
+    assert proc.returncode == 1
+    assert proc.stderr == (
+        "error: failed printing to stdout: No space left on device (os error 28)"
+        f" ({written} was written before it)\n"), proc.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted({src.name, written.name})
+
+
 def test_verbose_times_each_stage_of_the_bake(painterly, repo_root, tmp_path):
     """--verbose's per-stage line: every stage timed, none negative, the
     writer's time not above the whole bake's (it runs inside it)."""

@@ -47,6 +47,10 @@ struct Registry {
     /// temporary per chunk until it publishes them all.
     live: HashMap<PathBuf, Option<File>>,
     swept: HashSet<PathBuf>,
+    /// How many files this process has renamed into place, and the first:
+    /// a failure after them (a report that cannot be printed) says so.
+    published: usize,
+    first_published: Option<PathBuf>,
 }
 
 impl Registry {
@@ -67,6 +71,8 @@ fn registry_mutex() -> &'static Mutex<Registry> {
         Mutex::new(Registry {
             live: HashMap::new(),
             swept: HashSet::new(),
+            published: 0,
+            first_published: None,
         })
     })
 }
@@ -509,6 +515,10 @@ impl TempFile {
         let mut reg = registry();
         let renamed = std::fs::rename(&self.path, target);
         unregister(&mut reg, &self.path);
+        if renamed.is_ok() {
+            reg.published += 1;
+            reg.first_published.get_or_insert_with(|| target.clone());
+        }
         drop(reg);
         match renamed {
             Ok(()) => {
@@ -526,6 +536,18 @@ impl Drop for TempFile {
             discard(&self.path);
         }
     }
+}
+
+/// How many files this process has written (renamed into place), and the
+/// first; `(0, None)` also when another thread holds the list (a panic
+/// hook must not wait).
+pub fn published() -> (usize, Option<PathBuf>) {
+    let reg = match registry_mutex().try_lock() {
+        Ok(reg) => reg,
+        Err(std::sync::TryLockError::Poisoned(e)) => e.into_inner(),
+        Err(std::sync::TryLockError::WouldBlock) => return (0, None),
+    };
+    (reg.published, reg.first_published.clone())
 }
 
 /// The file a write to `target` replaces: through a symbolic link, the
