@@ -6,6 +6,7 @@ import json
 import re
 import shutil
 import socket
+import subprocess
 import threading
 import time
 import urllib.parse
@@ -46,6 +47,19 @@ def read_response(sock):
     return int(head.split()[1])
 
 
+def status_then_closed(sock, seconds):
+    """The status of the one response the server sends on `sock` within
+    `seconds`, which it then closes; None when it does not."""
+    sock.settimeout(seconds)
+    buf = b""
+    try:
+        while chunk := sock.recv(65536):
+            buf += chunk
+    except socket.timeout:
+        return None
+    return int(buf.split()[1]) if buf else 0
+
+
 def closed_within(sock, seconds):
     """Whether the server closes `sock` within `seconds` (it sends nothing)."""
     sock.settimeout(seconds)
@@ -59,16 +73,23 @@ def closed_within(sock, seconds):
 
 def test_idle_connections_are_capped_and_closed_after_the_header_timeout(fish):
     """256 connections that never send a request (one of them kept alive
-    after one) hold every slot: a new request waits, not refused, until
-    the server closes the idle ones 30 s after their last request, and is
-    then answered. Before, nothing bounded them: a client holding idle
-    sockets used up the server's file descriptors."""
+    after one, four more stalled in a request's body) hold every slot: a
+    new request waits, not refused, until the server closes the idle ones
+    30 s after their last request (the stalled ones get 408 first), and is
+    then answered. Before, nothing bounded them: a client holding idle or
+    half-sent requests used up the server's file descriptors."""
     with PreviewServer(fish) as server:
         addr, host = address(server)
         kept = socket.create_connection(addr)
         kept.sendall(f"GET /api/scene HTTP/1.1\r\nHost: {host}\r\n\r\n".encode())
         assert read_response(kept) == 200
-        idle = [socket.create_connection(addr) for _ in range(MAX_CONNECTIONS - 1)]
+        stalled = []
+        for path in ["api/frame", "api/render"] * 2:
+            s = socket.create_connection(addr)
+            s.sendall(f"POST /{path} HTTP/1.1\r\nHost: {host}\r\nContent-Type: application/json\r\n"
+                      "Content-Length: 2000000\r\n\r\n{\"id\": 1, ".encode())
+            stalled.append(s)
+        idle = [socket.create_connection(addr) for _ in range(MAX_CONNECTIONS - 1 - len(stalled))]
         opened = time.monotonic()
         answered = {}
 
@@ -86,19 +107,25 @@ def test_idle_connections_are_capped_and_closed_after_the_header_timeout(fish):
             assert "status" not in answered, "a connection past the cap was served at once"
             assert closed_within(kept, HEADER_TIMEOUT + 30)
             assert all(closed_within(s, 30) for s in idle)
+            assert [status_then_closed(s, 30) for s in stalled] == [408] * len(stalled)
             t.join(30)
             assert answered.get("status") == 200
             assert HEADER_TIMEOUT - 5 < answered["after"] < HEADER_TIMEOUT + 60
         finally:
-            for s in [kept, *idle]:
+            for s in [kept, *idle, *stalled]:
                 s.close()
             t.join(120)
         assert server.alive()
-        # A page's websocket holds its slot while open, and the server goes on.
+        # The server goes on; a page's websocket has TCP keepalive on (a
+        # peer that vanished from the network frees its slot).
         ws = WebSocket(server.url)
         ws.send(json.dumps({"id": 1, "time": 1}))
         assert ws.recv()[0] == 2
+        local = ws.sock.getsockname()
+        ss = subprocess.run(["ss", "-tnoH", "state", "established", f"( sport = :{addr[1]} and dport = :{local[1]} )"],
+                            capture_output=True, text=True, check=True).stdout
         ws.close()
+        assert "timer:(keepalive," in ss, ss
 
 
 def test_requests_of_a_page_that_has_gone_are_not_evaluated(fish):
@@ -132,6 +159,7 @@ def test_requests_of_a_page_that_has_gone_are_not_evaluated(fish):
     frames = re.findall(r"preview: frame request (\d+) at time", log)
     assert frames == ["1"], log
     assert log.count("preview: render of 4096x4096 at time 1 in ") == 1, log
-    # The websocket requests reached the evaluator's queue and were skipped
-    # there; HTTP ones may be dropped before (hyper saw the close first).
+    # The websocket requests reach the evaluator's queue (a request is
+    # queued before the socket is watched) and are skipped there; HTTP
+    # ones may be dropped before (hyper saw the close first).
     assert 10 <= log.count("preview: a request skipped (its client has gone)") <= 15, log

@@ -439,26 +439,25 @@ impl State {
             Job::Frame(_, reply) | Job::Render(_, reply) if reply.is_closed() => {
                 crate::vlog!("preview: a request skipped (its client has gone)");
             }
+            // Logged before the reply is sent: once a client has its
+            // answer, the line is there.
             Job::Frame(req, reply) => {
                 let t0 = Instant::now();
-                let _ = reply.send(guarded(|| self.frame(&req)));
+                let answer = guarded(|| self.frame(&req));
                 crate::vlog!(
                     "preview: frame request {} at time {} in {:.1} ms",
                     req.id,
                     req.time,
                     ms(t0)
                 );
+                let _ = reply.send(answer);
             }
             Job::Render(req, reply) => {
                 let t0 = Instant::now();
-                let _ = reply.send(guarded(|| self.render(&req)));
-                crate::vlog!(
-                    "preview: render of {}x{} at time {} in {:.1} ms",
-                    req.width,
-                    req.height,
-                    req.frame.time,
-                    ms(t0)
-                );
+                let answer = guarded(|| self.render(&req));
+                let (w, h, t) = (req.width, req.height, req.frame.time);
+                crate::vlog!("preview: render of {w}x{h} at time {t} in {:.1} ms", ms(t0));
+                let _ = reply.send(answer);
             }
         }
     }

@@ -22,13 +22,14 @@ use std::sync::Arc;
 
 use axum::body::Bytes;
 use axum::extract::ws::{Message, WebSocket, WebSocketUpgrade};
-use axum::extract::{Request, State};
+use axum::extract::{FromRequest, Request, State};
 use axum::http::{header, HeaderMap, HeaderValue, StatusCode};
 use axum::middleware::{self, Next};
 use axum::response::{IntoResponse, Response};
 use axum::routing::{get, post};
 use axum::{Json, Router};
 
+use super::connections::BODY_TIMEOUT;
 use super::evaluator::{Evaluator, JobError};
 use super::protocol::{from_json, BadRequest, FrameRequest, RenderRequest};
 
@@ -209,15 +210,46 @@ fn parse<T: serde::de::DeserializeOwned>(headers: &HeaderMap, body: &Bytes) -> R
     Ok(from_json(body)?)
 }
 
-async fn frame(State(state): State<Arc<AppState>>, headers: HeaderMap, body: Bytes) -> Result<Response, ApiError> {
-    let req: FrameRequest = parse(&headers, &body)?;
+/// A request's headers and whole body, which must arrive within
+/// [`BODY_TIMEOUT`]: a client that sends headers and then stalls would
+/// otherwise hold its connection for ever (hyper bounds only the headers).
+/// Over the body limit: axum's own 413.
+async fn body_in_time(req: Request) -> Result<(HeaderMap, Bytes), Response> {
+    let headers = req.headers().clone();
+    match tokio::time::timeout(BODY_TIMEOUT, Bytes::from_request(req, &())).await {
+        Ok(Ok(body)) => Ok((headers, body)),
+        Ok(Err(rejection)) => Err(rejection.into_response()),
+        Err(_) => Err(ApiError(
+            StatusCode::REQUEST_TIMEOUT,
+            format!("the request body did not arrive within {} s", BODY_TIMEOUT.as_secs()),
+        )
+        .into_response()),
+    }
+}
+
+async fn frame(State(state): State<Arc<AppState>>, req: Request) -> Response {
+    match body_in_time(req).await {
+        Ok((headers, body)) => frame_of(&state, &headers, &body).await.into_response(),
+        Err(refused) => refused,
+    }
+}
+
+async fn frame_of(state: &AppState, headers: &HeaderMap, body: &Bytes) -> Result<Response, ApiError> {
+    let req: FrameRequest = parse(headers, body)?;
     req.check(&state.evaluator.axes)?;
     let bytes = state.evaluator.frame(req).await?;
     Ok(binary(bytes, "application/octet-stream"))
 }
 
-async fn render(State(state): State<Arc<AppState>>, headers: HeaderMap, body: Bytes) -> Result<Response, ApiError> {
-    let req: RenderRequest = parse(&headers, &body)?;
+async fn render(State(state): State<Arc<AppState>>, req: Request) -> Response {
+    match body_in_time(req).await {
+        Ok((headers, body)) => render_of(&state, &headers, &body).await.into_response(),
+        Err(refused) => refused,
+    }
+}
+
+async fn render_of(state: &AppState, headers: &HeaderMap, body: &Bytes) -> Result<Response, ApiError> {
+    let req: RenderRequest = parse(headers, body)?;
     req.check(&state.evaluator.axes)?;
     let png = state.evaluator.render(req).await?;
     Ok(binary(png, "image/png"))
@@ -288,6 +320,9 @@ async fn watching<T>(socket: &mut WebSocket, next: &mut Option<Message>, job: im
     tokio::pin!(job);
     loop {
         tokio::select! {
+            // The job first: its first poll queues it, so a page that has
+            // gone is always seen by the evaluator as a request to skip.
+            biased;
             done = &mut job => return Some(done),
             msg = socket.recv(), if next.is_none() => match msg {
                 Some(Ok(Message::Ping(_) | Message::Pong(_))) => {}
