@@ -458,6 +458,9 @@ pub fn run(args: &RenderArgs) -> Result<RenderSummary> {
     for &t in &times {
         let frame_start = Instant::now();
         let (cam, curves, meshes) = stage.at(t)?;
+        // A file saved while the render reads it: no frame of the new
+        // version over the old (a stat per layer file).
+        stage.reader.check_unchanged()?;
         let per_prim: Vec<Vec<curves::Polyline>> = curves.par_iter().map(curves::CurvesData::polylines).collect();
         for (c, lines) in curves.iter().zip(&per_prim) {
             if let Some(why) = c.undrawn(lines) {

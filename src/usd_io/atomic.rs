@@ -507,13 +507,40 @@ impl TempFile {
 
     /// Renames the temporary to `target` (its file must be closed), with
     /// the permission bits of the file it replaces; on failure it is removed.
-    pub fn persist(mut self, target: &Path) -> Result<()> {
+    pub fn persist(self, target: &Path) -> Result<()> {
+        self.publish(target, Publish::Replace)
+    }
+
+    /// [`TempFile::persist`], taking `target`'s place as `publish` says.
+    pub fn publish(mut self, target: &Path, publish: Publish) -> Result<()> {
         let target = &through_links(target);
         if let Some(old) = check_replaceable(target)? {
             std::fs::set_permissions(&self.path, old.permissions()).map_err(|e| e.report().in_file(target))?;
         }
         let mut reg = registry();
-        let renamed = std::fs::rename(&self.path, target);
+        let renamed = match publish {
+            Publish::Replace => std::fs::rename(&self.path, target),
+            Publish::ReplaceIf(check) => {
+                // Checked here, a stat before the rename, not before the
+                // work: a save by another program during the work is seen.
+                if let Err(e) = check() {
+                    drop(reg);
+                    return Err(e);
+                }
+                std::fs::rename(&self.path, target)
+            }
+            Publish::CreateNew => match rename_no_replace(&self.path, target) {
+                Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
+                    drop(reg);
+                    return Err(Error::msg(
+                        "another process created this file while this edit ran; nothing was written: \
+                         run the edit again to add it to that file",
+                    )
+                    .in_file(target));
+                }
+                r => r,
+            },
+        };
         unregister(&mut reg, &self.path);
         if renamed.is_ok() {
             reg.published += 1;
@@ -548,6 +575,48 @@ pub fn published() -> (usize, Option<PathBuf>) {
         Err(std::sync::TryLockError::WouldBlock) => return (0, None),
     };
     (reg.published, reg.first_published.clone())
+}
+
+/// How a finished temporary takes its target's place.
+#[derive(Clone, Copy)]
+pub enum Publish<'a> {
+    /// Whatever is there is replaced (a bake's output).
+    Replace,
+    /// The file is replaced if `check` passes just before the rename (an
+    /// in-place edit: the file must still be the version it read).
+    ReplaceIf(&'a dyn Fn() -> Result<()>),
+    /// Only if nothing is there (a new edit layer: another process may
+    /// create it meanwhile, and its file must not be lost).
+    CreateNew,
+}
+
+/// Renames `from` to `to` unless `to` exists (`AlreadyExists` then).
+/// `renameat2(RENAME_NOREPLACE)`; where the filesystem lacks it, a hard
+/// link (which fails on an existing name too) and an unlink.
+fn rename_no_replace(from: &Path, to: &Path) -> std::io::Result<()> {
+    use std::os::unix::ffi::OsStrExt;
+    let c = |p: &Path| std::ffi::CString::new(p.as_os_str().as_bytes()).map_err(std::io::Error::other);
+    let (f, t) = (c(from)?, c(to)?);
+    // SAFETY: both are valid NUL-terminated paths for the duration of the call.
+    let r = unsafe {
+        libc::renameat2(
+            libc::AT_FDCWD,
+            f.as_ptr(),
+            libc::AT_FDCWD,
+            t.as_ptr(),
+            libc::RENAME_NOREPLACE,
+        )
+    };
+    if r == 0 {
+        return Ok(());
+    }
+    let e = std::io::Error::last_os_error();
+    if !matches!(e.raw_os_error(), Some(libc::EINVAL | libc::ENOSYS)) {
+        return Err(e);
+    }
+    std::fs::hard_link(from, to)?;
+    let _ = std::fs::remove_file(from);
+    Ok(())
 }
 
 /// The file a write to `target` replaces: through a symbolic link, the
@@ -673,6 +742,15 @@ pub fn write_atomic_with<E: WriteFailure>(
     path: &Path,
     write: impl FnOnce(&mut BufWriter<File>) -> std::result::Result<(), E>,
 ) -> Result<()> {
+    write_atomic_as(path, Publish::Replace, write)
+}
+
+/// [`write_atomic_with`], taking `path`'s place as `publish` says.
+pub fn write_atomic_as<E: WriteFailure>(
+    path: &Path,
+    publish: Publish,
+    write: impl FnOnce(&mut BufWriter<File>) -> std::result::Result<(), E>,
+) -> Result<()> {
     let (tmp, file) = TempFile::create(path, "")?;
     let mut out = BufWriter::with_capacity(1 << 20, file);
     write(&mut out).map_err(|e| e.report().in_file(path))?;
@@ -681,7 +759,7 @@ pub fn write_atomic_with<E: WriteFailure>(
     out.into_inner()
         .map_err(|e| e.into_error().report().in_file(path))
         .map(drop)?;
-    tmp.persist(path)
+    tmp.publish(path, publish)
 }
 
 /// A scratch file beside `target` (e.g. the header a new edit layer is
@@ -1248,5 +1326,63 @@ mod tests {
         // would then rename the link itself onto the target).
         assert!(!created, "created the link's target");
         assert!(!is_symlink);
+    }
+
+    #[test]
+    fn a_new_file_is_published_only_where_nothing_is() {
+        let dir = fresh_dir("create-new");
+        let target = dir.join("e.usda");
+        write_atomic_as(&target, Publish::CreateNew, |w| w.write_all(b"first")).unwrap();
+        assert_eq!(std::fs::read(&target).unwrap(), b"first");
+        // Another process created it meanwhile: its file is kept.
+        let e = write_atomic_as(&target, Publish::CreateNew, |w| w.write_all(b"second")).unwrap_err();
+        assert!(
+            e.message.starts_with("another process created this file"),
+            "{}",
+            e.message
+        );
+        assert_eq!(std::fs::read(&target).unwrap(), b"first");
+        let names: Vec<_> = std::fs::read_dir(&*dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        assert_eq!(names, ["e.usda"], "the temporary is removed");
+    }
+
+    #[test]
+    fn a_replacement_is_published_only_if_its_check_passes_at_the_rename() {
+        let dir = fresh_dir("replace-if");
+        let target = dir.join("e.usda");
+        std::fs::write(&target, b"theirs").unwrap();
+        let checks = std::cell::Cell::new(0);
+        let refuse = || {
+            checks.set(checks.get() + 1);
+            Err(Error::msg("changed"))
+        };
+        let e = write_atomic_as(&target, Publish::ReplaceIf(&refuse), |w| w.write_all(b"ours")).unwrap_err();
+        assert_eq!((e.message.as_str(), checks.get()), ("changed", 1));
+        assert_eq!(std::fs::read(&target).unwrap(), b"theirs");
+        let pass = || Ok(());
+        write_atomic_as(&target, Publish::ReplaceIf(&pass), |w| w.write_all(b"ours")).unwrap();
+        assert_eq!(std::fs::read(&target).unwrap(), b"ours");
+        let names: Vec<_> = std::fs::read_dir(&*dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        assert_eq!(names, ["e.usda"]);
+    }
+
+    #[test]
+    fn rename_no_replace_refuses_an_existing_name() {
+        let dir = fresh_dir("noreplace");
+        let (a, b) = (dir.join("a"), dir.join("b"));
+        std::fs::write(&a, b"a").unwrap();
+        std::fs::write(&b, b"b").unwrap();
+        let e = rename_no_replace(&a, &b).unwrap_err();
+        assert_eq!(e.kind(), std::io::ErrorKind::AlreadyExists);
+        std::fs::remove_file(&b).unwrap();
+        rename_no_replace(&a, &b).unwrap();
+        assert!(!a.exists());
+        assert_eq!(std::fs::read(&b).unwrap(), b"a");
     }
 }

@@ -14,11 +14,12 @@
 //! untouched.
 
 use std::cell::RefCell;
+use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use openusd::sdf::{self, AbstractData, Value};
 
-use super::atomic::{write_atomic, ScratchFile};
+use super::atomic::{write_atomic_as, Publish, ScratchFile};
 use super::layer::Format;
 use super::stage::{StageMetadata, StageReader};
 use super::usda_splice;
@@ -425,15 +426,22 @@ impl EditSession {
     /// docs); an edit that cannot be written without changing anything else
     /// is refused and the file is left untouched.
     pub fn save(self) -> Result<()> {
-        if let Some(guard) = &self.guard {
-            guard.check_unchanged(&self.target)?;
-        }
+        // Checked now, before the work, and again just before the rename.
+        let unchanged = || self.guard.as_ref().map_or(Ok(()), |g| g.check_unchanged(&self.target));
+        unchanged()?;
+        let publish = match (&self.guard, &self._scratch) {
+            (Some(_), _) => Publish::ReplaceIf(&unchanged),
+            // A new edit layer (opened from a scratch header): another
+            // process may create it meanwhile, and keeps its file.
+            (None, Some(_)) => Publish::CreateNew,
+            (None, None) => Publish::Replace,
+        };
         let root = self.reader.stage.root_layer();
         let Some(text) = &self.original_text else {
             // Not a usda target: a crate file, from painterly's crate writer.
             let written = match &self.crate_source {
-                Some(source) => super::usdc::write_edited_layer_file(&self.target, root.data(), source),
-                None => super::usdc::write_layer_file(&self.target, root.data()),
+                Some(source) => super::usdc::write_edited_layer_file(&self.target, root.data(), source, publish),
+                None => super::usdc::write_layer_file_as(&self.target, root.data(), publish),
             };
             drop(root);
             return written;
@@ -455,7 +463,7 @@ impl EditSession {
         let out = usda_splice::splice(text, data, &prims, &defined, &attrs).map_err(refuse)?;
         check_round_trip(text, &out, data).map_err(refuse)?;
         drop(root);
-        write_atomic(&self.target, out.as_bytes())
+        write_atomic_as(&self.target, publish, |w| w.write_all(out.as_bytes()))
     }
 }
 

@@ -80,6 +80,7 @@ pub struct Stored {
     pub values: Vec<ValueHandle>,
 }
 
+use super::atomic::Publish;
 use crate::error::{Error, Result};
 
 /// Serialises a whole layer: every spec in path order, every field in the
@@ -168,15 +169,25 @@ fn add_specs<W: Write + Seek>(
 /// [`write_layer`] into `path`, atomically (a buffered temporary file beside
 /// it, then a rename).
 pub fn write_layer_file(path: &Path, data: &dyn AbstractData) -> Result<()> {
-    write_atomically(path, |out| write_layer(data, out).map(|_| ()))
+    write_layer_file_as(path, data, Publish::Replace)
+}
+
+/// [`write_layer_file`], taking `path`'s place as `publish` says.
+pub fn write_layer_file_as(path: &Path, data: &dyn AbstractData, publish: Publish) -> Result<()> {
+    write_atomically(path, publish, |out| write_layer(data, out).map(|_| ()))
 }
 
 /// [`write_layer_file`] of `data` read from the crate file `source` and
 /// edited: values openusd 0.8 cannot read, or reads wrong, are kept as
 /// `source` holds them ([`recover`]); one that cannot be kept is refused
 /// naming its spec and field, and nothing is written.
-pub fn write_edited_layer_file(path: &Path, data: &dyn AbstractData, source: &CrateSource) -> Result<()> {
-    write_atomically(path, |out| {
+pub fn write_edited_layer_file(
+    path: &Path,
+    data: &dyn AbstractData,
+    source: &CrateSource,
+    publish: Publish,
+) -> Result<()> {
+    write_atomically(path, publish, |out| {
         let mut stream = CrateStream::new(out)?;
         add_specs(&mut stream, data, Some(source), &mut |_| Ok(None))?;
         stream.finish().map(|_| ())
@@ -186,6 +197,10 @@ pub fn write_edited_layer_file(path: &Path, data: &dyn AbstractData, source: &Cr
 /// Runs `write` on a buffered temporary file that becomes `path` only if it
 /// succeeds ([`super::atomic::write_atomic_with`]), keeping `write`'s own
 /// error (which names the spec and field) rather than an I/O one.
-pub fn write_atomically(path: &Path, write: impl FnOnce(&mut BufWriter<File>) -> Result<()>) -> Result<()> {
-    super::atomic::write_atomic_with(path, write)
+pub fn write_atomically(
+    path: &Path,
+    publish: Publish,
+    write: impl FnOnce(&mut BufWriter<File>) -> Result<()>,
+) -> Result<()> {
+    super::atomic::write_atomic_as(path, publish, write)
 }
