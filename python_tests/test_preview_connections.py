@@ -122,8 +122,15 @@ def test_idle_connections_are_capped_and_closed_after_the_header_timeout(fish):
         ws.send(json.dumps({"id": 1, "time": 1}))
         assert ws.recv()[0] == 2
         local = ws.sock.getsockname()
-        ss = subprocess.run(["ss", "-tnoH", "state", "established", f"( sport = :{addr[1]} and dport = :{local[1]} )"],
-                            capture_output=True, text=True, check=True).stdout
+        # ss shows one timer: a retransmit one while sent bytes await
+        # their acknowledgement, the keepalive one once the socket idles.
+        for _ in range(50):
+            ss = subprocess.run(["ss", "-tnoH", "state", "established",
+                                 f"( sport = :{addr[1]} and dport = :{local[1]} )"],
+                                capture_output=True, text=True, check=True).stdout
+            if "timer:(keepalive," in ss:
+                break
+            time.sleep(0.1)
         ws.close()
         assert "timer:(keepalive," in ss, ss
 

@@ -805,6 +805,64 @@ def test_two_edits_creating_one_edit_layer_at_once_never_lose_one(tmp_path, ext)
         assert leftovers(tmp_path) == []
 
 
+def test_an_edit_layer_created_while_an_edit_reads_its_input_is_locked_and_checked(tmp_path):
+    """usd-core creates the edit layer while `key --edit-layer E` reads its
+    input (E was not there when it started), then saves into it. The edit
+    found E, had neither lock nor check (both were decided before the
+    input was read) and replaced usd-core's save with exit 0 (26 of 100
+    tries; the verification of a concurrency fix, 2026-12-07). E is now
+    locked and identified when it is found."""
+    import random
+
+    src, edit = tmp_path / "in.usda", tmp_path / "E.usda"
+    shutil.copy(BLOWFISH, src)
+    lost = []
+    rng = random.Random(7)
+    for i in range(20):
+        edit.unlink(missing_ok=True)
+        made = Sdf.Layer.CreateAnonymous(".usda")
+        made.subLayerPaths.append("./in.usda")
+        Sdf.CreatePrimInLayer(made, "/U1")
+        proc = subprocess.Popen([str(painterly_binary()), "key", str(src), "--layer", "/Blowfish/Paint/Hair",
+                                 "--time", "2", "--time-key", "--name", "ta", "--edit-layer", str(edit), "-q"],
+                                stderr=subprocess.PIPE, text=True)
+        time.sleep(rng.uniform(0.005, 0.045))
+        assert made.Export(str(edit))
+        time.sleep(rng.uniform(0.005, 0.05))
+        layer = Sdf.Layer.FindOrOpen(str(edit))
+        layer.Reload(True)
+        Sdf.CreatePrimInLayer(layer, "/U2")
+        assert layer.Save()
+        del layer
+        code, err = proc.wait(timeout=HANG), proc.stderr.read()
+        after = Sdf.Layer.OpenAsAnonymous(str(edit))
+        if code == 0 and after.GetPrimAtPath("/Blowfish/Paint/Hair/ta") and not (
+                after.GetPrimAtPath("/U1") and after.GetPrimAtPath("/U2")):
+            lost.append(i)
+        elif code != 0:
+            assert code == 1, err
+        assert leftovers(tmp_path) == []
+    assert lost == [], f"tries {lost}: the edit exited 0 over a save it never read"
+
+
+def test_a_new_edit_layer_named_through_a_dangling_link_replaces_the_link(tmp_path):
+    """`latest.usda -> v003/E.usda` before v003/E.usda exists: the edit
+    writes latest.usda as a file, as usd-core's save does. The first
+    no-replace publish saw the link's name as taken and refused every time,
+    blaming another process."""
+    src = tmp_path / "in.usda"
+    shutil.copy(BLOWFISH, src)
+    (tmp_path / "v003").mkdir()
+    link = tmp_path / "latest.usda"
+    link.symlink_to("v003/E.usda")
+    proc = run("key", src, "--layer", "/Blowfish/Paint/Hair", "--time", "2", "--time-key", "--name", "ta",
+               "--edit-layer", link, "-q")
+    assert (proc.returncode, proc.stderr) == (0, "")
+    assert not link.is_symlink()
+    assert Sdf.Layer.OpenAsAnonymous(str(link)).GetPrimAtPath("/Blowfish/Paint/Hair/ta")
+    assert leftovers(tmp_path) == []
+
+
 def test_an_in_place_edit_never_replaces_a_save_made_while_it_ran(tmp_path):
     """usd-core saves the file while `key --in-place` runs. The edit
     checked the file before splicing and writing, about 40 ms before its

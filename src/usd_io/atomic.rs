@@ -529,6 +529,9 @@ impl TempFile {
                 }
                 std::fs::rename(&self.path, target)
             }
+            // A dangling link is replaced itself, as usd-core's save does
+            // (the no-replace rename would see its name as taken).
+            Publish::CreateNew if is_symlink(target) => std::fs::rename(&self.path, target),
             Publish::CreateNew => match rename_no_replace(&self.path, target) {
                 Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
                     drop(reg);
@@ -614,9 +617,21 @@ fn rename_no_replace(from: &Path, to: &Path) -> std::io::Result<()> {
     if !matches!(e.raw_os_error(), Some(libc::EINVAL | libc::ENOSYS)) {
         return Err(e);
     }
-    std::fs::hard_link(from, to)?;
-    let _ = std::fs::remove_file(from);
-    Ok(())
+    match std::fs::hard_link(from, to) {
+        Ok(()) => {
+            let _ = std::fs::remove_file(from);
+            Ok(())
+        }
+        Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => Err(e),
+        // No hard links either (some network and FUSE filesystems): a
+        // look, then a rename, which narrows the race to microseconds.
+        Err(_) if std::fs::symlink_metadata(to).is_ok() => Err(std::io::ErrorKind::AlreadyExists.into()),
+        Err(_) => std::fs::rename(from, to),
+    }
+}
+
+fn is_symlink(p: &Path) -> bool {
+    std::fs::symlink_metadata(p).is_ok_and(|m| m.file_type().is_symlink())
 }
 
 /// The file a write to `target` replaces: through a symbolic link, the
@@ -1370,6 +1385,16 @@ mod tests {
             .map(|e| e.unwrap().file_name())
             .collect();
         assert_eq!(names, ["e.usda"]);
+    }
+
+    #[test]
+    fn a_new_file_named_by_a_dangling_link_replaces_the_link() {
+        let dir = fresh_dir("create-new-link");
+        let link = dir.join("latest.usda");
+        std::os::unix::fs::symlink("v003/e.usda", &link).unwrap();
+        write_atomic_as(&link, Publish::CreateNew, |w| w.write_all(b"new")).unwrap();
+        assert!(!is_symlink(&link));
+        assert_eq!(std::fs::read(&link).unwrap(), b"new");
     }
 
     #[test]

@@ -237,7 +237,7 @@ impl EditSession {
         // would change what they capture.
         input_reader.require_resolved().map_err(|e| e.in_file(input))?;
         let input_meta = input_reader.metadata();
-        let session = |reader, target: &Path, original_text, crate_source, scratch| EditSession {
+        let session = |guard, reader, target: &Path, original_text, crate_source, scratch| EditSession {
             guard,
             reader,
             input_meta: input_meta.clone(),
@@ -257,7 +257,7 @@ impl EditSession {
                 }
                 let text = read_text(input)?;
                 let source = crate_source(input, &text, input_stamp)?;
-                Ok(session(input_reader, input, text, source, None))
+                Ok(session(guard, input_reader, input, text, source, None))
             }
             EditTarget::Layer(edit) => {
                 Format::from_path(edit)?;
@@ -268,12 +268,18 @@ impl EditSession {
                     );
                 }
                 if edit.exists() {
+                    // Created by another process while the input was read:
+                    // locked and identified now, before it is read.
+                    let guard = match guard {
+                        Some(g) => g,
+                        None => TargetGuard::take(edit)?,
+                    };
                     let edit_stamp = file_id(edit);
                     let text = read_text(edit)?;
                     let reader = StageReader::open(edit)?;
                     require_over(&reader, input, edit)?;
                     let source = crate_source(edit, &text, edit_stamp)?;
-                    return Ok(session(reader, edit, text, source, None));
+                    return Ok(session(Some(guard), reader, edit, text, source, None));
                 }
                 let dir = match edit.parent() {
                     Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
@@ -335,7 +341,7 @@ impl EditSession {
                     ..StageReader::open(scratch.path())?
                 };
                 let text = (Format::from_path(edit)? == Format::Usda).then_some(header);
-                Ok(session(reader, edit, text, None, Some(scratch)))
+                Ok(session(None, reader, edit, text, None, Some(scratch)))
             }
         }
     }
