@@ -152,7 +152,11 @@ def test_a_full_stdout_is_a_failed_write(repo_root):
 
 
 @pytest.mark.skipif(not pathlib.Path("/dev/full").exists(), reason="no /dev/full")
-@pytest.mark.parametrize("command", [["bind", "{src}", "--in-place", "--json"], ["bake", "{src}", "-o", "{out}", "--frames", "1:2"]])
+@pytest.mark.parametrize("command", [
+    ["bind", "{src}", "--in-place", "--json"],
+    ["bake", "{src}", "-o", "{out}", "--frames", "1:2"],
+    ["render", "{src}", "--camera", "/Blowfish/Camera", "-o", "{frames}", "--frames", "1:2", "--size", "64x36"],
+])
 def test_a_full_stdout_after_the_write_says_the_file_was_written(repo_root, tmp_path, command):
     """The report fails after the work is saved: exit 1 as before, and the
     message now says the file was written, so a TD does not redo an
@@ -162,17 +166,18 @@ def test_a_full_stdout_after_the_write_says_the_file_was_written(repo_root, tmp_
 
     from conftest import painterly_binary
 
-    src, out = tmp_path / "fish.usda", tmp_path / "fish_bake.usdc"
+    src, out, frames = tmp_path / "fish.usda", tmp_path / "fish_bake.usdc", tmp_path / "f.####.exr"
     shutil.copy(repo_root / "fixtures" / "blowfish.usda", src)
-    written = src if command[0] == "bind" else out
+    written = {"bind": [src], "bake": [out], "render": [tmp_path / "f.0001.exr", tmp_path / "f.0002.exr"]}[command[0]]
     with open("/dev/full", "w") as full:
-        proc = subprocess.run([str(painterly_binary()), *(a.format(src=src, out=out) for a in command)],
+        proc = subprocess.run([str(painterly_binary()), *(a.format(src=src, out=out, frames=frames) for a in command)],
                               stdout=full, stderr=subprocess.PIPE, text=True, timeout=120)
     assert proc.returncode == 1
-    assert proc.stderr == (
-        "error: failed printing to stdout: No space left on device (os error 28)"
-        f" ({written} was written before it)\n"), proc.stderr
-    assert sorted(p.name for p in tmp_path.iterdir()) == sorted({src.name, written.name})
+    # The render's own bake, in a temporary folder, is not counted.
+    said = (f"({written[0]} was written before it)" if len(written) == 1
+            else f"(2 files were written before it, the first {written[0]})")
+    assert proc.stderr == f"error: failed printing to stdout: No space left on device (os error 28) {said}\n", proc.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted({src.name, *(w.name for w in written)})
 
 
 def test_verbose_times_each_stage_of_the_bake(painterly, repo_root, tmp_path):

@@ -545,7 +545,10 @@ impl TempFile {
             },
         };
         unregister(&mut reg, &self.path);
-        if renamed.is_ok() {
+        // Files in a temporary folder of ours (a render's own bake) are
+        // not what the user asked for.
+        let scratch = reg.live.iter().any(|(p, lock)| lock.is_none() && target.starts_with(p));
+        if renamed.is_ok() && !scratch {
             reg.published += 1;
             reg.first_published.get_or_insert_with(|| target.clone());
         }
