@@ -60,6 +60,22 @@ def status_then_closed(sock, seconds):
     return int(buf.split()[1]) if buf else 0
 
 
+def server_ss(port, client_port):
+    """`ss -o` of the server's end of the connection from `client_port`."""
+    return subprocess.run(["ss", "-tnoH", "state", "established", f"( sport = :{port} and dport = :{client_port} )"],
+                          capture_output=True, text=True, check=True).stdout
+
+
+def server_side_closed(port, client_port, seconds):
+    """Whether the server closes its end of that connection within `seconds`."""
+    deadline = time.monotonic() + seconds
+    while server_ss(port, client_port).strip():
+        if time.monotonic() > deadline:
+            return False
+        time.sleep(0.2)
+    return True
+
+
 def closed_within(sock, seconds):
     """Whether the server closes `sock` within `seconds` (it sends nothing)."""
     sock.settimeout(seconds)
@@ -73,11 +89,13 @@ def closed_within(sock, seconds):
 
 def test_idle_connections_are_capped_and_closed_after_the_header_timeout(fish):
     """256 connections that never send a request (one of them kept alive
-    after one, four more stalled in a request's body) hold every slot: a
-    new request waits, not refused, until the server closes the idle ones
-    30 s after their last request (the stalled ones get 408 first), and is
-    then answered. Before, nothing bounded them: a client holding idle or
-    half-sent requests used up the server's file descriptors."""
+    after one, four more stalled in a request's body, one pipelining
+    requests whose replies it never reads) hold every slot: a new request
+    waits, not refused, until the server closes the idle ones 30 s after
+    their last request (the stalled ones get 408 first) and the unread one
+    30 s after its replies stopped, and is then answered. Before, nothing
+    bounded them: a client holding idle, half-sent or unread requests used
+    up the server's file descriptors."""
     with PreviewServer(fish) as server:
         addr, host = address(server)
         kept = socket.create_connection(addr)
@@ -89,7 +107,14 @@ def test_idle_connections_are_capped_and_closed_after_the_header_timeout(fish):
             s.sendall(f"POST /{path} HTTP/1.1\r\nHost: {host}\r\nContent-Type: application/json\r\n"
                       "Content-Length: 2000000\r\n\r\n{\"id\": 1, ".encode())
             stalled.append(s)
-        idle = [socket.create_connection(addr) for _ in range(MAX_CONNECTIONS - 1 - len(stalled))]
+        # A client that pipelines requests and never reads the replies:
+        # the server's writes wait, and no header timer runs then.
+        unread = socket.create_connection(addr)
+        request = json.dumps({"id": 1, "time": 1}).encode()
+        head = (f"POST /api/frame HTTP/1.1\r\nHost: {host}\r\nContent-Type: application/json\r\n"
+                f"Content-Length: {len(request)}\r\n\r\n").encode()
+        unread.sendall(60 * (head + request))
+        idle = [socket.create_connection(addr) for _ in range(MAX_CONNECTIONS - 2 - len(stalled))]
         opened = time.monotonic()
         answered = {}
 
@@ -108,11 +133,12 @@ def test_idle_connections_are_capped_and_closed_after_the_header_timeout(fish):
             assert closed_within(kept, HEADER_TIMEOUT + 30)
             assert all(closed_within(s, 30) for s in idle)
             assert [status_then_closed(s, 30) for s in stalled] == [408] * len(stalled)
+            assert server_side_closed(addr[1], unread.getsockname()[1], 30), "an unread reply kept its slot"
             t.join(30)
             assert answered.get("status") == 200
             assert HEADER_TIMEOUT - 5 < answered["after"] < HEADER_TIMEOUT + 60
         finally:
-            for s in [kept, *idle, *stalled]:
+            for s in [kept, *idle, *stalled, unread]:
                 s.close()
             t.join(120)
         assert server.alive()
@@ -125,9 +151,7 @@ def test_idle_connections_are_capped_and_closed_after_the_header_timeout(fish):
         # ss shows one timer: a retransmit one while sent bytes await
         # their acknowledgement, the keepalive one once the socket idles.
         for _ in range(50):
-            ss = subprocess.run(["ss", "-tnoH", "state", "established",
-                                 f"( sport = :{addr[1]} and dport = :{local[1]} )"],
-                                capture_output=True, text=True, check=True).stdout
+            ss = server_ss(addr[1], local[1])
             if "timer:(keepalive," in ss:
                 break
             time.sleep(0.1)
@@ -143,9 +167,12 @@ def test_requests_of_a_page_that_has_gone_are_not_evaluated(fish):
     with PreviewServer(fish, "-v") as server:
         addr, host = address(server)
         render = {"frame": {"time": 1}, "camera": CAMERA, "width": 4096, "height": 4096}
-        busy = threading.Thread(target=lambda: server.request("api/render", body=render))
-        busy.start()
-        time.sleep(0.3)  # the render is queued first (it takes about 1.5 s)
+        busy = [threading.Thread(target=lambda: server.request("api/render", body=render)) for _ in range(3)]
+        for b in busy:
+            b.start()
+        # The renders are queued first; they take about 1 s each, the pages
+        # below about 0.3 s in all.
+        time.sleep(0.3)
         for i in range(10):
             ws = WebSocket(server.url)
             ws.send(json.dumps({"id": 100 + i, "time": 2}))
@@ -156,7 +183,8 @@ def test_requests_of_a_page_that_has_gone_are_not_evaluated(fish):
             s.sendall(f"POST /api/frame HTTP/1.1\r\nHost: {host}\r\nContent-Type: application/json\r\n"
                       f"Content-Length: {len(body)}\r\n\r\n".encode() + body)
             s.close()
-        busy.join(120)
+        for b in busy:
+            b.join(120)
         ws = WebSocket(server.url)
         ws.send(json.dumps({"id": 1, "time": 4}))
         assert ws.recv()[0] == 2
@@ -165,7 +193,7 @@ def test_requests_of_a_page_that_has_gone_are_not_evaluated(fish):
         log = server.proc.stderr.read()
     frames = re.findall(r"preview: frame request (\d+) at time", log)
     assert frames == ["1"], log
-    assert log.count("preview: render of 4096x4096 at time 1 in ") == 1, log
+    assert log.count("preview: render of 4096x4096 at time 1 in ") == 3, log
     # The websocket requests reach the evaluator's queue (a request is
     # queued before the socket is watched) and are skipped there; HTTP
     # ones may be dropped before (hyper saw the close first).

@@ -1,14 +1,17 @@
 //! Accepting connections, with the bounds `axum::serve` lacks: at most
 //! [`MAX_CONNECTIONS`] open at once (a page's websocket counts until it
-//! closes), and a connection that sends no request headers within
+//! closes); a connection that sends no request headers within
 //! [`HEADER_TIMEOUT`] (a new one, or one kept alive between requests) is
-//! closed; the handlers bound a request's body by [`BODY_TIMEOUT`]. Without
-//! them a client holding idle or half-sent requests used up the process's
-//! file descriptors, and every new page then waited. Past the cap, new
-//! connections wait in the kernel's backlog, not in ours. TCP keepalive
-//! frees the slot of a peer that vanished (a laptop off the network with
-//! `--host`) within about two minutes.
+//! closed; the handlers bound a request's body by [`BODY_TIMEOUT`]; and a
+//! reply the client has not taken for [`WRITE_TIMEOUT`] ends the
+//! connection. Without them a client holding idle, half-sent or unread
+//! requests held its slot for ever, and every new page then waited. Past
+//! the cap, new connections wait in the kernel's backlog, not in ours. TCP
+//! keepalive and `TCP_USER_TIMEOUT` free the slot of a peer that vanished
+//! (a laptop off the network with `--host`) within about two minutes,
+//! whether or not a reply was in flight.
 
+use std::future::Future;
 use std::io;
 use std::pin::Pin;
 use std::sync::Arc;
@@ -34,11 +37,17 @@ pub const HEADER_TIMEOUT: Duration = Duration::from_secs(30);
 /// (a frame request is a few hundred bytes, the limit 2 MiB).
 pub const BODY_TIMEOUT: Duration = Duration::from_secs(30);
 
-/// TCP keepalive: first probe after a minute idle, then every 10 s; six
-/// unanswered probes end the connection.
-const KEEPALIVE_IDLE_S: libc::c_int = 60;
-const KEEPALIVE_INTERVAL_S: libc::c_int = 10;
-const KEEPALIVE_PROBES: libc::c_int = 6;
+/// How long a reply may wait for the client to take it (a page reads
+/// every frame as it comes; a client that does not is gone or hostile).
+pub const WRITE_TIMEOUT: Duration = Duration::from_secs(30);
+
+/// TCP keepalive: first probe after a minute idle, then every 10 s; and
+/// sent data unacknowledged for two minutes ends the connection (Linux
+/// probes only idle connections).
+const KEEPALIVE_IDLE: Duration = Duration::from_secs(60);
+const KEEPALIVE_INTERVAL: Duration = Duration::from_secs(10);
+const KEEPALIVE_PROBES: u32 = 6;
+const UNACKNOWLEDGED: Duration = Duration::from_secs(120);
 
 /// Serves `router` on `listener` until the process ends.
 pub async fn serve(listener: TcpListener, router: Router) {
@@ -60,7 +69,11 @@ pub async fn serve(listener: TcpListener, router: Router) {
             }
         };
         keep_alive(&stream);
-        let io = TokioIo::new(Counted { stream, _slot: slot });
+        let io = TokioIo::new(Counted {
+            stream,
+            _slot: slot,
+            stalled: None,
+        });
         let service = TowerToHyperService::new(router.clone());
         tokio::spawn(async move {
             let mut builder = http1::Builder::new();
@@ -72,28 +85,17 @@ pub async fn serve(listener: TcpListener, router: Router) {
     }
 }
 
-/// Turns TCP keepalive on for `stream` (best effort: a failure leaves the
-/// connection as the system made it).
+/// Turns TCP keepalive and the unacknowledged-data timeout on for
+/// `stream` (best effort: a failure leaves the connection as the system
+/// made it).
 fn keep_alive(stream: &TcpStream) {
-    use std::os::fd::AsRawFd;
-    let fd = stream.as_raw_fd();
-    let set = |level, name, value: libc::c_int| {
-        // SAFETY: setsockopt on a socket this process owns, with a pointer
-        // to an int and its size.
-        unsafe {
-            libc::setsockopt(
-                fd,
-                level,
-                name,
-                std::ptr::from_ref(&value).cast(),
-                std::mem::size_of::<libc::c_int>() as libc::socklen_t,
-            )
-        }
-    };
-    set(libc::SOL_SOCKET, libc::SO_KEEPALIVE, 1);
-    set(libc::IPPROTO_TCP, libc::TCP_KEEPIDLE, KEEPALIVE_IDLE_S);
-    set(libc::IPPROTO_TCP, libc::TCP_KEEPINTVL, KEEPALIVE_INTERVAL_S);
-    set(libc::IPPROTO_TCP, libc::TCP_KEEPCNT, KEEPALIVE_PROBES);
+    let socket = socket2::SockRef::from(stream);
+    let keepalive = socket2::TcpKeepalive::new()
+        .with_time(KEEPALIVE_IDLE)
+        .with_interval(KEEPALIVE_INTERVAL)
+        .with_retries(KEEPALIVE_PROBES);
+    let _ = socket.set_tcp_keepalive(&keepalive);
+    let _ = socket.set_tcp_user_timeout(Some(UNACKNOWLEDGED));
 }
 
 fn is_connection_error(e: &io::Error) -> bool {
@@ -105,10 +107,41 @@ fn is_connection_error(e: &io::Error) -> bool {
 
 /// A connection holding its slot: the slot is freed when the stream is
 /// dropped, which for a websocket is when the socket closes (the upgrade
-/// carries the stream, and this with it).
+/// carries the stream, and this with it). A write the client leaves
+/// waiting for [`WRITE_TIMEOUT`] fails, which ends the connection.
 struct Counted {
     stream: TcpStream,
     _slot: OwnedSemaphorePermit,
+    /// Since when writes have waited for the client, as a deadline.
+    stalled: Option<Pin<Box<tokio::time::Sleep>>>,
+}
+
+impl Counted {
+    /// `poll` (a write or flush) bounded by [`WRITE_TIMEOUT`] of waiting.
+    fn bounded<T>(
+        &mut self,
+        cx: &mut Context<'_>,
+        poll: impl FnOnce(Pin<&mut TcpStream>, &mut Context<'_>) -> Poll<io::Result<T>>,
+    ) -> Poll<io::Result<T>> {
+        match poll(Pin::new(&mut self.stream), cx) {
+            Poll::Pending => {
+                let stalled = self
+                    .stalled
+                    .get_or_insert_with(|| Box::pin(tokio::time::sleep(WRITE_TIMEOUT)));
+                match stalled.as_mut().poll(cx) {
+                    Poll::Ready(()) => Poll::Ready(Err(io::Error::new(
+                        io::ErrorKind::TimedOut,
+                        format!("the client took nothing of the reply for {} s", WRITE_TIMEOUT.as_secs()),
+                    ))),
+                    Poll::Pending => Poll::Pending,
+                }
+            }
+            done => {
+                self.stalled = None;
+                done
+            }
+        }
+    }
 }
 
 impl AsyncRead for Counted {
@@ -119,7 +152,7 @@ impl AsyncRead for Counted {
 
 impl AsyncWrite for Counted {
     fn poll_write(mut self: Pin<&mut Self>, cx: &mut Context<'_>, buf: &[u8]) -> Poll<io::Result<usize>> {
-        Pin::new(&mut self.stream).poll_write(cx, buf)
+        self.bounded(cx, |s, cx| s.poll_write(cx, buf))
     }
 
     fn poll_write_vectored(
@@ -127,7 +160,7 @@ impl AsyncWrite for Counted {
         cx: &mut Context<'_>,
         bufs: &[io::IoSlice<'_>],
     ) -> Poll<io::Result<usize>> {
-        Pin::new(&mut self.stream).poll_write_vectored(cx, bufs)
+        self.bounded(cx, |s, cx| s.poll_write_vectored(cx, bufs))
     }
 
     fn is_write_vectored(&self) -> bool {
@@ -135,7 +168,7 @@ impl AsyncWrite for Counted {
     }
 
     fn poll_flush(mut self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<io::Result<()>> {
-        Pin::new(&mut self.stream).poll_flush(cx)
+        self.bounded(cx, |s, cx| s.poll_flush(cx))
     }
 
     fn poll_shutdown(mut self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<io::Result<()>> {

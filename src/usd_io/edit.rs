@@ -269,17 +269,19 @@ impl EditSession {
                 }
                 if edit.exists() {
                     // Created by another process while the input was read:
-                    // locked and identified now, before it is read.
+                    // locked and identified now, before it is read. Not a
+                    // regular file (a FIFO, whose open would wait for a
+                    // writer): refused by `read_text` below.
                     let guard = match guard {
-                        Some(g) => g,
-                        None => TargetGuard::take(edit)?,
+                        None if edit.is_file() => Some(TargetGuard::take(edit)?),
+                        guard => guard,
                     };
                     let edit_stamp = file_id(edit);
                     let text = read_text(edit)?;
                     let reader = StageReader::open(edit)?;
                     require_over(&reader, input, edit)?;
                     let source = crate_source(edit, &text, edit_stamp)?;
-                    return Ok(session(Some(guard), reader, edit, text, source, None));
+                    return Ok(session(guard, reader, edit, text, source, None));
                 }
                 let dir = match edit.parent() {
                     Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
