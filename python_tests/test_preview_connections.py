@@ -198,3 +198,39 @@ def test_requests_of_a_page_that_has_gone_are_not_evaluated(fish):
     # queued before the socket is watched) and are skipped there; HTTP
     # ones may be dropped before (hyper saw the close first).
     assert 10 <= log.count("preview: a request skipped (its client has gone)") <= 15, log
+
+
+def cpu_seconds(pid):
+    """User + system CPU time of process `pid` so far."""
+    import os
+
+    fields = open(f"/proc/{pid}/stat").read().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def test_out_of_descriptors_the_server_waits_then_serves(fish):
+    """With the server's descriptors used up, `accept` fails (EMFILE) while
+    the connection stays queued: retrying at once would spin a core until
+    one frees. The server waits between tries, and serves once they free."""
+    import os
+    import resource
+
+    with PreviewServer(fish) as server:
+        addr, host = address(server)
+        pid = server.proc.pid
+        old = resource.prlimit(pid, resource.RLIMIT_NOFILE)
+        used = len(os.listdir(f"/proc/{pid}/fd"))
+        resource.prlimit(pid, resource.RLIMIT_NOFILE, (used + 8, old[1]))
+        socks = [socket.create_connection(addr) for _ in range(24)]
+        try:
+            time.sleep(0.5)
+            before = cpu_seconds(pid)
+            time.sleep(2)
+            spent = cpu_seconds(pid) - before
+            assert spent < 0.5, f"{spent:.2f} s of CPU in 2 s with no descriptor to accept into"
+        finally:
+            for s in socks:
+                s.close()
+            resource.prlimit(pid, resource.RLIMIT_NOFILE, old)
+        status, _, _ = server.request("api/scene")
+        assert status == 200 and server.alive()
