@@ -521,13 +521,49 @@ impl TempFile {
         let renamed = match publish {
             Publish::Replace => std::fs::rename(&self.path, target),
             Publish::ReplaceIf(check) => {
-                // Checked here, a stat before the rename, not before the
-                // work: a save by another program during the work is seen.
-                if let Err(e) = check() {
+                // Checked here, not before the work: a save by another
+                // program during the work is seen.
+                if let Err(e) = check(target) {
                     drop(reg);
                     return Err(e);
                 }
-                std::fs::rename(&self.path, target)
+                match exchange(&self.path, target) {
+                    // The replaced file is now at the temporary's path; a
+                    // save that landed between the check and the exchange
+                    // is what is there, and goes back.
+                    Ok(()) => match check(&self.path) {
+                        Ok(()) => {
+                            let _ = std::fs::remove_file(&self.path);
+                            Ok(())
+                        }
+                        Err(e) => {
+                            let back = exchange(&self.path, target);
+                            drop(reg);
+                            if back.is_err() {
+                                // Theirs stays at the temporary's path:
+                                // never removed, and said where.
+                                self.persisted = true;
+                                return Err(Error::msg(format!(
+                                    "{}; the other program's version could not be put back and is at {}",
+                                    e.message,
+                                    self.path.display()
+                                ))
+                                .in_file(target));
+                            }
+                            return Err(e);
+                        }
+                    },
+                    Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+                        drop(reg);
+                        return Err(check(target).err().unwrap_or_else(|| e.report().in_file(target)));
+                    }
+                    // No exchange on this filesystem: the check just before
+                    // the rename is all there is.
+                    Err(e) if matches!(e.raw_os_error(), Some(libc::EINVAL | libc::ENOSYS)) => {
+                        std::fs::rename(&self.path, target)
+                    }
+                    Err(e) => Err(e),
+                }
             }
             // A dangling link is replaced itself, as usd-core's save does
             // (the no-replace rename would see its name as taken).
@@ -588,35 +624,42 @@ pub fn published() -> (usize, Option<PathBuf>) {
 pub enum Publish<'a> {
     /// Whatever is there is replaced (a bake's output).
     Replace,
-    /// The file is replaced if `check` passes just before the rename (an
-    /// in-place edit: the file must still be the version it read).
-    ReplaceIf(&'a dyn Fn() -> Result<()>),
+    /// The file is replaced if it is still the version read: `check(at)`
+    /// says whether the file at `at` is. It runs on the target just before
+    /// an atomic exchange, then on the file the exchange took out, which
+    /// is put back when another program saved in between (an in-place
+    /// edit).
+    ReplaceIf(&'a dyn Fn(&Path) -> Result<()>),
     /// Only if nothing is there (a new edit layer: another process may
     /// create it meanwhile, and its file must not be lost).
     CreateNew,
+}
+
+/// Swaps the files at `a` and `b` atomically (`renameat2(RENAME_EXCHANGE)`).
+fn exchange(a: &Path, b: &Path) -> std::io::Result<()> {
+    renameat2(a, b, libc::RENAME_EXCHANGE)
+}
+
+fn renameat2(from: &Path, to: &Path, flags: libc::c_uint) -> std::io::Result<()> {
+    use std::os::unix::ffi::OsStrExt;
+    let c = |p: &Path| std::ffi::CString::new(p.as_os_str().as_bytes()).map_err(std::io::Error::other);
+    let (f, t) = (c(from)?, c(to)?);
+    // SAFETY: both are valid NUL-terminated paths for the duration of the call.
+    let r = unsafe { libc::renameat2(libc::AT_FDCWD, f.as_ptr(), libc::AT_FDCWD, t.as_ptr(), flags) };
+    if r == 0 {
+        Ok(())
+    } else {
+        Err(std::io::Error::last_os_error())
+    }
 }
 
 /// Renames `from` to `to` unless `to` exists (`AlreadyExists` then).
 /// `renameat2(RENAME_NOREPLACE)`; where the filesystem lacks it, a hard
 /// link (which fails on an existing name too) and an unlink.
 fn rename_no_replace(from: &Path, to: &Path) -> std::io::Result<()> {
-    use std::os::unix::ffi::OsStrExt;
-    let c = |p: &Path| std::ffi::CString::new(p.as_os_str().as_bytes()).map_err(std::io::Error::other);
-    let (f, t) = (c(from)?, c(to)?);
-    // SAFETY: both are valid NUL-terminated paths for the duration of the call.
-    let r = unsafe {
-        libc::renameat2(
-            libc::AT_FDCWD,
-            f.as_ptr(),
-            libc::AT_FDCWD,
-            t.as_ptr(),
-            libc::RENAME_NOREPLACE,
-        )
-    };
-    if r == 0 {
+    let Err(e) = renameat2(from, to, libc::RENAME_NOREPLACE) else {
         return Ok(());
-    }
-    let e = std::io::Error::last_os_error();
+    };
     if !matches!(e.raw_os_error(), Some(libc::EINVAL | libc::ENOSYS)) {
         return Err(e);
     }
@@ -1373,14 +1416,30 @@ mod tests {
         let target = dir.join("e.usda");
         std::fs::write(&target, b"theirs").unwrap();
         let checks = std::cell::Cell::new(0);
-        let refuse = || {
+        let refuse = |_: &Path| {
             checks.set(checks.get() + 1);
             Err(Error::msg("changed"))
         };
         let e = write_atomic_as(&target, Publish::ReplaceIf(&refuse), |w| w.write_all(b"ours")).unwrap_err();
         assert_eq!((e.message.as_str(), checks.get()), ("changed", 1));
         assert_eq!(std::fs::read(&target).unwrap(), b"theirs");
-        let pass = || Ok(());
+        // A save between the check and the exchange: the file taken out is
+        // not the version read, and goes back.
+        let seen = std::cell::RefCell::new(Vec::new());
+        let late = |at: &Path| {
+            seen.borrow_mut().push(std::fs::read(at).unwrap());
+            if seen.borrow().len() == 1 {
+                std::fs::write(at, b"saved meanwhile").unwrap();
+                Ok(())
+            } else {
+                Err(Error::msg("changed"))
+            }
+        };
+        let e = write_atomic_as(&target, Publish::ReplaceIf(&late), |w| w.write_all(b"ours")).unwrap_err();
+        assert_eq!(e.message, "changed");
+        assert_eq!(*seen.borrow(), [b"theirs".to_vec(), b"saved meanwhile".to_vec()]);
+        assert_eq!(std::fs::read(&target).unwrap(), b"saved meanwhile");
+        let pass = |_: &Path| Ok(());
         write_atomic_as(&target, Publish::ReplaceIf(&pass), |w| w.write_all(b"ours")).unwrap();
         assert_eq!(std::fs::read(&target).unwrap(), b"ours");
         let names: Vec<_> = std::fs::read_dir(&*dir)

@@ -135,8 +135,10 @@ impl TargetGuard {
         }
     }
 
-    fn check_unchanged(&self, path: &Path) -> Result<()> {
-        if file_id(path) == Some(self.read) {
+    /// Fails, naming `path`, unless the file at `at` (`path` itself, or
+    /// where the publish moved the file it replaced) is the version read.
+    fn check_unchanged(&self, path: &Path, at: &Path) -> Result<()> {
+        if file_id(at) == Some(self.read) {
             return Ok(());
         }
         Err(Error::msg(
@@ -434,9 +436,13 @@ impl EditSession {
     /// docs); an edit that cannot be written without changing anything else
     /// is refused and the file is left untouched.
     pub fn save(self) -> Result<()> {
-        // Checked now, before the work, and again just before the rename.
-        let unchanged = || self.guard.as_ref().map_or(Ok(()), |g| g.check_unchanged(&self.target));
-        unchanged()?;
+        // Checked now, before the work, and again at the rename.
+        let unchanged = |at: &Path| {
+            self.guard
+                .as_ref()
+                .map_or(Ok(()), |g| g.check_unchanged(&self.target, at))
+        };
+        unchanged(&self.target)?;
         let publish = match (&self.guard, &self._scratch) {
             (Some(_), _) => Publish::ReplaceIf(&unchanged),
             // A new edit layer (opened from a scratch header): another
