@@ -214,42 +214,40 @@ fn parse<T: serde::de::DeserializeOwned>(headers: &HeaderMap, body: &Bytes) -> R
 /// [`BODY_TIMEOUT`]: a client that sends headers and then stalls would
 /// otherwise hold its connection for ever (hyper bounds only the headers).
 /// Over the body limit: axum's own 413.
-async fn body_in_time(req: Request) -> Result<(HeaderMap, Bytes), Response> {
-    let headers = req.headers().clone();
-    match tokio::time::timeout(BODY_TIMEOUT, Bytes::from_request(req, &())).await {
-        Ok(Ok(body)) => Ok((headers, body)),
-        Ok(Err(rejection)) => Err(rejection.into_response()),
-        Err(_) => Err(ApiError(
-            StatusCode::REQUEST_TIMEOUT,
-            format!("the request body did not arrive within {} s", BODY_TIMEOUT.as_secs()),
-        )
-        .into_response()),
+struct BodyInTime(HeaderMap, Bytes);
+
+impl<S: Send + Sync> FromRequest<S> for BodyInTime {
+    type Rejection = Response;
+
+    async fn from_request(req: Request, state: &S) -> Result<Self, Response> {
+        let headers = req.headers().clone();
+        match tokio::time::timeout(BODY_TIMEOUT, Bytes::from_request(req, state)).await {
+            Ok(Ok(body)) => Ok(BodyInTime(headers, body)),
+            Ok(Err(rejection)) => Err(rejection.into_response()),
+            Err(_) => Err(ApiError(
+                StatusCode::REQUEST_TIMEOUT,
+                format!("the request body did not arrive within {} s", BODY_TIMEOUT.as_secs()),
+            )
+            .into_response()),
+        }
     }
 }
 
-async fn frame(State(state): State<Arc<AppState>>, req: Request) -> Response {
-    match body_in_time(req).await {
-        Ok((headers, body)) => frame_of(&state, &headers, &body).await.into_response(),
-        Err(refused) => refused,
-    }
-}
-
-async fn frame_of(state: &AppState, headers: &HeaderMap, body: &Bytes) -> Result<Response, ApiError> {
-    let req: FrameRequest = parse(headers, body)?;
+async fn frame(
+    State(state): State<Arc<AppState>>,
+    BodyInTime(headers, body): BodyInTime,
+) -> Result<Response, ApiError> {
+    let req: FrameRequest = parse(&headers, &body)?;
     req.check(&state.evaluator.axes)?;
     let bytes = state.evaluator.frame(req).await?;
     Ok(binary(bytes, "application/octet-stream"))
 }
 
-async fn render(State(state): State<Arc<AppState>>, req: Request) -> Response {
-    match body_in_time(req).await {
-        Ok((headers, body)) => render_of(&state, &headers, &body).await.into_response(),
-        Err(refused) => refused,
-    }
-}
-
-async fn render_of(state: &AppState, headers: &HeaderMap, body: &Bytes) -> Result<Response, ApiError> {
-    let req: RenderRequest = parse(headers, body)?;
+async fn render(
+    State(state): State<Arc<AppState>>,
+    BodyInTime(headers, body): BodyInTime,
+) -> Result<Response, ApiError> {
+    let req: RenderRequest = parse(&headers, &body)?;
     req.check(&state.evaluator.axes)?;
     let png = state.evaluator.render(req).await?;
     Ok(binary(png, "image/png"))

@@ -517,85 +517,86 @@ impl TempFile {
         if let Some(old) = check_replaceable(target)? {
             std::fs::set_permissions(&self.path, old.permissions()).map_err(|e| e.report().in_file(target))?;
         }
+        // Under the registry's lock: a signal cannot remove the temporary
+        // half-way through.
         let mut reg = registry();
-        let renamed = match publish {
-            Publish::Replace => std::fs::rename(&self.path, target),
-            Publish::ReplaceIf(check) => {
-                // Checked here, not before the work: a save by another
-                // program during the work is seen.
-                if let Err(e) = check(target) {
-                    drop(reg);
-                    return Err(e);
-                }
-                match exchange(&self.path, target) {
-                    // The replaced file is now at the temporary's path; a
-                    // save that landed between the check and the exchange
-                    // is what is there, and goes back.
-                    Ok(()) => match check(&self.path) {
-                        Ok(()) => {
-                            let _ = std::fs::remove_file(&self.path);
-                            Ok(())
-                        }
-                        Err(e) => {
-                            let back = exchange(&self.path, target);
-                            drop(reg);
-                            if back.is_err() {
-                                // Theirs stays at the temporary's path:
-                                // never removed, and said where.
-                                self.persisted = true;
-                                return Err(Error::msg(format!(
-                                    "{}; the other program's version could not be put back and is at {}",
-                                    e.message,
-                                    self.path.display()
-                                ))
-                                .in_file(target));
-                            }
-                            return Err(e);
-                        }
-                    },
-                    Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
-                        drop(reg);
-                        return Err(check(target).err().unwrap_or_else(|| e.report().in_file(target)));
-                    }
-                    // No exchange on this filesystem: the check just before
-                    // the rename is all there is.
-                    Err(e) if matches!(e.raw_os_error(), Some(libc::EINVAL | libc::ENOSYS)) => {
-                        std::fs::rename(&self.path, target)
-                    }
-                    Err(e) => Err(e),
-                }
-            }
-            // A dangling link is replaced itself, as usd-core's save does
-            // (the no-replace rename would see its name as taken).
-            Publish::CreateNew if is_symlink(target) => std::fs::rename(&self.path, target),
-            Publish::CreateNew => match rename_no_replace(&self.path, target) {
-                Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
-                    drop(reg);
-                    return Err(Error::msg(
-                        "another process created this file while this edit ran; nothing was written: \
-                         run the edit again to add it to that file",
-                    )
-                    .in_file(target));
-                }
-                r => r,
-            },
-        };
+        let placed = self.take_place(target, publish);
         unregister(&mut reg, &self.path);
         // Files in a temporary folder of ours (a render's own bake) are
         // not what the user asked for.
         let scratch = reg.live.iter().any(|(p, lock)| lock.is_none() && target.starts_with(p));
-        if renamed.is_ok() && !scratch {
+        if placed.is_ok() && !scratch {
             reg.published += 1;
             reg.first_published.get_or_insert_with(|| target.clone());
         }
         drop(reg);
-        match renamed {
-            Ok(()) => {
-                self.persisted = true;
-                Ok(())
-            }
-            Err(e) => Err(e.report().in_file(target)),
+        if placed.is_ok() {
+            self.persisted = true;
         }
+        placed
+    }
+
+    /// Puts the temporary at `target` as `publish` says; on failure the
+    /// temporary is still there (and removed when dropped) unless it holds
+    /// another program's file, which is then kept and named.
+    fn take_place(&mut self, target: &Path, publish: Publish) -> Result<()> {
+        let io = |e: std::io::Error| e.report().in_file(target);
+        match publish {
+            Publish::Replace => std::fs::rename(&self.path, target).map_err(io),
+            Publish::ReplaceIf(check) => {
+                // Checked here, not before the work: a save by another
+                // program during the work is seen.
+                check(target)?;
+                match exchange(&self.path, target) {
+                    Ok(()) => self.keep_if_read(target, check),
+                    Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+                        Err(check(target).err().unwrap_or_else(|| io(e)))
+                    }
+                    // No exchange on this filesystem: the check just before
+                    // the rename is all there is.
+                    Err(e) if matches!(e.raw_os_error(), Some(libc::EINVAL | libc::ENOSYS)) => {
+                        std::fs::rename(&self.path, target).map_err(io)
+                    }
+                    Err(e) => Err(io(e)),
+                }
+            }
+            // A dangling link is replaced itself, as usd-core's save does
+            // (the no-replace rename would see its name as taken).
+            Publish::CreateNew if is_symlink(target) => std::fs::rename(&self.path, target).map_err(io),
+            Publish::CreateNew => rename_no_replace(&self.path, target).map_err(|e| {
+                if e.kind() == std::io::ErrorKind::AlreadyExists {
+                    Error::msg(
+                        "another process created this file while this edit ran; nothing was written: \
+                         run the edit again to add it to that file",
+                    )
+                    .in_file(target)
+                } else {
+                    io(e)
+                }
+            }),
+        }
+    }
+
+    /// After the exchange the replaced file is at the temporary's path: it
+    /// is removed if it is the version read; otherwise a save landed
+    /// between the check and the exchange, and it goes back.
+    fn keep_if_read(&mut self, target: &Path, check: &dyn Fn(&Path) -> Result<()>) -> Result<()> {
+        let Err(e) = check(&self.path) else {
+            let _ = std::fs::remove_file(&self.path);
+            return Ok(());
+        };
+        if exchange(&self.path, target).is_err() {
+            // Theirs stays at the temporary's path: never removed, and
+            // said where.
+            self.persisted = true;
+            return Err(Error::msg(format!(
+                "{}; the other program's version could not be put back and is at {}",
+                e.message,
+                self.path.display()
+            ))
+            .in_file(target));
+        }
+        Err(e)
     }
 }
 
