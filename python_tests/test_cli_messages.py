@@ -425,7 +425,7 @@ def test_an_input_that_is_a_device_or_under_a_file_gets_the_system_s_words(paint
     """Not a folder and not missing: /dev/null is not a regular file, and a
     path through a file is the system's own error, not "no such file"."""
     under = repo_root / "fixtures" / "apple.usda" / "x.usda"
-    for bad, why in [("/dev/null", "not a regular file"), (under, "Not a directory (os error 20)")]:
+    for bad, why in [("/dev/null", "not a regular file (a FIFO, device or socket)"), (under, "Not a directory (os error 20)")]:
         for args in (["inspect", bad], ["render", bad, "--camera", "/C", "--frames", "1", "-o", tmp_path / "f.####.exr"]):
             proc = painterly(*args, check=False)
             assert (proc.returncode, proc.stderr) == (1, f"error: {bad}: cannot open input: {why}\n"), args

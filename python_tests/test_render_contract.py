@@ -822,5 +822,5 @@ def test_a_brush_that_is_a_fifo_is_refused_not_waited_on(tmp_path, scene):
     proc = subprocess.run([str(painterly_binary()), "render", str(scene), "--camera", "/Cam", "--frames", "1",
                            "-o", str(out / "f.####.exr"), "--size", "32x24", "--brush", str(fifo)],
                           capture_output=True, text=True, timeout=30)
-    assert (proc.returncode, proc.stderr) == (1, f"error: {fifo}: cannot open brush: not a regular file\n")
+    assert (proc.returncode, proc.stderr) == (1, f"error: {fifo}: cannot open brush: not a regular file (a FIFO, device or socket)\n")
     assert not any(out.iterdir())

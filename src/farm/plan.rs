@@ -144,7 +144,7 @@ impl FarmPlan {
 
     /// Reads a plan; None when there is none.
     pub fn read_if_any(path: &Path) -> Result<Option<FarmPlan>> {
-        let text = match std::fs::read_to_string(path) {
+        let text = match crate::usd_io::regular::read_regular_to_string(path) {
             Ok(t) => t,
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
             Err(e) => return Err(Error::msg(format!("cannot read the farm plan: {e}")).in_file(path)),

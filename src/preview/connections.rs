@@ -3,8 +3,8 @@
 //! closes); a connection that sends no request headers within
 //! [`HEADER_TIMEOUT`] (a new one, or one kept alive between requests) is
 //! closed; the handlers bound a request's body by [`BODY_TIMEOUT`]; and a
-//! reply the client has not taken for [`WRITE_TIMEOUT`] ends the
-//! connection. Without them a client holding idle, half-sent or unread
+//! reply of which the client has taken nothing for [`WRITE_TIMEOUT`] ends
+//! the connection. Without them a client holding idle, half-sent or unread
 //! requests held its slot for ever, and every new page then waited. Past
 //! the cap, new connections wait in the kernel's backlog, not in ours. TCP
 //! keepalive and `TCP_USER_TIMEOUT` free the slot of a peer that vanished
@@ -107,35 +107,76 @@ fn is_connection_error(e: &io::Error) -> bool {
 
 /// A connection holding its slot: the slot is freed when the stream is
 /// dropped, which for a websocket is when the socket closes (the upgrade
-/// carries the stream, and this with it). A write the client leaves
-/// waiting for [`WRITE_TIMEOUT`] fails, which ends the connection.
+/// carries the stream, and this with it). A write that waits
+/// [`WRITE_TIMEOUT`] while the client takes nothing fails, which ends the
+/// connection.
 struct Counted {
     stream: TcpStream,
     _slot: OwnedSemaphorePermit,
-    /// Since when writes have waited for the client, as a deadline.
-    stalled: Option<Pin<Box<tokio::time::Sleep>>>,
+    /// Since when writes have waited for the client.
+    stalled: Option<Stall>,
+}
+
+/// A write waiting for room in the socket's send buffer.
+struct Stall {
+    /// When the wait is taken for the client's absence.
+    deadline: Pin<Box<tokio::time::Sleep>>,
+    /// Bytes in the socket's send queue when the deadline was set.
+    queued: Option<usize>,
+}
+
+impl Stall {
+    fn new(stream: &TcpStream) -> Self {
+        Stall {
+            deadline: Box::pin(tokio::time::sleep(WRITE_TIMEOUT)),
+            queued: send_queue(stream),
+        }
+    }
+}
+
+/// Bytes sent on `stream` and not yet acknowledged, or not yet sent
+/// (`SIOCOUTQ`); None where the system does not say.
+fn send_queue(stream: &TcpStream) -> Option<usize> {
+    use std::os::fd::AsRawFd;
+    let mut queued: libc::c_int = 0;
+    // SAFETY: SIOCOUTQ (TIOCOUTQ) writes one int through the pointer, on a
+    // descriptor `stream` owns for the call.
+    #[allow(unsafe_code)]
+    let rc = unsafe { libc::ioctl(stream.as_raw_fd(), libc::TIOCOUTQ, &mut queued) };
+    (rc == 0).then(|| usize::try_from(queued).ok()).flatten()
 }
 
 impl Counted {
-    /// `poll` (a write or flush) bounded by [`WRITE_TIMEOUT`] of waiting.
+    /// `poll` (a write or flush) bounded by [`WRITE_TIMEOUT`] of waiting
+    /// while the client takes nothing. A full send buffer wakes its writer
+    /// only once about a third of it is free, which a client that reads
+    /// slowly but steadily (under about 45 KB/s of a 4 MB buffer) takes
+    /// longer than the timeout to make: so when the deadline comes and the
+    /// send queue has shrunk since it was set, the client is still there,
+    /// and a new deadline is set.
     fn bounded<T>(
         &mut self,
         cx: &mut Context<'_>,
         poll: impl FnOnce(Pin<&mut TcpStream>, &mut Context<'_>) -> Poll<io::Result<T>>,
     ) -> Poll<io::Result<T>> {
         match poll(Pin::new(&mut self.stream), cx) {
-            Poll::Pending => {
-                let stalled = self
-                    .stalled
-                    .get_or_insert_with(|| Box::pin(tokio::time::sleep(WRITE_TIMEOUT)));
-                match stalled.as_mut().poll(cx) {
-                    Poll::Ready(()) => Poll::Ready(Err(io::Error::new(
-                        io::ErrorKind::TimedOut,
-                        format!("the client took nothing of the reply for {} s", WRITE_TIMEOUT.as_secs()),
-                    ))),
-                    Poll::Pending => Poll::Pending,
+            Poll::Pending => loop {
+                let stall = self.stalled.get_or_insert_with(|| Stall::new(&self.stream));
+                if stall.deadline.as_mut().poll(cx).is_pending() {
+                    return Poll::Pending;
                 }
-            }
+                let now = send_queue(&self.stream);
+                if matches!((stall.queued, now), (Some(before), Some(now)) if now < before) {
+                    // Polled again at the loop's top, so the new deadline
+                    // wakes this task.
+                    self.stalled = None;
+                    continue;
+                }
+                return Poll::Ready(Err(io::Error::new(
+                    io::ErrorKind::TimedOut,
+                    format!("the client took nothing of the reply for {} s", WRITE_TIMEOUT.as_secs()),
+                )));
+            },
             done => {
                 self.stalled = None;
                 done
@@ -173,5 +214,114 @@ impl AsyncWrite for Counted {
 
     fn poll_shutdown(mut self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<io::Result<()>> {
         Pin::new(&mut self.stream).poll_shutdown(cx)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::io::Read;
+    use std::task::Waker;
+
+    /// A served stream whose (small) send buffer is full, and its client,
+    /// whose small receive buffer leaves what the server wrote queued on
+    /// the server's side. Filled before tokio takes the stream: tokio
+    /// writes only once its reactor has seen the socket writable.
+    fn pair() -> (Counted, std::net::TcpStream) {
+        let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+        let client = socket2::Socket::new(socket2::Domain::IPV4, socket2::Type::STREAM, None).unwrap();
+        client.set_recv_buffer_size(4096).unwrap();
+        client.connect(&listener.local_addr().unwrap().into()).unwrap();
+        let (server, _) = listener.accept().unwrap();
+        socket2::SockRef::from(&server).set_send_buffer_size(65536).unwrap();
+        server.set_nonblocking(true).unwrap();
+        let mut filled = 0;
+        loop {
+            match std::io::Write::write(&mut &server, &[7u8; 16384]) {
+                Ok(n) => filled += n,
+                Err(e) if e.kind() == io::ErrorKind::WouldBlock => break,
+                Err(e) => panic!("{e}"),
+            }
+        }
+        assert!(filled > 16384);
+        let slot = Arc::new(Semaphore::new(1)).try_acquire_owned().unwrap();
+        let counted = Counted {
+            stream: TcpStream::from_std(server).unwrap(),
+            _slot: slot,
+            stalled: None,
+        };
+        (counted, client.into())
+    }
+
+    fn write_once(c: &mut Counted) -> Poll<io::Result<usize>> {
+        Pin::new(c).poll_write(&mut Context::from_waker(Waker::noop()), &[7u8; 16384])
+    }
+
+    /// A write into the full buffer: it waits, and its deadline (if none
+    /// runs yet) runs from now.
+    fn wait(c: &mut Counted) {
+        assert!(write_once(c).is_pending());
+    }
+
+    /// Takes what the client's receive buffer holds, then waits until the
+    /// server's send queue has shrunk below `before` (its acknowledgement).
+    fn take_some(client: &mut std::net::TcpStream, c: &Counted, before: usize) {
+        let mut buf = vec![0u8; 65536];
+        assert!(client.read(&mut buf).unwrap() > 0);
+        for _ in 0..200 {
+            if send_queue(&c.stream).unwrap() < before {
+                return;
+            }
+            std::thread::sleep(std::time::Duration::from_millis(5));
+        }
+        panic!("the send queue did not shrink");
+    }
+
+    #[tokio::test(start_paused = true)]
+    async fn a_client_taking_nothing_for_the_timeout_is_cut() {
+        let (mut c, _client) = pair();
+        wait(&mut c);
+        tokio::time::advance(WRITE_TIMEOUT - Duration::from_secs(1)).await;
+        assert!(write_once(&mut c).is_pending());
+        tokio::time::advance(Duration::from_secs(2)).await;
+        match write_once(&mut c) {
+            Poll::Ready(Err(e)) => assert_eq!(
+                (e.kind(), e.to_string()),
+                (
+                    io::ErrorKind::TimedOut,
+                    "the client took nothing of the reply for 30 s".into()
+                )
+            ),
+            other => panic!("{other:?}"),
+        }
+    }
+
+    #[tokio::test(start_paused = true)]
+    async fn a_client_taking_a_little_before_the_timeout_gets_another() {
+        // Before, a write waiting 30 s failed even when the client had
+        // taken part of the queue meanwhile: the kernel wakes a writer only
+        // once about a third of its buffer is free.
+        let (mut c, mut client) = pair();
+        wait(&mut c);
+        let queued = send_queue(&c.stream).unwrap();
+        take_some(&mut client, &c, queued);
+        tokio::time::advance(WRITE_TIMEOUT + Duration::from_secs(1)).await;
+        assert!(matches!(write_once(&mut c), Poll::Pending | Poll::Ready(Ok(_))));
+        // Then nothing taken for a whole new timeout: cut.
+        wait(&mut c);
+        tokio::time::advance(WRITE_TIMEOUT + Duration::from_secs(1)).await;
+        assert!(matches!(write_once(&mut c), Poll::Ready(Err(e)) if e.kind() == io::ErrorKind::TimedOut));
+    }
+
+    #[test]
+    fn the_send_queue_counts_unacknowledged_bytes() {
+        let rt = tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()
+            .unwrap();
+        rt.block_on(async {
+            let (c, _client) = pair();
+            assert!(send_queue(&c.stream).unwrap() > 16384);
+        });
     }
 }

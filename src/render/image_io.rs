@@ -202,13 +202,8 @@ fn png_header_size(bytes: &[u8]) -> Option<(u32, u32)> {
 /// refused before any pixel is decoded.
 pub fn read_brush(path: &Path) -> Result<Brush> {
     let err = |m: String| Error::msg(m).in_file(path);
-    // A FIFO would block the open until a writer came.
-    match std::fs::metadata(path) {
-        Ok(m) if !m.is_file() => return Err(err("cannot open brush: not a regular file".into())),
-        Err(e) => return Err(err(format!("cannot open brush: {e}"))),
-        Ok(_) => {}
-    }
-    let open = || std::fs::File::open(path).map_err(|e| err(format!("cannot open brush: {e}")));
+    // A FIFO would block a plain open until a writer came.
+    let open = || crate::usd_io::regular::open_regular(path).map_err(|e| err(format!("cannot open brush: {e}")));
     // The size as the header claims it, checked before the decoder sees it
     // (it refuses some huge sizes itself, with a message that names none).
     let mut head = Vec::with_capacity(24);

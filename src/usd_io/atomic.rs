@@ -22,7 +22,9 @@
 use std::collections::{HashMap, HashSet};
 use std::fs::File;
 use std::io::{BufWriter, Write};
+use std::os::unix::ffi::OsStrExt;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Mutex, MutexGuard, Once, OnceLock};
 
 use crate::error::{Error, Result};
@@ -113,21 +115,35 @@ pub fn install_signal_cleanup() {
         super::compose_watch::install_crash_handlers();
         use signal_hook::consts::signal::{SIGHUP, SIGINT, SIGTERM, SIGXFSZ};
         // A handler that only sets a flag: write() then fails with EFBIG.
-        static FSIZE: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+        static FSIZE: AtomicBool = AtomicBool::new(false);
         let _ = signal_hook::flag::register(SIGXFSZ, &FSIZE);
         let Ok(mut signals) = signal_hook::iterator::Signals::new([SIGTERM, SIGINT, SIGHUP]) else {
             return;
         };
-        let _ = std::thread::Builder::new()
+        let spawned = std::thread::Builder::new()
             .name("painterly-signals".into())
             .spawn(move || {
                 if let Some(sig) = signals.forever().next() {
+                    let truncated = TRUNCATED.load(Ordering::SeqCst);
                     // Let a publication under way finish (see
-                    // [`hold_signals`]), and hold off any other until exit.
+                    // [`hold_signals`]), and hold off any other until exit;
+                    // after a bus error not for long: the thread that
+                    // faulted never goes on, and may hold one.
                     let (holds, done) = signal_holds();
                     let mut n = holds.lock().unwrap_or_else(|e| e.into_inner());
                     while *n > 0 {
-                        n = done.wait(n).unwrap_or_else(|e| e.into_inner());
+                        if truncated.is_null() {
+                            n = done.wait(n).unwrap_or_else(|e| e.into_inner());
+                        } else {
+                            let wait = std::time::Duration::from_secs(2);
+                            match done.wait_timeout(n, wait) {
+                                Ok((g, t)) if !t.timed_out() => n = g,
+                                _ => break,
+                            }
+                        }
+                    }
+                    if !truncated.is_null() {
+                        report_truncated(truncated);
                     }
                     // Holding the lock until exit: no temporary can be created
                     // or renamed after the sweep.
@@ -143,7 +159,59 @@ pub fn install_signal_cleanup() {
                     std::process::exit(128 + sig);
                 }
             });
+        SIGNAL_THREAD.store(spawned.is_ok(), Ordering::SeqCst);
     });
+}
+
+/// Whether the signal thread runs (it reports [`input_truncated`]).
+static SIGNAL_THREAD: AtomicBool = AtomicBool::new(false);
+
+/// The path of a mapped input that shrank under a read (a bus error), set
+/// by [`input_truncated`] for the signal thread.
+static TRUNCATED: std::sync::atomic::AtomicPtr<libc::c_char> = std::sync::atomic::AtomicPtr::new(std::ptr::null_mut());
+
+/// Called from the bus-error handler when a read met the end of a mapped
+/// input file (`path`, NUL-terminated) that was cut short while mapped:
+/// the signal thread removes this run's temporaries and ends the process
+/// with exit 1 and an error naming the file; this thread waits for that.
+/// Only async-signal-safe calls.
+pub(crate) fn input_truncated(path: *const libc::c_char) -> ! {
+    TRUNCATED.store(path.cast_mut(), Ordering::SeqCst);
+    // SAFETY: kill, getpid, pause, write and _exit are async-signal-safe.
+    #[allow(unsafe_code)]
+    unsafe {
+        if SIGNAL_THREAD.load(Ordering::SeqCst) {
+            libc::kill(libc::getpid(), libc::SIGTERM);
+            loop {
+                libc::pause();
+            }
+        }
+        let m = b"error: an input file was cut short while painterly read it (rewritten in place during this run?); run again once it is saved\n";
+        libc::write(2, m.as_ptr().cast(), m.len());
+        libc::_exit(1);
+    }
+}
+
+/// The signal thread's end after [`input_truncated`]: temporaries removed,
+/// the error, exit 1.
+fn report_truncated(path: *const libc::c_char) -> ! {
+    // SAFETY: a NUL-terminated path leaked by `regular::note_mapping`.
+    #[allow(unsafe_code)]
+    let path = unsafe { std::ffi::CStr::from_ptr(path) };
+    let path = Path::new(std::ffi::OsStr::from_bytes(path.to_bytes()));
+    remove_all_temporaries_unless_held();
+    let written = match published() {
+        (1, Some(p)) => format!(" ({} was written before it)", p.display()),
+        (n, Some(p)) => format!(" ({n} files were written before it, the first {})", p.display()),
+        _ => String::new(),
+    };
+    let _ = writeln!(
+        std::io::stderr(),
+        "error: {}: was cut short while painterly read it (rewritten in place during this run?): what was \
+         read is not what the file now holds; run again once it is saved{written}",
+        path.display()
+    );
+    std::process::exit(1);
 }
 
 /// The count of [`SignalHold`]s alive, and the signal it went to zero.
@@ -386,8 +454,8 @@ pub fn hold_lock(path: &Path, wait: std::time::Duration) -> std::io::Result<Opti
 /// The file at `p` opened and locked, when no live writer holds its lock
 /// (and it is not a link: a leftover is never followed).
 fn lock_if_free(p: &Path) -> Option<File> {
-    use std::os::unix::fs::OpenOptionsExt;
-    let f = File::options().read(true).custom_flags(libc::O_NOFOLLOW).open(p).ok()?;
+    // Never waits on a FIFO put there meanwhile.
+    let f = super::regular::open_regular_with(p, true).ok()?;
     try_flock(&f).then_some(f)
 }
 

@@ -581,7 +581,9 @@ fn template_files(template: &Path) -> Vec<PathBuf> {
 
 /// [`input_hash`]'s digest: each file's bytes.
 fn hash_layers(r: &StageReader) -> Result<String> {
-    let hash = layers_digest(r, |f, h| std::io::copy(&mut std::fs::File::open(f)?, h).map(|_| ()))?;
+    let hash = layers_digest(r, |f, h| {
+        std::io::copy(&mut super::regular::open_regular(f)?, h).map(|_| ())
+    })?;
     // Checked after hashing: a save before or during it shows.
     r.check_unchanged()?;
     Ok(hash)

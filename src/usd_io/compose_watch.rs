@@ -134,6 +134,17 @@ unsafe impl Sync for Old {}
 static OLD: Old = Old(std::cell::UnsafeCell::new([None, None, None]));
 
 extern "C" fn on_fatal(sig: libc::c_int, info: *mut libc::siginfo_t, ctx: *mut libc::c_void) {
+    // A read past the end of a mapped input that was cut short meanwhile
+    // (rewritten in place, `cp` over it): not a crash of openusd's.
+    if sig == libc::SIGBUS && !info.is_null() {
+        // SAFETY: the siginfo the kernel passed for this signal.
+        let (code, addr) = unsafe { ((*info).si_code, (*info).si_addr() as usize) };
+        if code == libc::BUS_ADRERR {
+            if let Some(path) = super::regular::mapped_file_at(addr) {
+                super::atomic::input_truncated(path);
+            }
+        }
+    }
     let (p, n) = MSG.try_with(|m| m.get()).unwrap_or((std::ptr::null(), 0));
     if !p.is_null() {
         // SAFETY: write(2) and _exit(2) are async-signal-safe; the message

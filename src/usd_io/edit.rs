@@ -121,7 +121,8 @@ impl TargetGuard {
     fn take(path: &Path) -> Result<TargetGuard> {
         use std::os::fd::AsRawFd;
         let read = file_id(path);
-        let lock = std::fs::File::open(path).map_err(|e| Error::msg(format!("cannot open: {e}")).in_file(path))?;
+        let lock =
+            super::regular::open_regular(path).map_err(|e| Error::msg(format!("cannot open: {e}")).in_file(path))?;
         // SAFETY: flock on a file descriptor this function owns.
         if unsafe { libc::flock(lock.as_raw_fd(), libc::LOCK_EX | libc::LOCK_NB) } != 0 {
             return Err(Error::msg(
@@ -164,9 +165,11 @@ fn sublayer_path(input: &Path, edit_dir: &Path) -> Result<String> {
 /// The file's text when it is usda (by content, whatever the extension),
 /// None for crate files.
 fn read_text(path: &Path) -> Result<Option<String>> {
-    // A FIFO or device would block the read, or never end it.
+    // A FIFO or device would block the read, or never end it: refused,
+    // also when one replaced the file since it was checked.
     super::stage::require_file(path, "the layer")?;
-    let bytes = std::fs::read(path).map_err(|e| Error::msg(format!("cannot read: {e}")).in_file(path))?;
+    let bytes =
+        super::regular::read_regular(path).map_err(|e| Error::msg(format!("cannot read: {e}")).in_file(path))?;
     if !bytes.starts_with(b"#usda") {
         return Ok(None);
     }

@@ -112,9 +112,10 @@ pub struct Guard {
 }
 
 impl Guard {
-    /// A resolver (the default one, guarded) reporting into this guard.
+    /// A resolver (the default one, opening regular files only, guarded)
+    /// reporting into this guard.
     pub fn resolver(&self) -> GuardedResolver {
-        self.resolver_over(ar::DefaultResolver::new())
+        self.resolver_over(super::regular::RegularResolver::new())
     }
 
     /// `inner` (e.g. the resolver of a layer handed over in memory),
@@ -351,9 +352,9 @@ fn shorten(p: &str) -> String {
     }
 }
 
-/// A resolver (by default the default one) checking each layer's bytes
+/// A resolver (by default [`super::regular::RegularResolver`]) checking each layer's bytes
 /// before openusd does.
-pub struct GuardedResolver<R = ar::DefaultResolver> {
+pub struct GuardedResolver<R = super::regular::RegularResolver> {
     inner: R,
     guard: Guard,
 }

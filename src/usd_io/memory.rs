@@ -12,14 +12,16 @@ use std::io;
 use std::path::{Path, PathBuf};
 use std::time::SystemTime;
 
-use openusd::ar::{Asset, AssetBuffer, AssetInfo, DefaultResolver, ResolvedPath, Resolver};
+use openusd::ar::{Asset, AssetBuffer, AssetInfo, ResolvedPath, Resolver};
+
+use super::regular::RegularResolver;
 
 use super::stage::StageReader;
 use crate::error::{Error, Result};
 
 /// Serves one layer from memory at `identifier`; every other asset from the filesystem.
 struct MemoryResolver {
-    inner: DefaultResolver,
+    inner: RegularResolver,
     identifier: String,
     bytes: Vec<u8>,
 }
@@ -96,7 +98,7 @@ pub fn open_bytes(bytes: Vec<u8>, path: &Path) -> Result<StageReader> {
     let path_str = path
         .to_str()
         .ok_or_else(|| Error::msg("layer path is not valid UTF-8").in_file(&path))?;
-    let inner = DefaultResolver::new();
+    let inner = RegularResolver::new();
     let identifier = inner.create_identifier(path_str, None);
     let resolver = MemoryResolver {
         inner,
@@ -169,11 +171,11 @@ mod tests {
         std::fs::write(&on_disk, "#usda 1.0\n").unwrap();
         let ours = dir.join("held.usdc").to_str().unwrap().to_string();
         let r = MemoryResolver {
-            inner: DefaultResolver::new(),
+            inner: RegularResolver::new(),
             identifier: ours.clone(),
             bytes: b"crate bytes".to_vec(),
         };
-        let plain = DefaultResolver::new();
+        let plain = openusd::ar::DefaultResolver::new();
 
         // Extensions pick the file format.
         assert_eq!(r.get_extension(&ours), "usdc");

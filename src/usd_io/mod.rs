@@ -17,6 +17,7 @@ pub mod edit;
 pub mod guard;
 pub mod layer;
 pub mod memory;
+pub mod regular;
 pub mod render_scene;
 pub mod scene;
 pub mod skel;

@@ -272,7 +272,7 @@ impl StageMetadata {
 /// The default resolver, handing out read-only memory mappings of files
 /// instead of reading them. For readers that live for one command (a bake,
 /// an assembly, a provenance read): the only ones that may use it.
-pub(crate) fn mapped_resolver() -> openusd::ar::DefaultResolver {
+pub(crate) fn mapped_resolver() -> super::regular::RegularResolver {
     // SAFETY (the promise `map_files` asks for: a mapped file is not modified
     // while mapped): painterly and usd-core replace the files they write by
     // rename, never writing into one (`--in-place` edits too), so a mapping
@@ -281,7 +281,7 @@ pub(crate) fn mapped_resolver() -> openusd::ar::DefaultResolver {
     // (README, Limits).
     #[allow(unsafe_code)]
     unsafe {
-        openusd::ar::DefaultResolver::new().map_files()
+        super::regular::RegularResolver::mapped()
     }
 }
 
@@ -292,7 +292,7 @@ pub fn require_file(path: &Path, what: &str) -> Result<()> {
     let why = match std::fs::metadata(path) {
         Ok(m) if m.is_file() => return Ok(()),
         Ok(m) if m.is_dir() => "it is a folder, not a USD file".to_string(),
-        Ok(_) => "not a regular file".to_string(),
+        Ok(_) => super::regular::NOT_REGULAR.to_string(),
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => "no such file".to_string(),
         Err(e) => e.to_string(),
     };
@@ -312,6 +312,15 @@ pub fn check_unchanged(opened: &super::guard::OpenedFiles) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// When a file of `opened` has changed since it was read, the error that
+/// says so, with `failure` (what reading met) after it: a save in progress
+/// reads as a damaged file, and "run again once it is saved" is what helps.
+fn changed_while_read(opened: &super::guard::OpenedFiles, failure: &str) -> Option<Error> {
+    let mut e = check_unchanged(opened).err()?;
+    e.message = format!("{} ({failure})", e.message);
+    Some(e)
 }
 
 /// Checks that `path`, given by the user as `option` (`--camera`,
@@ -411,7 +420,7 @@ fn package_fault(package: &Path) -> Option<PackageFault> {
     }
     // A local file header is 30 bytes and a name (at most 65535 bytes).
     let mut head = Vec::new();
-    std::fs::File::open(package)
+    super::regular::open_regular(package)
         .ok()?
         .take(30 + 65535)
         .read_to_end(&mut head)
@@ -466,7 +475,7 @@ impl StageReader {
     /// rewrite the files (the preview, the Python API).
     pub fn open(path: &Path) -> Result<Self> {
         let path_str = Self::checked_input(path)?;
-        Self::compose(path, path_str, openusd::ar::DefaultResolver::new())
+        Self::compose(path, path_str, super::regular::RegularResolver::new())
     }
 
     /// Opens and composes `path` over read-only memory mappings of its
@@ -500,12 +509,17 @@ impl StageReader {
         // runs under watch (panics, crashes, time limit).
         let guard = Guard::default();
         let first_problem = |e: Error| guard.problems().into_iter().next().unwrap_or(e).in_file(path);
+        // A file saved while it was read reads as damaged: say so.
+        let unreadable = |e: String| {
+            let e = format!("cannot read USD file: {e}");
+            changed_while_read(&guard.opened_files(), &e).unwrap_or_else(|| first_problem(Error::msg(e)))
+        };
         let stage = compose_watch::watched(path, || {
             let stage = usd::Stage::builder()
                 .schema_registry(openusd_schemas::schema_registry())
                 .resolver(guard.resolver_over(resolver))
                 .open(identifier)
-                .map_err(|e| first_problem(Error::msg(format!("cannot read USD file: {e}"))))?;
+                .map_err(|e| unreadable(e.to_string()))?;
             // The root layer stack is parsed but nothing is composed yet.
             for id in stage.layer_identifiers() {
                 if let Some(layer) = stage.layer(&id) {
@@ -518,7 +532,7 @@ impl StageReader {
             // be readable; a truncated crate file can open lazily and only fail here.
             stage
                 .traverse(usd::PrimPredicate::ALL, |_| {})
-                .map_err(|e| first_problem(Error::msg(format!("cannot read USD file: {e}"))))?;
+                .map_err(|e| unreadable(e.to_string()))?;
             Ok(stage)
         })?;
         if let Some(e) = guard.problems().into_iter().next() {
@@ -1224,6 +1238,26 @@ mod tests {
     use super::super::atomic::TempDir;
     use super::*;
     use glam::DVec3;
+
+    /// A file that fails to read because it was being saved says so, with
+    /// what reading met: before, only "failed to read PATHS section".
+    #[test]
+    fn a_read_failure_of_a_file_changed_meanwhile_says_it_changed() {
+        let dir = crate::test_dir::ScratchDir::new("changed-while-read");
+        let f = dir.join("a.usdc");
+        std::fs::write(&f, b"PXR-USDC half").unwrap();
+        let opened: super::super::guard::OpenedFiles =
+            [(f.clone(), super::super::guard::FileId::of(&f).unwrap())].into();
+        assert!(changed_while_read(&opened, "cannot read USD file: x").is_none());
+        std::fs::write(&f, b"PXR-USDC the whole file").unwrap();
+        let e = changed_while_read(&opened, "cannot read USD file: failed to read PATHS section").unwrap();
+        assert_eq!(e.file.as_deref(), Some(f.as_path()));
+        assert_eq!(
+            e.message,
+            "changed while painterly read it (saved during this run?): what was read is not what the file now \
+             holds; run again once it is saved (cannot read USD file: failed to read PATHS section)"
+        );
+    }
 
     /// `PAINTERLY_UNIFORM` is the schema's uniform `painterly:` attributes,
     /// and every attribute of a Painterly typed prim (the other half of the

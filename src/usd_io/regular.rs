@@ -1,0 +1,332 @@
+//! Opening input files only when they are regular files, without ever
+//! blocking.
+//!
+//! `open(2)` of a FIFO for reading waits until some process opens it for
+//! writing, possibly for ever; a check of the path before the open
+//! (`metadata().is_file()`) leaves a window in which the file can be
+//! replaced by one. So every input painterly reads (the layers openusd
+//! opens, edit targets, brushes, farm plans) is opened with `O_NONBLOCK`,
+//! which never waits, and its type is taken from the opened descriptor:
+//! what is checked is what is read.
+//!
+//! [`RegularResolver`] does this for openusd: the default resolver with its
+//! file opens replaced. Its memory mappings are noted ([`mapped_file_at`]),
+//! so that the bus error a mapped file truncated under a bake raises can be
+//! reported naming the file (`compose_watch`'s crash handler).
+
+use std::fs::File;
+use std::io;
+use std::path::Path;
+use std::sync::atomic::{AtomicPtr, AtomicUsize, Ordering};
+
+use openusd::ar::{self, Asset, AssetBuffer, DefaultResolver, ResolvedPath, SharedBuffer};
+
+/// Why a path that is not a regular file is refused, in its error message.
+pub const NOT_REGULAR: &str = "not a regular file (a FIFO, device or socket)";
+
+/// The file at `path` (links followed, unless `no_follow`) opened for
+/// reading, or an error when it is anything but a regular file. Never
+/// blocks.
+pub fn open_regular_with(path: &Path, no_follow: bool) -> io::Result<File> {
+    use std::os::unix::fs::OpenOptionsExt;
+    let flags = libc::O_NONBLOCK | if no_follow { libc::O_NOFOLLOW } else { 0 };
+    let file = File::options().read(true).custom_flags(flags).open(path)?;
+    let meta = file.metadata()?;
+    if meta.is_dir() {
+        return Err(io::Error::new(
+            io::ErrorKind::IsADirectory,
+            "it is a folder, not a file",
+        ));
+    }
+    if !meta.is_file() {
+        return Err(io::Error::new(io::ErrorKind::InvalidInput, NOT_REGULAR));
+    }
+    // O_NONBLOCK changes nothing for a regular file's reads; it is left on.
+    Ok(file)
+}
+
+/// [`open_regular_with`], following links.
+pub fn open_regular(path: &Path) -> io::Result<File> {
+    open_regular_with(path, false)
+}
+
+/// The whole of the regular file at `path` (`std::fs::read` that refuses,
+/// instead of waiting on, a FIFO or device).
+pub fn read_regular(path: &Path) -> io::Result<Vec<u8>> {
+    use std::io::Read;
+    let mut file = open_regular(path)?;
+    let mut bytes = Vec::with_capacity(file.metadata().map_or(0, |m| m.len() as usize));
+    file.read_to_end(&mut bytes)?;
+    Ok(bytes)
+}
+
+/// [`read_regular`] as UTF-8 text.
+pub fn read_regular_to_string(path: &Path) -> io::Result<String> {
+    String::from_utf8(read_regular(path)?)
+        .map_err(|_| io::Error::new(io::ErrorKind::InvalidData, "the file is not valid UTF-8 text"))
+}
+
+/// The default resolver, whose file opens go through [`open_regular`]: a
+/// layer that is a FIFO, a device or a socket (a sublayer, reference,
+/// payload or clip naming one, or a root swapped for one after it was
+/// checked) fails to open instead of hanging the command. Everything else
+/// is the default resolver's.
+pub struct RegularResolver {
+    inner: DefaultResolver,
+    /// Whether files are mapped rather than read ([`Self::mapped`]).
+    map: bool,
+}
+
+impl RegularResolver {
+    /// Files read through the descriptor.
+    pub fn new() -> Self {
+        RegularResolver {
+            inner: DefaultResolver::new(),
+            map: false,
+        }
+    }
+
+    /// Files handed out as read-only memory mappings.
+    ///
+    /// # Safety
+    /// The promise `DefaultResolver::map_files` asks for: no file opened
+    /// through this resolver is modified while anything read from it lives.
+    #[allow(unsafe_code)]
+    pub unsafe fn mapped() -> Self {
+        RegularResolver {
+            // SAFETY: the caller's promise, passed on; the inner resolver
+            // maps the packages it opens itself.
+            inner: unsafe { DefaultResolver::new().map_files() },
+            map: true,
+        }
+    }
+
+    fn open_file(&self, path: &Path) -> io::Result<Box<dyn Asset>> {
+        let file = open_regular(path)?;
+        let len = usize::try_from(file.metadata()?.len()).unwrap_or(0);
+        if !self.map || len == 0 {
+            return Ok(Box::new(file));
+        }
+        // SAFETY: read-only mapping of a regular file; that nothing writes
+        // into it while mapped is what `mapped`'s caller promised.
+        #[allow(unsafe_code)]
+        let map = unsafe { memmap2::MmapOptions::new().len(len).map(&file) };
+        Ok(match map {
+            Ok(map) => {
+                note_mapping(map.as_ptr() as usize, map.len(), path);
+                Box::new(io::Cursor::new(AssetBuffer::Shared(SharedBuffer::new(map))))
+            }
+            Err(_) => Box::new(file),
+        })
+    }
+}
+
+/// Mapped files noted at once: past this, a bus error in a mapping is
+/// reported without its file's name.
+const MAPPINGS: usize = 1024;
+
+/// One noted mapping: written under [`MAPPING_WRITES`], read by a signal
+/// handler with atomic loads only (`len` 0: an empty slot).
+struct Mapping {
+    start: AtomicUsize,
+    len: AtomicUsize,
+    /// The file's path, NUL-terminated, leaked: a handler may read it at
+    /// any time, so it is never freed (a few hundred bytes a mapping).
+    path: AtomicPtr<libc::c_char>,
+}
+
+static MAPPED: [Mapping; MAPPINGS] = [const {
+    Mapping {
+        start: AtomicUsize::new(0),
+        len: AtomicUsize::new(0),
+        path: AtomicPtr::new(std::ptr::null_mut()),
+    }
+}; MAPPINGS];
+static MAPPING_WRITES: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+/// Notes that `path` is mapped at `start..start + len`. A slot whose range
+/// overlaps belongs to a mapping since unmapped (the system reused its
+/// addresses), and is taken over.
+fn note_mapping(start: usize, len: usize, path: &Path) {
+    use std::os::unix::ffi::OsStrExt;
+    let Ok(c_path) = std::ffi::CString::new(path.as_os_str().as_bytes()) else {
+        return;
+    };
+    let _writing = MAPPING_WRITES.lock().unwrap_or_else(|e| e.into_inner());
+    let overlaps = |m: &Mapping| {
+        let (s, l) = (m.start.load(Ordering::Relaxed), m.len.load(Ordering::Relaxed));
+        l > 0 && s < start + len && start < s + l
+    };
+    let slot = MAPPED
+        .iter()
+        .find(|m| overlaps(m))
+        .or_else(|| MAPPED.iter().find(|m| m.len.load(Ordering::Relaxed) == 0));
+    let Some(slot) = slot else {
+        return;
+    };
+    // Emptied first, so a handler never pairs one mapping's range with
+    // another's path.
+    slot.len.store(0, Ordering::Release);
+    slot.path.store(c_path.into_raw(), Ordering::Release);
+    slot.start.store(start, Ordering::Release);
+    slot.len.store(len, Ordering::Release);
+}
+
+/// The NUL-terminated path of the noted mapped file holding address
+/// `addr`, if any. Async-signal-safe: atomic loads only.
+pub fn mapped_file_at(addr: usize) -> Option<*const libc::c_char> {
+    MAPPED.iter().find_map(|m| {
+        let len = m.len.load(Ordering::Acquire);
+        let start = m.start.load(Ordering::Acquire);
+        let path = m.path.load(Ordering::Acquire);
+        (len > 0 && start <= addr && addr - start < len && !path.is_null()).then_some(path as *const _)
+    })
+}
+
+impl Default for RegularResolver {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl ar::Resolver for RegularResolver {
+    fn create_identifier(&self, asset_path: &str, anchor: Option<&ResolvedPath>) -> String {
+        self.inner.create_identifier(asset_path, anchor)
+    }
+
+    fn resolve(&self, asset_path: &str) -> Option<ResolvedPath> {
+        self.inner.resolve(asset_path)
+    }
+
+    fn resolve_for_new_asset(&self, asset_path: &str) -> Option<ResolvedPath> {
+        self.inner.resolve_for_new_asset(asset_path)
+    }
+
+    fn open_asset(&self, resolved_path: &ResolvedPath) -> io::Result<Box<dyn Asset>> {
+        let text = resolved_path.to_str().unwrap_or_default();
+        let package = super::stage::package_file(text);
+        if package != text {
+            // An entry of a package: the default resolver opens the package
+            // by path, so its type is checked first (a swap in between is
+            // the one window left, for packages only).
+            open_regular(Path::new(package))?;
+            return self.inner.open_asset(resolved_path);
+        }
+        self.open_file(resolved_path)
+    }
+
+    fn get_extension<'a>(&self, asset_path: &'a str) -> &'a str {
+        self.inner.get_extension(asset_path)
+    }
+
+    fn is_context_dependent_path(&self, asset_path: &str) -> bool {
+        self.inner.is_context_dependent_path(asset_path)
+    }
+
+    fn in_memory_identifier<'a>(&self, asset_path: &'a str) -> std::borrow::Cow<'a, str> {
+        self.inner.in_memory_identifier(asset_path)
+    }
+
+    fn get_asset_info(&self, asset_path: &str, resolved_path: &ResolvedPath) -> ar::AssetInfo {
+        self.inner.get_asset_info(asset_path, resolved_path)
+    }
+
+    fn get_modification_timestamp(
+        &self,
+        asset_path: &str,
+        resolved_path: &ResolvedPath,
+    ) -> Option<std::time::SystemTime> {
+        self.inner.get_modification_timestamp(asset_path, resolved_path)
+    }
+
+    fn identity(&self) -> String {
+        self.inner.identity()
+    }
+
+    fn cache_id(&self) -> Option<u64> {
+        self.inner.cache_id()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use ar::Resolver;
+
+    fn fifo(dir: &Path) -> std::path::PathBuf {
+        let p = dir.join("pipe.usda");
+        let c = std::ffi::CString::new(p.as_os_str().as_encoded_bytes()).unwrap();
+        // SAFETY: mkfifo with a NUL-terminated path.
+        #[allow(unsafe_code)]
+        let rc = unsafe { libc::mkfifo(c.as_ptr(), 0o600) };
+        assert_eq!(rc, 0);
+        p
+    }
+
+    #[test]
+    fn a_fifo_is_refused_without_waiting_for_a_writer() {
+        let dir = crate::test_dir::ScratchDir::new("regular-fifo");
+        let p = fifo(&dir);
+        let e = open_regular(&p).unwrap_err();
+        assert_eq!(e.to_string(), NOT_REGULAR);
+        assert_eq!(read_regular(&p).unwrap_err().kind(), io::ErrorKind::InvalidInput);
+        let e = RegularResolver::new().open_asset(&ResolvedPath::new(&p)).err().unwrap();
+        assert_eq!(e.to_string(), NOT_REGULAR);
+        #[allow(unsafe_code)]
+        let mapped = unsafe { RegularResolver::mapped() };
+        assert!(mapped.open_asset(&ResolvedPath::new(&p)).is_err());
+        assert_eq!(open_regular(&dir).unwrap_err().kind(), io::ErrorKind::IsADirectory);
+        assert_eq!(
+            open_regular(&dir.join("none")).unwrap_err().kind(),
+            io::ErrorKind::NotFound
+        );
+    }
+
+    #[test]
+    fn a_mapped_address_names_its_file_until_another_mapping_takes_its_place() {
+        let name = |p: *const libc::c_char| {
+            // SAFETY: a NUL-terminated path noted by `note_mapping`.
+            #[allow(unsafe_code)]
+            unsafe { std::ffi::CStr::from_ptr(p) }.to_str().unwrap().to_string()
+        };
+        // Addresses no real mapping has (the kernel never maps page 1).
+        let base = 0x1000;
+        note_mapping(base, 100, Path::new("/a.usdc"));
+        assert_eq!(mapped_file_at(base).map(name).as_deref(), Some("/a.usdc"));
+        assert_eq!(mapped_file_at(base + 99).map(name).as_deref(), Some("/a.usdc"));
+        assert!(mapped_file_at(base + 100).is_none());
+        assert!(mapped_file_at(base - 1).is_none());
+        note_mapping(base + 50, 100, Path::new("/b.usdc"));
+        assert_eq!(mapped_file_at(base + 10).map(name), None);
+        assert_eq!(mapped_file_at(base + 149).map(name).as_deref(), Some("/b.usdc"));
+        let taken = MAPPED
+            .iter()
+            .filter(|m| m.start.load(Ordering::Relaxed) == base + 50)
+            .count();
+        assert_eq!(taken, 1);
+    }
+
+    #[test]
+    fn regular_files_read_whole_mapped_or_not() {
+        let dir = crate::test_dir::ScratchDir::new("regular-file");
+        let p = dir.join("a.usda");
+        std::fs::write(&p, b"#usda 1.0\n").unwrap();
+        assert_eq!(read_regular(&p).unwrap(), b"#usda 1.0\n");
+        assert_eq!(read_regular_to_string(&p).unwrap(), "#usda 1.0\n");
+        #[allow(unsafe_code)]
+        let mapped = unsafe { RegularResolver::mapped() };
+        for r in [RegularResolver::new(), mapped] {
+            let asset = r.open_asset(&ResolvedPath::new(&p)).unwrap();
+            assert_eq!(&*asset.into_buffer().unwrap(), b"#usda 1.0\n");
+        }
+        let empty = dir.join("e.usda");
+        std::fs::write(&empty, b"").unwrap();
+        let asset = RegularResolver::new().open_asset(&ResolvedPath::new(&empty)).unwrap();
+        assert!(asset.into_buffer().unwrap().is_empty());
+        // A link to a regular file is followed, unless asked not to.
+        let link = dir.join("l.usda");
+        std::os::unix::fs::symlink(&p, &link).unwrap();
+        assert_eq!(read_regular(&link).unwrap(), b"#usda 1.0\n");
+        assert!(open_regular_with(&link, true).is_err());
+    }
+}
