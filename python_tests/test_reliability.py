@@ -486,6 +486,32 @@ def test_signal_during_write_leaves_no_temporary_and_the_old_output(tmp_path, si
     assert out.read_bytes() == old or Usd.Stage.Open(str(out)), err
 
 
+def test_a_signal_blocked_in_the_mask_painterly_inherits_still_stops_it(tmp_path):
+    """A job runner that starts painterly from a thread with SIGTERM
+    blocked passes that mask on through exec: the signal then never
+    arrived, so the cleanup never ran, and the bus-error report (which
+    goes through it) waited for ever (found by a review, 2026-12-07).
+    painterly unblocks SIGTERM, SIGINT and SIGHUP as it starts."""
+    out_dir = tmp_path / "out"
+    out_dir.mkdir()
+    out = out_dir / "bake.usdc"
+    proc = subprocess.Popen(
+        [str(painterly_binary()), "bake", str(BLOWFISH), "-o", str(out), "--bake-proxy", "-q"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        preexec_fn=lambda: signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGTERM}),
+    )
+    deadline = time.monotonic() + HANG
+    while not leftovers(out_dir) and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.001)
+    seen = leftovers(out_dir)
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=HANG)
+    if not seen:
+        pytest.skip(f"the bake finished before its temporary was seen (exit {proc.returncode})")
+    assert (proc.returncode, err) == (128 + signal.SIGTERM, "painterly: stopped by signal 15; temporary files removed\n")
+    assert leftovers(out_dir) == []
+
+
 @pytest.mark.parametrize("stderr_kind", ["full disk", "closed pipe"])
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
 def test_a_signal_ends_the_run_when_stderr_cannot_be_written(tmp_path, stderr_kind, sig):
@@ -762,6 +788,9 @@ def test_a_layer_the_stage_names_that_is_a_fifo_fails_instead_of_hanging(tmp_pat
     (tmp_path / "sub.usda").write_text('#usda 1.0\n(\n    subLayers = [@./pipe.usda@, @./fish.usda@]\n)\n')
     (tmp_path / "ref.usda").write_text(
         '#usda 1.0\n(\n    subLayers = [@./fish.usda@]\n)\ndef "Extra" (references = @./pipe.usda@)\n{\n}\n')
+    # An entry of a package that is a FIFO: the lookup of the entry opened it.
+    os.mkfifo(tmp_path / "pipe.usdz")
+    (tmp_path / "pkg.usda").write_text('#usda 1.0\n(\n    subLayers = [@./pipe.usdz[a.usda]@, @./fish.usda@]\n)\n')
     pipe = f"@{tmp_path / 'pipe.usda'}@"
     why = "cannot be read: not a regular file (a FIFO, device or socket)"
     run_in = {"cwd": tmp_path, "capture_output": True, "text": True, "timeout": 30}
@@ -770,6 +799,8 @@ def test_a_layer_the_stage_names_that_is_a_fifo_fails_instead_of_hanging(tmp_pat
          f"sublayer {pipe} (in {tmp_path / 'sub.usda'}): {why}"),
         ("ref.usda", f"/Extra: missing asset: reference {pipe} (in {tmp_path / 'ref.usda'}): {why}",
          f"reference {pipe} on /Extra (in {tmp_path / 'ref.usda'}): {why}"),
+        ("pkg.usda", f"sublayer @./pipe.usdz[a.usda]@ (in {tmp_path / 'pkg.usda'}): {why}",
+         f"sublayer @./pipe.usdz[a.usda]@ (in {tmp_path / 'pkg.usda'}): {why}"),
     ]:
         # inspect lists a stage's problems on stdout, and exits 1.
         proc = subprocess.run([str(painterly_binary()), "inspect", top], **run_in)
@@ -827,6 +858,19 @@ def test_an_input_cut_short_while_a_bake_reads_it_is_an_error_not_a_bus_error(tm
     for code, err in outcomes:
         assert code == 0 and err == "" or code == 1 and any(err.startswith(m) for m in said), (code, err)
     assert leftovers(tmp_path) == []
+
+
+def test_a_clips_lock_that_is_a_fifo_is_refused_not_waited_on(tmp_path):
+    """A FIFO at a chunked bake's lock (`shot.clips/shot.lock`) hung the
+    bake (opened for writing, blocking; found by a review, 2026-12-07)."""
+    (tmp_path / "shot.clips").mkdir()
+    lock = tmp_path / "shot.clips" / "shot.lock"
+    os.mkfifo(lock)
+    for extra in ([], ["--chunk-index", "0"]):
+        proc = subprocess.run([str(painterly_binary()), "bake", BLOWFISH, "-o", tmp_path / "shot.usda",
+                               "--chunk", "12", *extra, "-q"], capture_output=True, text=True, timeout=30)
+        assert (proc.returncode, proc.stderr) == (
+            1, f"error: {lock}: cannot open the clips folder's lock: not a regular file (a FIFO, device or socket)\n")
 
 
 def test_a_fifo_swapped_in_for_the_edit_layer_never_blocks_the_edit(tmp_path):

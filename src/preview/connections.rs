@@ -3,8 +3,8 @@
 //! closes); a connection that sends no request headers within
 //! [`HEADER_TIMEOUT`] (a new one, or one kept alive between requests) is
 //! closed; the handlers bound a request's body by [`BODY_TIMEOUT`]; and a
-//! reply of which the client has taken nothing for [`WRITE_TIMEOUT`] ends
-//! the connection. Without them a client holding idle, half-sent or unread
+//! reply of which the client has taken less than [`MIN_TAKEN`] in
+//! [`WRITE_TIMEOUT`] ends the connection. Without them a client holding idle, half-sent or unread
 //! requests held its slot for ever, and every new page then waited. Past
 //! the cap, new connections wait in the kernel's backlog, not in ours. TCP
 //! keepalive and `TCP_USER_TIMEOUT` free the slot of a peer that vanished
@@ -40,6 +40,11 @@ pub const BODY_TIMEOUT: Duration = Duration::from_secs(30);
 /// How long a reply may wait for the client to take it (a page reads
 /// every frame as it comes; a client that does not is gone or hostile).
 pub const WRITE_TIMEOUT: Duration = Duration::from_secs(30);
+
+/// What a client must take of a waiting reply within [`WRITE_TIMEOUT`] to
+/// keep its connection (about 2 KB/s): a client taking a few bytes now
+/// and then does not hold a reply, and its slot, for hours.
+pub const MIN_TAKEN: usize = 64 * 1024;
 
 /// TCP keepalive: first probe after a minute idle, then every 10 s; and
 /// sent data unacknowledged for two minutes ends the connection (Linux
@@ -108,8 +113,8 @@ fn is_connection_error(e: &io::Error) -> bool {
 /// A connection holding its slot: the slot is freed when the stream is
 /// dropped, which for a websocket is when the socket closes (the upgrade
 /// carries the stream, and this with it). A write that waits
-/// [`WRITE_TIMEOUT`] while the client takes nothing fails, which ends the
-/// connection.
+/// [`WRITE_TIMEOUT`] while the client takes less than [`MIN_TAKEN`]
+/// fails, which ends the connection.
 struct Counted {
     stream: TcpStream,
     _slot: OwnedSemaphorePermit,
@@ -148,12 +153,12 @@ fn send_queue(stream: &TcpStream) -> Option<usize> {
 
 impl Counted {
     /// `poll` (a write or flush) bounded by [`WRITE_TIMEOUT`] of waiting
-    /// while the client takes nothing. A full send buffer wakes its writer
-    /// only once about a third of it is free, which a client that reads
-    /// slowly but steadily (under about 45 KB/s of a 4 MB buffer) takes
-    /// longer than the timeout to make: so when the deadline comes and the
-    /// send queue has shrunk since it was set, the client is still there,
-    /// and a new deadline is set.
+    /// while the client takes less than [`MIN_TAKEN`]. A full send buffer
+    /// wakes its writer only once about a third of it is free, which a
+    /// client that reads slowly but steadily (under about 45 KB/s of a
+    /// 4 MB buffer) takes longer than the timeout to make: so when the
+    /// deadline comes and the send queue has shrunk by `MIN_TAKEN` since it
+    /// was set, the client is still there, and a new deadline is set.
     fn bounded<T>(
         &mut self,
         cx: &mut Context<'_>,
@@ -166,7 +171,7 @@ impl Counted {
                     return Poll::Pending;
                 }
                 let now = send_queue(&self.stream);
-                if matches!((stall.queued, now), (Some(before), Some(now)) if now < before) {
+                if matches!((stall.queued, now), (Some(before), Some(now)) if now + MIN_TAKEN <= before) {
                     // Polled again at the loop's top, so the new deadline
                     // wakes this task.
                     self.stalled = None;
@@ -174,7 +179,11 @@ impl Counted {
                 }
                 return Poll::Ready(Err(io::Error::new(
                     io::ErrorKind::TimedOut,
-                    format!("the client took nothing of the reply for {} s", WRITE_TIMEOUT.as_secs()),
+                    format!(
+                        "the client took less than {} KiB of the reply in {} s",
+                        MIN_TAKEN / 1024,
+                        WRITE_TIMEOUT.as_secs()
+                    ),
                 )));
             },
             done => {
@@ -223,7 +232,7 @@ mod tests {
     use std::io::Read;
     use std::task::Waker;
 
-    /// A served stream whose (small) send buffer is full, and its client,
+    /// A served stream whose send buffer (about 1 MB) is full, and its client,
     /// whose small receive buffer leaves what the server wrote queued on
     /// the server's side. Filled before tokio takes the stream: tokio
     /// writes only once its reactor has seen the socket writable.
@@ -233,7 +242,9 @@ mod tests {
         client.set_recv_buffer_size(4096).unwrap();
         client.connect(&listener.local_addr().unwrap().into()).unwrap();
         let (server, _) = listener.accept().unwrap();
-        socket2::SockRef::from(&server).set_send_buffer_size(65536).unwrap();
+        socket2::SockRef::from(&server)
+            .set_send_buffer_size(512 * 1024)
+            .unwrap();
         server.set_nonblocking(true).unwrap();
         let mut filled = 0;
         loop {
@@ -263,18 +274,21 @@ mod tests {
         assert!(write_once(c).is_pending());
     }
 
-    /// Takes what the client's receive buffer holds, then waits until the
-    /// server's send queue has shrunk below `before` (its acknowledgement).
-    fn take_some(client: &mut std::net::TcpStream, c: &Counted, before: usize) {
-        let mut buf = vec![0u8; 65536];
-        assert!(client.read(&mut buf).unwrap() > 0);
+    /// Reads `n` bytes as the client (less than a third of the server's
+    /// buffer, so the server's writer is not woken), then waits until the
+    /// server's send queue has shrunk by `shrink` (what the client's
+    /// window let through was acknowledged).
+    fn take(client: &mut std::net::TcpStream, c: &Counted, n: usize, shrink: usize) {
+        let before = send_queue(&c.stream).unwrap();
+        let mut buf = vec![0u8; n];
+        client.read_exact(&mut buf).unwrap();
         for _ in 0..200 {
-            if send_queue(&c.stream).unwrap() < before {
+            if send_queue(&c.stream).unwrap() + shrink <= before {
                 return;
             }
             std::thread::sleep(std::time::Duration::from_millis(5));
         }
-        panic!("the send queue did not shrink");
+        panic!("the send queue did not shrink by {shrink}");
     }
 
     #[tokio::test(start_paused = true)]
@@ -289,7 +303,7 @@ mod tests {
                 (e.kind(), e.to_string()),
                 (
                     io::ErrorKind::TimedOut,
-                    "the client took nothing of the reply for 30 s".into()
+                    "the client took less than 64 KiB of the reply in 30 s".into()
                 )
             ),
             other => panic!("{other:?}"),
@@ -297,18 +311,18 @@ mod tests {
     }
 
     #[tokio::test(start_paused = true)]
-    async fn a_client_taking_a_little_before_the_timeout_gets_another() {
+    async fn a_client_taking_enough_before_the_timeout_gets_another() {
         // Before, a write waiting 30 s failed even when the client had
         // taken part of the queue meanwhile: the kernel wakes a writer only
         // once about a third of its buffer is free.
         let (mut c, mut client) = pair();
         wait(&mut c);
-        let queued = send_queue(&c.stream).unwrap();
-        take_some(&mut client, &c, queued);
+        take(&mut client, &c, MIN_TAKEN + 16384, MIN_TAKEN);
         tokio::time::advance(WRITE_TIMEOUT + Duration::from_secs(1)).await;
         assert!(matches!(write_once(&mut c), Poll::Pending | Poll::Ready(Ok(_))));
-        // Then nothing taken for a whole new timeout: cut.
+        // Then too little taken in a whole new timeout: cut.
         wait(&mut c);
+        take(&mut client, &c, 4096, 1);
         tokio::time::advance(WRITE_TIMEOUT + Duration::from_secs(1)).await;
         assert!(matches!(write_once(&mut c), Poll::Ready(Err(e)) if e.kind() == io::ErrorKind::TimedOut));
     }

@@ -117,6 +117,20 @@ pub fn install_signal_cleanup() {
         // A handler that only sets a flag: write() then fails with EFBIG.
         static FSIZE: AtomicBool = AtomicBool::new(false);
         let _ = signal_hook::flag::register(SIGXFSZ, &FSIZE);
+        // A mask inherited through exec (a job runner's thread that
+        // blocked SIGTERM) would keep every signal below from ever
+        // arriving: unblocked here, before any other thread starts.
+        // SAFETY: sigset operations on a local set; pthread_sigmask on the
+        // calling thread.
+        #[allow(unsafe_code)]
+        unsafe {
+            let mut set: libc::sigset_t = std::mem::zeroed();
+            libc::sigemptyset(&mut set);
+            for sig in [SIGTERM, SIGINT, SIGHUP] {
+                libc::sigaddset(&mut set, sig);
+            }
+            libc::pthread_sigmask(libc::SIG_UNBLOCK, &set, std::ptr::null_mut());
+        }
         let Ok(mut signals) = signal_hook::iterator::Signals::new([SIGTERM, SIGINT, SIGHUP]) else {
             return;
         };
@@ -170,22 +184,32 @@ static SIGNAL_THREAD: AtomicBool = AtomicBool::new(false);
 /// by [`input_truncated`] for the signal thread.
 static TRUNCATED: std::sync::atomic::AtomicPtr<libc::c_char> = std::sync::atomic::AtomicPtr::new(std::ptr::null_mut());
 
+/// What [`input_truncated`] gets for a mapping whose file is not known.
+pub(crate) const UNKNOWN_FILE: &std::ffi::CStr = c"";
+
 /// Called from the bus-error handler when a read met the end of a mapped
-/// input file (`path`, NUL-terminated) that was cut short while mapped:
-/// the signal thread removes this run's temporaries and ends the process
-/// with exit 1 and an error naming the file; this thread waits for that.
-/// Only async-signal-safe calls.
+/// input file (`path`, NUL-terminated, or [`UNKNOWN_FILE`]) that was cut
+/// short while mapped: the signal thread removes this run's temporaries and
+/// ends the process with exit 1 and an error naming the file; this thread
+/// waits for that, 5 s at most. Only async-signal-safe calls.
 pub(crate) fn input_truncated(path: *const libc::c_char) -> ! {
     TRUNCATED.store(path.cast_mut(), Ordering::SeqCst);
-    // SAFETY: kill, getpid, pause, write and _exit are async-signal-safe.
+    // SAFETY: kill, getpid, nanosleep, write and _exit are
+    // async-signal-safe.
     #[allow(unsafe_code)]
     unsafe {
         if SIGNAL_THREAD.load(Ordering::SeqCst) {
             libc::kill(libc::getpid(), libc::SIGTERM);
-            loop {
-                libc::pause();
+            let tenth = libc::timespec {
+                tv_sec: 0,
+                tv_nsec: 100_000_000,
+            };
+            for _ in 0..50 {
+                libc::nanosleep(&tenth, std::ptr::null_mut());
             }
         }
+        // No signal thread, or it did not end the process: without
+        // removing temporaries (the next run does).
         let m = b"error: an input file was cut short while painterly read it (rewritten in place during this run?); run again once it is saved\n";
         libc::write(2, m.as_ptr().cast(), m.len());
         libc::_exit(1);
@@ -195,23 +219,58 @@ pub(crate) fn input_truncated(path: *const libc::c_char) -> ! {
 /// The signal thread's end after [`input_truncated`]: temporaries removed,
 /// the error, exit 1.
 fn report_truncated(path: *const libc::c_char) -> ! {
-    // SAFETY: a NUL-terminated path leaked by `regular::note_mapping`.
+    // SAFETY: a NUL-terminated path leaked by `regular::note_mapping`, or
+    // UNKNOWN_FILE.
     #[allow(unsafe_code)]
     let path = unsafe { std::ffi::CStr::from_ptr(path) };
     let path = Path::new(std::ffi::OsStr::from_bytes(path.to_bytes()));
-    remove_all_temporaries_unless_held();
-    let written = match published() {
+    // Held until exit, as the signal path does: a writer thread going on
+    // cannot create a temporary after the sweep.
+    let held = registry_for_exit();
+    let published = match &held {
+        Some(reg) => (reg.published, reg.first_published.clone()),
+        None => published(),
+    };
+    let written = match published {
         (1, Some(p)) => format!(" ({} was written before it)", p.display()),
         (n, Some(p)) => format!(" ({n} files were written before it, the first {})", p.display()),
         _ => String::new(),
     };
+    let file = if path.as_os_str().is_empty() {
+        "an input file".to_string()
+    } else {
+        format!("{}", path.display())
+    };
     let _ = writeln!(
         std::io::stderr(),
-        "error: {}: was cut short while painterly read it (rewritten in place during this run?): what was \
+        "error: {file}: was cut short while painterly read it (rewritten in place during this run?): what was \
          read is not what the file now holds; run again once it is saved{written}",
-        path.display()
     );
     std::process::exit(1);
+}
+
+/// The registry, its temporaries removed, for a thread about to end the
+/// process; None when another thread held it for half a second (the
+/// thread that faulted may hold it for ever).
+fn registry_for_exit() -> Option<MutexGuard<'static, Registry>> {
+    let deadline = std::time::Instant::now() + std::time::Duration::from_millis(500);
+    loop {
+        match registry_mutex().try_lock() {
+            Ok(mut reg) => {
+                reg.remove_all();
+                return Some(reg);
+            }
+            Err(std::sync::TryLockError::Poisoned(e)) => {
+                let mut reg = e.into_inner();
+                reg.remove_all();
+                return Some(reg);
+            }
+            Err(std::sync::TryLockError::WouldBlock) if std::time::Instant::now() < deadline => {
+                std::thread::sleep(std::time::Duration::from_millis(5))
+            }
+            Err(std::sync::TryLockError::WouldBlock) => return None,
+        }
+    }
 }
 
 /// The count of [`SignalHold`]s alive, and the signal it went to zero.
@@ -432,13 +491,16 @@ fn try_flock(f: &File) -> bool {
 /// farm submission reads, submits and writes its plan).
 pub fn hold_lock(path: &Path, wait: std::time::Duration) -> std::io::Result<Option<File>> {
     use std::os::unix::fs::OpenOptionsExt;
-    let f = File::options()
-        .read(true)
-        .write(true)
-        .create(true)
-        .truncate(false)
-        .custom_flags(libc::O_NOFOLLOW)
-        .open(path)?;
+    // A FIFO or device there is refused, not used as the lock.
+    let f = super::regular::regular_only(
+        File::options()
+            .read(true)
+            .write(true)
+            .create(true)
+            .truncate(false)
+            .custom_flags(libc::O_NOFOLLOW | libc::O_NONBLOCK)
+            .open(path),
+    )?;
     let deadline = std::time::Instant::now() + wait;
     loop {
         if try_flock(&f) {

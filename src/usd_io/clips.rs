@@ -171,12 +171,17 @@ pub fn lock_clips(plan: &ClipPlan, exclusive: bool) -> Result<ClipsLock> {
     use std::os::fd::AsRawFd;
     let stem = plan.output.file_stem().unwrap_or_default().to_string_lossy();
     let path = plan.dir.join(format!("{stem}.lock"));
-    let file = std::fs::OpenOptions::new()
-        .create(true)
-        .truncate(false)
-        .write(true)
-        .open(&path)
-        .map_err(|e| Error::msg(format!("cannot open the clips folder's lock: {e}")).in_file(&path))?;
+    use std::os::unix::fs::OpenOptionsExt;
+    // Never waits on a FIFO put there.
+    let file = super::regular::regular_only(
+        std::fs::OpenOptions::new()
+            .create(true)
+            .truncate(false)
+            .write(true)
+            .custom_flags(libc::O_NONBLOCK)
+            .open(&path),
+    )
+    .map_err(|e| Error::msg(format!("cannot open the clips folder's lock: {e}")).in_file(&path))?;
     let how = if exclusive { libc::LOCK_EX } else { libc::LOCK_SH };
     // SAFETY: flock on a file descriptor this function owns.
     if unsafe { libc::flock(file.as_raw_fd(), how | libc::LOCK_NB) } != 0 {

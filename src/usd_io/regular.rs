@@ -30,7 +30,14 @@ pub const NOT_REGULAR: &str = "not a regular file (a FIFO, device or socket)";
 pub fn open_regular_with(path: &Path, no_follow: bool) -> io::Result<File> {
     use std::os::unix::fs::OpenOptionsExt;
     let flags = libc::O_NONBLOCK | if no_follow { libc::O_NOFOLLOW } else { 0 };
-    let file = File::options().read(true).custom_flags(flags).open(path)?;
+    let file = File::options().read(true).custom_flags(flags).open(path).map_err(|e| {
+        // open(2) of a socket (or of a device with no driver) fails so.
+        if e.raw_os_error() == Some(libc::ENXIO) {
+            io::Error::new(io::ErrorKind::InvalidInput, NOT_REGULAR)
+        } else {
+            e
+        }
+    })?;
     let meta = file.metadata()?;
     if meta.is_dir() {
         return Err(io::Error::new(
@@ -43,6 +50,23 @@ pub fn open_regular_with(path: &Path, no_follow: bool) -> io::Result<File> {
     }
     // O_NONBLOCK changes nothing for a regular file's reads; it is left on.
     Ok(file)
+}
+
+/// `file`, just opened from a path with `O_NONBLOCK` (`opened`), when it
+/// is a regular file; the error [`open_regular_with`] gives otherwise.
+pub fn regular_only(opened: io::Result<File>) -> io::Result<File> {
+    let file = opened.map_err(|e| {
+        if e.raw_os_error() == Some(libc::ENXIO) {
+            io::Error::new(io::ErrorKind::InvalidInput, NOT_REGULAR)
+        } else {
+            e
+        }
+    })?;
+    if file.metadata()?.is_file() {
+        Ok(file)
+    } else {
+        Err(io::Error::new(io::ErrorKind::InvalidInput, NOT_REGULAR))
+    }
 }
 
 /// [`open_regular_with`], following links.
@@ -75,6 +99,10 @@ pub struct RegularResolver {
     inner: DefaultResolver,
     /// Whether files are mapped rather than read ([`Self::mapped`]).
     map: bool,
+    /// Opens package entries: the default resolver opens the package by
+    /// itself, so it reads rather than maps (a mapping it made would not
+    /// be in the table [`mapped_file_at`] reads).
+    packages: DefaultResolver,
 }
 
 impl RegularResolver {
@@ -83,6 +111,7 @@ impl RegularResolver {
         RegularResolver {
             inner: DefaultResolver::new(),
             map: false,
+            packages: DefaultResolver::new(),
         }
     }
 
@@ -94,10 +123,11 @@ impl RegularResolver {
     #[allow(unsafe_code)]
     pub unsafe fn mapped() -> Self {
         RegularResolver {
-            // SAFETY: the caller's promise, passed on; the inner resolver
-            // maps the packages it opens itself.
+            // SAFETY: the caller's promise, passed on (the inner resolver
+            // opens no file: `open_asset` is this resolver's).
             inner: unsafe { DefaultResolver::new().map_files() },
             map: true,
+            packages: DefaultResolver::new(),
         }
     }
 
@@ -121,9 +151,10 @@ impl RegularResolver {
     }
 }
 
-/// Mapped files noted at once: past this, a bus error in a mapping is
-/// reported without its file's name.
-const MAPPINGS: usize = 1024;
+/// Mapped files noted at once (each point-cached attribute maps its file
+/// once more): past this, a bus error in a mapping is reported without
+/// its file's name.
+const MAPPINGS: usize = 4096;
 
 /// One noted mapping: written under [`MAPPING_WRITES`], read by a signal
 /// handler with atomic loads only (`len` 0: an empty slot).
@@ -142,7 +173,9 @@ static MAPPED: [Mapping; MAPPINGS] = [const {
         path: AtomicPtr::new(std::ptr::null_mut()),
     }
 }; MAPPINGS];
-static MAPPING_WRITES: std::sync::Mutex<()> = std::sync::Mutex::new(());
+/// Guards writes to [`MAPPED`]; holds how many slots were ever used (the
+/// rest are empty).
+static MAPPING_WRITES: std::sync::Mutex<usize> = std::sync::Mutex::new(0);
 
 /// Notes that `path` is mapped at `start..start + len`. A slot whose range
 /// overlaps belongs to a mapping since unmapped (the system reused its
@@ -152,17 +185,19 @@ fn note_mapping(start: usize, len: usize, path: &Path) {
     let Ok(c_path) = std::ffi::CString::new(path.as_os_str().as_bytes()) else {
         return;
     };
-    let _writing = MAPPING_WRITES.lock().unwrap_or_else(|e| e.into_inner());
+    let mut used = MAPPING_WRITES.lock().unwrap_or_else(|e| e.into_inner());
     let overlaps = |m: &Mapping| {
         let (s, l) = (m.start.load(Ordering::Relaxed), m.len.load(Ordering::Relaxed));
         l > 0 && s < start + len && start < s + l
     };
-    let slot = MAPPED
-        .iter()
-        .find(|m| overlaps(m))
-        .or_else(|| MAPPED.iter().find(|m| m.len.load(Ordering::Relaxed) == 0));
-    let Some(slot) = slot else {
-        return;
+    let seen = &MAPPED[..*used];
+    let slot = match seen.iter().find(|m| overlaps(m)) {
+        Some(slot) => slot,
+        None if *used < MAPPINGS => {
+            *used += 1;
+            &MAPPED[*used - 1]
+        }
+        None => return,
     };
     // Emptied first, so a handler never pairs one mapping's range with
     // another's path.
@@ -195,6 +230,13 @@ impl ar::Resolver for RegularResolver {
     }
 
     fn resolve(&self, asset_path: &str) -> Option<ResolvedPath> {
+        // The default resolver opens a package to look for the entry,
+        // with a blocking open: a package that is not a regular file
+        // resolves to nothing instead (an unresolved asset, reported).
+        let package = super::stage::package_file(asset_path);
+        if package != asset_path && std::fs::metadata(package).is_ok_and(|m| !m.is_file()) {
+            return None;
+        }
         self.inner.resolve(asset_path)
     }
 
@@ -210,7 +252,7 @@ impl ar::Resolver for RegularResolver {
             // by path, so its type is checked first (a swap in between is
             // the one window left, for packages only).
             open_regular(Path::new(package))?;
-            return self.inner.open_asset(resolved_path);
+            return self.packages.open_asset(resolved_path);
         }
         self.open_file(resolved_path)
     }
@@ -252,6 +294,7 @@ impl ar::Resolver for RegularResolver {
 mod tests {
     use super::*;
     use ar::Resolver;
+    use std::os::unix::fs::OpenOptionsExt;
 
     fn fifo(dir: &Path) -> std::path::PathBuf {
         let p = dir.join("pipe.usda");
@@ -276,6 +319,12 @@ mod tests {
         let mapped = unsafe { RegularResolver::mapped() };
         assert!(mapped.open_asset(&ResolvedPath::new(&p)).is_err());
         assert_eq!(open_regular(&dir).unwrap_err().kind(), io::ErrorKind::IsADirectory);
+        // open(2) of a socket fails with ENXIO: the same words.
+        let socket = dir.join("s.usda");
+        let _listener = std::os::unix::net::UnixListener::bind(&socket).unwrap();
+        assert_eq!(open_regular(&socket).unwrap_err().to_string(), NOT_REGULAR);
+        let lock = File::options().write(true).custom_flags(libc::O_NONBLOCK).open(&p);
+        assert_eq!(regular_only(lock).unwrap_err().to_string(), NOT_REGULAR);
         assert_eq!(
             open_regular(&dir.join("none")).unwrap_err().kind(),
             io::ErrorKind::NotFound

@@ -1098,6 +1098,21 @@ impl StageReader {
     }
 }
 
+/// Why the asset `asset_path`, written in layer `introduced_by`, did not
+/// resolve: "not found", unless its file (a package's, for an entry) is
+/// there but no regular file, which the resolver refuses to open.
+fn not_found(asset_path: &str, introduced_by: &str) -> String {
+    let file = Path::new(package_file(asset_path));
+    let file = match Path::new(package_file(introduced_by)).parent() {
+        Some(dir) if file.is_relative() => dir.join(file),
+        _ => file.to_path_buf(),
+    };
+    match std::fs::metadata(&file) {
+        Ok(m) if !m.is_file() => format!("cannot be read: {}", super::regular::NOT_REGULAR),
+        _ => "not found".into(),
+    }
+}
+
 /// The stage's missing sublayers, references and payloads, from
 /// composition's diagnostics.
 fn unresolved_assets(stage: &usd::Stage) -> Vec<UnresolvedAsset> {
@@ -1112,11 +1127,11 @@ fn unresolved_assets(stage: &usd::Stage) -> Vec<UnresolvedAsset> {
                 introduced_by,
                 site_path,
             } => UnresolvedAsset {
-                asset: asset_path,
+                asset: asset_path.clone(),
                 arc: arc(&a),
                 prim: Some(site_path.as_str().to_string()),
-                layer: introduced_by,
-                reason: "not found".into(),
+                layer: introduced_by.clone(),
+                reason: not_found(&asset_path, &introduced_by),
             },
             D::MalformedLayer {
                 asset_path,
@@ -1159,11 +1174,11 @@ fn unresolved_assets(stage: &usd::Stage) -> Vec<UnresolvedAsset> {
                 asset_path,
                 introduced_by,
             } => UnresolvedAsset {
-                asset: asset_path,
+                asset: asset_path.clone(),
                 arc: "sublayer".into(),
                 prim: None,
-                layer: introduced_by,
-                reason: "not found".into(),
+                layer: introduced_by.clone(),
+                reason: not_found(&asset_path, &introduced_by),
             },
             D::MalformedSublayer {
                 asset_path,
