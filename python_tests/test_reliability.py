@@ -791,6 +791,13 @@ def test_a_layer_the_stage_names_that_is_a_fifo_fails_instead_of_hanging(tmp_pat
     # An entry of a package that is a FIFO: the lookup of the entry opened it.
     os.mkfifo(tmp_path / "pipe.usdz")
     (tmp_path / "pkg.usda").write_text('#usda 1.0\n(\n    subLayers = [@./pipe.usdz[a.usda]@, @./fish.usda@]\n)\n')
+    # A package that is a folder keeps its own words.
+    (tmp_path / "dir.usdz").mkdir()
+    (tmp_path / "dirpkg.usda").write_text('#usda 1.0\n(\n    subLayers = [@./dir.usdz[a.usda]@, @./fish.usda@]\n)\n')
+    proc = subprocess.run([str(painterly_binary()), "bake", "dirpkg.usda", "-o", "out.usdc"], cwd=tmp_path,
+                          capture_output=True, text=True, timeout=30)
+    assert (proc.returncode, proc.stderr) == (1, f"error: dirpkg.usda: missing asset: sublayer @./dir.usdz[a.usda]@ "
+                                                 f"(in {tmp_path / 'dirpkg.usda'}): cannot be read: it is a folder, not a file\n")
     pipe = f"@{tmp_path / 'pipe.usda'}@"
     why = "cannot be read: not a regular file (a FIFO, device or socket)"
     run_in = {"cwd": tmp_path, "capture_output": True, "text": True, "timeout": 30}
@@ -840,7 +847,7 @@ def test_an_input_cut_short_while_a_bake_reads_it_is_an_error_not_a_bus_error(tm
     writer.start()
     outcomes = []
     try:
-        for _ in range(40):
+        for _ in range(100):
             proc = subprocess.run([str(painterly_binary()), "bake", src, "-o", tmp_path / "out.usdc",
                                    "--frames", "1", "-q"], capture_output=True, text=True, timeout=HANG)
             outcomes.append((proc.returncode, proc.stderr))

@@ -1108,6 +1108,7 @@ fn not_found(asset_path: &str, introduced_by: &str) -> String {
         _ => file.to_path_buf(),
     };
     match std::fs::metadata(&file) {
+        Ok(m) if m.is_dir() => "cannot be read: it is a folder, not a file".into(),
         Ok(m) if !m.is_file() => format!("cannot be read: {}", super::regular::NOT_REGULAR),
         _ => "not found".into(),
     }
