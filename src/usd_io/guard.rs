@@ -382,37 +382,7 @@ impl<R: ar::Resolver> ar::Resolver for GuardedResolver<R> {
         Ok(Box::new(io::Cursor::new(buffer)))
     }
 
-    fn get_extension<'a>(&self, asset_path: &'a str) -> &'a str {
-        self.inner.get_extension(asset_path)
-    }
-
-    fn is_context_dependent_path(&self, asset_path: &str) -> bool {
-        self.inner.is_context_dependent_path(asset_path)
-    }
-
-    fn in_memory_identifier<'a>(&self, asset_path: &'a str) -> std::borrow::Cow<'a, str> {
-        self.inner.in_memory_identifier(asset_path)
-    }
-
-    fn get_asset_info(&self, asset_path: &str, resolved_path: &ResolvedPath) -> ar::AssetInfo {
-        self.inner.get_asset_info(asset_path, resolved_path)
-    }
-
-    fn get_modification_timestamp(
-        &self,
-        asset_path: &str,
-        resolved_path: &ResolvedPath,
-    ) -> Option<std::time::SystemTime> {
-        self.inner.get_modification_timestamp(asset_path, resolved_path)
-    }
-
-    fn identity(&self) -> String {
-        self.inner.identity()
-    }
-
-    fn cache_id(&self) -> Option<u64> {
-        self.inner.cache_id()
-    }
+    super::regular::forward_to_inner!();
 }
 
 #[cfg(test)]
