@@ -139,9 +139,9 @@ extern "C" fn on_fatal(sig: libc::c_int, info: *mut libc::siginfo_t, ctx: *mut l
     if sig == libc::SIGBUS && !info.is_null() {
         // SAFETY: the siginfo the kernel passed for this signal.
         let (code, addr) = unsafe { ((*info).si_code, (*info).si_addr() as usize) };
-        // The only file mappings in the process are inputs' (the layers
-        // `regular` maps, packages openusd maps): an address past a
-        // mapped file's end is one of them.
+        // Besides the executable and its libraries, the process maps only
+        // the inputs `regular` maps (package entries are read): a bus
+        // error past a mapped file's end is taken for one of them.
         if code == libc::BUS_ADRERR {
             let path = super::regular::mapped_file_at(addr).unwrap_or(super::atomic::UNKNOWN_FILE.as_ptr());
             super::atomic::input_truncated(path);
