@@ -29,13 +29,8 @@ fn main() {
             if msg.contains("Broken pipe") {
                 std::process::exit(141);
             }
-            // The work may be done already: say so, or a TD reruns an
-            // in-place edit that was saved.
-            let written = match painterly::usd_io::atomic::published() {
-                (1, Some(p)) => format!(" ({} was written before it)", p.display()),
-                (n, Some(p)) => format!(" ({n} files were written before it, the first {})", p.display()),
-                _ => String::new(),
-            };
+            // The work may be done already: say so.
+            let written = painterly::usd_io::atomic::written_before(painterly::usd_io::atomic::published());
             // Not eprintln!: when stderr is what failed, a second panic
             // inside this hook aborts the process (SIGABRT, no message).
             let _ = writeln!(std::io::stderr(), "error: {msg}{written}");

@@ -4,8 +4,9 @@
 //! [`HEADER_TIMEOUT`] (a new one, or one kept alive between requests) is
 //! closed; the handlers bound a request's body by [`BODY_TIMEOUT`]; and a
 //! reply of which the client has taken less than [`MIN_TAKEN`] in
-//! [`WRITE_TIMEOUT`] ends the connection. Without them a client holding idle, half-sent or unread
-//! requests held its slot for ever, and every new page then waited. Past
+//! [`WRITE_TIMEOUT`] ends the connection. Without them a client holding
+//! idle, half-sent or unread requests held its slot for ever, and every
+//! new page then waited. Past
 //! the cap, new connections wait in the kernel's backlog, not in ours. TCP
 //! keepalive and `TCP_USER_TIMEOUT` free the slot of a peer that vanished
 //! (a laptop off the network with `--host`) within about two minutes,

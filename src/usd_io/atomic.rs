@@ -227,15 +227,10 @@ fn report_truncated(path: *const libc::c_char) -> ! {
     // Held until exit, as the signal path does: a writer thread going on
     // cannot create a temporary after the sweep.
     let held = registry_for_exit();
-    let published = match &held {
+    let written = written_before(match &held {
         Some(reg) => (reg.published, reg.first_published.clone()),
         None => published(),
-    };
-    let written = match published {
-        (1, Some(p)) => format!(" ({} was written before it)", p.display()),
-        (n, Some(p)) => format!(" ({n} files were written before it, the first {})", p.display()),
-        _ => String::new(),
-    };
+    });
     let file = if path.as_os_str().is_empty() {
         "an input file".to_string()
     } else {
@@ -250,8 +245,9 @@ fn report_truncated(path: *const libc::c_char) -> ! {
 }
 
 /// The registry, its temporaries removed, for a thread about to end the
-/// process; None when another thread held it for half a second (the
-/// thread that faulted may hold it for ever).
+/// process (held until exit, no temporary is made after the sweep); None
+/// when another thread held it for half a second (a thread that faulted,
+/// or the panicking one, may hold it for ever).
 fn registry_for_exit() -> Option<MutexGuard<'static, Registry>> {
     let deadline = std::time::Instant::now() + std::time::Duration::from_millis(500);
     loop {
@@ -321,17 +317,7 @@ pub fn remove_all_temporaries() {
 /// ever: the registry may be held by the panicking thread itself, or by the
 /// signal thread, which removes them and exits. Waits a moment at most.
 pub fn remove_all_temporaries_unless_held() {
-    let deadline = std::time::Instant::now() + std::time::Duration::from_millis(500);
-    loop {
-        match registry_mutex().try_lock() {
-            Ok(mut reg) => return reg.remove_all(),
-            Err(std::sync::TryLockError::Poisoned(e)) => return e.into_inner().remove_all(),
-            Err(std::sync::TryLockError::WouldBlock) if std::time::Instant::now() < deadline => {
-                std::thread::sleep(std::time::Duration::from_millis(5))
-            }
-            Err(std::sync::TryLockError::WouldBlock) => return,
-        }
-    }
+    drop(registry_for_exit());
 }
 
 fn remove_any(p: &Path) {
@@ -748,6 +734,17 @@ pub fn published() -> (usize, Option<PathBuf>) {
         Err(std::sync::TryLockError::WouldBlock) => return (0, None),
     };
     (reg.published, reg.first_published.clone())
+}
+
+/// What a failure message adds about [`published`] files: the work may be
+/// done already, and a TD who knows it does not rerun an in-place edit
+/// that was saved.
+pub fn written_before((n, first): (usize, Option<PathBuf>)) -> String {
+    match (n, first) {
+        (1, Some(p)) => format!(" ({} was written before it)", p.display()),
+        (n, Some(p)) => format!(" ({n} files were written before it, the first {})", p.display()),
+        _ => String::new(),
+    }
 }
 
 /// How a finished temporary takes its target's place.

@@ -30,7 +30,14 @@ pub const NOT_REGULAR: &str = "not a regular file (a FIFO, device or socket)";
 pub fn open_regular_with(path: &Path, no_follow: bool) -> io::Result<File> {
     use std::os::unix::fs::OpenOptionsExt;
     let flags = libc::O_NONBLOCK | if no_follow { libc::O_NOFOLLOW } else { 0 };
-    let file = File::options().read(true).custom_flags(flags).open(path).map_err(|e| {
+    // O_NONBLOCK changes nothing for a regular file's reads; it is left on.
+    regular_only(File::options().read(true).custom_flags(flags).open(path))
+}
+
+/// `opened`, a file just opened from a path with `O_NONBLOCK`, when it is a
+/// regular file; otherwise the error that says what it is.
+pub fn regular_only(opened: io::Result<File>) -> io::Result<File> {
+    let file = opened.map_err(|e| {
         // open(2) of a socket (or of a device with no driver) fails so.
         if e.raw_os_error() == Some(libc::ENXIO) {
             io::Error::new(io::ErrorKind::InvalidInput, NOT_REGULAR)
@@ -38,34 +45,23 @@ pub fn open_regular_with(path: &Path, no_follow: bool) -> io::Result<File> {
             e
         }
     })?;
-    let meta = file.metadata()?;
-    if meta.is_dir() {
-        return Err(io::Error::new(
-            io::ErrorKind::IsADirectory,
-            "it is a folder, not a file",
-        ));
+    match refusal(&file.metadata()?) {
+        Some(e) => Err(e),
+        None => Ok(file),
     }
-    if !meta.is_file() {
-        return Err(io::Error::new(io::ErrorKind::InvalidInput, NOT_REGULAR));
-    }
-    // O_NONBLOCK changes nothing for a regular file's reads; it is left on.
-    Ok(file)
 }
 
-/// `file`, just opened from a path with `O_NONBLOCK` (`opened`), when it
-/// is a regular file; the error [`open_regular_with`] gives otherwise.
-pub fn regular_only(opened: io::Result<File>) -> io::Result<File> {
-    let file = opened.map_err(|e| {
-        if e.raw_os_error() == Some(libc::ENXIO) {
-            io::Error::new(io::ErrorKind::InvalidInput, NOT_REGULAR)
-        } else {
-            e
-        }
-    })?;
-    if file.metadata()?.is_file() {
-        Ok(file)
+/// Why a file of this type is not read, or None for a regular file.
+pub fn refusal(meta: &std::fs::Metadata) -> Option<io::Error> {
+    if meta.is_dir() {
+        Some(io::Error::new(
+            io::ErrorKind::IsADirectory,
+            "it is a folder, not a file",
+        ))
+    } else if !meta.is_file() {
+        Some(io::Error::new(io::ErrorKind::InvalidInput, NOT_REGULAR))
     } else {
-        Err(io::Error::new(io::ErrorKind::InvalidInput, NOT_REGULAR))
+        None
     }
 }
 
@@ -96,13 +92,12 @@ pub fn read_regular_to_string(path: &Path) -> io::Result<String> {
 /// checked) fails to open instead of hanging the command. Everything else
 /// is the default resolver's.
 pub struct RegularResolver {
+    /// Resolves, and opens package entries: it opens the package by itself,
+    /// so it reads rather than maps (a mapping it made would not be in the
+    /// table [`mapped_file_at`] reads).
     inner: DefaultResolver,
     /// Whether files are mapped rather than read ([`Self::mapped`]).
     map: bool,
-    /// Opens package entries: the default resolver opens the package by
-    /// itself, so it reads rather than maps (a mapping it made would not
-    /// be in the table [`mapped_file_at`] reads).
-    packages: DefaultResolver,
 }
 
 impl RegularResolver {
@@ -111,7 +106,6 @@ impl RegularResolver {
         RegularResolver {
             inner: DefaultResolver::new(),
             map: false,
-            packages: DefaultResolver::new(),
         }
     }
 
@@ -123,11 +117,8 @@ impl RegularResolver {
     #[allow(unsafe_code)]
     pub unsafe fn mapped() -> Self {
         RegularResolver {
-            // SAFETY: the caller's promise, passed on (the inner resolver
-            // opens no file: `open_asset` is this resolver's).
-            inner: unsafe { DefaultResolver::new().map_files() },
+            inner: DefaultResolver::new(),
             map: true,
-            packages: DefaultResolver::new(),
         }
     }
 
@@ -252,7 +243,7 @@ impl ar::Resolver for RegularResolver {
             // by path, so its type is checked first (a swap in between is
             // the one window left, for packages only).
             open_regular(Path::new(package))?;
-            return self.packages.open_asset(resolved_path);
+            return self.inner.open_asset(resolved_path);
         }
         self.open_file(resolved_path)
     }

@@ -1107,10 +1107,9 @@ fn not_found(asset_path: &str, introduced_by: &str) -> String {
         Some(dir) if file.is_relative() => dir.join(file),
         _ => file.to_path_buf(),
     };
-    match std::fs::metadata(&file) {
-        Ok(m) if m.is_dir() => "cannot be read: it is a folder, not a file".into(),
-        Ok(m) if !m.is_file() => format!("cannot be read: {}", super::regular::NOT_REGULAR),
-        _ => "not found".into(),
+    match std::fs::metadata(&file).ok().as_ref().and_then(super::regular::refusal) {
+        Some(why) => format!("cannot be read: {why}"),
+        None => "not found".into(),
     }
 }
 
@@ -1128,11 +1127,12 @@ fn unresolved_assets(stage: &usd::Stage) -> Vec<UnresolvedAsset> {
                 introduced_by,
                 site_path,
             } => UnresolvedAsset {
-                asset: asset_path.clone(),
+                // First: the fields below take the strings it reads.
+                reason: not_found(&asset_path, &introduced_by),
+                asset: asset_path,
                 arc: arc(&a),
                 prim: Some(site_path.as_str().to_string()),
-                layer: introduced_by.clone(),
-                reason: not_found(&asset_path, &introduced_by),
+                layer: introduced_by,
             },
             D::MalformedLayer {
                 asset_path,
@@ -1175,11 +1175,11 @@ fn unresolved_assets(stage: &usd::Stage) -> Vec<UnresolvedAsset> {
                 asset_path,
                 introduced_by,
             } => UnresolvedAsset {
-                asset: asset_path.clone(),
+                reason: not_found(&asset_path, &introduced_by),
+                asset: asset_path,
                 arc: "sublayer".into(),
                 prim: None,
-                layer: introduced_by.clone(),
-                reason: not_found(&asset_path, &introduced_by),
+                layer: introduced_by,
             },
             D::MalformedSublayer {
                 asset_path,
