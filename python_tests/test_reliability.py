@@ -867,6 +867,58 @@ def test_an_input_cut_short_while_a_bake_reads_it_is_an_error_not_a_bus_error(tm
     assert leftovers(tmp_path) == []
 
 
+CUT_SHORT_IN_PYTHON = """
+import sys, threading, time
+import painterly
+src, out = sys.argv[1], sys.argv[2]
+data = open(src, "rb").read()
+stop = threading.Event()
+
+def rewrite():
+    while not stop.is_set():
+        with open(src, "r+b") as f:
+            f.truncate(0)
+            for i in range(0, len(data), 4096):
+                f.write(data[i:i + 4096])
+                f.flush()
+        time.sleep(0.001)
+
+writer = threading.Thread(target=rewrite)
+writer.start()
+try:
+    for i in range(int(sys.argv[3])):
+        for call in (lambda: painterly.bake(src, out, frames=(1, 1)), lambda: painterly.inspect(src)):
+            try:
+                call()
+                print("ok")
+            except painterly.Error as e:
+                print("error:", str(e).replace(chr(10), " "))
+finally:
+    stop.set()
+    writer.join()
+"""
+
+
+def test_an_input_cut_short_under_a_python_bake_is_an_error_not_the_end_of_python(tmp_path):
+    """The Python package's bake and inspect read a file as the CLI does,
+    which mapped it: a program rewriting the file in place under them cut
+    the mapping short and the bus error ended the Python process (no
+    handler of painterly's runs there; found in the twenty-third session).
+    Files are now read whole in Python: each call succeeds or raises
+    painterly.Error saying what is wrong with the file."""
+    import sys
+    src = tmp_path / "in.usdc"
+    Usd.Stage.Open(str(BLOWFISH)).Export(str(src))
+    proc = subprocess.run([sys.executable, "-c", CUT_SHORT_IN_PYTHON, src, tmp_path / "out.usdc", "50"],
+                          capture_output=True, text=True, timeout=HANG)
+    assert proc.returncode == 0, (proc.returncode, proc.stderr[-2000:])
+    said = ("ok", f"error: {src}: changed while painterly read it (saved during this run?)",
+            f"error: {src}: cannot read USD file: ")
+    lines = proc.stdout.splitlines()
+    assert len(lines) == 100 and all(line.startswith(said) for line in lines), lines
+    assert leftovers(tmp_path) == []
+
+
 def test_a_clips_lock_that_is_a_fifo_is_refused_not_waited_on(tmp_path):
     """A FIFO at a chunked bake's lock (`shot.clips/shot.lock`) hung the
     bake (opened for writing, blocking; found by a review, 2026-12-07)."""

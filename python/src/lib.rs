@@ -168,9 +168,11 @@ impl Source {
         Ok(r)
     }
 
-    /// Like [`Self::open`], but a file is mapped, as the CLI's bake and
-    /// inspect read it, so that the two front doors read a file alike: for
-    /// a reader dropped before the call returns (bake, inspect).
+    /// Like [`Self::open`], but a file is read as the CLI's bake and
+    /// inspect read it (the mapped stage's buffers, here read whole rather
+    /// than mapped: see the module's init), so that the two front doors read
+    /// a file alike: for a reader dropped before the call returns (bake,
+    /// inspect).
     fn open_mapped(&self) -> painterly::Result<StageReader> {
         match &self.text {
             None => StageReader::open_mapped(&self.path),
@@ -928,6 +930,10 @@ impl Character {
 
 #[pymodule]
 fn _painterly(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    // A mapped input cut short under a bake raises a bus error, which ends
+    // the host process: the CLI reports it from its own handler, a library
+    // must not install one, so files are read whole instead.
+    painterly::usd_io::regular::read_instead_of_mapping();
     m.add("Error", m.py().get_type::<Error>())?;
     m.add_class::<Character>()?;
     m.add_function(wrap_pyfunction!(bake, m)?)?;

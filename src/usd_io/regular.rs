@@ -12,12 +12,14 @@
 //! [`RegularResolver`] does this for openusd: the default resolver with its
 //! file opens replaced. Its memory mappings are noted ([`mapped_file_at`]),
 //! so that the bus error a mapped file truncated under a bake raises can be
-//! reported naming the file (`compose_watch`'s crash handler).
+//! reported naming the file (`compose_watch`'s crash handler). A process
+//! without that handler (the Python package) has files read whole instead
+//! ([`read_instead_of_mapping`]).
 
 use std::fs::File;
 use std::io;
 use std::path::Path;
-use std::sync::atomic::{AtomicPtr, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicPtr, AtomicUsize, Ordering};
 
 use openusd::ar::{self, Asset, AssetBuffer, DefaultResolver, ResolvedPath, SharedBuffer};
 
@@ -96,8 +98,35 @@ pub struct RegularResolver {
     /// so it reads rather than maps (a mapping it made would not be in the
     /// table [`mapped_file_at`] reads).
     inner: DefaultResolver,
-    /// Whether files are mapped rather than read ([`Self::mapped`]).
-    map: bool,
+    /// How a file's bytes reach openusd.
+    files: Files,
+}
+
+/// How [`RegularResolver`] hands a file to openusd.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Files {
+    /// Read through the descriptor, as openusd asks.
+    Descriptor,
+    /// A read-only memory mapping ([`RegularResolver::mapped`] in the CLI).
+    Mapping,
+    /// The whole file read into memory once, shared by every open of the
+    /// same unchanged file while one is alive: what a mapping gives openusd
+    /// (the same buffer, decoded the same way) without the bus error a
+    /// mapping raises when its file is cut short ([`read_instead_of_mapping`]).
+    Whole,
+}
+
+/// Whether [`RegularResolver::mapped`] maps files. The CLI does: its
+/// bus-error handler reports a mapped input cut short under a run. The
+/// Python package does not: a library must not take over its host's
+/// signal handlers, and without one that bus error ends the host process.
+static MAP_FILES: AtomicBool = AtomicBool::new(true);
+
+/// From now on, [`RegularResolver::mapped`] reads each file whole into
+/// memory instead of mapping it. For a process with no bus-error handler
+/// of painterly's (the Python package calls it when loaded).
+pub fn read_instead_of_mapping() {
+    MAP_FILES.store(false, Ordering::Relaxed);
 }
 
 impl RegularResolver {
@@ -105,28 +134,39 @@ impl RegularResolver {
     pub fn new() -> Self {
         RegularResolver {
             inner: DefaultResolver::new(),
-            map: false,
+            files: Files::Descriptor,
         }
     }
 
-    /// Files handed out as read-only memory mappings.
+    /// Files handed out as read-only memory mappings (or, after
+    /// [`read_instead_of_mapping`], as buffers read whole).
     ///
     /// # Safety
     /// The promise `DefaultResolver::map_files` asks for: no file opened
     /// through this resolver is modified while anything read from it lives.
     #[allow(unsafe_code)]
     pub unsafe fn mapped() -> Self {
+        let files = if MAP_FILES.load(Ordering::Relaxed) {
+            Files::Mapping
+        } else {
+            Files::Whole
+        };
         RegularResolver {
             inner: DefaultResolver::new(),
-            map: true,
+            files,
         }
     }
 
     fn open_file(&self, path: &Path) -> io::Result<Box<dyn Asset>> {
         let file = open_regular(path)?;
-        let len = usize::try_from(file.metadata()?.len()).unwrap_or(0);
-        if !self.map || len == 0 {
+        let meta = file.metadata()?;
+        let len = usize::try_from(meta.len()).unwrap_or(0);
+        if self.files == Files::Descriptor || len == 0 {
             return Ok(Box::new(file));
+        }
+        if self.files == Files::Whole {
+            let bytes = read_whole(file, &meta)?;
+            return Ok(Box::new(io::Cursor::new(AssetBuffer::Shared(SharedBuffer::new(bytes)))));
         }
         // SAFETY: read-only mapping of a regular file; that nothing writes
         // into it while mapped is what `mapped`'s caller promised.
@@ -140,6 +180,40 @@ impl RegularResolver {
             Err(_) => Box::new(file),
         })
     }
+}
+
+/// A file's identity and version: the same key means the same bytes
+/// (painterly and usd-core replace files by rename, which changes the
+/// inode; a rewrite in place changes the times).
+type Version = (u64, u64, u64, i64, i64, i64, i64);
+
+fn version_of(meta: &std::fs::Metadata) -> Version {
+    use std::os::unix::fs::MetadataExt;
+    let times = (meta.mtime(), meta.mtime_nsec(), meta.ctime(), meta.ctime_nsec());
+    (meta.dev(), meta.ino(), meta.len(), times.0, times.1, times.2, times.3)
+}
+
+/// Files read whole and still held by some reader, by version: a bake
+/// opens its input once per point-cached attribute, and each open shares
+/// the first one's bytes instead of holding a copy of its own.
+static READ_WHOLE: std::sync::Mutex<Vec<(Version, std::sync::Weak<[u8]>)>> = std::sync::Mutex::new(Vec::new());
+
+/// The bytes of `file` (whose metadata is `meta`), read now or shared with
+/// a reader of the same version still alive.
+fn read_whole(mut file: File, meta: &std::fs::Metadata) -> io::Result<std::sync::Arc<[u8]>> {
+    use std::io::Read;
+    let version = version_of(meta);
+    let mut held = READ_WHOLE.lock().unwrap_or_else(|e| e.into_inner());
+    held.retain(|(_, bytes)| bytes.strong_count() > 0);
+    if let Some(bytes) = held.iter().find(|(v, _)| *v == version).and_then(|(_, b)| b.upgrade()) {
+        return Ok(bytes);
+    }
+    // Read under the lock: two opens of one file at once read it once.
+    let mut bytes = Vec::with_capacity(usize::try_from(meta.len()).unwrap_or(0));
+    file.read_to_end(&mut bytes)?;
+    let bytes: std::sync::Arc<[u8]> = bytes.into();
+    held.push((version, std::sync::Arc::downgrade(&bytes)));
+    Ok(bytes)
 }
 
 /// Mapped files noted at once (each point-cached attribute maps its file
@@ -334,6 +408,35 @@ mod tests {
             open_regular(&dir.join("none")).unwrap_err().kind(),
             io::ErrorKind::NotFound
         );
+    }
+
+    #[test]
+    fn a_file_read_whole_is_shared_while_held_and_outlives_a_cut_in_place() {
+        let dir = crate::test_dir::ScratchDir::new("regular-whole");
+        let p = dir.join("a.usda");
+        std::fs::write(&p, "#usda 1.0\n").unwrap();
+        let whole = RegularResolver {
+            inner: DefaultResolver::new(),
+            files: Files::Whole,
+        };
+        let bytes = |r: &RegularResolver| r.open_asset(&ResolvedPath::new(&p)).unwrap().into_buffer().unwrap();
+        let first = bytes(&whole);
+        let second = bytes(&whole);
+        assert_eq!(&first[..], b"#usda 1.0\n");
+        assert_eq!(first.as_ptr(), second.as_ptr(), "the second open copied the file again");
+        // Cut short and rewritten in place (as `cp` does): what was read stays
+        // whole, and the next open reads the new version.
+        let f = File::options().write(true).truncate(true).open(&p).unwrap();
+        drop(f);
+        std::fs::write(&p, "#usda 1.0\n# changed\n").unwrap();
+        assert_eq!(&first[..], b"#usda 1.0\n");
+        assert_eq!(&bytes(&whole)[..], b"#usda 1.0\n# changed\n");
+        // Nothing is kept once every reader let go.
+        drop((first, second));
+        let held = READ_WHOLE.lock().unwrap();
+        assert!(held
+            .iter()
+            .all(|(v, b)| v.1 != version_of(&p.metadata().unwrap()).1 || b.strong_count() == 0));
     }
 
     #[test]
