@@ -431,6 +431,32 @@ def test_an_input_that_is_a_device_or_under_a_file_gets_the_system_s_words(paint
             assert (proc.returncode, proc.stderr) == (1, f"error: {bad}: cannot open input: {why}\n"), args
 
 
+def test_an_empty_or_cut_short_input_says_what_is_wrong_with_its_bytes(painterly, tmp_path):
+    """An empty input (a failed copy, a `touch`) said `failed to read pod
+    openusd::usdc::layout::Bootstrap`, and a crate file shorter than its
+    header said the same: the step openusd failed at, not what was wrong
+    (found in the twenty-third session). usd-core's words, for comparison:
+    "is not a valid usda layer", "File too small to contain bootstrap
+    structure"."""
+    (tmp_path / "empty.usdc").write_bytes(b"")
+    (tmp_path / "empty.usda").write_bytes(b"")
+    # The first 8 bytes of a crate file: its magic number. The header is 88
+    # bytes, of which openusd reads 32 first (magic, version, table offset).
+    (tmp_path / "short.usdc").write_bytes(b"PXR-USDC")
+    said = {
+        "empty.usdc": "the file is empty (0 bytes)",
+        "empty.usda": "the file is empty (0 bytes)",
+        "short.usdc": "failed to read pod openusd::usdc::layout::Bootstrap: corrupt crate data: 32 bytes at "
+                      "offset 0 reach past the 8-byte stream",
+    }
+    for name, why in said.items():
+        bad = tmp_path / name
+        for args in (["inspect", bad], ["bake", bad, "-o", tmp_path / "out.usdc"]):
+            proc = painterly(*args, check=False)
+            assert (proc.returncode, proc.stderr) == (1, f"error: {bad}: cannot read USD file: {why}\n"), args
+    assert not (tmp_path / "out.usdc").exists()
+
+
 @pytest.mark.parametrize("args, named", [
     (["bake", "{head}", "--camera", "/Head/Camera.focalLength", "--frames", "1:2", "-o", "{out}/b.usdc"],
      "--camera /Head/Camera.focalLength is a property path, not a prim path"),

@@ -331,7 +331,7 @@ pub fn open_layer(path: &std::path::Path) -> Result<sdf::Layer, Error> {
                 .problems()
                 .into_iter()
                 .next()
-                .unwrap_or_else(|| Error::msg(format!("cannot read USD file: {e}")))
+                .unwrap_or_else(|| Error::msg(format!("cannot read USD file: {}", super::stage::with_causes(&e))))
                 .in_file(path)
         })?;
         guard.check_layer(s, layer.data())?;

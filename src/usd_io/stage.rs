@@ -511,7 +511,14 @@ impl StageReader {
         let first_problem = |e: Error| guard.problems().into_iter().next().unwrap_or(e).in_file(path);
         // A file saved while it was read reads as damaged: say so.
         let unreadable = |e: String| {
-            let e = format!("cannot read USD file: {e}");
+            // An empty root has nothing else to fail on; openusd's words for
+            // it are about the first structure it could not read.
+            let empty = std::fs::metadata(path).is_ok_and(|m| m.is_file() && m.len() == 0);
+            let e = if empty {
+                "cannot read USD file: the file is empty (0 bytes)".to_string()
+            } else {
+                format!("cannot read USD file: {e}")
+            };
             changed_while_read(&guard.opened_files(), &e).unwrap_or_else(|| first_problem(Error::msg(e)))
         };
         let stage = compose_watch::watched(path, || {
@@ -519,7 +526,7 @@ impl StageReader {
                 .schema_registry(openusd_schemas::schema_registry())
                 .resolver(guard.resolver_over(resolver))
                 .open(identifier)
-                .map_err(|e| unreadable(e.to_string()))?;
+                .map_err(|e| unreadable(with_causes(&e)))?;
             // The root layer stack is parsed but nothing is composed yet.
             for id in stage.layer_identifiers() {
                 if let Some(layer) = stage.layer(&id) {
@@ -532,7 +539,7 @@ impl StageReader {
             // be readable; a truncated crate file can open lazily and only fail here.
             stage
                 .traverse(usd::PrimPredicate::ALL, |_| {})
-                .map_err(|e| unreadable(e.to_string()))?;
+                .map_err(|e| unreadable(with_causes(&e)))?;
             Ok(stage)
         })?;
         if let Some(e) = guard.problems().into_iter().next() {
@@ -1096,6 +1103,23 @@ impl StageReader {
             malformed,
         }
     }
+}
+
+/// `e` with the errors that caused it, as openusd words a sublayer it
+/// cannot read: its own text names only the step that failed ("failed to
+/// read pod …"), a cause says what was wrong with the bytes.
+pub(crate) fn with_causes(e: &dyn std::error::Error) -> String {
+    let mut text = e.to_string();
+    let mut cause = e.source();
+    while let Some(c) = cause {
+        let said = c.to_string();
+        // A transparent wrapper's text is its cause's.
+        if !text.ends_with(&said) {
+            text = format!("{text}: {said}");
+        }
+        cause = c.source();
+    }
+    text
 }
 
 /// Why the asset `asset_path`, written in layer `introduced_by`, did not
