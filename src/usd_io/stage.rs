@@ -269,6 +269,9 @@ impl StageMetadata {
     }
 }
 
+/// How many missing assets [`StageReader::require_resolved`]'s error names.
+pub const LISTED_MISSING: usize = 10;
+
 /// The default resolver, handing out read-only memory mappings of files
 /// instead of reading them. For readers that live for one command (a bake,
 /// an assembly, a provenance read): the only ones that may use it.
@@ -576,7 +579,8 @@ impl StageReader {
         check_unchanged(&self.opened)
     }
 
-    /// Fails naming every missing sublayer, reference and payload: a bake
+    /// Fails naming the missing sublayers, references and payloads (the
+    /// first [`LISTED_MISSING`], and how many more): a bake
     /// or edit of a stage with a missing asset would silently differ from
     /// what its author sees.
     /// A file that exists but lacks the referenced prim contributes
@@ -591,11 +595,21 @@ impl StageReader {
         match missing.as_slice() {
             [] => Ok(()),
             [one] => Err(Error::msg(format!("missing asset: {}", one.describe()))),
-            all => Err(Error::msg(format!(
-                "{} missing assets: {}",
-                all.len(),
-                all.iter().map(UnresolvedAsset::describe).collect::<Vec<_>>().join("; ")
-            ))),
+            all => {
+                // A stage naming thousands of missing files would make a
+                // message of megabytes, on one line: the first few say
+                // what is wrong, inspect lists every one.
+                let listed: Vec<String> = all.iter().take(LISTED_MISSING).map(UnresolvedAsset::describe).collect();
+                let more = match all.len() - listed.len() {
+                    0 => String::new(),
+                    n => format!("; and {n} more (inspect lists every one)"),
+                };
+                Err(Error::msg(format!(
+                    "{} missing assets: {}{more}",
+                    all.len(),
+                    listed.join("; ")
+                )))
+            }
         }
     }
 
@@ -1690,6 +1704,28 @@ def Xform "Moving" {
             e.message.contains("gone1.usda") && e.message.contains("gone2.usda"),
             "{e}"
         );
+        // Many: the first ten, then how many more (a message of 70 KB before).
+        let many = dir.join("many.usda");
+        let subs: Vec<String> = (0..1100).map(|i| format!("@./m{i:04}.usda@")).collect();
+        std::fs::write(
+            &many,
+            format!("#usda 1.0\n(\n    subLayers = [{}]\n)\n", subs.join(", ")),
+        )
+        .unwrap();
+        let e = StageReader::open(&many).unwrap().require_resolved().unwrap_err();
+        let one = |i: usize| {
+            format!(
+                "sublayer @{}@ (in {}): not found",
+                dir.join(format!("m{i:04}.usda")).display(),
+                many.display()
+            )
+        };
+        let first: Vec<String> = (0..10).map(one).collect();
+        let said = format!(
+            "1100 missing assets: {}; and 1090 more (inspect lists every one)",
+            first.join("; ")
+        );
+        assert_eq!(e.message, said);
     }
 
     /// `require_camera` accepts a prim usd-core types `Camera` and names
