@@ -678,6 +678,27 @@ def test_two_submits_of_one_shot_at_once_take_turns(tmp_path):
     assert (bin_dir / "calls").read_text() == "x\nx\n"
 
 
+def test_a_submit_lock_that_is_a_symbolic_link_is_refused_saying_so(painterly, tmp_path):
+    """`farm/submit.lock` is never followed through a link (a leftover could
+    name any file); the refusal said only `Too many levels of symbolic
+    links` (noticed in the twenty-second session)."""
+    bin_dir = tmp_path / "bin"
+    env = stand_ins(bin_dir, {"sbatch": f"echo x >> {bin_dir}/calls\n"})
+    shot = tmp_path / "shot.usda"
+    farm = tmp_path / "shot.clips" / "farm"
+    farm.mkdir(parents=True)
+    target = tmp_path / "elsewhere.txt"
+    target.write_text("kept\n")
+    (farm / "submit.lock").symlink_to(target)
+    proc = painterly("farm", "submit", BLOWFISH, "-o", shot, "--chunk", "24", "--scheduler", "slurm",
+                     env=env, check=False)
+    lock = farm / "submit.lock"
+    assert (proc.returncode, proc.stderr) == (
+        1, f"error: {lock}: cannot lock: it is a symbolic link, and a lock is never taken through one "
+           "(remove the link)\n")
+    assert target.read_text() == "kept\n" and not (bin_dir / "calls").exists()
+
+
 def test_a_shot_is_not_complete_while_its_tasks_still_wait(painterly, tmp_path):
     """A local bake finished the shot while its farm tasks still wait in the
     queue: they will write the chunks and the clip set again, so status says

@@ -495,7 +495,16 @@ pub fn hold_lock(path: &Path, wait: std::time::Duration) -> std::io::Result<Opti
             .create(true)
             .truncate(false)
             .custom_flags(libc::O_NOFOLLOW | libc::O_NONBLOCK)
-            .open(path),
+            .open(path)
+            .map_err(|e| match e.raw_os_error() {
+                // O_NOFOLLOW's answer for a link, in the system's words
+                // "Too many levels of symbolic links", which say nothing of why.
+                Some(libc::ELOOP) => std::io::Error::new(
+                    std::io::ErrorKind::InvalidInput,
+                    "it is a symbolic link, and a lock is never taken through one (remove the link)",
+                ),
+                _ => e,
+            }),
     )?;
     let deadline = std::time::Instant::now() + wait;
     loop {
