@@ -24,17 +24,17 @@ fn main() {
         // run quietly, as SIGPIPE ends Unix tools: exit 128 + 13. Any other
         // such failure (a full disk) is a failed write, not a bug: exit 1.
         if msg.starts_with("failed printing to") {
-            // exit() runs no destructors: the temporaries go first.
+            // Ending the process runs no destructors: the temporaries go first.
             painterly::usd_io::atomic::remove_all_temporaries_unless_held();
             if msg.contains("Broken pipe") {
-                std::process::exit(141);
+                painterly::usd_io::atomic::end_process(141);
             }
             // The work may be done already: say so.
             let written = painterly::usd_io::atomic::written_before(painterly::usd_io::atomic::published());
             // Not eprintln!: when stderr is what failed, a second panic
             // inside this hook aborts the process (SIGABRT, no message).
             let _ = writeln!(std::io::stderr(), "error: {msg}{written}");
-            std::process::exit(1);
+            painterly::usd_io::atomic::end_process(1);
         }
         let at = info
             .location()

@@ -551,6 +551,7 @@ fn bake(
     bake_proxy: bool,
     progress: Option<Py<PyAny>>,
 ) -> PyResult<Py<PyAny>> {
+    let _freed = ForgetUnheldReads;
     if let Some(cb) = &progress {
         if !cb.bind(py).is_callable() {
             return Err(PyTypeError::new_err(format!(
@@ -682,6 +683,7 @@ fn inspect(
     camera: Option<String>,
     frames: Option<&Bound<'_, PyAny>>,
 ) -> PyResult<Py<PyAny>> {
+    let _freed = ForgetUnheldReads;
     let src = Source::from_py(input)?;
     let frames = frames_from_py(py, frames)?;
     let report = py.detach(|| {
@@ -925,6 +927,17 @@ impl Character {
             self.inner.axes().len(),
             self.inner.model.views.len()
         )
+    }
+}
+
+/// As a call returns (or raises), frees the files it read whole that
+/// nothing holds any more: a long-lived host would otherwise keep its last
+/// input in memory until its next call.
+struct ForgetUnheldReads;
+
+impl Drop for ForgetUnheldReads {
+    fn drop(&mut self) {
+        painterly::usd_io::regular::forget_unheld_reads();
     }
 }
 

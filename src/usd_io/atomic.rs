@@ -170,7 +170,7 @@ pub fn install_signal_cleanup() {
                         std::io::stderr(),
                         "painterly: stopped by signal {sig}; temporary files removed"
                     );
-                    std::process::exit(128 + sig);
+                    end_process(128 + sig);
                 }
             });
         SIGNAL_THREAD.store(spawned.is_ok(), Ordering::SeqCst);
@@ -241,16 +241,22 @@ fn report_truncated(path: *const libc::c_char) -> ! {
         "error: {file}: was cut short while painterly read it (rewritten in place during this run?): what was \
          read is not what the file now holds; run again once it is saved{written}",
     );
-    // Not `std::process::exit`: the runtime cleanup it runs first unmaps
-    // the main thread's alternate signal stack, on which that thread, when
-    // it was the one that faulted, still waits in the bus-error handler: it
-    // died of SIGSEGV after the message (1 run in about 300). Nothing else
-    // is left to flush: stderr is unbuffered, and a failed run's stdout
-    // carries nothing to keep.
+    end_process(1)
+}
+
+/// Ends the process now with `code`, from a thread other than the one
+/// running `main` or from a hook: the signal thread, the composition
+/// watchdog, the panic hook. Not `std::process::exit`: the runtime cleanup
+/// it runs first unmaps the main thread's alternate signal stack, and the
+/// main thread may be running a signal handler on it (waiting in the
+/// bus-error handler for the cut-short report): it then died of SIGSEGV
+/// after the message, 4 runs in 1,000. Nothing is left to flush: stderr is
+/// unbuffered, and a run ended so has no stdout worth keeping.
+pub fn end_process(code: i32) -> ! {
     // SAFETY: _exit(2) ends the process at once.
     #[allow(unsafe_code)]
     unsafe {
-        libc::_exit(1)
+        libc::_exit(code)
     }
 }
 

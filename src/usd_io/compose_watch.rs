@@ -82,7 +82,7 @@ fn watch_loop() {
                     // written, and this thread would end without the exit.
                     let _ = writeln!(std::io::stderr(), "{msg}");
                     super::atomic::remove_all_temporaries();
-                    std::process::exit(1);
+                    super::atomic::end_process(1);
                 }
             }
         }

@@ -193,25 +193,50 @@ fn version_of(meta: &std::fs::Metadata) -> Version {
     (meta.dev(), meta.ino(), meta.len(), times.0, times.1, times.2, times.3)
 }
 
-/// Files read whole and still held by some reader, by version: a bake
-/// opens its input once per point-cached attribute, and each open shares
-/// the first one's bytes instead of holding a copy of its own.
+/// Files read whole, by version, with a weak reference to their bytes: a
+/// bake opens its input once per point-cached attribute, and each open
+/// shares the first one's bytes while any reader holds them. (A weak
+/// reference to an `Arc<[u8]>` keeps its allocation: [`forget_unheld_reads`]
+/// drops the ones no reader holds.)
 static READ_WHOLE: std::sync::Mutex<Vec<(Version, std::sync::Weak<[u8]>)>> = std::sync::Mutex::new(Vec::new());
+
+/// The bytes of `version`, when a reader still holds them.
+fn held_read(version: &Version) -> Option<std::sync::Arc<[u8]>> {
+    let held = READ_WHOLE.lock().unwrap_or_else(|e| e.into_inner());
+    held.iter().find(|(v, _)| v == version).and_then(|(_, b)| b.upgrade())
+}
+
+/// Frees the bytes of files read whole that no reader holds any more (the
+/// Python package calls it as each call returns, so a long-lived host does
+/// not keep its last input in memory).
+pub fn forget_unheld_reads() {
+    let mut held = READ_WHOLE.lock().unwrap_or_else(|e| e.into_inner());
+    held.retain(|(_, bytes)| bytes.strong_count() > 0);
+}
 
 /// The bytes of `file` (whose metadata is `meta`), read now or shared with
 /// a reader of the same version still alive.
 fn read_whole(mut file: File, meta: &std::fs::Metadata) -> io::Result<std::sync::Arc<[u8]>> {
     use std::io::Read;
     let version = version_of(meta);
-    let mut held = READ_WHOLE.lock().unwrap_or_else(|e| e.into_inner());
-    held.retain(|(_, bytes)| bytes.strong_count() > 0);
-    if let Some(bytes) = held.iter().find(|(v, _)| *v == version).and_then(|(_, b)| b.upgrade()) {
+    if let Some(bytes) = held_read(&version) {
         return Ok(bytes);
     }
-    // Read under the lock: two opens of one file at once read it once.
-    let mut bytes = Vec::with_capacity(usize::try_from(meta.len()).unwrap_or(0));
-    file.read_to_end(&mut bytes)?;
-    let bytes: std::sync::Arc<[u8]> = bytes.into();
+    let len = usize::try_from(meta.len()).map_err(|_| io::Error::other("the file is too large to read"))?;
+    // Read straight into the shared allocation (a Vec made into an
+    // `Arc<[u8]>` is copied: twice the file at the peak), outside the lock
+    // (a large read does not hold up other opens). A file that shrank
+    // meanwhile fails the read; one that grew is read to its old length:
+    // either way it changed, which the command's check of its inputs says.
+    let mut bytes: std::sync::Arc<[u8]> = std::iter::repeat_n(0u8, len).collect();
+    let buffer = std::sync::Arc::get_mut(&mut bytes).ok_or_else(|| io::Error::other("shared before it was read"))?;
+    file.read_exact(buffer)?;
+    let mut held = READ_WHOLE.lock().unwrap_or_else(|e| e.into_inner());
+    held.retain(|(_, b)| b.strong_count() > 0);
+    // Another open read it meanwhile: one copy is kept.
+    if let Some(theirs) = held.iter().find(|(v, _)| *v == version).and_then(|(_, b)| b.upgrade()) {
+        return Ok(theirs);
+    }
     held.push((version, std::sync::Arc::downgrade(&bytes)));
     Ok(bytes)
 }
@@ -431,12 +456,12 @@ mod tests {
         std::fs::write(&p, "#usda 1.0\n# changed\n").unwrap();
         assert_eq!(&first[..], b"#usda 1.0\n");
         assert_eq!(&bytes(&whole)[..], b"#usda 1.0\n# changed\n");
-        // Nothing is kept once every reader let go.
+        // Once every reader let go, the bytes are freed (the weak
+        // reference alone kept the allocation).
         drop((first, second));
-        let held = READ_WHOLE.lock().unwrap();
-        assert!(held
-            .iter()
-            .all(|(v, b)| v.1 != version_of(&p.metadata().unwrap()).1 || b.strong_count() == 0));
+        forget_unheld_reads();
+        let ino = version_of(&p.metadata().unwrap()).1;
+        assert!(READ_WHOLE.lock().unwrap().iter().all(|(v, _)| v.1 != ino));
     }
 
     #[test]

@@ -1140,14 +1140,32 @@ pub(crate) fn with_causes(e: &dyn std::error::Error) -> String {
 /// resolve: "not found", unless its file (a package's, for an entry) is
 /// there but no regular file, which the resolver refuses to open.
 fn not_found(asset_path: &str, introduced_by: &str) -> String {
-    let file = Path::new(package_file(asset_path));
-    let file = match Path::new(package_file(introduced_by)).parent() {
-        Some(dir) if file.is_relative() => dir.join(file),
-        _ => file.to_path_buf(),
-    };
-    match std::fs::metadata(&file).ok().as_ref().and_then(super::regular::refusal) {
+    let file = file_of(asset_path, introduced_by);
+    match std::fs::metadata(file).ok().as_ref().and_then(super::regular::refusal) {
         Some(why) => format!("cannot be read: {why}"),
         None => "not found".into(),
+    }
+}
+
+/// Why the asset `asset_path`, written in layer `introduced_by`, could not
+/// be read, openusd's `reason` unless its file is empty (openusd's words
+/// for that are about the first structure it could not read).
+fn unreadable_reason(asset_path: &str, introduced_by: &str, reason: String) -> String {
+    let empty = !is_package_relative(asset_path)
+        && std::fs::metadata(file_of(asset_path, introduced_by)).is_ok_and(|m| m.is_file() && m.len() == 0);
+    match empty {
+        true => "cannot be read: the file is empty (0 bytes)".into(),
+        false => format!("cannot be read: {reason}"),
+    }
+}
+
+/// The file holding the asset `asset_path` (a package's, for an entry),
+/// a relative path taken from the folder of `introduced_by`.
+fn file_of(asset_path: &str, introduced_by: &str) -> std::path::PathBuf {
+    let file = Path::new(package_file(asset_path));
+    match Path::new(package_file(introduced_by)).parent() {
+        Some(dir) if file.is_relative() => dir.join(file),
+        _ => file.to_path_buf(),
     }
 }
 
@@ -1179,11 +1197,12 @@ fn unresolved_assets(stage: &usd::Stage) -> Vec<UnresolvedAsset> {
                 site_path,
                 reason,
             } => UnresolvedAsset {
+                // First: the fields below take the strings it reads.
+                reason: unreadable_reason(&asset_path, &introduced_by, reason),
                 asset: asset_path,
                 arc: arc(&a),
                 prim: Some(site_path.as_str().to_string()),
                 layer: introduced_by,
-                reason: format!("cannot be read: {reason}"),
             },
             D::UnresolvedPrimPath {
                 arc: a,
@@ -1224,11 +1243,11 @@ fn unresolved_assets(stage: &usd::Stage) -> Vec<UnresolvedAsset> {
                 introduced_by,
                 reason,
             } => UnresolvedAsset {
+                reason: unreadable_reason(&asset_path, &introduced_by, reason),
                 asset: asset_path,
                 arc: "sublayer".into(),
                 prim: None,
                 layer: introduced_by,
-                reason: format!("cannot be read: {reason}"),
             },
             _ => continue,
         };
