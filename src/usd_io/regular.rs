@@ -193,51 +193,93 @@ fn version_of(meta: &std::fs::Metadata) -> Version {
     (meta.dev(), meta.ino(), meta.len(), times.0, times.1, times.2, times.3)
 }
 
-/// Files read whole, by version, with a weak reference to their bytes: a
-/// bake opens its input once per point-cached attribute, and each open
-/// shares the first one's bytes while any reader holds them. (A weak
-/// reference to an `Arc<[u8]>` keeps its allocation: [`forget_unheld_reads`]
-/// drops the ones no reader holds.)
-static READ_WHOLE: std::sync::Mutex<Vec<(Version, std::sync::Weak<[u8]>)>> = std::sync::Mutex::new(Vec::new());
+/// Files read whole, by version: being read by some open, or read, with a
+/// weak reference to their bytes. A bake opens its input once per
+/// point-cached attribute, and Python threads may read one file at once:
+/// each open shares the first one's bytes while any reader holds them, and
+/// waits for a read under way rather than reading a copy of its own. (A
+/// weak reference to an `Arc<[u8]>` keeps its allocation:
+/// [`forget_unheld_reads`] drops the ones no reader holds.)
+static READ_WHOLE: std::sync::Mutex<Vec<(Version, WholeRead)>> = std::sync::Mutex::new(Vec::new());
+/// Signalled whenever a read of [`READ_WHOLE`] ends.
+static READ_ENDED: std::sync::Condvar = std::sync::Condvar::new();
 
-/// The bytes of `version`, when a reader still holds them.
-fn held_read(version: &Version) -> Option<std::sync::Arc<[u8]>> {
-    let held = READ_WHOLE.lock().unwrap_or_else(|e| e.into_inner());
-    held.iter().find(|(v, _)| v == version).and_then(|(_, b)| b.upgrade())
+enum WholeRead {
+    Reading,
+    Read(std::sync::Weak<[u8]>),
+}
+
+impl WholeRead {
+    /// Whether nothing holds the bytes any more (a read under way is held).
+    fn unheld(&self) -> bool {
+        matches!(self, WholeRead::Read(bytes) if bytes.strong_count() == 0)
+    }
 }
 
 /// Frees the bytes of files read whole that no reader holds any more (the
 /// Python package calls it as each call returns, so a long-lived host does
 /// not keep its last input in memory).
 pub fn forget_unheld_reads() {
-    let mut held = READ_WHOLE.lock().unwrap_or_else(|e| e.into_inner());
-    held.retain(|(_, bytes)| bytes.strong_count() > 0);
+    let mut reads = READ_WHOLE.lock().unwrap_or_else(|e| e.into_inner());
+    reads.retain(|(_, read)| !read.unheld());
+}
+
+/// Ends this open's read of `version`, whatever happens to it (a panic
+/// too): the entry leaves the list, for `bytes` when the read succeeded,
+/// and the opens waiting on it go on.
+struct ReadUnderWay {
+    version: Version,
+    bytes: Option<std::sync::Weak<[u8]>>,
+}
+
+impl Drop for ReadUnderWay {
+    fn drop(&mut self) {
+        let mut reads = READ_WHOLE.lock().unwrap_or_else(|e| e.into_inner());
+        reads.retain(|(v, read)| !(*v == self.version && matches!(read, WholeRead::Reading)));
+        if let Some(bytes) = self.bytes.take() {
+            reads.push((self.version, WholeRead::Read(bytes)));
+        }
+        READ_ENDED.notify_all();
+    }
 }
 
 /// The bytes of `file` (whose metadata is `meta`), read now or shared with
-/// a reader of the same version still alive.
+/// a reader of the same version.
 fn read_whole(mut file: File, meta: &std::fs::Metadata) -> io::Result<std::sync::Arc<[u8]>> {
     use std::io::Read;
     let version = version_of(meta);
-    if let Some(bytes) = held_read(&version) {
-        return Ok(bytes);
+    let mut reads = READ_WHOLE.lock().unwrap_or_else(|e| e.into_inner());
+    loop {
+        reads.retain(|(_, read)| !read.unheld());
+        match reads.iter().find(|(v, _)| *v == version).map(|(_, read)| read) {
+            Some(WholeRead::Read(bytes)) => {
+                if let Some(bytes) = bytes.upgrade() {
+                    return Ok(bytes);
+                }
+            }
+            Some(WholeRead::Reading) => {
+                reads = READ_ENDED.wait(reads).unwrap_or_else(|e| e.into_inner());
+                continue;
+            }
+            None => {}
+        }
+        break;
     }
+    reads.push((version, WholeRead::Reading));
+    drop(reads);
+    let mut under_way = ReadUnderWay { version, bytes: None };
     let len = usize::try_from(meta.len()).map_err(|_| io::Error::other("the file is too large to read"))?;
     // Read straight into the shared allocation (a Vec made into an
-    // `Arc<[u8]>` is copied: twice the file at the peak), outside the lock
-    // (a large read does not hold up other opens). A file that shrank
-    // meanwhile fails the read; one that grew is read to its old length:
-    // either way it changed, which the command's check of its inputs says.
+    // `Arc<[u8]>` is copied: twice the file at the peak), outside the lock.
+    // A file that shrank meanwhile fails the read; one that grew is read to
+    // its old length: either way it changed, which the command's check of
+    // its inputs says.
     let mut bytes: std::sync::Arc<[u8]> = std::iter::repeat_n(0u8, len).collect();
     let buffer = std::sync::Arc::get_mut(&mut bytes).ok_or_else(|| io::Error::other("shared before it was read"))?;
     file.read_exact(buffer)?;
-    let mut held = READ_WHOLE.lock().unwrap_or_else(|e| e.into_inner());
-    held.retain(|(_, b)| b.strong_count() > 0);
-    // Another open read it meanwhile: one copy is kept.
-    if let Some(theirs) = held.iter().find(|(v, _)| *v == version).and_then(|(_, b)| b.upgrade()) {
-        return Ok(theirs);
-    }
-    held.push((version, std::sync::Arc::downgrade(&bytes)));
+    #[cfg(test)]
+    tests::READS.lock().unwrap().push(version.1);
+    under_way.bytes = Some(std::sync::Arc::downgrade(&bytes));
     Ok(bytes)
 }
 
@@ -397,6 +439,9 @@ pub(crate) use forward_to_inner;
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The inode of each file read whole, in order.
+    pub(super) static READS: std::sync::Mutex<Vec<u64>> = std::sync::Mutex::new(Vec::new());
     use ar::Resolver;
     use std::os::unix::fs::OpenOptionsExt;
 
@@ -462,6 +507,33 @@ mod tests {
         forget_unheld_reads();
         let ino = version_of(&p.metadata().unwrap()).1;
         assert!(READ_WHOLE.lock().unwrap().iter().all(|(v, _)| v.1 != ino));
+    }
+
+    #[test]
+    fn opens_of_one_file_at_once_read_it_once() {
+        let dir = crate::test_dir::ScratchDir::new("regular-whole-threads");
+        let p = dir.join("a.usda");
+        std::fs::write(&p, vec![b'#'; 32 << 20]).unwrap();
+        let whole = RegularResolver {
+            inner: DefaultResolver::new(),
+            files: Files::Whole,
+        };
+        let start = std::sync::Barrier::new(8);
+        let opened: Vec<AssetBuffer> = std::thread::scope(|s| {
+            let reads: Vec<_> = (0..8)
+                .map(|_| {
+                    s.spawn(|| {
+                        start.wait();
+                        whole.open_asset(&ResolvedPath::new(&p)).unwrap().into_buffer().unwrap()
+                    })
+                })
+                .collect();
+            reads.into_iter().map(|r| r.join().unwrap()).collect()
+        });
+        // One read: every open shares the first one's bytes.
+        assert!(opened.iter().all(|b| b.as_ptr() == opened[0].as_ptr()));
+        let ino = version_of(&p.metadata().unwrap()).1;
+        assert_eq!(READS.lock().unwrap().iter().filter(|&&i| i == ino).count(), 1);
     }
 
     #[test]
