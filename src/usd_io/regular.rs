@@ -494,6 +494,9 @@ mod tests {
         let second = bytes(&whole);
         assert_eq!(&first[..], b"#usda 1.0\n");
         assert_eq!(first.as_ptr(), second.as_ptr(), "the second open copied the file again");
+        let ino = version_of(&p.metadata().unwrap()).1;
+        let reads = || READS.lock().unwrap().iter().filter(|&&i| i == ino).count();
+        assert_eq!(reads(), 1);
         // Cut short and rewritten in place (as `cp` does): what was read stays
         // whole, and the next open reads the new version.
         let f = File::options().write(true).truncate(true).open(&p).unwrap();
@@ -501,11 +504,11 @@ mod tests {
         std::fs::write(&p, "#usda 1.0\n# changed\n").unwrap();
         assert_eq!(&first[..], b"#usda 1.0\n");
         assert_eq!(&bytes(&whole)[..], b"#usda 1.0\n# changed\n");
+        assert_eq!(reads(), 2);
         // Once every reader let go, the bytes are freed (the weak
         // reference alone kept the allocation).
         drop((first, second));
         forget_unheld_reads();
-        let ino = version_of(&p.metadata().unwrap()).1;
         assert!(READ_WHOLE.lock().unwrap().iter().all(|(v, _)| v.1 != ino));
     }
 
