@@ -278,7 +278,7 @@ fn read_whole(mut file: File, meta: &std::fs::Metadata) -> io::Result<std::sync:
     let buffer = std::sync::Arc::get_mut(&mut bytes).ok_or_else(|| io::Error::other("shared before it was read"))?;
     file.read_exact(buffer)?;
     #[cfg(test)]
-    tests::READS.lock().unwrap().push(version.1);
+    tests::READS.lock().unwrap().push(version);
     under_way.bytes = Some(std::sync::Arc::downgrade(&bytes));
     Ok(bytes)
 }
@@ -440,8 +440,16 @@ pub(crate) use forward_to_inner;
 mod tests {
     use super::*;
 
-    /// The inode of each file read whole, in order.
-    pub(super) static READS: std::sync::Mutex<Vec<u64>> = std::sync::Mutex::new(Vec::new());
+    /// The version of each file read whole, in order.
+    pub(super) static READS: std::sync::Mutex<Vec<Version>> = std::sync::Mutex::new(Vec::new());
+
+    /// How many times a file with the inode of `p` was read whole: count
+    /// from a first call made once `p` exists (an inode is reused after a
+    /// file is deleted, but no two files share one at once).
+    fn reads_of(p: &Path) -> usize {
+        let ino = version_of(&p.metadata().unwrap()).1;
+        READS.lock().unwrap().iter().filter(|v| v.1 == ino).count()
+    }
     use ar::Resolver;
     use std::os::unix::fs::OpenOptionsExt;
 
@@ -485,6 +493,7 @@ mod tests {
         let dir = crate::test_dir::ScratchDir::new("regular-whole");
         let p = dir.join("a.usda");
         std::fs::write(&p, "#usda 1.0\n").unwrap();
+        let before = reads_of(&p);
         let whole = RegularResolver {
             inner: DefaultResolver::new(),
             files: Files::Whole,
@@ -494,8 +503,11 @@ mod tests {
         let second = bytes(&whole);
         assert_eq!(&first[..], b"#usda 1.0\n");
         assert_eq!(first.as_ptr(), second.as_ptr(), "the second open copied the file again");
-        let ino = version_of(&p.metadata().unwrap()).1;
-        let reads = || READS.lock().unwrap().iter().filter(|&&i| i == ino).count();
+        let reads = || reads_of(&p) - before;
+        assert_eq!(reads(), 1);
+        // Freeing what nobody holds keeps what somebody does.
+        forget_unheld_reads();
+        assert_eq!(bytes(&whole).as_ptr(), first.as_ptr());
         assert_eq!(reads(), 1);
         // Cut short and rewritten in place (as `cp` does): what was read stays
         // whole, and the next open reads the new version.
@@ -509,6 +521,7 @@ mod tests {
         // reference alone kept the allocation).
         drop((first, second));
         forget_unheld_reads();
+        let ino = version_of(&p.metadata().unwrap()).1;
         assert!(READ_WHOLE.lock().unwrap().iter().all(|(v, _)| v.1 != ino));
     }
 
@@ -517,6 +530,7 @@ mod tests {
         let dir = crate::test_dir::ScratchDir::new("regular-whole-threads");
         let p = dir.join("a.usda");
         std::fs::write(&p, vec![b'#'; 32 << 20]).unwrap();
+        let before = reads_of(&p);
         let whole = RegularResolver {
             inner: DefaultResolver::new(),
             files: Files::Whole,
@@ -535,8 +549,7 @@ mod tests {
         });
         // One read: every open shares the first one's bytes.
         assert!(opened.iter().all(|b| b.as_ptr() == opened[0].as_ptr()));
-        let ino = version_of(&p.metadata().unwrap()).1;
-        assert_eq!(READS.lock().unwrap().iter().filter(|&&i| i == ino).count(), 1);
+        assert_eq!(reads_of(&p) - before, 1);
     }
 
     #[test]
