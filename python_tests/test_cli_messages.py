@@ -457,11 +457,14 @@ def test_an_empty_or_cut_short_input_says_what_is_wrong_with_its_bytes(painterly
     # Empty layers the input names say so too (a review found them still
     # in openusd's words).
     top = tmp_path / "top.usda"
-    top.write_text('#usda 1.0\n(\n    subLayers = [@./empty.usda@]\n)\ndef "A" (references = @./empty.usdc@)\n{\n}\n')
+    top.write_text('#usda 1.0\n(\n    subLayers = [@./empty.usda@, @./short.usdc@]\n)\n'
+                   'def "A" (references = @./empty.usdc@)\n{\n}\n')
     proc = painterly("bake", top, "-o", tmp_path / "out.usdc", check=False)
     empty = "cannot be read: the file is empty (0 bytes)"
+    # A layer that is not empty keeps openusd's words.
     assert (proc.returncode, proc.stderr) == (
-        1, f"error: {top}: 2 missing assets: sublayer @{tmp_path / 'empty.usda'}@ (in {top}): {empty}; "
+        1, f"error: {top}: 3 missing assets: sublayer @{tmp_path / 'empty.usda'}@ (in {top}): {empty}; "
+           f"sublayer @{tmp_path / 'short.usdc'}@ (in {top}): cannot be read: {said['short.usdc']}; "
            f"reference @{tmp_path / 'empty.usdc'}@ on /A (in {top}): {empty}\n")
     assert not (tmp_path / "out.usdc").exists()
 
