@@ -439,6 +439,8 @@ pub(crate) use forward_to_inner;
 #[cfg(test)]
 mod tests {
     use super::*;
+    use ar::Resolver;
+    use std::os::unix::fs::OpenOptionsExt;
 
     /// The version of each file read whole, in order.
     pub(super) static READS: std::sync::Mutex<Vec<Version>> = std::sync::Mutex::new(Vec::new());
@@ -450,8 +452,6 @@ mod tests {
         let ino = version_of(&p.metadata().unwrap()).1;
         READS.lock().unwrap().iter().filter(|v| v.1 == ino).count()
     }
-    use ar::Resolver;
-    use std::os::unix::fs::OpenOptionsExt;
 
     fn fifo(dir: &Path) -> std::path::PathBuf {
         let p = dir.join("pipe.usda");

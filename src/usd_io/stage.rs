@@ -516,11 +516,9 @@ impl StageReader {
         let unreadable = |e: String| {
             // An empty root has nothing else to fail on; openusd's words for
             // it are about the first structure it could not read.
-            let empty = std::fs::metadata(path).is_ok_and(|m| m.is_file() && m.len() == 0);
-            let e = if empty {
-                "cannot read USD file: the file is empty (0 bytes)".to_string()
-            } else {
-                format!("cannot read USD file: {e}")
+            let e = match is_empty_file(path) {
+                true => format!("cannot read USD file: {EMPTY_FILE}"),
+                false => format!("cannot read USD file: {e}"),
             };
             changed_while_read(&guard.opened_files(), &e).unwrap_or_else(|| first_problem(Error::msg(e)))
         };
@@ -1151,12 +1149,18 @@ fn not_found(asset_path: &str, introduced_by: &str) -> String {
 /// be read, openusd's `reason` unless its file is empty (openusd's words
 /// for that are about the first structure it could not read).
 fn unreadable_reason(asset_path: &str, introduced_by: &str, reason: String) -> String {
-    let empty = !is_package_relative(asset_path)
-        && std::fs::metadata(file_of(asset_path, introduced_by)).is_ok_and(|m| m.is_file() && m.len() == 0);
-    match empty {
-        true => "cannot be read: the file is empty (0 bytes)".into(),
+    match !is_package_relative(asset_path) && is_empty_file(&file_of(asset_path, introduced_by)) {
+        true => format!("cannot be read: {EMPTY_FILE}"),
         false => format!("cannot be read: {reason}"),
     }
+}
+
+/// What an empty layer is said to be, root or not.
+const EMPTY_FILE: &str = "the file is empty (0 bytes)";
+
+/// Whether `path` is a regular file of 0 bytes.
+fn is_empty_file(path: &Path) -> bool {
+    std::fs::metadata(path).is_ok_and(|m| m.is_file() && m.len() == 0)
 }
 
 /// The file holding the asset `asset_path` (a package's, for an entry),
