@@ -527,29 +527,39 @@ mod tests {
 
     #[test]
     fn opens_of_one_file_at_once_read_it_once() {
+        // Two files of different sizes, each opened by 8 threads at once:
+        // the end of one file's read must not end the other's.
         let dir = crate::test_dir::ScratchDir::new("regular-whole-threads");
-        let p = dir.join("a.usda");
-        std::fs::write(&p, vec![b'#'; 32 << 20]).unwrap();
-        let before = reads_of(&p);
+        let files = [dir.join("a.usda"), dir.join("b.usda")];
+        std::fs::write(&files[0], vec![b'#'; 8 << 20]).unwrap();
+        std::fs::write(&files[1], vec![b'#'; 32 << 20]).unwrap();
+        let before: Vec<usize> = files.iter().map(|p| reads_of(p)).collect();
         let whole = RegularResolver {
             inner: DefaultResolver::new(),
             files: Files::Whole,
         };
-        let start = std::sync::Barrier::new(8);
-        let opened: Vec<AssetBuffer> = std::thread::scope(|s| {
-            let reads: Vec<_> = (0..8)
-                .map(|_| {
-                    s.spawn(|| {
+        let start = std::sync::Barrier::new(16);
+        let opened: Vec<(usize, AssetBuffer)> = std::thread::scope(|s| {
+            let reads: Vec<_> = (0..16)
+                .map(|k| {
+                    let (whole, start, p) = (&whole, &start, &files[k % 2]);
+                    s.spawn(move || {
                         start.wait();
-                        whole.open_asset(&ResolvedPath::new(&p)).unwrap().into_buffer().unwrap()
+                        (
+                            k % 2,
+                            whole.open_asset(&ResolvedPath::new(p)).unwrap().into_buffer().unwrap(),
+                        )
                     })
                 })
                 .collect();
             reads.into_iter().map(|r| r.join().unwrap()).collect()
         });
-        // One read: every open shares the first one's bytes.
-        assert!(opened.iter().all(|b| b.as_ptr() == opened[0].as_ptr()));
-        assert_eq!(reads_of(&p) - before, 1);
+        // One read each: every open shares the first one's bytes.
+        for (f, p) in files.iter().enumerate() {
+            let of_f: Vec<&AssetBuffer> = opened.iter().filter(|(g, _)| *g == f).map(|(_, b)| b).collect();
+            assert!(of_f.iter().all(|b| b.as_ptr() == of_f[0].as_ptr()));
+            assert_eq!(reads_of(p) - before[f], 1, "{}", p.display());
+        }
     }
 
     #[test]
