@@ -821,6 +821,19 @@ def test_a_layer_the_stage_names_that_is_a_fifo_fails_instead_of_hanging(tmp_pat
     assert (tmp_path / "fish.usda").read_bytes() == BLOWFISH.read_bytes()
 
 
+def rewrite_in_place(src, stop):
+    """Rewrites the file `src` in place until `stop` is set, as `cp` over it
+    does: truncated, then written again 4 KiB at a time."""
+    data = open(src, "rb").read()
+    while not stop.is_set():
+        with open(src, "r+b") as f:
+            f.truncate(0)
+            for i in range(0, len(data), 4096):
+                f.write(data[i:i + 4096])
+                f.flush()
+        time.sleep(0.001)
+
+
 def test_an_input_cut_short_while_a_bake_reads_it_is_an_error_not_a_bus_error(tmp_path):
     """A program rewriting a `.usdc` input in place (truncate, then write,
     as `cp` does) while bakes read it: 59 of 100 bakes died of SIGBUS (a
@@ -831,19 +844,8 @@ def test_an_input_cut_short_while_a_bake_reads_it_is_an_error_not_a_bus_error(tm
     import threading
     src = tmp_path / "in.usdc"
     Usd.Stage.Open(str(BLOWFISH)).Export(str(src))
-    data = src.read_bytes()
     stop = threading.Event()
-
-    def rewrite():
-        while not stop.is_set():
-            with open(src, "r+b") as f:
-                f.truncate(0)
-                for i in range(0, len(data), 4096):
-                    f.write(data[i:i + 4096])
-                    f.flush()
-            time.sleep(0.001)
-
-    writer = threading.Thread(target=rewrite)
+    writer = threading.Thread(target=rewrite_in_place, args=(src, stop))
     writer.start()
     outcomes = []
     try:
@@ -871,19 +873,8 @@ CUT_SHORT_IN_PYTHON = """
 import sys, threading, time
 import painterly
 src, out = sys.argv[1], sys.argv[2]
-data = open(src, "rb").read()
 stop = threading.Event()
-
-def rewrite():
-    while not stop.is_set():
-        with open(src, "r+b") as f:
-            f.truncate(0)
-            for i in range(0, len(data), 4096):
-                f.write(data[i:i + 4096])
-                f.flush()
-        time.sleep(0.001)
-
-writer = threading.Thread(target=rewrite)
+writer = threading.Thread(target=rewrite_in_place, args=(src, stop))
 writer.start()
 try:
     for i in range(int(sys.argv[3])):
@@ -909,7 +900,9 @@ def test_an_input_cut_short_under_a_python_bake_is_an_error_not_the_end_of_pytho
     import sys
     src = tmp_path / "in.usdc"
     Usd.Stage.Open(str(BLOWFISH)).Export(str(src))
-    proc = subprocess.run([sys.executable, "-c", CUT_SHORT_IN_PYTHON, src, tmp_path / "out.usdc", "50"],
+    import inspect
+    child = inspect.getsource(rewrite_in_place) + CUT_SHORT_IN_PYTHON
+    proc = subprocess.run([sys.executable, "-c", child, src, tmp_path / "out.usdc", "50"],
                           capture_output=True, text=True, timeout=HANG)
     assert proc.returncode == 0, (proc.returncode, proc.stderr[-2000:])
     said = ("ok", f"error: {src}: changed while painterly read it (saved during this run?)",
