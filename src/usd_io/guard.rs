@@ -94,14 +94,23 @@ pub struct FileId {
 impl FileId {
     /// The file at `path` now, through links; None when it cannot be seen.
     pub fn of(path: &std::path::Path) -> Option<FileId> {
+        Some(FileId::from_metadata(&std::fs::metadata(path).ok()?))
+    }
+
+    /// The file `m` describes (of a file already open, say).
+    pub fn from_metadata(m: &std::fs::Metadata) -> FileId {
         use std::os::unix::fs::MetadataExt;
-        let m = std::fs::metadata(path).ok()?;
-        Some(FileId {
+        FileId {
             dev: m.dev(),
             ino: m.ino(),
             len: m.len(),
             mtime_ns: i128::from(m.mtime()) * 1_000_000_000 + i128::from(m.mtime_nsec()),
-        })
+        }
+    }
+
+    /// Whether `other` is a version of the same file (device and inode).
+    pub fn same_file(&self, other: &FileId) -> bool {
+        (self.dev, self.ino) == (other.dev, other.ino)
     }
 }
 

@@ -23,6 +23,8 @@ use std::sync::atomic::{AtomicBool, AtomicPtr, AtomicUsize, Ordering};
 
 use openusd::ar::{self, Asset, AssetBuffer, DefaultResolver, ResolvedPath, SharedBuffer};
 
+use super::guard::FileId;
+
 /// Why a path that is not a regular file is refused, in its error message.
 pub const NOT_REGULAR: &str = "not a regular file (a FIFO, device or socket)";
 
@@ -165,7 +167,7 @@ impl RegularResolver {
             return Ok(Box::new(file));
         }
         if self.files == Files::Whole {
-            let bytes = read_whole(file, &meta)?;
+            let bytes = read_whole(file, &meta, len)?;
             return Ok(Box::new(io::Cursor::new(AssetBuffer::Shared(SharedBuffer::new(bytes)))));
         }
         // SAFETY: read-only mapping of a regular file; that nothing writes
@@ -182,15 +184,17 @@ impl RegularResolver {
     }
 }
 
-/// A file's identity and version: the same key means the same bytes
-/// (painterly and usd-core replace files by rename, which changes the
-/// inode; a rewrite in place changes the times).
-type Version = (u64, u64, u64, i64, i64, i64, i64);
+/// A file's version, the same key meaning the same bytes: the version a
+/// command's check of its inputs compares ([`FileId`]: a save by rename
+/// gives a new inode, one in place a new size or modification time), and
+/// the status-change time, which a rewrite in place moves even when it
+/// sets the modification time back.
+type Version = (FileId, i128);
 
 fn version_of(meta: &std::fs::Metadata) -> Version {
     use std::os::unix::fs::MetadataExt;
-    let times = (meta.mtime(), meta.mtime_nsec(), meta.ctime(), meta.ctime_nsec());
-    (meta.dev(), meta.ino(), meta.len(), times.0, times.1, times.2, times.3)
+    let ctime_ns = i128::from(meta.ctime()) * 1_000_000_000 + i128::from(meta.ctime_nsec());
+    (FileId::from_metadata(meta), ctime_ns)
 }
 
 /// Files read whole, by version: being read by some open, or read, with a
@@ -243,32 +247,26 @@ impl Drop for ReadUnderWay {
     }
 }
 
-/// The bytes of `file` (whose metadata is `meta`), read now or shared with
-/// a reader of the same version.
-fn read_whole(mut file: File, meta: &std::fs::Metadata) -> io::Result<std::sync::Arc<[u8]>> {
+/// The `len` bytes of `file` (whose metadata is `meta`), read now or
+/// shared with a reader of the same version.
+fn read_whole(mut file: File, meta: &std::fs::Metadata, len: usize) -> io::Result<std::sync::Arc<[u8]>> {
     use std::io::Read;
     let version = version_of(meta);
     let mut reads = READ_WHOLE.lock().unwrap_or_else(|e| e.into_inner());
     loop {
         reads.retain(|(_, read)| !read.unheld());
         match reads.iter().find(|(v, _)| *v == version).map(|(_, read)| read) {
-            Some(WholeRead::Read(bytes)) => {
-                if let Some(bytes) = bytes.upgrade() {
-                    return Ok(bytes);
-                }
-            }
-            Some(WholeRead::Reading) => {
-                reads = READ_ENDED.wait(reads).unwrap_or_else(|e| e.into_inner());
-                continue;
-            }
-            None => {}
+            Some(WholeRead::Reading) => reads = READ_ENDED.wait(reads).unwrap_or_else(|e| e.into_inner()),
+            Some(WholeRead::Read(bytes)) => match bytes.upgrade() {
+                Some(bytes) => return Ok(bytes),
+                None => break,
+            },
+            None => break,
         }
-        break;
     }
     reads.push((version, WholeRead::Reading));
     drop(reads);
     let mut under_way = ReadUnderWay { version, bytes: None };
-    let len = usize::try_from(meta.len()).map_err(|_| io::Error::other("the file is too large to read"))?;
     // Read straight into the shared allocation (a Vec made into an
     // `Arc<[u8]>` is copied: twice the file at the peak), outside the lock.
     // A file that shrank meanwhile fails the read; one that grew is read to
@@ -449,8 +447,8 @@ mod tests {
     /// from a first call made once `p` exists (an inode is reused after a
     /// file is deleted, but no two files share one at once).
     fn reads_of(p: &Path) -> usize {
-        let ino = version_of(&p.metadata().unwrap()).1;
-        READS.lock().unwrap().iter().filter(|v| v.1 == ino).count()
+        let file = FileId::of(p).unwrap();
+        READS.lock().unwrap().iter().filter(|(v, _)| v.same_file(&file)).count()
     }
 
     fn fifo(dir: &Path) -> std::path::PathBuf {
@@ -521,8 +519,8 @@ mod tests {
         // reference alone kept the allocation).
         drop((first, second));
         forget_unheld_reads();
-        let ino = version_of(&p.metadata().unwrap()).1;
-        assert!(READ_WHOLE.lock().unwrap().iter().all(|(v, _)| v.1 != ino));
+        let file = FileId::of(&p).unwrap();
+        assert!(READ_WHOLE.lock().unwrap().iter().all(|((v, _), _)| !v.same_file(&file)));
     }
 
     #[test]

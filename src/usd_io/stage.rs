@@ -273,7 +273,8 @@ impl StageMetadata {
 pub const LISTED_MISSING: usize = 10;
 
 /// The default resolver, handing out read-only memory mappings of files
-/// instead of reading them. For readers that live for one command (a bake,
+/// instead of reading them (whole buffers, in the Python package: see
+/// [`super::regular::read_instead_of_mapping`]). For readers that live for one command (a bake,
 /// an assembly, a provenance read): the only ones that may use it.
 pub(crate) fn mapped_resolver() -> super::regular::RegularResolver {
     // SAFETY (the promise `map_files` asks for: a mapped file is not modified
