@@ -403,6 +403,27 @@ mod tests {
     }
 
     #[test]
+    fn a_file_id_holds_the_modification_time_to_the_nanosecond() {
+        // Two saves within one second, or a second apart with the
+        // nanoseconds one lower, are two versions.
+        use std::time::{Duration, UNIX_EPOCH};
+        let dir = super::super::atomic::TempDir::new().unwrap();
+        let p = dir.path().join("f.usda");
+        std::fs::write(&p, "#usda 1.0\n").unwrap();
+        let file = std::fs::File::options().write(true).open(&p).unwrap();
+        let mut ids = Vec::new();
+        for (s, ns) in [(1_700_000_000, 500), (1_700_000_000, 501), (1_700_000_001, 499)] {
+            let t = std::fs::FileTimes::new().set_modified(UNIX_EPOCH + Duration::new(s, ns));
+            file.set_times(t).unwrap();
+            let id = FileId::of(&p).unwrap();
+            assert_eq!(id.mtime_ns, i128::from(s) * 1_000_000_000 + i128::from(ns));
+            ids.push(id);
+        }
+        assert!(ids[0] != ids[1] && ids[1] != ids[2] && ids[0] != ids[2]);
+        assert!(ids[0].same_file(&ids[2]) && ids[2].same_file(&ids[0]));
+    }
+
+    #[test]
     fn finds_inherit_cycles_and_passes_hierarchies() {
         let cyc = "#usda 1.0\nclass \"A\" (inherits = </B>)\n{\n}\nclass \"B\" (specializes = </A>)\n{\n}\n";
         let g = Guard::default();

@@ -54,6 +54,18 @@ fn held_before_block(times: &[f64], t: f64) -> Option<f64> {
     }
 }
 
+/// Whether any layer of `stage` authors a spline on some attribute.
+fn authors_splines(stage: &usd::Stage) -> bool {
+    stage
+        .layer_identifiers()
+        .iter()
+        .filter_map(|id| stage.layer(id))
+        .any(|layer| {
+            let data = layer.data();
+            data.spec_paths().iter().any(|p| data.has_field(p, "spline"))
+        })
+}
+
 /// `prim`'s local transform at `time` and whether it resets the transform
 /// stack, as openusd-schemas' `XformQuery` evaluates it (ops from the back,
 /// an op beside its own inverse skipped with it), except that an op whose
@@ -180,6 +192,10 @@ pub struct StageReader {
     /// `inputStamp` then says so ([`super::clips::input_stamp`]), since the
     /// file on disk is not what was baked.
     pub unsaved: bool,
+    /// Whether some layer authors a spline (USD 25.05's `.spline`, which
+    /// openusd reads past as if absent): only then does each read look for
+    /// one ([`StageReader::refuse_spline`]).
+    pub(crate) splines: bool,
 }
 
 /// A sublayer, reference or payload whose asset (or target prim) is missing.
@@ -557,7 +573,9 @@ impl StageReader {
             }
         }
         let unresolved = unresolved_assets(&stage);
+        let splines = authors_splines(&stage);
         Ok(StageReader {
+            splines,
             stage,
             file: path.to_path_buf(),
             unresolved,
@@ -741,6 +759,7 @@ impl StageReader {
 
     /// The attribute's resolved value at `time` (None = default value).
     pub fn value(&self, prim: &usd::Prim, name: &str, time: Option<f64>) -> Result<Option<Value>> {
+        self.refuse_spline(prim, name)?;
         let attr = prim.attribute(name);
         let read = |t: Option<f64>| -> Result<Option<Value>> {
             attr.get_at::<Value>(t.map(TimeCode::new))
@@ -941,6 +960,57 @@ impl StageReader {
         Err(Error::attr(prim.path(), name, message).rule(crate::rule::Rule::AttributeType))
     }
 
+    /// Fails when a spline gives `prim.name` its value over time: openusd
+    /// 0.8 reads past splines, so painterly would read the default (or
+    /// nothing) where usd-core evaluates the curve. Found as USD's value
+    /// resolution finds a value (strongest spec first; in one spec time
+    /// samples win over a spline, and a spline over a default).
+    pub fn refuse_spline(&self, prim: &usd::Prim, name: &str) -> Result<()> {
+        if !self.splines {
+            return Ok(());
+        }
+        let Ok(stack) = prim.attribute(name).property_stack() else {
+            return Ok(());
+        };
+        for site in stack {
+            let Some(layer) = self.stage.layer(&site.layer) else {
+                return Ok(());
+            };
+            let has = |field: &str| layer.data().has_field(&site.path, field);
+            if has("timeSamples") {
+                return Ok(());
+            }
+            if has("spline") {
+                let message = format!(
+                    "is animated by a spline (`.spline` in {}), which painterly cannot evaluate (usd-core \
+                     does; openusd 0.8 reads past splines): bake it to time samples first, e.g. in usd-core \
+                     read attr.Get(t) at each frame, attr.Clear(), then attr.Set(value, t)",
+                    site.layer
+                );
+                return Err(Error::attr(prim.path(), name, message).rule(crate::rule::Rule::Unreadable));
+            }
+            if has("default") {
+                return Ok(());
+            }
+        }
+        Ok(())
+    }
+
+    /// [`Self::refuse_spline`] for every transform op of `prim`.
+    fn refuse_transform_splines(&self, prim: &usd::Prim) -> Result<()> {
+        if !self.splines {
+            return Ok(());
+        }
+        let Ok(Some(x)) = Xformable::from_prim(prim.clone()) else {
+            return Ok(());
+        };
+        let Ok((ops, _)) = x.ordered_xform_ops() else {
+            return Ok(());
+        };
+        ops.iter()
+            .try_for_each(|op| self.refuse_spline(prim, op.attribute().name()))
+    }
+
     /// How many layers the stage opened (root, sublayers, references, ...).
     pub fn layer_count(&self) -> usize {
         self.stage.layer_identifiers().len()
@@ -1067,6 +1137,7 @@ impl StageReader {
         let mut chain = Vec::new();
         let mut current = Some(prim.clone());
         while let Some(p) = current.filter(|p| !p.path().is_abs_root()) {
+            self.refuse_transform_splines(&p)?;
             let (local, resets) = local_transform_held(&p, time)
                 .map_err(|e| Error::prim(p.path(), format!("cannot compute transform: {e}")))?;
             current = if resets { None } else { p.parent() };
@@ -1405,6 +1476,93 @@ mod tests {
     /// one-sample op is fixed; an animated parent is not, unless the child
     /// resets the stack); an in-memory reader keeps none. Answers are
     /// usd-core's either way (python_tests: test_one_sample_values_hold_at_every_frame).
+    #[test]
+    fn a_spline_is_refused_where_usd_reads_it_and_nowhere_else() {
+        // Value resolution as usd-core 26.11 resolves it (checked with its
+        // GetResolveInfo): strongest spec first; in one spec time samples,
+        // then a spline, then a default.
+        let dir = TempDir::new().unwrap();
+        let weak = dir.path().join("weak.usda");
+        std::fs::write(
+            &weak,
+            r#"#usda 1.0
+over "P" {
+    double underDefault.spline = { 1: 0; post linear, 9: 8; post linear, }
+    double underSpline.timeSamples = { 1: 5 }
+}
+"#,
+        )
+        .unwrap();
+        let strong = dir.path().join("strong.usda");
+        std::fs::write(
+            &strong,
+            r#"#usda 1.0
+(
+    subLayers = [@./weak.usda@]
+)
+def Xform "P" {
+    double alone.spline = { 1: 0; post linear, 9: 8; post linear, }
+    double besideDefault = 3
+    double besideDefault.spline = { 1: 0; post linear, 9: 8; post linear, }
+    double besideSamples.timeSamples = { 1: 5 }
+    double besideSamples.spline = { 1: 0; post linear, 9: 8; post linear, }
+    double underDefault = 3
+    double underSpline.spline = { 1: 0; post linear, 9: 8; post linear, }
+    double plain = 3
+    float xformOp:rotateY.spline = { 1: 0; post linear, 9: 80; post linear, }
+    uniform token[] xformOpOrder = ["xformOp:rotateY"]
+    def Xform "Child" {
+    }
+}
+def Xform "Still" {
+    double3 xformOp:translate = (1, 2, 3)
+    uniform token[] xformOpOrder = ["xformOp:translate"]
+}
+"#,
+        )
+        .unwrap();
+        let r = StageReader::open(&strong).unwrap();
+        assert!(r.splines);
+        let p = r.require_prim("/P").unwrap();
+        for name in ["alone", "besideDefault", "underSpline"] {
+            let e = r.value(&p, name, Some(5.0)).unwrap_err();
+            assert_eq!(e.prim.as_deref(), Some("/P"), "{name}");
+            assert_eq!(e.attribute.as_deref(), Some(name));
+            assert_eq!(e.rule, Some(crate::rule::Rule::Unreadable));
+            let layer = strong.to_str().unwrap();
+            assert!(
+                e.message
+                    .starts_with(&format!("is animated by a spline (`.spline` in {layer})")),
+                "{}",
+                e.message
+            );
+        }
+        for (name, at_5) in [("besideSamples", 5.0), ("underDefault", 3.0), ("plain", 3.0)] {
+            assert_eq!(
+                r.value(&p, name, Some(5.0)).unwrap(),
+                Some(Value::Double(at_5)),
+                "{name}"
+            );
+        }
+        // A transform op, and so every prim below it.
+        let child = r.require_prim("/P/Child").unwrap();
+        let e = r.local_to_world(&child, 5.0).unwrap_err();
+        assert_eq!(
+            (e.prim.as_deref(), e.attribute.as_deref()),
+            (Some("/P"), Some("xformOp:rotateY"))
+        );
+        let still = r.require_prim("/Still").unwrap();
+        assert_eq!(
+            r.local_to_world(&still, 5.0).unwrap().w_axis.truncate(),
+            glam::DVec3::new(1.0, 2.0, 3.0)
+        );
+
+        // A stage without a spline does not look for one.
+        let none = dir.path().join("none.usda");
+        std::fs::write(&none, "#usda 1.0\ndef \"P\" {\n    double plain = 3\n}\n").unwrap();
+        assert!(!StageReader::open(&none).unwrap().splines);
+    }
+
     #[test]
     fn fixed_transforms_are_kept_only_where_nothing_varies() {
         let dir = TempDir::new().unwrap();
