@@ -965,7 +965,7 @@ impl StageReader {
     /// nothing) where usd-core evaluates the curve. Found as USD's value
     /// resolution finds a value (strongest spec first; in one spec time
     /// samples win over a spline, and a spline over a default).
-    pub fn refuse_spline(&self, prim: &usd::Prim, name: &str) -> Result<()> {
+    fn refuse_spline(&self, prim: &usd::Prim, name: &str) -> Result<()> {
         if !self.splines {
             return Ok(());
         }
