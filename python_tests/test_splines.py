@@ -4,7 +4,8 @@
 A bake that read past a spline would take the default, or nothing, where
 usd-core's `Get(t)` evaluates the curve: a wrong bake with no word said (it
 was: `painterly:opacity` baked as if 1, an axis source read at its default,
-`inspect` saying "no problems found"). So wherever a spline gives an
+`inspect` saying "no problems found"; a camera's zoom rendered at its
+default focal length). So wherever a spline gives an
 attribute painterly reads its value, bake and inspect refuse it, naming the
 prim, the attribute and the layer (rule `unreadable`), and the Python
 package raises it. Which opinion gives the value is decided as usd-core
@@ -115,6 +116,20 @@ def test_a_spline_on_a_view_camera_is_refused(painterly, tmp_path):
     assert proc.returncode == 1, proc.stderr
     assert proc.stderr.startswith(f"error: {path}: /Head/Camera.xformOp:rotateY:turn: is animated by a spline"), proc.stderr
     assert not (tmp_path / "bake.usdc").exists()
+
+
+def test_a_zoom_by_a_spline_is_refused_by_render(painterly, tmp_path):
+    path = tmp_path / "head.usda"
+    shutil.copy(FIXTURES / "head.usda", path)
+    stage = Usd.Stage.Open(str(path))
+    stage.GetPrimAtPath("/Head/Camera").GetAttribute("focalLength").SetSpline(spline("float", [(1, 35.0), (24, 80.0)]))
+    stage.GetRootLayer().Save()
+    out = tmp_path / "frames" / "head.####.exr"
+    out.parent.mkdir()
+    proc = painterly("render", path, "--camera", "/Head/Camera", "--frames", "1:2", "-o", out, check=False)
+    assert proc.returncode == 1, proc.stderr
+    assert proc.stderr.startswith(f"error: {path}: /Head/Camera.focalLength: is animated by a spline"), proc.stderr
+    assert list(out.parent.iterdir()) == []
 
 
 def test_the_python_package_raises_the_same_error(tmp_path):
