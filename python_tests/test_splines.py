@@ -13,7 +13,9 @@ decides it, checked here against usd-core's own `GetResolveInfo`: a
 stronger default, or time samples beside the spline, win over it, and then
 the bake equals the bake of the same values authored without a spline. A
 spline on an attribute painterly does not read changes nothing, and
-`bind --in-place` keeps it.
+`bind --in-place` keeps it. Under value clips nothing is judged (openusd
+resolves clips itself): clips over a weaker spline bake as usd-core reads
+them; a spline inside a clip's own layer is not seen (README, Limits).
 """
 
 from __future__ import annotations
@@ -132,6 +134,29 @@ def test_a_zoom_by_a_spline_is_refused_by_render(painterly, tmp_path):
     assert list(out.parent.iterdir()) == []
 
 
+def test_a_constant_primvar_animated_by_a_spline_is_refused_by_render(painterly, tmp_path):
+    # A constant primvar may be authored as a scalar, which a spline can
+    # animate: render read the widths at their default (found by review).
+    path = tmp_path / "head.usda"
+    shutil.copy(FIXTURES / "head.usda", path)
+    stage = Usd.Stage.Open(str(path))
+    curves = UsdGeom.BasisCurves.Define(stage, "/Head/Extra")
+    curves.CreateTypeAttr("linear")
+    curves.CreatePointsAttr([(-30, 0, 0), (30, 0, 0)])
+    curves.CreateCurveVertexCountsAttr([2])
+    widths = curves.GetPrim().CreateAttribute("primvars:widths", Sdf.ValueTypeNames.Float)
+    widths.SetMetadata("interpolation", "constant")
+    widths.Set(0.5)
+    widths.SetSpline(spline("float", [(1, 0.5), (24, 8.0)]))
+    stage.GetRootLayer().Save()
+    assert widths.GetResolveInfo(20).GetSource() == Usd.ResolveInfoSourceSpline
+    out = tmp_path / "frames" / "head.####.exr"
+    out.parent.mkdir()
+    proc = painterly("render", path, "--camera", "/Head/Camera", "--frames", "20:20", "-o", out, check=False)
+    assert proc.returncode == 1, proc.stderr
+    assert proc.stderr.startswith(f"error: {path}: /Head/Extra.primvars:widths: is animated by a spline"), proc.stderr
+
+
 def test_the_python_package_raises_the_same_error(tmp_path):
     painterly_py = pytest.importorskip("painterly")
     prim, name, type_name, knots = READ["layer opacity"]
@@ -201,6 +226,35 @@ def test_an_opinion_that_wins_over_a_spline_is_read_as_usd_core_reads_it(painter
     # ... and the samples were read: at frame 6 the opacity is 0.2 + 5/11 * 0.6, not 1.
     authored = np.array(both_stage.GetPrimAtPath(prim).GetAttribute("primvars:displayOpacity").Get(6))
     assert np.allclose(got, authored * (0.2 + 5 / 11 * 0.6), atol=1e-6)
+
+
+def test_value_clips_over_a_weaker_spline_are_read_as_usd_core_reads_them(painterly, tmp_path):
+    # Clips anchored in the stronger layer answer before a weaker layer's
+    # spline: usd-core reads the clip's samples, and so does the bake (a
+    # first version of the refusal refused this; found by review).
+    prim, name, _, knots = READ["layer opacity"]
+    clip = Sdf.Layer.CreateNew(str(tmp_path / "clip.usda"))
+    clip_stage = Usd.Stage.Open(clip)
+    a = clip_stage.OverridePrim(prim).CreateAttribute(name, Sdf.ValueTypeNames.Float)
+    a.Set(0.2, 1)
+    a.Set(0.8, 12)
+    clip.Save()
+
+    def clips(stage):
+        api = Usd.ClipsAPI(stage.OverridePrim(prim))
+        api.SetClipAssetPaths([Sdf.AssetPath("./clip.usda")])
+        api.SetClipPrimPath(prim)
+        api.SetClipActive([(1, 0)])
+        api.SetClipTimes([(1, 1), (12, 12)])
+
+    over = two_layers(tmp_path, "over", on(prim, name, "float", knots, default=0.9), clips)
+    over_stage = Usd.Stage.Open(str(over))
+    attr = over_stage.GetPrimAtPath(prim).GetAttribute(name)
+    assert attr.GetResolveInfo(6).GetSource() == Usd.ResolveInfoSourceValueClips
+    got = baked_opacity(painterly, over, tmp_path / "over_bake.usdc", 6)
+    assert attr.Get(6) == pytest.approx(0.2 + 5 / 11 * 0.6)
+    authored = np.array(over_stage.GetPrimAtPath(prim).GetAttribute("primvars:displayOpacity").Get(6))
+    assert np.allclose(got, authored * attr.Get(6), atol=1e-6)
 
 
 def test_a_spline_painterly_does_not_read_changes_nothing_and_bind_keeps_it(painterly, tmp_path):

@@ -45,6 +45,7 @@ struct PrimvarSource {
 impl PrimvarSource {
     /// None when the attribute has no authored value.
     fn open(r: &StageReader, prim: &usd::Prim, name: &str, default_interp: &str) -> Result<Option<Self>> {
+        // (A constant primvar may be a scalar a spline animates: refused here.)
         if !r.has_authored(prim, name)? {
             return Ok(None);
         }

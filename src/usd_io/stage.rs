@@ -54,18 +54,6 @@ fn held_before_block(times: &[f64], t: f64) -> Option<f64> {
     }
 }
 
-/// Whether any layer of `stage` authors a spline on some attribute.
-fn authors_splines(stage: &usd::Stage) -> bool {
-    stage
-        .layer_identifiers()
-        .iter()
-        .filter_map(|id| stage.layer(id))
-        .any(|layer| {
-            let data = layer.data();
-            data.spec_paths().iter().any(|p| data.has_field(p, "spline"))
-        })
-}
-
 /// `prim`'s local transform at `time` and whether it resets the transform
 /// stack, as openusd-schemas' `XformQuery` evaluates it (ops from the back,
 /// an op beside its own inverse skipped with it), except that an op whose
@@ -192,10 +180,9 @@ pub struct StageReader {
     /// `inputStamp` then says so ([`super::clips::input_stamp`]), since the
     /// file on disk is not what was baked.
     pub unsaved: bool,
-    /// Whether some layer authors a spline (USD 25.05's `.spline`, which
-    /// openusd reads past as if absent): only then does each read look for
-    /// one ([`StageReader::refuse_spline`]).
-    pub(crate) splines: bool,
+    /// Attributes (prim path, name) whose value no spline gives, once
+    /// checked ([`StageReader::refuse_spline`]): a bake reads some every frame.
+    pub(crate) no_spline: Mutex<std::collections::HashSet<(sdf::Path, String)>>,
 }
 
 /// A sublayer, reference or payload whose asset (or target prim) is missing.
@@ -573,9 +560,8 @@ impl StageReader {
             }
         }
         let unresolved = unresolved_assets(&stage);
-        let splines = authors_splines(&stage);
         Ok(StageReader {
-            splines,
+            no_spline: Mutex::default(),
             stage,
             file: path.to_path_buf(),
             unresolved,
@@ -734,8 +720,10 @@ impl StageReader {
             .map_err(|e| Error::prim(prim.path(), format!("cannot read apiSchemas: {e}")))
     }
 
-    /// Whether the attribute has any authored opinion (default or samples).
+    /// Whether the attribute has any authored opinion (default or samples;
+    /// a spline that would give its value is refused, as by [`Self::value`]).
     pub fn has_authored(&self, prim: &usd::Prim, name: &str) -> Result<bool> {
+        self.refuse_spline(prim, name)?;
         prim.attribute(name)
             .has_authored_value()
             .map_err(|e| Error::attr(prim.path(), name, format!("cannot read: {e}")))
@@ -961,54 +949,95 @@ impl StageReader {
     }
 
     /// Fails when a spline gives `prim.name` its value over time: openusd
-    /// 0.8 reads past splines, so painterly would read the default (or
-    /// nothing) where usd-core evaluates the curve. Found as USD's value
-    /// resolution finds a value (strongest spec first; in one spec time
-    /// samples win over a spline, and a spline over a default).
-    fn refuse_spline(&self, prim: &usd::Prim, name: &str) -> Result<()> {
-        if !self.splines {
+    /// 0.8 reads past splines (USD 25.05's `.spline`), so painterly would
+    /// read the default (or nothing) where usd-core evaluates the curve.
+    /// Found as usd-core's value resolution finds a value: strongest spec
+    /// first; in one spec time samples (a map that is not empty), then a
+    /// spline, then a default. Not judged under value clips (README, Limits).
+    pub(crate) fn refuse_spline(&self, prim: &usd::Prim, name: &str) -> Result<()> {
+        let key = (prim.path().clone(), name.to_string());
+        let lock = || self.no_spline.lock().unwrap_or_else(|e| e.into_inner());
+        if lock().contains(&key) {
             return Ok(());
         }
-        let Ok(stack) = prim.attribute(name).property_stack() else {
-            return Ok(());
-        };
-        for site in stack {
-            let Some(layer) = self.stage.layer(&site.layer) else {
-                return Ok(());
+        if let Some(layer) = self.spline_source(prim, name) {
+            let uniform = PAINTERLY_UNIFORM.contains(&name) || self.type_name(prim)?.starts_with("Painterly");
+            let advice = match uniform {
+                true => "the schema makes it uniform: remove the spline and keep a default",
+                false => {
+                    "bake it to time samples first, e.g. in usd-core read attr.Get(t) at each frame, \
+                     attr.Clear(), then attr.Set(value, t)"
+                }
             };
-            let has = |field: &str| layer.data().has_field(&site.path, field);
-            if has("timeSamples") {
-                return Ok(());
-            }
-            if has("spline") {
-                let message = format!(
-                    "is animated by a spline (`.spline` in {}), which painterly cannot evaluate (usd-core \
-                     does; openusd 0.8 reads past splines): bake it to time samples first, e.g. in usd-core \
-                     read attr.Get(t) at each frame, attr.Clear(), then attr.Set(value, t)",
-                    site.layer
-                );
-                return Err(Error::attr(prim.path(), name, message).rule(crate::rule::Rule::Unreadable));
-            }
-            if has("default") {
-                return Ok(());
-            }
+            let message = format!(
+                "is animated by a spline (`.spline` in {layer}), which painterly cannot evaluate (usd-core \
+                 does; openusd 0.8 reads past splines): {advice}"
+            );
+            return Err(Error::attr(prim.path(), name, message).rule(crate::rule::Rule::Unreadable));
         }
+        lock().insert(key);
         Ok(())
     }
 
-    /// [`Self::refuse_spline`] for every transform op of `prim`.
+    /// The layer whose spline gives `prim.name` its value ([`Self::refuse_spline`]).
+    fn spline_source(&self, prim: &usd::Prim, name: &str) -> Option<String> {
+        let stack = prim.attribute(name).property_stack().ok()?;
+        let specs: Vec<_> = stack
+            .into_iter()
+            .map_while(|site| self.stage.layer(&site.layer).map(|layer| (site, layer)))
+            .collect();
+        // Most attributes have no spline anywhere: only then are sample maps read.
+        if !specs
+            .iter()
+            .any(|(site, layer)| layer.data().has_field(&site.path, "spline"))
+        {
+            return None;
+        }
+        // Value clips resolve per time, between a layer's own opinions and
+        // weaker layers' (openusd resolves them, from layers not listed
+        // here): an attribute they may answer for is not judged.
+        let clipped = |p: &usd::Prim| {
+            let has = |key: &str| p.get_metadata::<Value>(key).ok().flatten().is_some();
+            has("clips") || has("clipSets")
+        };
+        if std::iter::successors(Some(prim.clone()), |p| p.parent()).any(|p| clipped(&p)) {
+            return None;
+        }
+        for (site, layer) in specs {
+            let data = layer.data();
+            let samples = match data.try_field(&site.path, "timeSamples") {
+                Ok(Some(v)) => !matches!(v.as_ref(), Value::TimeSamples(map) if map.is_empty()),
+                _ => false,
+            };
+            if samples {
+                return None;
+            }
+            if data.has_field(&site.path, "spline") {
+                return Some(site.layer);
+            }
+            if data.has_field(&site.path, "default") {
+                return None;
+            }
+        }
+        None
+    }
+
+    /// [`Self::refuse_spline`] for every transform op of `prim` (once: the
+    /// ops are those `xformOpOrder` names, which stands in for them all).
     fn refuse_transform_splines(&self, prim: &usd::Prim) -> Result<()> {
-        if !self.splines {
+        let key = (prim.path().clone(), "xformOpOrder".to_string());
+        let lock = || self.no_spline.lock().unwrap_or_else(|e| e.into_inner());
+        if lock().contains(&key) {
             return Ok(());
         }
-        let Ok(Some(x)) = Xformable::from_prim(prim.clone()) else {
-            return Ok(());
-        };
-        let Ok((ops, _)) = x.ordered_xform_ops() else {
-            return Ok(());
-        };
-        ops.iter()
-            .try_for_each(|op| self.refuse_spline(prim, op.attribute().name()))
+        if let Ok(Some(x)) = Xformable::from_prim(prim.clone()) {
+            if let Ok((ops, _)) = x.ordered_xform_ops() {
+                ops.iter()
+                    .try_for_each(|op| self.refuse_spline(prim, op.attribute().name()))?;
+            }
+        }
+        lock().insert(key);
+        Ok(())
     }
 
     /// How many layers the stage opened (root, sublayers, references, ...).
@@ -1489,6 +1518,10 @@ mod tests {
 over "P" {
     double underDefault.spline = { 1: 0; post linear, 9: 8; post linear, }
     double underSpline.timeSamples = { 1: 5 }
+    double underEmpty.spline = { 1: 0; post linear, 9: 8; post linear, }
+}
+over "Clipped" {
+    double underClips.spline = { 1: 0; post linear, 9: 8; post linear, }
 }
 "#,
         )
@@ -1509,6 +1542,10 @@ def Xform "P" {
     double underDefault = 3
     double underSpline.spline = { 1: 0; post linear, 9: 8; post linear, }
     double plain = 3
+    double emptyBeside.timeSamples = { }
+    double emptyBeside.spline = { 1: 0; post linear, 9: 8; post linear, }
+    double underEmpty.timeSamples = { }
+    double painterly:rbfRadius.spline = { 1: 0; post linear, 9: 8; post linear, }
     float xformOp:rotateY.spline = { 1: 0; post linear, 9: 80; post linear, }
     uniform token[] xformOpOrder = ["xformOp:rotateY"]
     def Xform "Child" {
@@ -1518,25 +1555,53 @@ def Xform "Still" {
     double3 xformOp:translate = (1, 2, 3)
     uniform token[] xformOpOrder = ["xformOp:translate"]
 }
+def "Clipped" (
+    clips = {
+        dictionary default = {
+            double2[] active = [(1, 0)]
+            asset[] assetPaths = [@./clip.usda@]
+            string primPath = "/Clipped"
+            double2[] times = [(1, 1), (9, 9)]
+        }
+    }
+) {
+}
 "#,
         )
         .unwrap();
+        std::fs::write(
+            dir.path().join("clip.usda"),
+            "#usda 1.0\nover \"Clipped\" {\n    double underClips.timeSamples = { 1: 7, 9: 7 }\n}\n",
+        )
+        .unwrap();
         let r = StageReader::open(&strong).unwrap();
-        assert!(r.splines);
         let p = r.require_prim("/P").unwrap();
-        for name in ["alone", "besideDefault", "underSpline"] {
+        let (strong_id, weak_id) = (strong.to_str().unwrap(), weak.to_str().unwrap());
+        for (name, layer) in [
+            ("alone", strong_id),
+            ("besideDefault", strong_id),
+            ("underSpline", strong_id),
+            ("emptyBeside", strong_id),
+            ("underEmpty", weak_id),
+            ("painterly:rbfRadius", strong_id),
+        ] {
             let e = r.value(&p, name, Some(5.0)).unwrap_err();
             assert_eq!(e.prim.as_deref(), Some("/P"), "{name}");
             assert_eq!(e.attribute.as_deref(), Some(name));
             assert_eq!(e.rule, Some(crate::rule::Rule::Unreadable));
-            let layer = strong.to_str().unwrap();
-            assert!(
-                e.message
-                    .starts_with(&format!("is animated by a spline (`.spline` in {layer})")),
-                "{}",
-                e.message
-            );
+            let head = format!("is animated by a spline (`.spline` in {layer})");
+            assert!(e.message.starts_with(&head), "{}", e.message);
+            // A uniform attribute cannot take time samples instead.
+            let uniform = name == "painterly:rbfRadius";
+            let keep_default = e.message.ends_with("remove the spline and keep a default");
+            assert_eq!(keep_default, uniform, "{}", e.message);
+            assert_eq!(e.message.contains("attr.Set(value, t)"), !uniform, "{}", e.message);
         }
+        // Clips anchored in a stronger layer give the value over a weaker
+        // spline (and under clips nothing is judged).
+        let clipped = r.require_prim("/Clipped").unwrap();
+        let clip_value = r.value(&clipped, "underClips", Some(5.0)).unwrap();
+        assert_eq!(clip_value, Some(Value::Double(7.0)));
         for (name, at_5) in [("besideSamples", 5.0), ("underDefault", 3.0), ("plain", 3.0)] {
             assert_eq!(
                 r.value(&p, name, Some(5.0)).unwrap(),
@@ -1557,10 +1622,13 @@ def Xform "Still" {
             glam::DVec3::new(1.0, 2.0, 3.0)
         );
 
-        // A stage without a spline does not look for one.
-        let none = dir.path().join("none.usda");
-        std::fs::write(&none, "#usda 1.0\ndef \"P\" {\n    double plain = 3\n}\n").unwrap();
-        assert!(!StageReader::open(&none).unwrap().splines);
+        // What passed is remembered; what failed fails again.
+        let passed = r.no_spline.lock().unwrap().clone();
+        assert!(passed.contains(&(sdf::Path::new("/P").unwrap(), "plain".to_string())));
+        assert!(passed.contains(&(sdf::Path::new("/Still").unwrap(), "xformOpOrder".to_string())));
+        assert!(!passed.contains(&(sdf::Path::new("/P").unwrap(), "alone".to_string())));
+        assert!(!passed.contains(&(sdf::Path::new("/P").unwrap(), "xformOpOrder".to_string())));
+        assert!(r.value(&p, "alone", Some(5.0)).is_err());
     }
 
     #[test]
