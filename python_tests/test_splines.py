@@ -13,9 +13,9 @@ decides it, checked here against usd-core's own `GetResolveInfo`: a
 stronger default, or time samples beside the spline, win over it, and then
 the bake equals the bake of the same values authored without a spline. A
 spline on an attribute painterly does not read changes nothing, and
-`bind --in-place` keeps it. Under value clips nothing is judged (openusd
-resolves clips itself): clips over a weaker spline bake as usd-core reads
-them; a spline inside a clip's own layer is not seen (README, Limits).
+`bind --in-place` keeps it. Value clips anchored in a stronger layer than
+the spline's answer first and bake as usd-core reads them; a spline inside
+a clip's own layer is not seen (README, Limits).
 """
 
 from __future__ import annotations

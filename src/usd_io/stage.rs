@@ -953,7 +953,7 @@ impl StageReader {
     /// read the default (or nothing) where usd-core evaluates the curve.
     /// Found as usd-core's value resolution finds a value: strongest spec
     /// first; in one spec time samples (a map that is not empty), then a
-    /// spline, then a default. Not judged under value clips (README, Limits).
+    /// spline, then a default; then the value clips anchored in that layer.
     pub(crate) fn refuse_spline(&self, prim: &usd::Prim, name: &str) -> Result<()> {
         let key = (prim.path().clone(), name.to_string());
         let lock = || self.no_spline.lock().unwrap_or_else(|e| e.into_inner());
@@ -993,16 +993,6 @@ impl StageReader {
         {
             return None;
         }
-        // Value clips resolve per time, between a layer's own opinions and
-        // weaker layers' (openusd resolves them, from layers not listed
-        // here): an attribute they may answer for is not judged.
-        let clipped = |p: &usd::Prim| {
-            let has = |key: &str| p.get_metadata::<Value>(key).ok().flatten().is_some();
-            has("clips") || has("clipSets")
-        };
-        if std::iter::successors(Some(prim.clone()), |p| p.parent()).any(|p| clipped(&p)) {
-            return None;
-        }
         for (site, layer) in specs {
             let data = layer.data();
             let samples = match data.try_field(&site.path, "timeSamples") {
@@ -1013,13 +1003,36 @@ impl StageReader {
                 return None;
             }
             if data.has_field(&site.path, "spline") {
-                return Some(site.layer);
+                return (!self.clips_answer_first(prim, &site.layer)).then_some(site.layer);
             }
             if data.has_field(&site.path, "default") {
                 return None;
             }
         }
         None
+    }
+
+    /// Whether value clips on `prim` or an ancestor, anchored in a layer of
+    /// the root layer stack stronger than `layer`, answer before `layer`'s
+    /// opinions (usd-core resolves a layer's own opinions, then the clips
+    /// anchored in it, then weaker layers). openusd resolves the clips
+    /// themselves, from layers the stage does not list: a spline inside a
+    /// clip's own layer is not seen (README, Limits).
+    fn clips_answer_first(&self, prim: &usd::Prim, layer: &str) -> bool {
+        let stack = self.stage.layer_stack();
+        let rank = |id: &str| stack.iter().position(|l| l == id);
+        let Some(spline_rank) = rank(layer) else {
+            return false;
+        };
+        std::iter::successors(Some(prim.clone()), |p| p.parent()).any(|p| {
+            p.prim_stack().unwrap_or_default().iter().any(|site| {
+                let anchors = self.stage.layer(&site.layer).is_some_and(|l| {
+                    let data = l.data();
+                    data.has_field(&site.path, "clips") || data.has_field(&site.path, "clipSets")
+                });
+                anchors && rank(&site.layer).is_some_and(|r| r < spline_rank)
+            })
+        })
     }
 
     /// [`Self::refuse_spline`] for every transform op of `prim` (once: the
@@ -1523,6 +1536,17 @@ over "P" {
 over "Clipped" {
     double underClips.spline = { 1: 0; post linear, 9: 8; post linear, }
 }
+def "WeakClips" (
+    clips = {
+        dictionary default = {
+            double2[] active = [(1, 0)]
+            asset[] assetPaths = [@./clip.usda@]
+            string primPath = "/Clipped"
+            double2[] times = [(1, 1), (9, 9)]
+        }
+    }
+) {
+}
 "#,
         )
         .unwrap();
@@ -1565,6 +1589,10 @@ def "Clipped" (
         }
     }
 ) {
+    double sameLayer.spline = { 1: 0; post linear, 9: 8; post linear, }
+}
+over "WeakClips" {
+    double underClips.spline = { 1: 0; post linear, 9: 8; post linear, }
 }
 "#,
         )
@@ -1598,10 +1626,17 @@ def "Clipped" (
             assert_eq!(e.message.contains("attr.Set(value, t)"), !uniform, "{}", e.message);
         }
         // Clips anchored in a stronger layer give the value over a weaker
-        // spline (and under clips nothing is judged).
+        // spline.
         let clipped = r.require_prim("/Clipped").unwrap();
         let clip_value = r.value(&clipped, "underClips", Some(5.0)).unwrap();
         assert_eq!(clip_value, Some(Value::Double(7.0)));
+        // A spline in the clips' own layer answers before them, and so does
+        // one in a layer stronger than the clips'.
+        let e = r.value(&clipped, "sameLayer", Some(5.0)).unwrap_err();
+        assert!(e.message.contains(strong_id), "{}", e.message);
+        let weak_clips = r.require_prim("/WeakClips").unwrap();
+        let e = r.value(&weak_clips, "underClips", Some(5.0)).unwrap_err();
+        assert!(e.message.contains(strong_id), "{}", e.message);
         for (name, at_5) in [("besideSamples", 5.0), ("underDefault", 3.0), ("plain", 3.0)] {
             assert_eq!(
                 r.value(&p, name, Some(5.0)).unwrap(),
