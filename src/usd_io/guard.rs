@@ -76,6 +76,8 @@ struct State {
     scanned: HashSet<String>,
     /// Each file opened, as it was just before it was read.
     opened: OpenedFiles,
+    /// Whether a layer read may author a spline ([`may_hold_splines`]).
+    splines: bool,
 }
 
 /// Files a stage read, each with its version just before it was read.
@@ -153,6 +155,11 @@ impl Guard {
         if let Some(id) = FileId::of(&file) {
             self.state.borrow_mut().opened.insert(file, id);
         }
+    }
+
+    /// Whether some layer read so far may author a spline.
+    pub fn may_hold_splines(&self) -> bool {
+        self.state.borrow().splines
     }
 
     /// Problems found so far.
@@ -299,6 +306,9 @@ impl Guard {
     /// Checks raw layer bytes before openusd parses them.
     fn check_bytes(&self, resolved: &ResolvedPath, bytes: &[u8]) -> Result<(), Error> {
         let file = std::path::Path::new(resolved.to_str().unwrap_or_default());
+        if !self.state.borrow().splines && may_hold_splines(bytes) {
+            self.state.borrow_mut().splines = true;
+        }
         if bytes.starts_with(b"#usda") {
             let (depth, at) = usda_text::max_nesting(bytes);
             if depth > MAX_TEXT_NESTING {
@@ -325,6 +335,20 @@ impl Guard {
         }
         Ok(())
     }
+}
+
+/// Whether a layer's bytes may author a spline (USD 25.05): a crate file of
+/// version 0.12 or later (the version splines need), text with `.spline`
+/// in it, or bytes of neither kind. A zip (a `.usdz`) holds none itself:
+/// its layers are read one by one.
+fn may_hold_splines(bytes: &[u8]) -> bool {
+    if bytes.starts_with(b"PXR-USDC") {
+        return bytes.get(8..10).is_none_or(|v| (v[0], v[1]) >= (0, 12));
+    }
+    if bytes.starts_with(b"#usda") {
+        return bytes.windows(7).any(|w| w == b".spline");
+    }
+    !bytes.starts_with(b"PK")
 }
 
 /// Opens one layer without composing it, through the guard and under
@@ -400,6 +424,26 @@ mod tests {
 
     fn layer(text: &str) -> sdf::LayerData {
         sdf::LayerRegistry::read_bytes(AssetBuffer::Owned(text.as_bytes().to_vec()), "t.usda").unwrap()
+    }
+
+    #[test]
+    fn only_layers_that_may_author_splines_are_flagged() {
+        let crate_of = |major: u8, minor: u8| {
+            let mut b = b"PXR-USDC".to_vec();
+            b.extend([major, minor, 0, 0, 0, 0, 0, 0]);
+            b
+        };
+        assert!(!may_hold_splines(&crate_of(0, 8)));
+        assert!(!may_hold_splines(&crate_of(0, 11)));
+        assert!(may_hold_splines(&crate_of(0, 12)));
+        assert!(may_hold_splines(&crate_of(1, 0)));
+        assert!(may_hold_splines(b"PXR-USDC"));
+        assert!(!may_hold_splines(b"#usda 1.0\ndef \"P\" {\n    double x = 1\n}\n"));
+        assert!(may_hold_splines(
+            b"#usda 1.0\ndef \"P\" {\n    double x.spline = { 1: 0 }\n}\n"
+        ));
+        assert!(!may_hold_splines(b"PK\x03\x04"));
+        assert!(may_hold_splines(b"something else"));
     }
 
     #[test]

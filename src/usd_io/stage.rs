@@ -180,6 +180,9 @@ pub struct StageReader {
     /// `inputStamp` then says so ([`super::clips::input_stamp`]), since the
     /// file on disk is not what was baked.
     pub unsaved: bool,
+    /// Whether a layer of the stage may author a spline (its bytes, as the
+    /// guard saw them): only then are reads checked for one.
+    pub(crate) splines: bool,
     /// Attributes (prim path, name) whose value no spline gives, once
     /// checked ([`StageReader::refuse_spline`]): a bake reads some every frame.
     pub(crate) no_spline: Mutex<std::collections::HashSet<(sdf::Path, String)>>,
@@ -561,6 +564,7 @@ impl StageReader {
         }
         let unresolved = unresolved_assets(&stage);
         Ok(StageReader {
+            splines: guard.may_hold_splines(),
             no_spline: Mutex::default(),
             stage,
             file: path.to_path_buf(),
@@ -955,6 +959,9 @@ impl StageReader {
     /// first; in one spec time samples (a map that is not empty), then a
     /// spline, then a default; then the value clips anchored in that layer.
     pub(crate) fn refuse_spline(&self, prim: &usd::Prim, name: &str) -> Result<()> {
+        if !self.splines {
+            return Ok(());
+        }
         let key = (prim.path().clone(), name.to_string());
         let lock = || self.no_spline.lock().unwrap_or_else(|e| e.into_inner());
         if lock().contains(&key) {
@@ -1038,6 +1045,9 @@ impl StageReader {
     /// [`Self::refuse_spline`] for every transform op of `prim` (once: the
     /// ops are those `xformOpOrder` names, which stands in for them all).
     fn refuse_transform_splines(&self, prim: &usd::Prim) -> Result<()> {
+        if !self.splines {
+            return Ok(());
+        }
         let key = (prim.path().clone(), "xformOpOrder".to_string());
         let lock = || self.no_spline.lock().unwrap_or_else(|e| e.into_inner());
         if lock().contains(&key) {
@@ -1603,6 +1613,7 @@ over "WeakClips" {
         )
         .unwrap();
         let r = StageReader::open(&strong).unwrap();
+        assert!(r.splines);
         let p = r.require_prim("/P").unwrap();
         let (strong_id, weak_id) = (strong.to_str().unwrap(), weak.to_str().unwrap());
         for (name, layer) in [
@@ -1664,6 +1675,15 @@ over "WeakClips" {
         assert!(!passed.contains(&(sdf::Path::new("/P").unwrap(), "alone".to_string())));
         assert!(!passed.contains(&(sdf::Path::new("/P").unwrap(), "xformOpOrder".to_string())));
         assert!(r.value(&p, "alone", Some(5.0)).is_err());
+
+        // A stage whose layers cannot hold a spline does not look for one.
+        let none = dir.path().join("none.usda");
+        std::fs::write(&none, "#usda 1.0\n(\n    subLayers = [@./clip.usda@]\n)\n").unwrap();
+        let r = StageReader::open(&none).unwrap();
+        assert!(!r.splines);
+        let clipped = r.require_prim("/Clipped").unwrap();
+        assert!(r.value(&clipped, "underClips", Some(5.0)).is_ok());
+        assert!(r.no_spline.lock().unwrap().is_empty());
     }
 
     #[test]
