@@ -1524,10 +1524,6 @@ mod tests {
         assert_eq!(r.value_source("/B", "x", None), None);
     }
 
-    /// A mapped reader keeps exactly the transforms nothing can vary (a
-    /// one-sample op is fixed; an animated parent is not, unless the child
-    /// resets the stack); an in-memory reader keeps none. Answers are
-    /// usd-core's either way (python_tests: test_one_sample_values_hold_at_every_frame).
     #[test]
     fn a_spline_is_refused_where_usd_reads_it_and_nowhere_else() {
         // Value resolution as usd-core 26.11 resolves it (checked with its
@@ -1686,6 +1682,10 @@ over "WeakClips" {
         assert!(r.no_spline.lock().unwrap().is_empty());
     }
 
+    /// A mapped reader keeps exactly the transforms nothing can vary (a
+    /// one-sample op is fixed; an animated parent is not, unless the child
+    /// resets the stack); an in-memory reader keeps none. Answers are
+    /// usd-core's either way (python_tests: test_one_sample_values_hold_at_every_frame).
     #[test]
     fn fixed_transforms_are_kept_only_where_nothing_varies() {
         let dir = TempDir::new().unwrap();
