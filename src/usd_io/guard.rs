@@ -93,6 +93,11 @@ pub struct FileId {
     mtime_ns: i128,
 }
 
+/// A file time (seconds and nanoseconds, as `stat` gives them) in nanoseconds.
+pub fn nanoseconds(secs: i64, nsec: i64) -> i128 {
+    i128::from(secs) * 1_000_000_000 + i128::from(nsec)
+}
+
 impl FileId {
     /// The file at `path` now, through links; None when it cannot be seen.
     pub fn of(path: &std::path::Path) -> Option<FileId> {
@@ -106,7 +111,7 @@ impl FileId {
             dev: m.dev(),
             ino: m.ino(),
             len: m.len(),
-            mtime_ns: i128::from(m.mtime()) * 1_000_000_000 + i128::from(m.mtime_nsec()),
+            mtime_ns: nanoseconds(m.mtime(), m.mtime_nsec()),
         }
     }
 

@@ -23,7 +23,7 @@ use std::sync::atomic::{AtomicBool, AtomicPtr, AtomicUsize, Ordering};
 
 use openusd::ar::{self, Asset, AssetBuffer, DefaultResolver, ResolvedPath, SharedBuffer};
 
-use super::guard::FileId;
+use super::guard::{nanoseconds, FileId};
 
 /// Why a path that is not a regular file is refused, in its error message.
 pub const NOT_REGULAR: &str = "not a regular file (a FIFO, device or socket)";
@@ -193,8 +193,10 @@ type Version = (FileId, i128);
 
 fn version_of(meta: &std::fs::Metadata) -> Version {
     use std::os::unix::fs::MetadataExt;
-    let ctime_ns = i128::from(meta.ctime()) * 1_000_000_000 + i128::from(meta.ctime_nsec());
-    (FileId::from_metadata(meta), ctime_ns)
+    (
+        FileId::from_metadata(meta),
+        nanoseconds(meta.ctime(), meta.ctime_nsec()),
+    )
 }
 
 /// Files read whole, by version: being read by some open, or read, with a

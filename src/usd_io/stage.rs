@@ -911,6 +911,13 @@ impl StageReader {
         Ok(targets.pop())
     }
 
+    /// Whether `name` is uniform in painterly's schema: a `painterly:`
+    /// attribute in [`PAINTERLY_UNIFORM`], or any attribute of a Painterly
+    /// typed prim.
+    fn schema_uniform(&self, prim: &usd::Prim, name: &str) -> Result<bool> {
+        Ok(PAINTERLY_UNIFORM.contains(&name) || self.type_name(prim)?.starts_with("Painterly"))
+    }
+
     /// Fails when `name` is uniform in painterly's schema (a `painterly:`
     /// attribute in [`PAINTERLY_UNIFORM`], or any attribute of a Painterly
     /// typed prim) and has time samples. Alone, its default, the only value
@@ -919,8 +926,7 @@ impl StageReader {
     /// default, usd-core's reads at a frame would see another value than
     /// painterly's.
     fn refuse_samples(&self, prim: &usd::Prim, name: &str, has_default: bool) -> Result<()> {
-        let uniform = PAINTERLY_UNIFORM.contains(&name) || self.type_name(prim)?.starts_with("Painterly");
-        if !uniform {
+        if !self.schema_uniform(prim, name)? {
             return Ok(());
         }
         // Beside a default, the specs down to it (blocks included: openusd
@@ -959,17 +965,11 @@ impl StageReader {
     /// first; in one spec time samples (a map that is not empty), then a
     /// spline, then a default; then the value clips anchored in that layer.
     pub(crate) fn refuse_spline(&self, prim: &usd::Prim, name: &str) -> Result<()> {
-        if !self.splines {
-            return Ok(());
-        }
-        let key = (prim.path().clone(), name.to_string());
-        let lock = || self.no_spline.lock().unwrap_or_else(|e| e.into_inner());
-        if lock().contains(&key) {
-            return Ok(());
-        }
-        if let Some(layer) = self.spline_source(prim, name) {
-            let uniform = PAINTERLY_UNIFORM.contains(&name) || self.type_name(prim)?.starts_with("Painterly");
-            let advice = match uniform {
+        self.once_without_spline(prim, name, || {
+            let Some(layer) = self.spline_source(prim, name) else {
+                return Ok(());
+            };
+            let advice = match self.schema_uniform(prim, name)? {
                 true => "the schema makes it uniform: remove the spline and keep a default",
                 false => {
                     "bake it to time samples first, e.g. in usd-core read attr.Get(t) at each frame, \
@@ -980,8 +980,22 @@ impl StageReader {
                 "is animated by a spline (`.spline` in {layer}), which painterly cannot evaluate (usd-core \
                  does; openusd 0.8 reads past splines): {advice}"
             );
-            return Err(Error::attr(prim.path(), name, message).rule(crate::rule::Rule::Unreadable));
+            Err(Error::attr(prim.path(), name, message).rule(crate::rule::Rule::Unreadable))
+        })
+    }
+
+    /// Runs `check` for `prim.name` on a stage that may hold a spline,
+    /// unless it passed before, and remembers a pass ([`Self::no_spline`]).
+    fn once_without_spline(&self, prim: &usd::Prim, name: &str, check: impl FnOnce() -> Result<()>) -> Result<()> {
+        if !self.splines {
+            return Ok(());
         }
+        let key = (prim.path().clone(), name.to_string());
+        let lock = || self.no_spline.lock().unwrap_or_else(|e| e.into_inner());
+        if lock().contains(&key) {
+            return Ok(());
+        }
+        check()?;
         lock().insert(key);
         Ok(())
     }
@@ -1045,22 +1059,16 @@ impl StageReader {
     /// [`Self::refuse_spline`] for every transform op of `prim` (once: the
     /// ops are those `xformOpOrder` names, which stands in for them all).
     fn refuse_transform_splines(&self, prim: &usd::Prim) -> Result<()> {
-        if !self.splines {
-            return Ok(());
-        }
-        let key = (prim.path().clone(), "xformOpOrder".to_string());
-        let lock = || self.no_spline.lock().unwrap_or_else(|e| e.into_inner());
-        if lock().contains(&key) {
-            return Ok(());
-        }
-        if let Ok(Some(x)) = Xformable::from_prim(prim.clone()) {
-            if let Ok((ops, _)) = x.ordered_xform_ops() {
-                ops.iter()
-                    .try_for_each(|op| self.refuse_spline(prim, op.attribute().name()))?;
-            }
-        }
-        lock().insert(key);
-        Ok(())
+        self.once_without_spline(prim, "xformOpOrder", || {
+            let Ok(Some(x)) = Xformable::from_prim(prim.clone()) else {
+                return Ok(());
+            };
+            let Ok((ops, _)) = x.ordered_xform_ops() else {
+                return Ok(());
+            };
+            ops.iter()
+                .try_for_each(|op| self.refuse_spline(prim, op.attribute().name()))
+        })
     }
 
     /// How many layers the stage opened (root, sublayers, references, ...).
